@@ -1,0 +1,60 @@
+// The complete state of one RVE as a plain struct: what the service and store
+// layers serialise. Restoring it gives a bit-identical continuation.
+#ifndef RVEHUB_RVE_SERVER_ENGINE_PACKING_H_
+#define RVEHUB_RVE_SERVER_ENGINE_PACKING_H_
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "absl/status/status.h"
+#include "rve_server/engine/material.h"
+
+namespace rvehub::dem {
+
+// Numerical controls of one RVE (configurable per RVE, checked on creation).
+struct Controls {
+  double time_step_factor = 0.5;      // Δt = factor·sqrt(m_min/kn_max), [-]
+  double max_inertial_number = 1e-3;  // I = γ̇·d_mean·sqrt(ρ/p) bound for Apply, [-]
+  double pressure_floor = 1e3;        // Pa; p used in I when the RVE is looser than this
+  std::int64_t min_steps = 20;        // DEM steps per Apply at least
+  double max_stretch = 0.05;          // per-Apply bound on |V − I| (Frobenius), [-]
+  double max_rotation = 0.5;          // per-Apply bound on the rigid rotation, rad
+  double mass_scale = 1.0;            // density scaling λ ≥ 1 for quasi-static work, [-]
+  double skin = 0.25;                 // Verlet skin as a fraction of the smallest radius, [-]
+};
+
+// History of one contact (or bonded pair), keyed by particle indices i < j.
+struct ContactHistory {
+  std::uint32_t i = 0;
+  std::uint32_t j = 0;
+  double tangential_force = 0.0;  // ft, N, along t = (−n_y, n_x), n from i to j
+  double rolling_moment = 0.0;    // M_r acting on i (−M_r on j), N·m
+  double bond_strength = 0.0;     // N; > 0 while the pair is bonded
+};
+
+struct Packing {
+  Material material;
+  Controls controls;
+  // Cell matrix h (m): columns are the two cell vectors; x = h·s.
+  Eigen::Matrix2d cell = Eigen::Matrix2d::Identity();
+  // Accumulated rigid rotation of the cell; local damping acts in this frame
+  // so that a rigid rotation of the RVE is exactly objective.
+  Eigen::Matrix2d frame = Eigen::Matrix2d::Identity();
+  std::vector<double> radius;                // m
+  std::vector<double> sx, sy;                // reduced coordinates, [-] (not wrapped)
+  std::vector<double> vx, vy;                // fluctuating velocity (total − L·x), m/s
+  std::vector<double> omega;                 // angular velocity, rad/s (counter-clockwise +)
+  std::vector<double> theta;                 // accumulated rotation, rad
+  std::vector<ContactHistory> contacts;      // sorted by (i, j)
+  double initial_void_ratio = 0.0;           // e0, [-]
+  double permeability_coefficient = 0.0;     // c in k = c·e³/(1+e), m/s
+  std::int64_t total_steps = 0;              // DEM steps since creation
+};
+
+absl::Status Validate(const Controls& c);
+
+}  // namespace rvehub::dem
+
+#endif  // RVEHUB_RVE_SERVER_ENGINE_PACKING_H_

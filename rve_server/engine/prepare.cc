@@ -1,0 +1,194 @@
+#include "rve_server/engine/prepare.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <optional>
+#include <random>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "rve_server/engine/rve.h"
+
+namespace rvehub::dem {
+namespace {
+
+// Uniform in [0, 1) from the top 53 bits: the same on every platform
+// (std::uniform_real_distribution is implementation-defined).
+double Uniform(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
+
+constexpr double kInitialSolidFraction = 0.35;  // loose enough to place discs quickly
+constexpr double kPressureTolerance = 0.01;     // |p − p0|/p0 at the end
+constexpr double kCompactionBalance = 1e-3;     // unbalanced-force ratio to end a trial
+constexpr double kFinalBalance = 1e-4;          // after friction is restored
+constexpr std::int64_t kChunk = 200;            // steps between convergence checks
+constexpr std::int64_t kMaxStepsPerStage = 600000;
+constexpr double kVoidRatioTolerance = 0.002;   // steering stops this close to the target
+constexpr int kMaxTrials = 7;
+
+// Isotropic stress control at p0 (tension-positive target −p0).
+CellControl Isotropic(const Rve& rve, double p0, double max_strain_per_step) {
+  CellControl c;
+  c.xx = {ControlMode::kStress, -p0};
+  c.yy = {ControlMode::kStress, -p0};
+  c.xy = {ControlMode::kStrainRate, 0.0};
+  c.max_strain_rate = max_strain_per_step / rve.time_step();
+  return c;
+}
+
+bool Converged(const RveState& s, double p0, double balance) {
+  const double p = -s.stress.trace() / 2.0;
+  const double q = 0.5 * std::abs(s.stress(0, 0) - s.stress(1, 1));
+  return s.num_contacts > 0 && std::abs(p - p0) < kPressureTolerance * p0 &&
+         q < kPressureTolerance * p0 && s.unbalanced_force_ratio < balance;
+}
+
+// Runs the isotropic servo until converged; returns the final state.
+absl::StatusOr<RveState> Servo(Rve& rve, double p0, double balance, std::int64_t* steps) {
+  // Fast while the packing is a gas, then the servo itself slows down near p0.
+  const CellControl control = Isotropic(rve, p0, 2e-5);
+  for (std::int64_t done = 0; done < kMaxStepsPerStage; done += kChunk) {
+    const RveState s = rve.Run(control, kChunk);
+    *steps += kChunk;
+    if (Converged(s, p0, balance)) return s;
+  }
+  const RveState s = rve.Observe();
+  return absl::DeadlineExceededError(absl::StrFormat(
+      "isotropic servo did not converge in %d steps: p = %.4g Pa (target %.4g), unbalanced %.3g",
+      kMaxStepsPerStage, -s.stress.trace() / 2.0, p0, s.unbalanced_force_ratio));
+}
+
+struct Trial {
+  double friction;
+  double void_ratio;
+  Packing packing;
+};
+
+}  // namespace
+
+Packing GenerateLoosePacking(const ParameterSet& set, const Controls& controls) {
+  const PreparationSpec& spec = set.preparation;
+  std::mt19937_64 rng(spec.seed);
+  Packing p;
+  p.material = set.material;
+  p.controls = controls;
+  const int n = spec.num_particles;
+  p.radius.resize(n);
+  for (double& r : p.radius) r = spec.radius_min + (spec.radius_max - spec.radius_min) * Uniform(rng);
+  // Largest first places quickly and is still a fixed function of the seed.
+  std::sort(p.radius.begin(), p.radius.end(), std::greater<>());
+  const double side = std::sqrt(SolidArea(p.radius) / kInitialSolidFraction);
+  p.cell = Eigen::Matrix2d::Identity() * side;
+  p.sx.reserve(n);
+  p.sy.reserve(n);
+  for (int i = 0; i < n; ++i) {
+    for (;;) {  // at this solid fraction a free spot is found in a few tries
+      const double x = Uniform(rng), y = Uniform(rng);
+      bool free = true;
+      for (int j = 0; j < i && free; ++j) {
+        double dx = x - p.sx[j], dy = y - p.sy[j];
+        dx = (dx - std::round(dx)) * side;
+        dy = (dy - std::round(dy)) * side;
+        const double reach = p.radius[i] + p.radius[j];
+        free = dx * dx + dy * dy >= reach * reach;
+      }
+      if (free) {
+        p.sx.push_back(x);
+        p.sy.push_back(y);
+        break;
+      }
+    }
+  }
+  p.vx.assign(n, 0.0);
+  p.vy.assign(n, 0.0);
+  p.omega.assign(n, 0.0);
+  p.theta.assign(n, 0.0);
+  return p;
+}
+
+absl::StatusOr<Packing> PreparePacking(const ParameterSet& set, const Controls& controls,
+                                       PreparationReport* report,
+                                       const std::function<void(const std::string&)>& progress) {
+  if (absl::Status s = Validate(set.material); !s.ok()) return s;
+  if (absl::Status s = Validate(set.preparation); !s.ok()) return s;
+  if (absl::Status s = Validate(controls); !s.ok()) return s;
+  const double p0 = set.preparation.pressure;
+  const double target = set.preparation.target_void_ratio;
+  const Packing loose = GenerateLoosePacking(set, controls);
+  std::int64_t steps = 0;
+  int trials = 0;
+
+  auto compact = [&](double friction) -> absl::StatusOr<Trial> {
+    Packing start = loose;
+    start.material.friction = friction;
+    absl::StatusOr<Rve> rve = Rve::Create(std::move(start));
+    if (!rve.ok()) return rve.status();
+    absl::StatusOr<RveState> s = Servo(*rve, p0, kCompactionBalance, &steps);
+    if (!s.ok()) return s.status();
+    ++trials;
+    if (progress) {
+      progress(absl::StrFormat("compaction trial %d: friction %.4f -> e = %.4f (target %.4f), %d steps",
+                               trials, friction, s->void_ratio, target, steps));
+    }
+    return Trial{friction, s->void_ratio, rve->ToPacking()};
+  };
+
+  // Steer e by the compaction friction: e grows with friction. Regula falsi
+  // between μ = 0 (densest) and the material friction (loosest).
+  absl::StatusOr<Trial> lo = compact(0.0);
+  if (!lo.ok()) return lo.status();
+  Trial best = *lo;
+  if (target > 0 && lo->void_ratio < target - kVoidRatioTolerance) {
+    absl::StatusOr<Trial> hi = compact(set.material.friction);
+    if (!hi.ok()) return hi.status();
+    if (std::abs(hi->void_ratio - target) < std::abs(best.void_ratio - target)) best = *hi;
+    Trial a = *lo, b = *hi;
+    while (b.void_ratio > target + kVoidRatioTolerance && trials < kMaxTrials &&
+           std::abs(best.void_ratio - target) > kVoidRatioTolerance) {
+      double w = (target - a.void_ratio) / (b.void_ratio - a.void_ratio);
+      w = std::clamp(w, 0.1, 0.9);  // keep away from the ends: e(μ) is noisy
+      absl::StatusOr<Trial> mid = compact(a.friction + w * (b.friction - a.friction));
+      if (!mid.ok()) return mid.status();
+      if (std::abs(mid->void_ratio - target) < std::abs(best.void_ratio - target)) best = *mid;
+      (mid->void_ratio < target ? a : b) = *mid;
+    }
+  }
+
+  // Restore the material friction and stabilise at p0.
+  best.packing.material.friction = set.material.friction;
+  absl::StatusOr<Rve> rve = Rve::Create(std::move(best.packing));
+  if (!rve.ok()) return rve.status();
+  rve->BondContacts();
+  // Servo to p0, then relax at fixed cell (a moving servo keeps stirring the
+  // packing); repeat if relaxing moved p out of tolerance.
+  absl::StatusOr<RveState> final_state;
+  for (int round = 0;; ++round) {
+    final_state = Servo(*rve, p0, kCompactionBalance, &steps);
+    if (!final_state.ok()) return final_state.status();
+    const RveState relaxed = rve->Relax(kFinalBalance, kMaxStepsPerStage / 4);
+    steps += relaxed.steps;
+    if (Converged(relaxed, p0, kFinalBalance)) {
+      final_state = relaxed;
+      break;
+    }
+    if (round == 5) {
+      return absl::DeadlineExceededError(absl::StrFormat(
+          "stabilisation at p0 did not converge: p = %.4g Pa, unbalanced %.3g",
+          -relaxed.stress.trace() / 2.0, relaxed.unbalanced_force_ratio));
+    }
+  }
+
+  Packing out = rve->ToPacking();
+  const double e0 = final_state->void_ratio;
+  out.initial_void_ratio = e0;
+  out.permeability_coefficient = set.preparation.initial_permeability * (1.0 + e0) / (e0 * e0 * e0);
+  std::fill(out.theta.begin(), out.theta.end(), 0.0);  // rotations count from the prepared state
+  out.total_steps = 0;
+  if (report != nullptr) {
+    *report = {best.friction, trials, e0, -final_state->stress.trace() / 2.0,
+               final_state->coordination, steps};
+  }
+  return out;
+}
+
+}  // namespace rvehub::dem

@@ -1,0 +1,38 @@
+// Generation and isotropic preparation of an RVE packing.
+#ifndef RVEHUB_RVE_SERVER_ENGINE_PREPARE_H_
+#define RVEHUB_RVE_SERVER_ENGINE_PREPARE_H_
+
+#include <cstdint>
+#include <functional>
+#include <string>
+
+#include "absl/status/statusor.h"
+#include "rve_server/engine/material.h"
+#include "rve_server/engine/packing.h"
+
+namespace rvehub::dem {
+
+struct PreparationReport {
+  double compaction_friction = 0.0;  // μ used while compacting, [-]
+  int trials = 0;                    // compactions run to steer e toward the target
+  double void_ratio = 0.0;           // e0 reached, [-]
+  double pressure = 0.0;             // p0 reached, Pa (compression +)
+  double coordination = 0.0;         // [-]
+  std::int64_t steps = 0;            // DEM steps over all trials
+};
+
+// Random discs, placed without overlap in a loose square cell (seeded,
+// platform-independent random numbers).
+Packing GenerateLoosePacking(const ParameterSet& set, const Controls& controls = {});
+
+// Generates N discs, compacts them isotropically by a cell servo to p0 with a
+// compaction friction steered (a few trials) so that e lands near the target,
+// restores the material friction and stabilises (p within 1 %, unbalanced
+// force ratio < 1e-4). `progress`, when set, receives one line per trial.
+absl::StatusOr<Packing> PreparePacking(const ParameterSet& set, const Controls& controls = {},
+                                       PreparationReport* report = nullptr,
+                                       const std::function<void(const std::string&)>& progress = {});
+
+}  // namespace rvehub::dem
+
+#endif  // RVEHUB_RVE_SERVER_ENGINE_PREPARE_H_

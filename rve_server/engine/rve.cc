@@ -1,0 +1,771 @@
+#include "rve_server/engine/rve.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <utility>
+
+#include <Eigen/Dense>
+
+#include "absl/strings/str_cat.h"
+#include "rve_server/engine/contact_law.h"
+
+namespace rvehub::dem {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+// Round to nearest (ties to even) by the 1.5·2^52 trick: two additions, no
+// libm call, exact for |x| < 2^51. Used for the minimum image in reduced
+// coordinates, which needs the cell to be reduced (MaybeFlip) and the cutoff
+// below half of each cell height (CheckCellSize).
+inline double RoundNearest(double x) {
+  constexpr double kMagic = 6755399441055744.0;
+  volatile double t = x + kMagic;  // volatile: keep the compiler from folding
+  return t - kMagic;
+}
+
+// sign(x) ∈ {−1, 0, 1}.
+inline double Sign(double x) { return (x > 0.0) - (x < 0.0); }
+
+// Heights of the cell (m): distance between the two pairs of opposite edges.
+Eigen::Vector2d CellHeights(const Eigen::Matrix2d& h) {
+  const double area = std::abs(h.determinant());
+  return {area / h.col(1).norm(), area / h.col(0).norm()};
+}
+
+// Singular values (min, max) of a 2×2 matrix, closed form.
+std::pair<double, double> SingularValues(const Eigen::Matrix2d& m) {
+  const double a = m.squaredNorm();
+  const double det = std::abs(m.determinant());
+  const double root = std::sqrt(std::max(a * a - 4.0 * det * det, 0.0));
+  return {std::sqrt(std::max((a - root) / 2.0, 0.0)), std::sqrt((a + root) / 2.0)};
+}
+
+Eigen::Matrix2d Rotation(double angle) {
+  const double c = std::cos(angle), s = std::sin(angle);
+  Eigen::Matrix2d r;
+  r << c, -s, s, c;
+  return r;
+}
+
+absl::Status CheckFinite(double v, absl::string_view what, std::size_t index) {
+  if (std::isfinite(v)) return absl::OkStatus();
+  return absl::InvalidArgumentError(absl::StrCat(what, "[", index, "] = ", v, " is not finite"));
+}
+
+// Scratch force arrays shared by every RVE on a thread (keeps RVEs small).
+struct Scratch {
+  std::vector<double> fx, fy, torque;
+  void Reset(std::size_t n) {
+    fx.assign(n, 0.0);
+    fy.assign(n, 0.0);
+    torque.assign(n, 0.0);
+  }
+};
+Scratch& ThreadScratch() {
+  thread_local Scratch scratch;
+  return scratch;
+}
+
+}  // namespace
+
+double SolidArea(const std::vector<double>& radius) {
+  double a = 0.0;
+  for (double r : radius) a += kPi * r * r;
+  return a;
+}
+
+absl::Status Validate(const Controls& c) {
+  auto check = [](bool ok, absl::string_view field, double v, absl::string_view rule) {
+    return ok && std::isfinite(v)
+               ? absl::OkStatus()
+               : absl::InvalidArgumentError(absl::StrCat(field, " = ", v, " is invalid: ", rule));
+  };
+  for (const absl::Status& s : {
+           check(c.time_step_factor > 0 && c.time_step_factor <= 1, "time_step_factor",
+                 c.time_step_factor, "must lie in (0, 1]"),
+           check(c.max_inertial_number > 0, "max_inertial_number", c.max_inertial_number,
+                 "must be > 0"),
+           check(c.pressure_floor > 0, "pressure_floor", c.pressure_floor, "must be > 0 Pa"),
+           check(c.min_steps >= 1, "min_steps", static_cast<double>(c.min_steps), "must be >= 1"),
+           check(c.max_stretch > 0, "max_stretch", c.max_stretch, "must be > 0"),
+           check(c.max_rotation > 0 && c.max_rotation <= kPi / 2, "max_rotation", c.max_rotation,
+                 "must lie in (0, π/2] rad"),
+           check(c.mass_scale >= 1, "mass_scale", c.mass_scale, "must be >= 1"),
+           check(c.skin > 0 && c.skin <= 2, "skin", c.skin, "must lie in (0, 2] (× r_min)"),
+       }) {
+    if (!s.ok()) return s;
+  }
+  return absl::OkStatus();
+}
+
+Rve::Rve(Packing packing) : p_(std::move(packing)) {
+  const auto [rmin, rmax] = std::minmax_element(p_.radius.begin(), p_.radius.end());
+  radius_min_ = *rmin;
+  radius_max_ = *rmax;
+  double sum = 0.0;
+  for (double r : p_.radius) sum += r;
+  radius_mean_ = sum / p_.radius.size();
+  solid_area_ = SolidArea(p_.radius);
+  const Material& m = p_.material;
+  const std::size_t n = p_.radius.size();
+  inv_mass_.resize(n);
+  inv_inertia_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double r = p_.radius[i];
+    const double mass = m.density * kPi * r * r * m.thickness * p_.controls.mass_scale;  // kg
+    inv_mass_[i] = 1.0 / mass;
+    inv_inertia_[i] = 2.0 / (mass * r * r);  // disc: I = ½ m r²
+  }
+  // Δt = factor·sqrt(m_min / kn_max). Linear: kn_max = E·r_max (two largest
+  // discs). Hertz: tangent stiffness at an overlap of 1 % of r_max.
+  const double m_min =
+      m.density * kPi * radius_min_ * radius_min_ * m.thickness * p_.controls.mass_scale;
+  double kn_max = m.young_modulus * radius_max_;
+  if (m.model == ContactModel::kHertzMindlin) {
+    const HertzResponse hz =
+        HertzMindlin(m.young_modulus, m.poisson_ratio, radius_max_, radius_max_, 0.01 * radius_max_);
+    kn_max = std::max(hz.kn, hz.kt);
+  } else {
+    kn_max *= std::max(1.0, m.stiffness_ratio);
+  }
+  dt_ = p_.controls.time_step_factor * std::sqrt(m_min / kn_max);
+  std::vector<ContactHistory> history = std::move(p_.contacts);
+  p_.contacts.clear();
+  Rebuild(history);
+}
+
+absl::StatusOr<Rve> Rve::Create(Packing p) {
+  if (absl::Status s = Validate(p.material); !s.ok()) return s;
+  if (absl::Status s = Validate(p.controls); !s.ok()) return s;
+  const std::size_t n = p.radius.size();
+  if (n < 2) return absl::InvalidArgumentError(absl::StrCat("packing has ", n, " particles; needs >= 2"));
+  if (n > (1u << 30)) return absl::InvalidArgumentError("packing has too many particles");
+  for (auto [vec, name] : {std::pair{&p.sx, "sx"}, {&p.sy, "sy"}, {&p.vx, "vx"}, {&p.vy, "vy"},
+                           {&p.omega, "omega"}, {&p.theta, "theta"}}) {
+    if (vec->size() != n) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("packing field ", name, " has ", vec->size(), " entries; radius has ", n));
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      if (absl::Status s = CheckFinite((*vec)[i], name, i); !s.ok()) return s;
+    }
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!(p.radius[i] > 0) || !std::isfinite(p.radius[i])) {
+      return absl::InvalidArgumentError(absl::StrCat("radius[", i, "] = ", p.radius[i], " must be > 0 m"));
+    }
+  }
+  if (!p.cell.allFinite() || !(p.cell.determinant() > 0)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("cell matrix must be finite with det > 0; det = ", p.cell.determinant()));
+  }
+  if (!p.frame.allFinite() ||
+      !(p.frame.transpose() * p.frame).isApprox(Eigen::Matrix2d::Identity(), 1e-9) ||
+      !(p.frame.determinant() > 0)) {
+    return absl::InvalidArgumentError("frame must be a rotation matrix");
+  }
+  for (std::size_t k = 0; k < p.contacts.size(); ++k) {
+    const ContactHistory& c = p.contacts[k];
+    if (c.i >= c.j || c.j >= n) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("contact ", k, " has indices (", c.i, ", ", c.j, "); need i < j < ", n));
+    }
+    if (k > 0 && !(std::pair(p.contacts[k - 1].i, p.contacts[k - 1].j) < std::pair(c.i, c.j))) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("contacts must be sorted by (i, j) without repeats; see entry ", k));
+    }
+    if (!std::isfinite(c.tangential_force) || !std::isfinite(c.rolling_moment) ||
+        !std::isfinite(c.bond_strength) || c.bond_strength < 0) {
+      return absl::InvalidArgumentError(absl::StrCat("contact ", k, " has a non-finite or negative value"));
+    }
+  }
+  if (p.material.model == ContactModel::kHertzMindlin && p.material.bond_cohesion > 0) {
+    return absl::InvalidArgumentError("contact bonds need the linear contact model");
+  }
+  const double rmax = *std::max_element(p.radius.begin(), p.radius.end());
+  const double rmin = *std::min_element(p.radius.begin(), p.radius.end());
+  const double cutoff = 2.0 * rmax + p.controls.skin * rmin;
+  if (CellHeights(p.cell).minCoeff() <= 2.0 * cutoff) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "cell is too small for its particles: the smaller cell height ", CellHeights(p.cell).minCoeff(),
+        " m must exceed twice the pair cutoff ", cutoff, " m"));
+  }
+  if (!std::isfinite(p.initial_void_ratio) || !std::isfinite(p.permeability_coefficient) ||
+      p.permeability_coefficient < 0) {
+    return absl::InvalidArgumentError("initial_void_ratio and permeability_coefficient must be finite, c >= 0");
+  }
+  return Rve(std::move(p));
+}
+
+double Rve::Cutoff() const { return 2.0 * radius_max_ + p_.controls.skin * radius_min_; }
+
+std::vector<ContactHistory> Rve::CollectHistory() const {
+  std::vector<ContactHistory> out;
+  const bool rolling = !nbr_moment_.empty(), bonds = !nbr_bond_.empty();
+  for (std::size_t i = 0; i + 1 < row_start_.size(); ++i) {
+    for (std::uint32_t k = row_start_[i]; k < row_start_[i + 1]; ++k) {
+      const double moment = rolling ? nbr_moment_[k] : 0.0;
+      const double bond = bonds ? nbr_bond_[k] : 0.0;
+      if (nbr_ft_[k] != 0.0 || moment != 0.0 || bond != 0.0) {
+        out.push_back({static_cast<std::uint32_t>(i), nbr_j_[k], nbr_ft_[k], moment, bond});
+      }
+    }
+  }
+  return out;
+}
+
+Packing Rve::ToPacking() const {
+  Packing out = p_;
+  out.contacts = CollectHistory();
+  return out;
+}
+
+std::size_t Rve::MemoryBytes() const {
+  auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+  return sizeof(*this) + bytes(p_.radius) + bytes(p_.sx) + bytes(p_.sy) + bytes(p_.vx) +
+         bytes(p_.vy) + bytes(p_.omega) + bytes(p_.theta) + bytes(p_.contacts) +
+         bytes(row_start_) + bytes(nbr_j_) + bytes(nbr_ft_) + bytes(nbr_moment_) +
+         bytes(nbr_bond_) + bytes(inv_mass_) + bytes(inv_inertia_) + p_.material.name.capacity();
+}
+
+// Cell-list neighbour search in reduced coordinates (valid for any cell shape
+// with enough bins), then a merge that carries the contact history over.
+void Rve::Rebuild(const std::vector<ContactHistory>& history) {
+  const std::size_t n = p_.radius.size();
+  const Eigen::Matrix2d& h = p_.cell;
+  const double cutoff_skin = p_.controls.skin * radius_min_;
+  const Eigen::Vector2d heights = CellHeights(h);
+  const double cutoff = Cutoff();
+  const int nbx = static_cast<int>(heights.x() / cutoff);
+  const int nby = static_cast<int>(heights.y() / cutoff);
+
+  std::vector<std::vector<std::uint32_t>> rows(n);
+  auto consider = [&](std::uint32_t i, std::uint32_t j) {
+    double dsx = p_.sx[j] - p_.sx[i];
+    double dsy = p_.sy[j] - p_.sy[i];
+    dsx -= RoundNearest(dsx);
+    dsy -= RoundNearest(dsy);
+    const double dx = h(0, 0) * dsx + h(0, 1) * dsy;
+    const double dy = h(1, 0) * dsx + h(1, 1) * dsy;
+    const double reach = p_.radius[i] + p_.radius[j] + cutoff_skin;
+    if (dx * dx + dy * dy < reach * reach) rows[std::min(i, j)].push_back(std::max(i, j));
+  };
+  if (nbx >= 3 && nby >= 3) {
+    const int nbins = nbx * nby;
+    std::vector<int> bin_of(n);
+    std::vector<std::uint32_t> bin_start(nbins + 1, 0), order(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double fx = p_.sx[i] - std::floor(p_.sx[i]);
+      const double fy = p_.sy[i] - std::floor(p_.sy[i]);
+      const int bx = std::min(static_cast<int>(fx * nbx), nbx - 1);
+      const int by = std::min(static_cast<int>(fy * nby), nby - 1);
+      bin_of[i] = by * nbx + bx;
+      ++bin_start[bin_of[i] + 1];
+    }
+    for (int b = 0; b < nbins; ++b) bin_start[b + 1] += bin_start[b];
+    std::vector<std::uint32_t> fill(bin_start.begin(), bin_start.end() - 1);
+    for (std::size_t i = 0; i < n; ++i) order[fill[bin_of[i]]++] = static_cast<std::uint32_t>(i);
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const int bx = bin_of[i] % nbx, by = bin_of[i] / nbx;
+      for (int oy = -1; oy <= 1; ++oy) {
+        for (int ox = -1; ox <= 1; ++ox) {
+          const int b = ((by + oy + nby) % nby) * nbx + (bx + ox + nbx) % nbx;
+          for (std::uint32_t k = bin_start[b]; k < bin_start[b + 1]; ++k) {
+            if (order[k] > i) consider(i, order[k]);
+          }
+        }
+      }
+    }
+  } else {
+    for (std::uint32_t i = 0; i < n; ++i) {
+      for (std::uint32_t j = i + 1; j < n; ++j) consider(i, j);
+    }
+  }
+  // Bonded pairs stay listed whatever their distance.
+  for (const ContactHistory& c : history) {
+    if (c.bond_strength > 0) rows[c.i].push_back(c.j);
+  }
+
+  const bool rolling = p_.material.rolling_beta > 0;
+  const bool bonds = p_.material.bond_cohesion > 0 ||
+                     std::any_of(history.begin(), history.end(),
+                                 [](const ContactHistory& c) { return c.bond_strength > 0; });
+  row_start_.assign(n + 1, 0);
+  nbr_j_.clear();
+  for (std::uint32_t i = 0; i < n; ++i) {
+    std::vector<std::uint32_t>& r = rows[i];
+    std::sort(r.begin(), r.end());
+    r.erase(std::unique(r.begin(), r.end()), r.end());
+    nbr_j_.insert(nbr_j_.end(), r.begin(), r.end());
+    row_start_[i + 1] = static_cast<std::uint32_t>(nbr_j_.size());
+  }
+  nbr_j_.shrink_to_fit();
+  nbr_ft_.assign(nbr_j_.size(), 0.0);
+  nbr_moment_.assign(rolling ? nbr_j_.size() : 0, 0.0);
+  nbr_bond_.assign(bonds ? nbr_j_.size() : 0, 0.0);
+  // Merge: both sequences are sorted by (i, j).
+  for (const ContactHistory& c : history) {
+    auto begin = nbr_j_.begin() + row_start_[c.i], end = nbr_j_.begin() + row_start_[c.i + 1];
+    auto it = std::lower_bound(begin, end, c.j);
+    if (it == end || *it != c.j) continue;  // out of reach: not in contact, no history
+    const std::size_t k = it - nbr_j_.begin();
+    nbr_ft_[k] = c.tangential_force;
+    if (rolling) nbr_moment_[k] = c.rolling_moment;
+    if (bonds) nbr_bond_[k] = c.bond_strength;
+  }
+  cell_at_build_ = p_.cell;
+  displacement_bound_ = 0.0;
+}
+
+void Rve::MaybeRebuild() {
+  // A pair not listed was at least r_i + r_j + skin apart at the rebuild; it
+  // can touch only once the cell's stretch and the particles' own motion
+  // have eaten the skin.
+  const auto [smin, smax] = SingularValues(p_.cell * cell_at_build_.inverse());
+  const double skin = p_.controls.skin * radius_min_;
+  const double eaten = 2.0 * 1.25 * displacement_bound_ +
+                       std::max(0.0, 1.0 - smin) * 2.0 * radius_max_;
+  if (eaten >= smin * skin || smax > 1.1) Rebuild(CollectHistory());
+}
+
+// Keeps the cell reduced (|a·b| ≤ ½|a|², ½|b|²) by an exact change of
+// lattice basis, so shear can go on without limit.
+void Rve::MaybeFlip() {
+  const Eigen::Vector2d a = p_.cell.col(0), b = p_.cell.col(1);
+  const double ab = a.dot(b);
+  int kb = 0, ka = 0;
+  if (std::abs(ab) > 0.55 * a.squaredNorm()) kb = static_cast<int>(std::lround(ab / a.squaredNorm()));
+  else if (std::abs(ab) > 0.55 * b.squaredNorm()) ka = static_cast<int>(std::lround(ab / b.squaredNorm()));
+  if (kb == 0 && ka == 0) return;
+  const std::size_t n = p_.radius.size();
+  if (kb != 0) {  // b' = b − kb·a; s'_x = s_x + kb·s_y
+    p_.cell.col(1) = b - kb * a;
+    for (std::size_t i = 0; i < n; ++i) p_.sx[i] += kb * p_.sy[i];
+  } else {  // a' = a − ka·b; s'_y = s_y + ka·s_x
+    p_.cell.col(0) = a - ka * b;
+    for (std::size_t i = 0; i < n; ++i) p_.sy[i] += ka * p_.sx[i];
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    p_.sx[i] -= std::floor(p_.sx[i]);
+    p_.sy[i] -= std::floor(p_.sy[i]);
+  }
+  Rebuild(CollectHistory());
+}
+
+void Rve::ApplyRigidRotation(double angle) {
+  if (angle == 0.0) return;
+  const Eigen::Matrix2d r = Rotation(angle);
+  p_.cell = r * p_.cell;
+  p_.frame = r * p_.frame;
+  cell_at_build_ = r * cell_at_build_;
+  for (std::size_t i = 0; i < p_.radius.size(); ++i) {
+    const double vx = p_.vx[i], vy = p_.vy[i];
+    p_.vx[i] = r(0, 0) * vx + r(0, 1) * vy;
+    p_.vy[i] = r(1, 0) * vx + r(1, 1) * vy;
+    p_.theta[i] += angle;
+  }
+}
+
+template <bool kRolling, bool kBonds, bool kHertz>
+Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
+  const std::size_t n = p_.radius.size();
+  const Material& mat = p_.material;
+  const double dt = dt_;
+  const double h00 = p_.cell(0, 0), h01 = p_.cell(0, 1), h10 = p_.cell(1, 0), h11 = p_.cell(1, 1);
+  const double l00 = l(0, 0), l01 = l(0, 1), l10 = l(1, 0), l11 = l(1, 1);
+  const double young = mat.young_modulus, kt_ratio = mat.stiffness_ratio, mu = mat.friction;
+  const double* rad = p_.radius.data();
+  const double* sx = p_.sx.data();
+  const double* sy = p_.sy.data();
+  const double* vx = p_.vx.data();
+  const double* vy = p_.vy.data();
+  const double* om = p_.omega.data();
+  Scratch& scratch = ThreadScratch();
+  scratch.Reset(n);
+  double* fx = scratch.fx.data();
+  double* fy = scratch.fy.data();
+  double* tq = scratch.torque.data();
+  double sxx = 0, sxy = 0, syx = 0, syy = 0, kxx = 0, kyy = 0, elastic = 0;
+
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const double ri = rad[i], sxi = sx[i], syi = sy[i], vxi = vx[i], vyi = vy[i], omi = om[i];
+    double fxi = 0, fyi = 0, tqi = 0;
+    for (std::uint32_t k = row_start_[i]; k < row_start_[i + 1]; ++k) {
+      const std::uint32_t j = nbr_j_[k];
+      double dsx = sx[j] - sxi, dsy = sy[j] - syi;
+      dsx -= RoundNearest(dsx);
+      dsy -= RoundNearest(dsy);
+      const double dx = h00 * dsx + h01 * dsy;  // branch vector i → j, m
+      const double dy = h10 * dsx + h11 * dsy;
+      const double rj = rad[j], rsum = ri + rj;
+      const double d2 = dx * dx + dy * dy;
+      bool bonded = kBonds && nbr_bond_[k] > 0;
+      if (d2 >= rsum * rsum && !bonded) {
+        nbr_ft_[k] = 0.0;
+        if constexpr (kRolling) nbr_moment_[k] = 0.0;
+        continue;
+      }
+      const double dist = std::sqrt(d2);
+      const double inv = 1.0 / dist;
+      const double nx = dx * inv, ny = dy * inv, tx = -ny, ty = nx;
+      const double overlap = rsum - dist;  // m; < 0 only for a stretched bond
+      double fn, kn, kt;
+      if constexpr (kHertz) {
+        const HertzResponse hz = HertzMindlin(young, mat.poisson_ratio, ri, rj, overlap);
+        fn = hz.fn;
+        kn = hz.kn;
+        kt = hz.kt;
+        elastic += 0.4 * fn * overlap;  // ∫ fn dδ = (2/5) fn δ
+      } else {
+        kn = young * EffectiveRadius(ri, rj);
+        kt = kt_ratio * kn;
+        fn = kn * overlap;
+        elastic += 0.5 * fn * overlap;
+      }
+      // Lever arms to the common contact point make a rigid motion of the
+      // pair produce no relative tangential velocity.
+      const double li = ri - 0.5 * overlap, lj = rj - 0.5 * overlap;
+      const double vrx = vx[j] - vxi + l00 * dx + l01 * dy;
+      const double vry = vy[j] - vyi + l10 * dx + l11 * dy;
+      const double vt = vrx * tx + vry * ty - (omi * li + om[j] * lj);
+      double ft = nbr_ft_[k] + kt * vt * dt;
+      if constexpr (kBonds) {
+        if (bonded && (-fn > nbr_bond_[k] || std::abs(ft) > nbr_bond_[k])) {
+          nbr_bond_[k] = 0.0;  // broken: purely frictional from now on
+          bonded = false;
+        }
+        if (!bonded && overlap <= 0.0) {
+          nbr_ft_[k] = 0.0;
+          if constexpr (kRolling) nbr_moment_[k] = 0.0;
+          continue;
+        }
+      }
+      if (!bonded) ft = CoulombCap(ft, fn, mu);
+      nbr_ft_[k] = ft;
+      double moment = 0.0;
+      if constexpr (kRolling) {
+        const double kr = RollingStiffness(kt, ri, rj, mat.rolling_beta);
+        const double limit = RollingLimit(mat.rolling_eta, ri, rj, fn);
+        moment = std::clamp(nbr_moment_[k] - kr * (omi - om[j]) * dt, -limit, limit);
+        nbr_moment_[k] = moment;
+      }
+      const double fcx = -fn * nx + ft * tx;  // force on i, N
+      const double fcy = -fn * ny + ft * ty;
+      fxi += fcx;
+      fyi += fcy;
+      fx[j] -= fcx;
+      fy[j] -= fcy;
+      tqi += li * ft + moment;
+      tq[j] += lj * ft - moment;
+      sxx += fcx * dx;
+      sxy += fcx * dy;
+      syx += fcy * dx;
+      syy += fcy * dy;
+      const double kd2 = kn * d2;
+      kxx += kd2 * (nx * nx) * (nx * nx);
+      kyy += kd2 * (ny * ny) * (ny * ny);
+    }
+    fx[i] += fxi;
+    fy[i] += fyi;
+    tq[i] += tqi;
+  }
+
+  // Leapfrog with local non-viscous damping, acting in the cell's frame.
+  const double alpha = mat.damping;
+  const Eigen::Matrix2d& q = p_.frame;
+  const bool rotated = q != Eigen::Matrix2d::Identity();
+  const Eigen::Matrix2d hinv = p_.cell.inverse();
+  double* wvx = p_.vx.data();
+  double* wvy = p_.vy.data();
+  double* wom = p_.omega.data();
+  double* wsx = p_.sx.data();
+  double* wsy = p_.sy.data();
+  double* wth = p_.theta.data();
+  double kinetic2 = 0, vmax2 = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    double ax, ay;
+    if (!rotated) {
+      ax = (fx[i] - alpha * std::abs(fx[i]) * Sign(wvx[i])) * inv_mass_[i];
+      ay = (fy[i] - alpha * std::abs(fy[i]) * Sign(wvy[i])) * inv_mass_[i];
+    } else {
+      const double lfx = q(0, 0) * fx[i] + q(1, 0) * fy[i], lfy = q(0, 1) * fx[i] + q(1, 1) * fy[i];
+      const double lvx = q(0, 0) * wvx[i] + q(1, 0) * wvy[i], lvy = q(0, 1) * wvx[i] + q(1, 1) * wvy[i];
+      const double dfx = -alpha * std::abs(lfx) * Sign(lvx), dfy = -alpha * std::abs(lfy) * Sign(lvy);
+      ax = (fx[i] + q(0, 0) * dfx + q(0, 1) * dfy) * inv_mass_[i];
+      ay = (fy[i] + q(1, 0) * dfx + q(1, 1) * dfy) * inv_mass_[i];
+    }
+    const double aw = (tq[i] - alpha * std::abs(tq[i]) * Sign(wom[i])) * inv_inertia_[i];
+    // Velocities at the force time (mean of the two half steps) for the energy.
+    const double ux = wvx[i] + 0.5 * dt * ax, uy = wvy[i] + 0.5 * dt * ay, uw = wom[i] + 0.5 * dt * aw;
+    kinetic2 += (ux * ux + uy * uy) / inv_mass_[i] + uw * uw / inv_inertia_[i];
+    wvx[i] += dt * ax;
+    wvy[i] += dt * ay;
+    wom[i] += dt * aw;
+    wth[i] += dt * wom[i];
+    const double dxr = dt * wvx[i], dyr = dt * wvy[i];
+    wsx[i] += hinv(0, 0) * dxr + hinv(0, 1) * dyr;
+    wsy[i] += hinv(1, 0) * dxr + hinv(1, 1) * dyr;
+    vmax2 = std::max(vmax2, wvx[i] * wvx[i] + wvy[i] * wvy[i]);
+  }
+  displacement_bound_ += std::sqrt(vmax2) * dt;
+  energy_ = {0.5 * kinetic2, elastic};
+
+  const double volume = p_.cell.determinant() * mat.thickness;
+  StepResult out;
+  out.stress << sxx / volume, sxy / volume, syx / volume, syy / volume;
+  out.stiffness = Eigen::Vector2d(kxx, kyy) / volume;
+  return out;
+}
+
+Rve::StepResult Rve::Step(const Eigen::Matrix2d& l, const Eigen::Matrix2d& next_cell) {
+  const bool rolling = !nbr_moment_.empty(), bonds = !nbr_bond_.empty();
+  const bool hertz = p_.material.model == ContactModel::kHertzMindlin;
+  StepResult r;
+  if (hertz) {
+    r = rolling ? StepImpl<true, false, true>(l) : StepImpl<false, false, true>(l);
+  } else if (rolling) {
+    r = bonds ? StepImpl<true, true, false>(l) : StepImpl<true, false, false>(l);
+  } else {
+    r = bonds ? StepImpl<false, true, false>(l) : StepImpl<false, false, false>(l);
+  }
+  p_.cell = next_cell;
+  ++p_.total_steps;
+  MaybeFlip();
+  MaybeRebuild();
+  return r;
+}
+
+double Rve::QuasiStaticStrainRate(double inertial_number, double pressure) const {
+  const double p = std::max(pressure, p_.controls.pressure_floor);
+  const double rho = p_.material.density * p_.controls.mass_scale;
+  return inertial_number / (2.0 * radius_mean_ * std::sqrt(rho / p));  // I = γ̇ d sqrt(ρ/p)
+}
+
+absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyOptions& options) {
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) {
+      if (!std::isfinite(delta_f(r, c))) {
+        return absl::InvalidArgumentError(absl::StrCat("ΔF(", r, ",", c, ") = ", delta_f(r, c),
+                                                       " is not finite"));
+      }
+    }
+  }
+  constexpr double kPlaneTol = 1e-12;
+  if (std::abs(delta_f(2, 2) - 1.0) > kPlaneTol || std::abs(delta_f(0, 2)) > kPlaneTol ||
+      std::abs(delta_f(1, 2)) > kPlaneTol || std::abs(delta_f(2, 0)) > kPlaneTol ||
+      std::abs(delta_f(2, 1)) > kPlaneTol) {
+    return absl::InvalidArgumentError(
+        "ΔF must be plane strain for a 2-D RVE: ΔF_zz = 1 and no out-of-plane coupling");
+  }
+  const Eigen::Matrix2d f = delta_f.topLeftCorner<2, 2>();
+  if (!(f.determinant() > 0)) {
+    return absl::InvalidArgumentError(absl::StrCat("det ΔF = ", f.determinant(), " must be > 0"));
+  }
+  // Polar split ΔF = V·R: rotate rigidly (exact, objective), then stretch.
+  const double angle = std::atan2(f(1, 0) - f(0, 1), f(0, 0) + f(1, 1));
+  const Eigen::Matrix2d v = f * Rotation(angle).transpose();
+  const double stretch = (v - Eigen::Matrix2d::Identity()).norm();
+  if (std::abs(angle) > p_.controls.max_rotation) {
+    return absl::InvalidArgumentError(absl::StrCat("rotation of ΔF ", angle,
+                                                   " rad exceeds the per-call limit ",
+                                                   p_.controls.max_rotation, " rad"));
+  }
+  if (stretch > p_.controls.max_stretch) {
+    return absl::InvalidArgumentError(absl::StrCat("stretch |V − I| = ", stretch,
+                                                   " of ΔF exceeds the per-call limit ",
+                                                   p_.controls.max_stretch));
+  }
+  if (CellHeights(f * p_.cell).minCoeff() <= 2.0 * Cutoff()) {
+    return absl::FailedPreconditionError(
+        "ΔF would make the periodic cell thinner than twice the pair cutoff");
+  }
+
+  ApplyRigidRotation(angle);
+  const Eigen::Matrix2d start = p_.cell;
+  const Eigen::Matrix2d identity = Eigen::Matrix2d::Identity();
+  const double pressure = -Observe().stress.trace() / 2.0;
+  const double rate = QuasiStaticStrainRate(p_.controls.max_inertial_number, pressure);
+  const double steps_needed = std::ceil(stretch / (rate * dt_));
+  const std::int64_t steps =
+      std::max<std::int64_t>(p_.controls.min_steps, static_cast<std::int64_t>(steps_needed));
+  for (std::int64_t k = 0; k < steps; ++k) {
+    const double tau = static_cast<double>(k + 1) / static_cast<double>(steps);
+    const Eigen::Matrix2d next = (identity + (v - identity) * tau) * start;
+    const Eigen::Matrix2d l = (next - p_.cell) * p_.cell.inverse() / dt_;
+    Step(l, next);
+  }
+  std::int64_t used = steps;
+  if (options.relax) used += Relax(options.relax_tolerance, options.relax_max_steps).steps;
+  RveState s = Observe(options.want_tangent);
+  s.steps = used;
+  return s;
+}
+
+RveState Rve::Run(const CellControl& control, std::int64_t steps) {
+  RveState first = Observe();
+  Eigen::Matrix2d stress = first.stress.topLeftCorner<2, 2>();
+  Eigen::Vector2d stiffness = Eigen::Vector2d::Zero();
+  const double cap = control.max_strain_rate;
+  auto servo = [&](const ComponentControl& c, double sigma, double k) {
+    if (c.mode == ControlMode::kStrainRate) return c.value;
+    // Δσ ≈ K·L·Δt: close a fraction of the gap per step.
+    const double gap = c.value - sigma;
+    const double rate = k > 0 ? control.servo_gain * gap / (k * dt_) : Sign(gap) * cap;
+    return std::clamp(rate, -cap, cap);
+  };
+  for (std::int64_t k = 0; k < steps; ++k) {
+    Eigen::Matrix2d l = Eigen::Matrix2d::Zero();
+    l(0, 0) = servo(control.xx, stress(0, 0), stiffness.x());
+    l(1, 1) = servo(control.yy, stress(1, 1), stiffness.y());
+    l(0, 1) = servo(control.xy, 0.5 * (stress(0, 1) + stress(1, 0)), 0.25 * stiffness.sum());
+    const Eigen::Matrix2d next = p_.cell + dt_ * l * p_.cell;
+    const StepResult r = Step(l, next);
+    stress = r.stress;
+    stiffness = r.stiffness;
+  }
+  RveState s = Observe();
+  s.steps = steps;
+  return s;
+}
+
+RveState Rve::Relax(double tolerance, std::int64_t max_steps) {
+  constexpr std::int64_t kCheckEvery = 50;
+  std::int64_t done = 0;
+  RveState s = Observe();
+  while (done < max_steps && !(s.unbalanced_force_ratio < tolerance && s.num_contacts > 0)) {
+    const std::int64_t chunk = std::min(kCheckEvery, max_steps - done);
+    for (std::int64_t k = 0; k < chunk; ++k) Step(Eigen::Matrix2d::Zero(), p_.cell);
+    done += chunk;
+    s = Observe();
+  }
+  s.steps = done;
+  return s;
+}
+
+RveState Rve::Observe(bool want_tangent) const {
+  const std::size_t n = p_.radius.size();
+  const Material& mat = p_.material;
+  const Eigen::Matrix2d& h = p_.cell;
+  Scratch& scratch = ThreadScratch();
+  scratch.Reset(n);  // fx, fy: resultant force; torque: contact count
+  Eigen::Matrix2d stress = Eigen::Matrix2d::Zero(), fabric = Eigen::Matrix2d::Zero();
+  double d[2][2][2][2] = {};
+  double force_sum = 0.0;
+  std::int64_t nc = 0;
+  const bool bonds = !nbr_bond_.empty();
+  for (std::uint32_t i = 0; i < n; ++i) {
+    for (std::uint32_t k = row_start_[i]; k < row_start_[i + 1]; ++k) {
+      const std::uint32_t j = nbr_j_[k];
+      double dsx = p_.sx[j] - p_.sx[i], dsy = p_.sy[j] - p_.sy[i];
+      dsx -= RoundNearest(dsx);
+      dsy -= RoundNearest(dsy);
+      const Eigen::Vector2d br(h(0, 0) * dsx + h(0, 1) * dsy, h(1, 0) * dsx + h(1, 1) * dsy);
+      const double rsum = p_.radius[i] + p_.radius[j];
+      const bool bonded = bonds && nbr_bond_[k] > 0;
+      const double dist = br.norm();
+      if (dist >= rsum && !bonded) continue;
+      const Eigen::Vector2d nn = br / dist, t(-nn.y(), nn.x());
+      const double overlap = rsum - dist;
+      double fn, kn, kt;
+      if (mat.model == ContactModel::kHertzMindlin) {
+        const HertzResponse hz =
+            HertzMindlin(mat.young_modulus, mat.poisson_ratio, p_.radius[i], p_.radius[j], overlap);
+        fn = hz.fn;
+        kn = hz.kn;
+        kt = hz.kt;
+      } else {
+        kn = mat.young_modulus * EffectiveRadius(p_.radius[i], p_.radius[j]);
+        kt = mat.stiffness_ratio * kn;
+        fn = kn * overlap;
+      }
+      const Eigen::Vector2d f = -fn * nn + nbr_ft_[k] * t;  // on i
+      stress += f * br.transpose();
+      fabric += nn * nn.transpose();
+      force_sum += f.norm();
+      scratch.fx[i] += f.x();
+      scratch.fy[i] += f.y();
+      scratch.fx[j] -= f.x();
+      scratch.fy[j] -= f.y();
+      scratch.torque[i] += 1.0;
+      scratch.torque[j] += 1.0;
+      ++nc;
+      if (want_tangent) {
+        for (int a = 0; a < 2; ++a)
+          for (int b = 0; b < 2; ++b)
+            for (int c = 0; c < 2; ++c)
+              for (int e = 0; e < 2; ++e)
+                d[a][b][c][e] += kn * nn[a] * br[b] * nn[c] * br[e] + kt * t[a] * br[b] * t[c] * br[e];
+      }
+    }
+  }
+  RveState s;
+  const double area = h.determinant();
+  s.volume = area * mat.thickness;
+  const Eigen::Matrix2d sym = 0.5 * (stress + stress.transpose()) / s.volume;
+  s.stress.topLeftCorner<2, 2>() = sym;
+  s.num_contacts = nc;
+  if (nc > 0) {
+    s.fabric_defined = true;
+    const Eigen::Matrix2d phi = fabric / static_cast<double>(nc);
+    s.fabric.topLeftCorner<2, 2>() = phi;
+    const Eigen::Matrix2d fa = 4.0 * (phi - 0.5 * Eigen::Matrix2d::Identity());
+    s.fabric_anisotropy_tensor.topLeftCorner<2, 2>() = fa;
+    s.fabric_anisotropy = std::sqrt(0.5 * fa.squaredNorm());
+  }
+  s.void_ratio = (area - solid_area_) / solid_area_;
+  s.porosity = s.void_ratio / (1.0 + s.void_ratio);
+  s.coordination = 2.0 * static_cast<double>(nc) / static_cast<double>(n);
+  double n0 = 0, n1 = 0, resultant = 0, rotation = 0, kinetic = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    n0 += scratch.torque[i] == 0.0;
+    n1 += scratch.torque[i] == 1.0;
+    resultant += std::hypot(scratch.fx[i], scratch.fy[i]);
+    rotation += p_.theta[i];
+    kinetic += (p_.vx[i] * p_.vx[i] + p_.vy[i] * p_.vy[i]) / inv_mass_[i] +
+               p_.omega[i] * p_.omega[i] / inv_inertia_[i];
+  }
+  // Thornton's mechanical coordination: rattlers (0 or 1 contact) left out.
+  const double active = static_cast<double>(n) - n0 - n1;
+  s.mechanical_coordination = active > 0 ? (2.0 * static_cast<double>(nc) - n1) / active : 0.0;
+  s.unbalanced_force_ratio =
+      nc > 0 ? (resultant / static_cast<double>(n)) / (force_sum / static_cast<double>(nc)) : 0.0;
+  s.mean_rotation = rotation / static_cast<double>(n);
+  s.kinetic_energy = 0.5 * kinetic;
+  const double e = std::max(s.void_ratio, 0.0);
+  s.permeability = p_.permeability_coefficient * e * e * e / (1.0 + e);
+  s.time_step = dt_;
+  s.mass_scale = p_.controls.mass_scale;
+  if (want_tangent) {
+    s.has_tangent = true;
+    for (int a = 0; a < 2; ++a)
+      for (int b = 0; b < 2; ++b)
+        for (int c = 0; c < 2; ++c)
+          for (int e2 = 0; e2 < 2; ++e2) s.tangent(3 * a + b, 3 * c + e2) = d[a][b][c][e2] / s.volume;
+  }
+  return s;
+}
+
+void Rve::SetFriction(double friction) { p_.material.friction = friction; }
+
+void Rve::BondContacts() {
+  const double c = p_.material.bond_cohesion;
+  if (c <= 0) return;
+  if (nbr_bond_.size() != nbr_j_.size()) nbr_bond_.assign(nbr_j_.size(), 0.0);
+  const Eigen::Matrix2d& h = p_.cell;
+  for (std::uint32_t i = 0; i + 1 < row_start_.size(); ++i) {
+    for (std::uint32_t k = row_start_[i]; k < row_start_[i + 1]; ++k) {
+      const std::uint32_t j = nbr_j_[k];
+      double dsx = p_.sx[j] - p_.sx[i], dsy = p_.sy[j] - p_.sy[i];
+      dsx -= RoundNearest(dsx);
+      dsy -= RoundNearest(dsy);
+      const Eigen::Vector2d br(h(0, 0) * dsx + h(0, 1) * dsy, h(1, 0) * dsx + h(1, 1) * dsy);
+      if (br.norm() < p_.radius[i] + p_.radius[j]) {
+        nbr_bond_[k] = BondStrength(c, p_.radius[i], p_.radius[j]);
+      }
+    }
+  }
+}
+
+}  // namespace rvehub::dem

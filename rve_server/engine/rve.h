@@ -1,0 +1,149 @@
+// One representative volume element: a 2-D periodic packing of discs driven
+// by its cell (deformation gradient or mixed stress/strain control) and
+// homogenised into continuum quantities.
+#ifndef RVEHUB_RVE_SERVER_ENGINE_RVE_H_
+#define RVEHUB_RVE_SERVER_ENGINE_RVE_H_
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "absl/status/statusor.h"
+#include "rve_server/engine/packing.h"
+
+namespace rvehub::dem {
+
+// Homogenised state of an RVE. Tensors are 3×3 (plane strain): the 2-D RVE
+// carries no out-of-plane stress, so σzz = σxz = σyz = 0.
+struct RveState {
+  Eigen::Matrix3d stress = Eigen::Matrix3d::Zero();  // Love–Weber Cauchy σ, Pa, tension +
+  Eigen::Matrix3d fabric = Eigen::Matrix3d::Zero();  // φ = (1/Nc)Σ n⊗n, [-]
+  Eigen::Matrix3d fabric_anisotropy_tensor = Eigen::Matrix3d::Zero();  // 4(φ − I/2), [-]
+  double fabric_anisotropy = 0.0;  // Fa = sqrt(½ Fa:Fa), [-]
+  bool fabric_defined = false;     // false when the RVE has no contacts
+  double void_ratio = 0.0;         // e = (A_cell − A_solid)/A_solid, 2-D areas, [-]
+  double porosity = 0.0;           // n = e/(1+e), [-]
+  double coordination = 0.0;       // Z = 2·Nc/N, [-]
+  double mechanical_coordination = 0.0;  // without rattlers (< 2 contacts), [-]
+  double permeability = 0.0;       // k = c·e³/(1+e), m/s
+  double mean_rotation = 0.0;      // mean particle rotation since creation, rad (ccw +)
+  double kinetic_energy = 0.0;     // J (translational fluctuation + rotational)
+  double unbalanced_force_ratio = 0.0;  // mean |Σ F on particle| / mean |contact force|
+  std::int64_t num_contacts = 0;
+  double volume = 0.0;             // V = A·t, m³
+  // Of the call that produced this state:
+  std::int64_t steps = 0;          // DEM steps used
+  double time_step = 0.0;          // s
+  double mass_scale = 1.0;         // density scaling used
+  bool has_tangent = false;
+  // Elastic tangent from contacts, D_ijkl = (1/V)Σ(kn n_i d_j n_k d_l + kt t_i d_j t_k d_l),
+  // Pa, stored as D(3i+j, 3k+l).
+  Eigen::Matrix<double, 9, 9> tangent = Eigen::Matrix<double, 9, 9>::Zero();
+};
+
+struct ApplyOptions {
+  bool relax = false;                // after the increment, relax at fixed cell
+  double relax_tolerance = 1e-4;     // unbalanced-force ratio to stop relaxing
+  std::int64_t relax_max_steps = 20000;
+  bool want_tangent = false;
+};
+
+// Mixed control of the cell for element tests and preparation.
+enum class ControlMode { kStrainRate, kStress };
+struct ComponentControl {
+  ControlMode mode = ControlMode::kStrainRate;
+  double value = 0.0;  // kStrainRate: velocity-gradient component, 1/s; kStress: σ target, Pa (tension +)
+};
+struct CellControl {
+  ComponentControl xx, yy;
+  ComponentControl xy;             // L(0,1) (x-velocity grows with y) or σxy
+  double max_strain_rate = 1.0;    // 1/s, cap on servo-driven components
+  double servo_gain = 0.05;        // fraction of the stress gap closed per step, [-]
+};
+
+// What one step's force loop measured (synchronous with the positions it used).
+struct StepEnergy {
+  double kinetic = 0.0;  // J, at the force evaluation time
+  double elastic = 0.0;  // J, stored in normal springs (linear model: ½ kn δ²)
+};
+
+class Rve {
+ public:
+  // Checks the packing (sizes, finiteness, cell, contacts) and builds caches.
+  static absl::StatusOr<Rve> Create(Packing packing);
+
+  // The full state, contact history included (what Create restores exactly).
+  Packing ToPacking() const;
+  const Material& material() const { return p_.material; }
+  const Eigen::Matrix2d& cell() const { return p_.cell; }
+  int num_particles() const { return static_cast<int>(p_.radius.size()); }
+  // Entries in the neighbour list (contacts and near pairs); for benchmarks.
+  std::size_t num_neighbour_pairs() const { return nbr_j_.size(); }
+  // Bytes held by this RVE (state and caches, not shared scratch).
+  std::size_t MemoryBytes() const;
+
+  // F_new = ΔF·F_old. ΔF is 3×3 plane strain (ΔF_zz = 1, no out-of-plane
+  // coupling). Rejects non-finite ΔF, det ≤ 0, or a stretch/rotation beyond
+  // the controls' limits with InvalidArgument, leaving the RVE untouched.
+  absl::StatusOr<RveState> Apply(const Eigen::Matrix3d& delta_f, const ApplyOptions& options = {});
+
+  // Runs `steps` DEM steps under mixed control. Returns the state afterwards.
+  RveState Run(const CellControl& control, std::int64_t steps);
+  // Relaxes at fixed cell until the unbalanced-force ratio < tolerance or the cap.
+  RveState Relax(double tolerance, std::int64_t max_steps);
+
+  // Homogenised state of the current configuration (pure: changes nothing).
+  RveState Observe(bool want_tangent = false) const;
+
+  // Time step Δt (s) from the controls, masses and stiffnesses.
+  double time_step() const { return dt_; }
+  // Strain rate (1/s) keeping the inertial number at I for pressure p (Pa).
+  double QuasiStaticStrainRate(double inertial_number, double pressure) const;
+  const StepEnergy& last_step_energy() const { return energy_; }
+
+  // Changes the friction of every contact (preparation); clamps stored forces.
+  void SetFriction(double friction);
+  // Bonds every pair now in contact (cemented material; needs bond_cohesion > 0).
+  void BondContacts();
+
+ private:
+  explicit Rve(Packing packing);
+  struct StepResult {
+    Eigen::Matrix2d stress = Eigen::Matrix2d::Zero();  // Pa, this step's contact stress
+    Eigen::Vector2d stiffness = Eigen::Vector2d::Zero();  // Pa, (1/V)Σ kn d⁴ n_x⁴ … for the servo
+  };
+  template <bool kRolling, bool kBonds, bool kHertz>
+  StepResult StepImpl(const Eigen::Matrix2d& l);
+  // One DEM step: forces at the current positions with velocity gradient l
+  // (1/s) for the affine relative motion, then velocities, positions and the
+  // cell (to next_cell, m) advance by Δt.
+  StepResult Step(const Eigen::Matrix2d& l, const Eigen::Matrix2d& next_cell);
+  void MaybeRebuild();
+  void Rebuild(const std::vector<ContactHistory>& history);
+  void MaybeFlip();
+  void ApplyRigidRotation(double angle);
+  std::vector<ContactHistory> CollectHistory() const;
+  double Cutoff() const;  // m, pair distance beyond which discs are not listed
+
+  Packing p_;  // p_.contacts stays empty: the history lives in the list
+  double dt_ = 0.0;
+  // Half Verlet list in CSR form, rows i ascending, columns j > i ascending.
+  std::vector<std::uint32_t> row_start_;
+  std::vector<std::uint32_t> nbr_j_;
+  std::vector<double> nbr_ft_, nbr_moment_, nbr_bond_;
+  // Rebuild trigger: cell at the last rebuild and a bound on the largest
+  // fluctuation displacement since.
+  Eigen::Matrix2d cell_at_build_ = Eigen::Matrix2d::Identity();
+  double displacement_bound_ = 0.0;
+  std::vector<double> inv_mass_, inv_inertia_;  // 1/kg, 1/(kg m²), mass-scaled
+  StepEnergy energy_;
+  double radius_min_ = 0.0, radius_max_ = 0.0, radius_mean_ = 0.0, solid_area_ = 0.0;
+};
+
+// Creates RVE state quantities shared by tests and tools.
+double SolidArea(const std::vector<double>& radius);  // Σ π r², m²
+
+}  // namespace rvehub::dem
+
+#endif  // RVEHUB_RVE_SERVER_ENGINE_RVE_H_
