@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <vector>
 
-#include <Eigen/Core>
+#include <Eigen/Dense>
 
 #include "absl/status/status.h"
 #include "rve_server/engine/material.h"

@@ -18,45 +18,51 @@ namespace {
 double Uniform(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
 
 constexpr double kInitialSolidFraction = 0.35;  // loose enough to place discs quickly
-constexpr double kPressureTolerance = 0.01;     // |p − p0|/p0 at the end
-constexpr double kCompactionBalance = 1e-3;     // unbalanced-force ratio to end a trial
-constexpr double kFinalBalance = 1e-4;          // after friction is restored
+constexpr double kPressureTolerance = 0.01;     // |p − p0|/p0 and q/p0 at the end
+constexpr double kServoBalance = 3e-3;          // unbalanced-force ratio to stop the servo
+constexpr double kCompactionBalance = 1e-3;     // ... to end a compaction trial
+constexpr double kFinalBalance = 1e-4;          // ... after friction is restored
 constexpr std::int64_t kChunk = 200;            // steps between convergence checks
-constexpr std::int64_t kMaxStepsPerStage = 600000;
+constexpr std::int64_t kMaxSteps = 600000;      // per consolidation
+constexpr int kMaxRounds = 6;                   // servo-then-relax rounds
 constexpr double kVoidRatioTolerance = 0.002;   // steering stops this close to the target
 constexpr int kMaxTrials = 7;
 
-// Isotropic stress control at p0 (tension-positive target −p0).
-CellControl Isotropic(const Rve& rve, double p0, double max_strain_per_step) {
-  CellControl c;
-  c.xx = {ControlMode::kStress, -p0};
-  c.yy = {ControlMode::kStress, -p0};
-  c.xy = {ControlMode::kStrainRate, 0.0};
-  c.max_strain_rate = max_strain_per_step / rve.time_step();
-  return c;
-}
+}  // namespace
 
-bool Converged(const RveState& s, double p0, double balance) {
-  const double p = -s.stress.trace() / 2.0;
-  const double q = 0.5 * std::abs(s.stress(0, 0) - s.stress(1, 1));
-  return s.num_contacts > 0 && std::abs(p - p0) < kPressureTolerance * p0 &&
-         q < kPressureTolerance * p0 && s.unbalanced_force_ratio < balance;
-}
-
-// Runs the isotropic servo until converged; returns the final state.
-absl::StatusOr<RveState> Servo(Rve& rve, double p0, double balance, std::int64_t* steps) {
-  // Fast while the packing is a gas, then the servo itself slows down near p0.
-  const CellControl control = Isotropic(rve, p0, 2e-5);
-  for (std::int64_t done = 0; done < kMaxStepsPerStage; done += kChunk) {
-    const RveState s = rve.Run(control, kChunk);
-    *steps += kChunk;
-    if (Converged(s, p0, balance)) return s;
+absl::StatusOr<RveState> ConsolidateIsotropic(Rve& rve, double p, double balance,
+                                              std::int64_t* steps) {
+  CellControl control;
+  control.xx = {ControlMode::kStress, -p};
+  control.yy = {ControlMode::kStress, -p};
+  control.max_strain_rate = 2e-5 / rve.time_step();  // ≤ 2e-5 strain per step
+  auto close = [&](const RveState& s) {
+    const double pm = -0.5 * s.stress.trace(), dq = 0.5 * std::abs(s.stress(0, 0) - s.stress(1, 1));
+    return s.num_contacts > 0 && std::abs(pm - p) < kPressureTolerance * p &&
+           dq < kPressureTolerance * p;
+  };
+  std::int64_t done = 0;
+  for (int round = 0; round < kMaxRounds; ++round) {
+    RveState s = rve.Observe();
+    while (!(close(s) && s.unbalanced_force_ratio < kServoBalance) && done < kMaxSteps) {
+      s = rve.Run(control, kChunk);
+      done += kChunk;
+    }
+    s = rve.Relax(balance, kMaxSteps / 4);
+    done += s.steps;
+    if (close(s) && s.unbalanced_force_ratio < balance) {
+      if (steps != nullptr) *steps += done;
+      return s;
+    }
   }
+  if (steps != nullptr) *steps += done;
   const RveState s = rve.Observe();
   return absl::DeadlineExceededError(absl::StrFormat(
-      "isotropic servo did not converge in %d steps: p = %.4g Pa (target %.4g), unbalanced %.3g",
-      kMaxStepsPerStage, -s.stress.trace() / 2.0, p0, s.unbalanced_force_ratio));
+      "isotropic consolidation to %.4g Pa did not converge: p = %.4g Pa, unbalanced %.3g", p,
+      -0.5 * s.stress.trace(), s.unbalanced_force_ratio));
 }
+
+namespace {
 
 struct Trial {
   double friction;
@@ -123,7 +129,7 @@ absl::StatusOr<Packing> PreparePacking(const ParameterSet& set, const Controls& 
     start.material.friction = friction;
     absl::StatusOr<Rve> rve = Rve::Create(std::move(start));
     if (!rve.ok()) return rve.status();
-    absl::StatusOr<RveState> s = Servo(*rve, p0, kCompactionBalance, &steps);
+    absl::StatusOr<RveState> s = ConsolidateIsotropic(*rve, p0, kCompactionBalance, &steps);
     if (!s.ok()) return s.status();
     ++trials;
     if (progress) {
@@ -159,24 +165,8 @@ absl::StatusOr<Packing> PreparePacking(const ParameterSet& set, const Controls& 
   absl::StatusOr<Rve> rve = Rve::Create(std::move(best.packing));
   if (!rve.ok()) return rve.status();
   rve->BondContacts();
-  // Servo to p0, then relax at fixed cell (a moving servo keeps stirring the
-  // packing); repeat if relaxing moved p out of tolerance.
-  absl::StatusOr<RveState> final_state;
-  for (int round = 0;; ++round) {
-    final_state = Servo(*rve, p0, kCompactionBalance, &steps);
-    if (!final_state.ok()) return final_state.status();
-    const RveState relaxed = rve->Relax(kFinalBalance, kMaxStepsPerStage / 4);
-    steps += relaxed.steps;
-    if (Converged(relaxed, p0, kFinalBalance)) {
-      final_state = relaxed;
-      break;
-    }
-    if (round == 5) {
-      return absl::DeadlineExceededError(absl::StrFormat(
-          "stabilisation at p0 did not converge: p = %.4g Pa, unbalanced %.3g",
-          -relaxed.stress.trace() / 2.0, relaxed.unbalanced_force_ratio));
-    }
-  }
+  absl::StatusOr<RveState> final_state = ConsolidateIsotropic(*rve, p0, kFinalBalance, &steps);
+  if (!final_state.ok()) return final_state.status();
 
   Packing out = rve->ToPacking();
   const double e0 = final_state->void_ratio;

@@ -9,6 +9,7 @@
 #include "absl/status/statusor.h"
 #include "rve_server/engine/material.h"
 #include "rve_server/engine/packing.h"
+#include "rve_server/engine/rve.h"
 
 namespace rvehub::dem {
 
@@ -20,6 +21,13 @@ struct PreparationReport {
   double coordination = 0.0;         // [-]
   std::int64_t steps = 0;            // DEM steps over all trials
 };
+
+// Consolidates isotropically to p (Pa, compression +) by a cell servo, then
+// relaxes at fixed cell (a moving servo keeps stirring the packing) until the
+// unbalanced-force ratio < balance, repeating while relaxing moved p or the
+// deviator out of 1 % of p.
+absl::StatusOr<RveState> ConsolidateIsotropic(Rve& rve, double p, double balance = 1e-4,
+                                              std::int64_t* steps = nullptr);
 
 // Random discs, placed without overlap in a loose square cell (seeded,
 // platform-independent random numbers).

@@ -603,23 +603,30 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
   return s;
 }
 
-RveState Rve::Run(const CellControl& control, std::int64_t steps) {
+RveState Rve::Run(CellControl& control, std::int64_t steps) {
   RveState first = Observe();
   Eigen::Matrix2d stress = first.stress.topLeftCorner<2, 2>();
   Eigen::Vector2d stiffness = Eigen::Vector2d::Zero();
   const double cap = control.max_strain_rate;
-  auto servo = [&](const ComponentControl& c, double sigma, double k) {
+  // PI servo on the strain rate: Δσ ≈ K·L·Δt, so gain·gap/(K·Δt) closes a
+  // fraction `gain` of the stress gap per step; the integral removes the
+  // steady-state error while the stress keeps being pushed (e.g. dilation).
+  auto servo = [&](const ComponentControl& c, double sigma, double k, double& integral) {
     if (c.mode == ControlMode::kStrainRate) return c.value;
-    // Δσ ≈ K·L·Δt: close a fraction of the gap per step.
     const double gap = c.value - sigma;
-    const double rate = k > 0 ? control.servo_gain * gap / (k * dt_) : Sign(gap) * cap;
-    return std::clamp(rate, -cap, cap);
+    double p_term = k > 0 ? control.servo_gain * gap / (k * dt_) : Sign(gap) * cap;
+    p_term = std::clamp(p_term, -cap, cap);
+    if (control.servo_integral_steps <= 0) return p_term;
+    integral = std::clamp(integral + p_term / control.servo_integral_steps, -cap, cap);
+    return std::clamp(p_term + integral, -cap, cap);
   };
+  Eigen::Vector3d& integral = control.servo_integral;
   for (std::int64_t k = 0; k < steps; ++k) {
     Eigen::Matrix2d l = Eigen::Matrix2d::Zero();
-    l(0, 0) = servo(control.xx, stress(0, 0), stiffness.x());
-    l(1, 1) = servo(control.yy, stress(1, 1), stiffness.y());
-    l(0, 1) = servo(control.xy, 0.5 * (stress(0, 1) + stress(1, 0)), 0.25 * stiffness.sum());
+    l(0, 0) = servo(control.xx, stress(0, 0), stiffness.x(), integral[0]);
+    l(1, 1) = servo(control.yy, stress(1, 1), stiffness.y(), integral[1]);
+    l(0, 1) = servo(control.xy, 0.5 * (stress(0, 1) + stress(1, 0)), 0.25 * stiffness.sum(),
+                    integral[2]);
     const Eigen::Matrix2d next = p_.cell + dt_ * l * p_.cell;
     const StepResult r = Step(l, next);
     stress = r.stress;

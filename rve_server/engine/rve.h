@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <vector>
 
-#include <Eigen/Core>
+#include <Eigen/Dense>
 
 #include "absl/status/statusor.h"
 #include "rve_server/engine/packing.h"
@@ -60,6 +60,10 @@ struct CellControl {
   ComponentControl xy;             // L(0,1) (x-velocity grows with y) or σxy
   double max_strain_rate = 1.0;    // 1/s, cap on servo-driven components
   double servo_gain = 0.05;        // fraction of the stress gap closed per step, [-]
+  double servo_integral_steps = 0;  // integral time of the servo, in steps; 0: none
+  // Servo memory (integral term per component xx, yy, xy, 1/s), carried
+  // between Run calls so that a held stress has no steady-state error.
+  Eigen::Vector3d servo_integral = Eigen::Vector3d::Zero();
 };
 
 // What one step's force loop measured (synchronous with the positions it used).
@@ -89,7 +93,7 @@ class Rve {
   absl::StatusOr<RveState> Apply(const Eigen::Matrix3d& delta_f, const ApplyOptions& options = {});
 
   // Runs `steps` DEM steps under mixed control. Returns the state afterwards.
-  RveState Run(const CellControl& control, std::int64_t steps);
+  RveState Run(CellControl& control, std::int64_t steps);
   // Relaxes at fixed cell until the unbalanced-force ratio < tolerance or the cap.
   RveState Relax(double tolerance, std::int64_t max_steps);
 

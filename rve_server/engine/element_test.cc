@@ -1,0 +1,174 @@
+#include "rve_server/engine/element_test.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "rve_server/engine/prepare.h"
+
+namespace rvehub::dem {
+namespace {
+
+// Lateral-stress servo while shearing: gain and integral time (DEM steps),
+// tuned on SPFEM-biaxial to hold σxx within ±2 % through peak and dilation.
+constexpr double kServoIntegralSteps = 300;
+constexpr double kServoGain = 0.2;
+
+struct NamedKind {
+  const char* name;
+  ElementTestKind kind;
+};
+constexpr NamedKind kKinds[] = {
+    {"drained-biaxial", ElementTestKind::kDrainedBiaxial},
+    {"isotropic", ElementTestKind::kIsotropic},
+    {"oedometer", ElementTestKind::kOedometer},
+    {"undrained-simple-shear", ElementTestKind::kUndrainedSimpleShear},
+    {"cyclic-simple-shear", ElementTestKind::kCyclicSimpleShear},
+};
+
+ElementTestRow MakeRow(const RveState& s, const Eigen::Matrix2d& f, std::int64_t step) {
+  ElementTestRow r;
+  r.step = step;
+  r.axial_strain = 1.0 - f(1, 1);
+  r.vol_strain = 1.0 - f.determinant();
+  r.shear_strain = f(0, 1);
+  r.sxx = -s.stress(0, 0);
+  r.syy = -s.stress(1, 1);
+  r.sxy = -s.stress(0, 1);
+  r.p = 0.5 * (r.sxx + r.syy);
+  r.q = std::sqrt(0.25 * (r.sxx - r.syy) * (r.sxx - r.syy) + r.sxy * r.sxy);
+  r.void_ratio = s.void_ratio;
+  r.coordination = s.coordination;
+  r.fabric_xx = s.fabric(0, 0);
+  r.fabric_yy = s.fabric(1, 1);
+  r.fabric_xy = s.fabric(0, 1);
+  r.fabric_anisotropy = s.fabric_anisotropy;
+  r.permeability = s.permeability;
+  return r;
+}
+
+absl::Status CheckSpec(const ElementTestSpec& spec) {
+  auto bad = [](absl::string_view field, double v, absl::string_view rule) {
+    return absl::InvalidArgumentError(absl::StrCat(field, " = ", v, " is invalid: ", rule));
+  };
+  if (!(spec.confining > 0) || !std::isfinite(spec.confining))
+    return bad("confining", spec.confining, "must be > 0 Pa");
+  if (!(spec.max_strain > 0 && spec.max_strain < 0.5))
+    return bad("max_strain", spec.max_strain, "must lie in (0, 0.5)");
+  if (!(spec.inertial_number > 0 && spec.inertial_number <= 0.1))
+    return bad("inertial_number", spec.inertial_number, "must lie in (0, 0.1]");
+  if (spec.rows < 2 || spec.rows > 1000000) return bad("rows", spec.rows, "must lie in [2, 1e6]");
+  if (spec.kind == ElementTestKind::kCyclicSimpleShear) {
+    if (!(spec.amplitude > 0) || !std::isfinite(spec.amplitude))
+      return bad("amplitude", spec.amplitude, "must be > 0");
+    if (spec.cyclic_control == CyclicControl::kStrain && spec.amplitude >= spec.max_strain)
+      return bad("amplitude", spec.amplitude, "a strain amplitude must be below max_strain");
+    if (spec.cycles < 1 || spec.cycles > 10000) return bad("cycles", spec.cycles, "must lie in [1, 1e4]");
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+absl::StatusOr<ElementTestKind> ParseElementTestKind(absl::string_view name) {
+  std::string known;
+  for (const NamedKind& k : kKinds) {
+    if (name == k.name) return k.kind;
+    absl::StrAppend(&known, known.empty() ? "" : ", ", k.name);
+  }
+  return absl::InvalidArgumentError(absl::StrCat("unknown element test '", name, "'; known: ", known));
+}
+
+std::string ElementTestName(ElementTestKind kind) {
+  for (const NamedKind& k : kKinds) {
+    if (k.kind == kind) return k.name;
+  }
+  return "unknown";
+}
+
+absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
+    Rve& rve, const ElementTestSpec& spec, const std::function<void(double)>& progress) {
+  if (absl::Status s = CheckSpec(spec); !s.ok()) return s;
+  absl::StatusOr<RveState> start = ConsolidateIsotropic(rve, spec.confining);
+  if (!start.ok()) return start.status();
+  const Eigen::Matrix2d h0_inv = rve.cell().inverse();
+  auto strain_f = [&] { return Eigen::Matrix2d(rve.cell() * h0_inv); };
+
+  const double rate = rve.QuasiStaticStrainRate(spec.inertial_number, spec.confining);  // 1/s
+  CellControl control;
+  control.max_strain_rate = 4.0 * rate;
+  control.servo_integral_steps = kServoIntegralSteps;
+  control.servo_gain = kServoGain;
+  control.xy = {ControlMode::kStrainRate, 0.0};
+  switch (spec.kind) {
+    case ElementTestKind::kDrainedBiaxial:
+      control.xx = {ControlMode::kStress, -spec.confining};
+      control.yy = {ControlMode::kStrainRate, -rate};
+      break;
+    case ElementTestKind::kIsotropic:
+      control.xx = control.yy = {ControlMode::kStrainRate, -rate / std::sqrt(2.0)};
+      break;
+    case ElementTestKind::kOedometer:
+      control.yy = {ControlMode::kStrainRate, -rate};
+      break;
+    case ElementTestKind::kUndrainedSimpleShear:
+    case ElementTestKind::kCyclicSimpleShear:
+      control.xy = {ControlMode::kStrainRate, rate};
+      break;
+  }
+  const bool cyclic = spec.kind == ElementTestKind::kCyclicSimpleShear;
+  // Strain between recorded rows, and the steps that take.
+  const double row_strain = cyclic ? (spec.cyclic_control == CyclicControl::kStrain
+                                          ? 4.0 * spec.amplitude * spec.cycles / spec.rows
+                                          : spec.max_strain / spec.rows)
+                                   : spec.max_strain / spec.rows;
+  const std::int64_t steps_per_row =
+      std::max<std::int64_t>(1, std::llround(row_strain / (rate * rve.time_step())));
+  // Progress measure and stop rule per test.
+  auto measure = [&](const Eigen::Matrix2d& f) {
+    switch (spec.kind) {
+      case ElementTestKind::kDrainedBiaxial:
+      case ElementTestKind::kOedometer:
+        return 1.0 - f(1, 1);
+      case ElementTestKind::kIsotropic:
+        return 1.0 - f.determinant();
+      default:
+        return std::abs(f(0, 1));
+    }
+  };
+
+  std::vector<ElementTestRow> rows;
+  std::int64_t step = 0;
+  rows.push_back(MakeRow(*start, strain_f(), step));
+  int half_cycles = 0;  // reversals done (cyclic)
+  const int target_half_cycles = 2 * spec.cycles;
+  double direction = 1.0;
+  for (;;) {
+    const RveState s = rve.Run(control, steps_per_row);
+    step += steps_per_row;
+    const Eigen::Matrix2d f = strain_f();
+    rows.push_back(MakeRow(s, f, step));
+    const ElementTestRow& r = rows.back();
+    if (!cyclic) {
+      if (progress) progress(std::min(1.0, measure(f) / spec.max_strain));
+      if (measure(f) >= spec.max_strain) break;
+      continue;
+    }
+    // Cyclic: reverse at the amplitude (γ or τ); a cycle is two reversals,
+    // and the test ends back at γ = 0 heading in the first direction.
+    const double level = spec.cyclic_control == CyclicControl::kStrain ? r.shear_strain : -r.sxy;
+    if (half_cycles < target_half_cycles && direction * level >= spec.amplitude) {
+      direction = -direction;
+      ++half_cycles;
+      control.xy.value = direction * rate;
+      if (progress) progress(static_cast<double>(half_cycles) / (target_half_cycles + 1));
+    }
+    if (half_cycles == target_half_cycles && direction > 0 && r.shear_strain >= 0) break;
+    if (std::abs(r.shear_strain) >= spec.max_strain) break;  // liquefied: strain runs away
+  }
+  if (progress) progress(1.0);
+  return rows;
+}
+
+}  // namespace rvehub::dem

@@ -1,0 +1,60 @@
+// Element tests on one RVE under mixed stress/strain control of its cell.
+// Results use the geomechanics convention: compression positive, Pa; strains
+// positive in compression.
+#ifndef RVEHUB_RVE_SERVER_ENGINE_ELEMENT_TEST_H_
+#define RVEHUB_RVE_SERVER_ENGINE_ELEMENT_TEST_H_
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
+#include "rve_server/engine/rve.h"
+
+namespace rvehub::dem {
+
+enum class ElementTestKind {
+  kDrainedBiaxial,        // σxx held at the confining stress, εyy strain-controlled
+  kIsotropic,             // εxx = εyy strain-controlled compression
+  kOedometer,             // εyy strain-controlled, εxx = 0
+  kUndrainedSimpleShear,  // constant volume, γ = F_xy strain-controlled
+  kCyclicSimpleShear,     // constant volume, γ reversed at ± an amplitude
+};
+enum class CyclicControl { kStrain, kStress };
+
+struct ElementTestSpec {
+  ElementTestKind kind = ElementTestKind::kDrainedBiaxial;
+  double confining = 100e3;       // Pa (compression +): consolidation and lateral stress
+  double max_strain = 0.1;        // axial (biaxial, oedometer), volumetric (isotropic) or γ
+  double inertial_number = 1e-3;  // shearing rate from I = γ̇ d sqrt(ρ/p), [-]
+  int rows = 400;                 // rows recorded over max_strain (monotonic tests)
+  // Cyclic simple shear:
+  CyclicControl cyclic_control = CyclicControl::kStrain;
+  double amplitude = 0.005;       // γ amplitude, or τ = σxy amplitude in Pa
+  int cycles = 5;
+};
+
+struct ElementTestRow {
+  std::int64_t step = 0;
+  double axial_strain = 0, vol_strain = 0;  // 1 − F_yy, 1 − det F (compression +)
+  double sxx = 0, syy = 0, sxy = 0;         // Pa, compression +
+  double p = 0, q = 0;                      // Pa: p = tr σ/2, q = sqrt(½ s:s)
+  double void_ratio = 0, coordination = 0;
+  double fabric_xx = 0, fabric_yy = 0, fabric_xy = 0, fabric_anisotropy = 0;
+  double permeability = 0;                  // m/s
+  double shear_strain = 0;                  // γ = F_xy
+};
+
+absl::StatusOr<ElementTestKind> ParseElementTestKind(absl::string_view name);
+std::string ElementTestName(ElementTestKind kind);
+
+// Consolidates to spec.confining, then runs the test. `progress` receives
+// the fraction done in [0, 1].
+absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
+    Rve& rve, const ElementTestSpec& spec, const std::function<void(double)>& progress = {});
+
+}  // namespace rvehub::dem
+
+#endif  // RVEHUB_RVE_SERVER_ENGINE_ELEMENT_TEST_H_
