@@ -651,63 +651,85 @@ RveState Rve::Relax(double tolerance, std::int64_t max_steps) {
   return s;
 }
 
-RveState Rve::Observe(bool want_tangent) const {
+template <typename F>
+void Rve::ForEachContact(F&& f) const {
   const std::size_t n = p_.radius.size();
   const Material& mat = p_.material;
   const Eigen::Matrix2d& h = p_.cell;
-  Scratch& scratch = ThreadScratch();
-  scratch.Reset(n);  // fx, fy: resultant force; torque: contact count
-  Eigen::Matrix2d stress = Eigen::Matrix2d::Zero(), fabric = Eigen::Matrix2d::Zero();
-  double d[2][2][2][2] = {};
-  double force_sum = 0.0;
-  std::int64_t nc = 0;
   const bool bonds = !nbr_bond_.empty();
+  ContactForce c;
   for (std::uint32_t i = 0; i < n; ++i) {
     for (std::uint32_t k = row_start_[i]; k < row_start_[i + 1]; ++k) {
       const std::uint32_t j = nbr_j_[k];
       double dsx = p_.sx[j] - p_.sx[i], dsy = p_.sy[j] - p_.sy[i];
       dsx -= RoundNearest(dsx);
       dsy -= RoundNearest(dsy);
-      const Eigen::Vector2d br(h(0, 0) * dsx + h(0, 1) * dsy, h(1, 0) * dsx + h(1, 1) * dsy);
+      c.branch = {h(0, 0) * dsx + h(0, 1) * dsy, h(1, 0) * dsx + h(1, 1) * dsy};
       const double rsum = p_.radius[i] + p_.radius[j];
-      const bool bonded = bonds && nbr_bond_[k] > 0;
-      const double dist = br.norm();
-      if (dist >= rsum && !bonded) continue;
-      const Eigen::Vector2d nn = br / dist, t(-nn.y(), nn.x());
-      const double overlap = rsum - dist;
-      double fn, kn, kt;
+      c.bonded = bonds && nbr_bond_[k] > 0;
+      const double dist = c.branch.norm();
+      if (dist >= rsum && !c.bonded) continue;
+      c.i = i;
+      c.j = j;
+      c.normal = c.branch / dist;
+      c.overlap = rsum - dist;
       if (mat.model == ContactModel::kHertzMindlin) {
         const HertzResponse hz =
-            HertzMindlin(mat.young_modulus, mat.poisson_ratio, p_.radius[i], p_.radius[j], overlap);
-        fn = hz.fn;
-        kn = hz.kn;
-        kt = hz.kt;
+            HertzMindlin(mat.young_modulus, mat.poisson_ratio, p_.radius[i], p_.radius[j], c.overlap);
+        c.normal_force = hz.fn;
+        c.kn = hz.kn;
+        c.kt = hz.kt;
       } else {
-        kn = mat.young_modulus * EffectiveRadius(p_.radius[i], p_.radius[j]);
-        kt = mat.stiffness_ratio * kn;
-        fn = kn * overlap;
+        c.kn = mat.young_modulus * EffectiveRadius(p_.radius[i], p_.radius[j]);
+        c.kt = mat.stiffness_ratio * c.kn;
+        c.normal_force = c.kn * c.overlap;
       }
-      const Eigen::Vector2d f = -fn * nn + nbr_ft_[k] * t;  // on i
-      stress += f * br.transpose();
-      fabric += nn * nn.transpose();
-      force_sum += f.norm();
-      scratch.fx[i] += f.x();
-      scratch.fy[i] += f.y();
-      scratch.fx[j] -= f.x();
-      scratch.fy[j] -= f.y();
-      scratch.torque[i] += 1.0;
-      scratch.torque[j] += 1.0;
-      ++nc;
-      if (want_tangent) {
-        for (int a = 0; a < 2; ++a)
-          for (int b = 0; b < 2; ++b)
-            for (int c = 0; c < 2; ++c)
-              for (int e = 0; e < 2; ++e)
-                d[a][b][c][e] += kn * nn[a] * br[b] * nn[c] * br[e] + kt * t[a] * br[b] * t[c] * br[e];
-      }
+      c.tangential_force = nbr_ft_[k];
+      f(c);
     }
   }
+}
+
+std::vector<ContactForce> Rve::Contacts() const {
+  std::vector<ContactForce> out;
+  ForEachContact([&](const ContactForce& c) { out.push_back(c); });
+  return out;
+}
+
+RveState Rve::Observe(bool want_tangent) const {
+  const std::size_t n = p_.radius.size();
+  Scratch& scratch = ThreadScratch();
+  scratch.Reset(n);  // fx, fy: resultant force; torque: contact count
+  Eigen::Matrix2d stress = Eigen::Matrix2d::Zero(), fabric = Eigen::Matrix2d::Zero();
+  double d[2][2][2][2] = {};
+  double force_sum = 0.0;
+  std::int64_t nc = 0;
+  ForEachContact([&](const ContactForce& c) {
+    const Eigen::Vector2d f = c.ForceOnI();
+    stress += f * c.branch.transpose();
+    fabric += c.normal * c.normal.transpose();
+    force_sum += f.norm();
+    scratch.fx[c.i] += f.x();
+    scratch.fy[c.i] += f.y();
+    scratch.fx[c.j] -= f.x();
+    scratch.fy[c.j] -= f.y();
+    scratch.torque[c.i] += 1.0;
+    scratch.torque[c.j] += 1.0;
+    ++nc;
+    if (want_tangent) {
+      const Eigen::Vector2d& nn = c.normal;
+      const Eigen::Vector2d t(-nn.y(), nn.x());
+      const Eigen::Vector2d& br = c.branch;
+      for (int a = 0; a < 2; ++a)
+        for (int b = 0; b < 2; ++b)
+          for (int e = 0; e < 2; ++e)
+            for (int g = 0; g < 2; ++g)
+              d[a][b][e][g] += c.kn * nn[a] * br[b] * nn[e] * br[g] + c.kt * t[a] * br[b] * t[e] * br[g];
+    }
+  });
   RveState s;
+  const Eigen::Matrix2d& h = p_.cell;
+  const Material& mat = p_.material;
   const double area = h.determinant();
   s.volume = area * mat.thickness;
   const Eigen::Matrix2d sym = 0.5 * (stress + stress.transpose()) / s.volume;

@@ -66,6 +66,22 @@ struct CellControl {
   Eigen::Vector3d servo_integral = Eigen::Vector3d::Zero();
 };
 
+// One active contact (or bonded pair) of the current configuration.
+struct ContactForce {
+  std::uint32_t i = 0, j = 0;
+  Eigen::Vector2d branch = Eigen::Vector2d::Zero();  // x_j − x_i (nearest image), m
+  Eigen::Vector2d normal = Eigen::Vector2d::Zero();  // n = branch/|branch|
+  double overlap = 0.0;            // δ = r_i + r_j − |branch|, m (< 0: stretched bond)
+  double normal_force = 0.0;       // fn, N, compression +
+  double tangential_force = 0.0;   // ft, N, along t = (−n_y, n_x)
+  double kn = 0.0, kt = 0.0;       // current stiffnesses, N/m
+  bool bonded = false;
+  // Force on particle i, N: −fn·n + ft·t (particle j gets the opposite).
+  Eigen::Vector2d ForceOnI() const {
+    return -normal_force * normal + tangential_force * Eigen::Vector2d(-normal.y(), normal.x());
+  }
+};
+
 // What one step's force loop measured (synchronous with the positions it used).
 struct StepEnergy {
   double kinetic = 0.0;  // J, at the force evaluation time
@@ -99,6 +115,12 @@ class Rve {
 
   // Homogenised state of the current configuration (pure: changes nothing).
   RveState Observe(bool want_tangent = false) const;
+  // The active contacts of the current configuration, sorted by (i, j).
+  std::vector<ContactForce> Contacts() const;
+  // Current position of particle i in the cell (x = h·s, unwrapped), m.
+  Eigen::Vector2d Position(int i) const {
+    return p_.cell * Eigen::Vector2d(p_.sx[i], p_.sy[i]);
+  }
 
   // Time step Δt (s) from the controls, masses and stiffnesses.
   double time_step() const { return dt_; }
@@ -129,6 +151,9 @@ class Rve {
   void ApplyRigidRotation(double angle);
   std::vector<ContactHistory> CollectHistory() const;
   double Cutoff() const;  // m, pair distance beyond which discs are not listed
+  // Calls f(const ContactForce&) for every active contact, in (i, j) order.
+  template <typename F>
+  void ForEachContact(F&& f) const;
 
   Packing p_;  // p_.contacts stays empty: the history lives in the list
   double dt_ = 0.0;
