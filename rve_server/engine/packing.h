@@ -39,6 +39,10 @@ struct Packing {
   Controls controls;
   // Cell matrix h (m): columns are the two cell vectors; x = h·s.
   Eigen::Matrix2d cell = Eigen::Matrix2d::Identity();
+  // The cell of the reference configuration written in the current lattice
+  // basis (cell flips change both alike), so F = cell·reference_cell⁻¹ is the
+  // deformation gradient since the reference, whatever flips happened.
+  Eigen::Matrix2d reference_cell = Eigen::Matrix2d::Identity();
   // Accumulated rigid rotation of the cell; local damping acts in this frame
   // so that a rigid rotation of the RVE is exactly objective.
   Eigen::Matrix2d frame = Eigen::Matrix2d::Identity();

@@ -85,6 +85,7 @@ Packing GenerateLoosePacking(const ParameterSet& set, const Controls& controls) 
   std::sort(p.radius.begin(), p.radius.end(), std::greater<>());
   const double side = std::sqrt(SolidArea(p.radius) / kInitialSolidFraction);
   p.cell = Eigen::Matrix2d::Identity() * side;
+  p.reference_cell = p.cell;
   p.sx.reserve(n);
   p.sy.reserve(n);
   for (int i = 0; i < n; ++i) {
@@ -174,6 +175,7 @@ absl::StatusOr<Packing> PreparePacking(const ParameterSet& set, const Controls& 
   out.permeability_coefficient = set.preparation.initial_permeability * (1.0 + e0) / (e0 * e0 * e0);
   std::fill(out.theta.begin(), out.theta.end(), 0.0);  // rotations count from the prepared state
   out.total_steps = 0;
+  out.reference_cell = out.cell;  // strains count from the prepared state
   if (report != nullptr) {
     *report = {best.friction, trials, e0, -final_state->stress.trace() / 2.0,
                final_state->coordination, steps};

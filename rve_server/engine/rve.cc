@@ -161,6 +161,9 @@ absl::StatusOr<Rve> Rve::Create(Packing p) {
     return absl::InvalidArgumentError(
         absl::StrCat("cell matrix must be finite with det > 0; det = ", p.cell.determinant()));
   }
+  if (!p.reference_cell.allFinite() || !(p.reference_cell.determinant() > 0)) {
+    return absl::InvalidArgumentError("reference_cell must be finite with det > 0");
+  }
   if (!p.frame.allFinite() ||
       !(p.frame.transpose() * p.frame).isApprox(Eigen::Matrix2d::Identity(), 1e-9) ||
       !(p.frame.determinant() > 0)) {
@@ -342,9 +345,11 @@ void Rve::MaybeFlip() {
   const std::size_t n = p_.radius.size();
   if (kb != 0) {  // b' = b − kb·a; s'_x = s_x + kb·s_y
     p_.cell.col(1) = b - kb * a;
+    p_.reference_cell.col(1) -= kb * p_.reference_cell.col(0);
     for (std::size_t i = 0; i < n; ++i) p_.sx[i] += kb * p_.sy[i];
   } else {  // a' = a − ka·b; s'_y = s_y + ka·s_x
     p_.cell.col(0) = a - ka * b;
+    p_.reference_cell.col(0) -= ka * p_.reference_cell.col(1);
     for (std::size_t i = 0; i < n; ++i) p_.sy[i] += ka * p_.sx[i];
   }
   for (std::size_t i = 0; i < n; ++i) {

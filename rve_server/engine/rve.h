@@ -97,6 +97,10 @@ class Rve {
   Packing ToPacking() const;
   const Material& material() const { return p_.material; }
   const Eigen::Matrix2d& cell() const { return p_.cell; }
+  // Deformation gradient since the reference configuration (flip-proof).
+  Eigen::Matrix2d DeformationGradient() const { return p_.cell * p_.reference_cell.inverse(); }
+  // Makes the current configuration the reference (F = I).
+  void ResetReference() { p_.reference_cell = p_.cell; }
   int num_particles() const { return static_cast<int>(p_.radius.size()); }
   // Entries in the neighbour list (contacts and near pairs); for benchmarks.
   std::size_t num_neighbour_pairs() const { return nbr_j_.size(); }
