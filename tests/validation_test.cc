@@ -1,1 +1,638 @@
-#include <gtest/gtest.h>
+// Input validation of the DEM engine: every bad input is refused with a
+// specific status code and a message naming the problem, and a refused call
+// leaves the RVE bit-for-bit untouched. Also: an RVE without contacts reports
+// a well-defined (zero, NaN-free) state.
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <numbers>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Dense>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/strings/match.h"
+#include "absl/strings/string_view.h"
+#include "gtest/gtest.h"
+#include "rve_server/engine/batch.h"
+#include "rve_server/engine/element_test.h"
+#include "rve_server/engine/material.h"
+#include "rve_server/engine/packing.h"
+#include "rve_server/engine/prepare.h"
+#include "rve_server/engine/rve.h"
+
+namespace rvehub::dem {
+namespace {
+
+// gmock is not linked: a plain substring predicate for messages.
+testing::AssertionResult HasSubstr(absl::string_view text, absl::string_view part) {
+  if (absl::StrContains(text, part)) return testing::AssertionSuccess();
+  return testing::AssertionFailure() << "\"" << text << "\" does not contain \"" << part << "\"";
+}
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// --- Bitwise comparison of complete packings. ---
+
+bool SameBits(double a, double b) {
+  return std::bit_cast<std::uint64_t>(a) == std::bit_cast<std::uint64_t>(b);
+}
+
+void ExpectSameBits(const std::vector<double>& a, const std::vector<double>& b,
+                    const char* what) {
+  ASSERT_EQ(a.size(), b.size()) << what;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    EXPECT_TRUE(SameBits(a[i], b[i])) << what << "[" << i << "]: " << a[i] << " vs " << b[i];
+  }
+}
+
+void ExpectSameBits(const Eigen::Matrix2d& a, const Eigen::Matrix2d& b, const char* what) {
+  for (int k = 0; k < 4; ++k) {
+    EXPECT_TRUE(SameBits(a.data()[k], b.data()[k])) << what << " entry " << k;
+  }
+}
+
+// Every field of the two packings is bit-identical, contact history included.
+void ExpectIdentical(const Packing& a, const Packing& b) {
+  const Material &ma = a.material, &mb = b.material;
+  EXPECT_EQ(ma.name, mb.name);
+  EXPECT_EQ(ma.model, mb.model);
+  for (auto field : {&Material::density, &Material::young_modulus, &Material::stiffness_ratio,
+                     &Material::poisson_ratio, &Material::friction, &Material::rolling_beta,
+                     &Material::rolling_eta, &Material::bond_cohesion, &Material::damping,
+                     &Material::thickness}) {
+    EXPECT_TRUE(SameBits(ma.*field, mb.*field)) << "material field";
+  }
+  const Controls &ca = a.controls, &cb = b.controls;
+  for (auto field : {&Controls::time_step_factor, &Controls::max_inertial_number,
+                     &Controls::pressure_floor, &Controls::max_stretch, &Controls::max_rotation,
+                     &Controls::mass_scale, &Controls::skin}) {
+    EXPECT_TRUE(SameBits(ca.*field, cb.*field)) << "controls field";
+  }
+  EXPECT_EQ(ca.min_steps, cb.min_steps);
+  ExpectSameBits(a.cell, b.cell, "cell");
+  ExpectSameBits(a.frame, b.frame, "frame");
+  ExpectSameBits(a.radius, b.radius, "radius");
+  ExpectSameBits(a.sx, b.sx, "sx");
+  ExpectSameBits(a.sy, b.sy, "sy");
+  ExpectSameBits(a.vx, b.vx, "vx");
+  ExpectSameBits(a.vy, b.vy, "vy");
+  ExpectSameBits(a.omega, b.omega, "omega");
+  ExpectSameBits(a.theta, b.theta, "theta");
+  ASSERT_EQ(a.contacts.size(), b.contacts.size());
+  for (std::size_t k = 0; k < a.contacts.size(); ++k) {
+    const ContactHistory &x = a.contacts[k], &y = b.contacts[k];
+    EXPECT_EQ(x.i, y.i) << "contact " << k;
+    EXPECT_EQ(x.j, y.j) << "contact " << k;
+    EXPECT_TRUE(SameBits(x.tangential_force, y.tangential_force)) << "contact " << k;
+    EXPECT_TRUE(SameBits(x.rolling_moment, y.rolling_moment)) << "contact " << k;
+    EXPECT_TRUE(SameBits(x.bond_strength, y.bond_strength)) << "contact " << k;
+  }
+  EXPECT_TRUE(SameBits(a.initial_void_ratio, b.initial_void_ratio));
+  EXPECT_TRUE(SameBits(a.permeability_coefficient, b.permeability_coefficient));
+  EXPECT_EQ(a.total_steps, b.total_steps);
+}
+
+Rve CreateOrDie(Packing p) {
+  absl::StatusOr<Rve> rve = Rve::Create(std::move(p));
+  EXPECT_TRUE(rve.ok()) << rve.status();
+  return *std::move(rve);
+}
+
+// --- A small, loaded RVE with a non-trivial history. ---
+
+// 5×5 square lattice of 5 mm discs at spacing 2r·0.999 (each disc touches
+// four neighbours), with rolling resistance, sheared and rotated a little so
+// that every part of the state (ft, M_r, frame, velocities, steps) is set.
+const Packing& Loaded() {
+  static const Packing* packing = [] {
+    constexpr int kSide = 5;
+    constexpr double kR = 5e-3, kSpacing = 2 * kR * 0.999;
+    Packing p;
+    p.material.name = "validation";
+    p.material.rolling_beta = 1.0;
+    p.material.rolling_eta = 0.05;
+    p.cell = Eigen::Matrix2d::Identity() * (kSide * kSpacing);
+    for (int y = 0; y < kSide; ++y) {
+      for (int x = 0; x < kSide; ++x) {
+        p.radius.push_back(kR * (1.0 + 0.001 * ((x + 2 * y) % 3)));  // slightly polydisperse
+        p.sx.push_back((x + 0.5) / kSide);
+        p.sy.push_back((y + 0.5) / kSide);
+      }
+    }
+    const std::size_t n = p.radius.size();
+    p.vx.assign(n, 0.0);
+    p.vy.assign(n, 0.0);
+    p.omega.assign(n, 0.0);
+    p.theta.assign(n, 0.0);
+    p.initial_void_ratio = 0.3;
+    p.permeability_coefficient = 0.01;
+    Rve rve = CreateOrDie(std::move(p));
+    CellControl shear;
+    shear.xy = {ControlMode::kStrainRate, 2e-5 / rve.time_step()};
+    rve.Run(shear, 30);
+    Eigen::Matrix3d turn = Eigen::Matrix3d::Identity();
+    turn.topLeftCorner<2, 2>() << std::cos(0.1), -std::sin(0.1), std::sin(0.1), std::cos(0.1);
+    EXPECT_TRUE(rve.Apply(turn).ok());
+    return new Packing(rve.ToPacking());
+  }();
+  return *packing;
+}
+
+TEST(LoadedPackingTest, HasAFullHistory) {
+  const Packing& p = Loaded();
+  EXPECT_GE(p.contacts.size(), 40u);
+  bool ft = false, moment = false;
+  for (const ContactHistory& c : p.contacts) {
+    ft |= c.tangential_force != 0.0;
+    moment |= c.rolling_moment != 0.0;
+  }
+  EXPECT_TRUE(ft);
+  EXPECT_TRUE(moment);
+  EXPECT_NE(p.frame, Eigen::Matrix2d::Identity());
+  EXPECT_GT(p.total_steps, 0);
+}
+
+// --- Apply. ---
+
+struct ApplyCase {
+  std::string name;
+  Eigen::Matrix3d delta_f;
+  std::string message;  // a substring the message must contain
+};
+
+Eigen::Matrix3d Diag(double xx, double yy, double zz = 1.0) {
+  return Eigen::Vector3d(xx, yy, zz).asDiagonal();
+}
+
+Eigen::Matrix3d With(Eigen::Matrix3d m, int r, int c, double v) {
+  m(r, c) = v;
+  return m;
+}
+
+Eigen::Matrix3d Rotation(double angle) {
+  Eigen::Matrix3d m = Eigen::Matrix3d::Identity();
+  m.topLeftCorner<2, 2>() << std::cos(angle), -std::sin(angle), std::sin(angle), std::cos(angle);
+  return m;
+}
+
+std::vector<ApplyCase> BadApplyCases() {
+  const Eigen::Matrix3d id = Eigen::Matrix3d::Identity();
+  return {
+      {"nan_xx", With(id, 0, 0, kNaN), "ΔF(0,0)"},
+      {"inf_yx", With(id, 1, 0, kInf), "ΔF(1,0)"},
+      {"minus_inf_xy", With(id, 0, 1, -kInf), "ΔF(0,1)"},
+      {"nan_zz", With(id, 2, 2, kNaN), "ΔF(2,2)"},
+      {"reflection", Diag(-1.0, 1.0), "det ΔF"},
+      {"singular", Diag(1.0, 0.0), "det ΔF"},
+      {"point_inversion", Diag(-1.0, -1.0), "rotation"},  // det > 0: a rotation by π
+      {"stretch", Diag(1.06, 1.0), "stretch"},              // |V − I| = 0.06 > 0.05
+      {"shear_stretch", With(id, 0, 1, 0.11), "stretch"},   // |V − I| ≈ 0.078
+      {"rotation", Rotation(0.6), "rotation"},              // > max_rotation 0.5 rad
+      {"out_of_plane_zz", Diag(1.0, 1.0, 1.01), "plane strain"},
+      {"out_of_plane_xz", With(id, 0, 2, 0.01), "plane strain"},
+      {"out_of_plane_zy", With(id, 2, 1, 0.01), "plane strain"},
+  };
+}
+
+class BadApplyTest : public testing::TestWithParam<ApplyCase> {};
+
+TEST_P(BadApplyTest, RefusedWithInvalidArgumentAndNoChange) {
+  const ApplyCase& c = GetParam();
+  Rve rve = CreateOrDie(Loaded());
+  Rve twin = CreateOrDie(Loaded());
+  const absl::StatusOr<RveState> s = rve.Apply(c.delta_f);
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument) << s.status();
+  EXPECT_TRUE(HasSubstr(s.status().message(), c.message));
+  ExpectIdentical(rve.ToPacking(), Loaded());
+  // Nothing hidden changed either: both continue identically.
+  CellControl shear;
+  shear.xy = {ControlMode::kStrainRate, 1e-5 / rve.time_step()};
+  rve.Run(shear, 20);
+  twin.Run(shear, 20);
+  ExpectIdentical(rve.ToPacking(), twin.ToPacking());
+}
+
+INSTANTIATE_TEST_SUITE_P(Cases, BadApplyTest, testing::ValuesIn(BadApplyCases()),
+                         [](const testing::TestParamInfo<ApplyCase>& info) {
+                           return info.param.name;
+                         });
+
+TEST(ApplyTest, ValidIncrementsAreAccepted) {
+  // Positive control for the cases above: just inside each limit.
+  Rve rve = CreateOrDie(Loaded());
+  EXPECT_TRUE(rve.Apply(Diag(1.049, 1.0)).ok());
+  EXPECT_TRUE(rve.Apply(Rotation(0.49)).ok());
+  EXPECT_TRUE(rve.Apply(With(Eigen::Matrix3d::Identity(), 2, 2, 1.0 + 1e-13)).ok());
+}
+
+TEST(ApplyTest, CellThinnerThanTheCutoffIsAFailedPrecondition) {
+  Packing p = Loaded();
+  p.controls.max_stretch = 2.0;  // let the stretch limit pass
+  Rve rve = CreateOrDie(p);
+  const Packing before = rve.ToPacking();
+  // The 5×5 cell is ~10 radii wide; 0.4 of it is below 2 × (2 r_max + skin·r_min).
+  const absl::StatusOr<RveState> s = rve.Apply(Diag(0.4, 1.0));
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.status().code(), absl::StatusCode::kFailedPrecondition) << s.status();
+  EXPECT_TRUE(HasSubstr(s.status().message(), "cutoff"));
+  ExpectIdentical(rve.ToPacking(), before);
+}
+
+// --- Create. ---
+
+struct CreateCase {
+  std::string name;
+  std::function<void(Packing&)> corrupt;
+  std::string message;
+};
+
+std::vector<CreateCase> BadCreateCases() {
+  std::vector<CreateCase> cases;
+  using Field = std::vector<double> Packing::*;
+  for (const auto& [name, field] :
+       {std::pair<const char*, Field>{"sx", &Packing::sx}, {"sy", &Packing::sy},
+        {"vx", &Packing::vx}, {"vy", &Packing::vy}, {"omega", &Packing::omega},
+        {"theta", &Packing::theta}}) {
+    const std::string n = name;
+    const Field f = field;
+    cases.push_back({"short_" + n, [f](Packing& p) { (p.*f).pop_back(); },
+                     "field " + n + " has 24 entries"});
+    cases.push_back({"long_" + n, [f](Packing& p) { (p.*f).push_back(0.0); },
+                     "field " + n + " has 26 entries"});
+    cases.push_back({"nan_" + n, [f](Packing& p) { (p.*f)[7] = kNaN; }, n + "[7]"});
+    cases.push_back({"inf_" + n, [f](Packing& p) { (p.*f)[3] = -kInf; }, n + "[3]"});
+  }
+  cases.push_back({"zero_radius", [](Packing& p) { p.radius[4] = 0.0; }, "radius[4]"});
+  cases.push_back({"negative_radius", [](Packing& p) { p.radius[2] = -1e-3; }, "radius[2]"});
+  cases.push_back({"nan_radius", [](Packing& p) { p.radius[1] = kNaN; }, "radius[1]"});
+  cases.push_back({"inf_radius", [](Packing& p) { p.radius[0] = kInf; }, "radius[0]"});
+  cases.push_back({"one_particle",
+                   [](Packing& p) {
+                     for (auto* v : {&p.radius, &p.sx, &p.sy, &p.vx, &p.vy, &p.omega, &p.theta}) {
+                       v->resize(1);
+                     }
+                     p.contacts.clear();
+                   },
+                   "1 particles"});
+  cases.push_back({"negative_det_cell",
+                   [](Packing& p) { p.cell.col(0).swap(p.cell.col(1)); }, "det"});
+  cases.push_back({"singular_cell", [](Packing& p) { p.cell.col(1) = p.cell.col(0); }, "det"});
+  cases.push_back({"nan_cell", [](Packing& p) { p.cell(1, 0) = kNaN; }, "cell matrix"});
+  cases.push_back({"cell_too_small", [](Packing& p) { p.cell *= 0.4; }, "too small"});
+  cases.push_back({"frame_not_rotation", [](Packing& p) { p.frame *= 2.0; }, "frame"});
+  cases.push_back({"frame_reflection", [](Packing& p) { p.frame.col(0) *= -1.0; }, "frame"});
+  cases.push_back({"contacts_unsorted",
+                   [](Packing& p) { std::swap(p.contacts[3], p.contacts[4]); }, "sorted"});
+  cases.push_back({"contacts_duplicate",
+                   [](Packing& p) { p.contacts.insert(p.contacts.begin() + 2, p.contacts[2]); },
+                   "without repeats"});
+  cases.push_back({"contact_j_out_of_range",
+                   [](Packing& p) { p.contacts.push_back({3, 25, 0.1, 0.0, 0.0}); }, "need i < j"});
+  cases.push_back({"contact_i_equals_j",
+                   [](Packing& p) { p.contacts.back() = {24, 24, 0.1, 0.0, 0.0}; }, "need i < j"});
+  cases.push_back({"contact_i_above_j",
+                   [](Packing& p) { std::swap(p.contacts[0].i, p.contacts[0].j); }, "need i < j"});
+  cases.push_back({"contact_nan_ft",
+                   [](Packing& p) { p.contacts[5].tangential_force = kNaN; }, "contact 5"});
+  cases.push_back({"contact_inf_moment",
+                   [](Packing& p) { p.contacts[6].rolling_moment = kInf; }, "contact 6"});
+  cases.push_back({"contact_negative_bond",
+                   [](Packing& p) { p.contacts[1].bond_strength = -1.0; }, "contact 1"});
+  cases.push_back({"bad_material", [](Packing& p) { p.material.density = 0.0; }, "density"});
+  cases.push_back({"bad_controls", [](Packing& p) { p.controls.skin = 0.0; }, "skin"});
+  cases.push_back({"hertz_with_bonds",
+                   [](Packing& p) {
+                     p.material.model = ContactModel::kHertzMindlin;
+                     p.material.bond_cohesion = 1e6;
+                   },
+                   "linear contact model"});
+  cases.push_back({"nan_void_ratio", [](Packing& p) { p.initial_void_ratio = kNaN; },
+                   "initial_void_ratio"});
+  cases.push_back({"negative_permeability",
+                   [](Packing& p) { p.permeability_coefficient = -1.0; },
+                   "permeability_coefficient"});
+  return cases;
+}
+
+class BadCreateTest : public testing::TestWithParam<CreateCase> {};
+
+TEST_P(BadCreateTest, RefusedWithInvalidArgument) {
+  Packing p = Loaded();
+  ASSERT_TRUE(Rve::Create(p).ok());  // the unmodified packing is valid
+  ASSERT_GE(p.contacts.size(), 7u);
+  GetParam().corrupt(p);
+  const absl::StatusOr<Rve> rve = Rve::Create(p);
+  ASSERT_FALSE(rve.ok());
+  EXPECT_EQ(rve.status().code(), absl::StatusCode::kInvalidArgument) << rve.status();
+  EXPECT_TRUE(HasSubstr(rve.status().message(), GetParam().message));
+}
+
+INSTANTIATE_TEST_SUITE_P(Cases, BadCreateTest, testing::ValuesIn(BadCreateCases()),
+                         [](const testing::TestParamInfo<CreateCase>& info) {
+                           return info.param.name;
+                         });
+
+// --- Validate(Material), Validate(Controls), Validate(PreparationSpec). ---
+
+template <typename T>
+struct FieldCase {
+  std::string field;
+  std::function<void(T&)> corrupt;
+};
+
+template <typename T>
+void ExpectEachRefused(const std::vector<FieldCase<T>>& cases) {
+  ASSERT_TRUE(Validate(T{}).ok()) << "defaults must be valid";
+  for (const FieldCase<T>& c : cases) {
+    T value;
+    c.corrupt(value);
+    const absl::Status s = Validate(value);
+    EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument) << c.field << ": " << s;
+    EXPECT_TRUE(HasSubstr(s.message(), c.field + " = ")) << s;
+  }
+}
+
+TEST(ValidateTest, MaterialRefusesEachBadField) {
+  ExpectEachRefused<Material>({
+      {"density", [](Material& m) { m.density = 0.0; }},
+      {"density", [](Material& m) { m.density = kNaN; }},
+      {"young_modulus", [](Material& m) { m.young_modulus = -1.0; }},
+      {"young_modulus", [](Material& m) { m.young_modulus = kInf; }},
+      {"stiffness_ratio", [](Material& m) { m.stiffness_ratio = -0.1; }},
+      {"poisson_ratio", [](Material& m) { m.poisson_ratio = 0.5; }},
+      {"poisson_ratio", [](Material& m) { m.poisson_ratio = -1.0; }},
+      {"friction", [](Material& m) { m.friction = -0.01; }},
+      {"friction", [](Material& m) { m.friction = kNaN; }},
+      {"rolling_beta", [](Material& m) { m.rolling_beta = -1.0; }},
+      {"rolling_eta", [](Material& m) { m.rolling_eta = -1.0; }},
+      {"bond_cohesion", [](Material& m) { m.bond_cohesion = -1.0; }},
+      {"damping", [](Material& m) { m.damping = 1.0; }},
+      {"damping", [](Material& m) { m.damping = -0.1; }},
+      {"thickness", [](Material& m) { m.thickness = 0.0; }},
+  });
+  for (const std::string& name : ParameterSetNames()) {
+    absl::StatusOr<ParameterSet> set = FindParameterSet(name);
+    ASSERT_TRUE(set.ok()) << name;
+    EXPECT_TRUE(Validate(set->material).ok()) << name;
+    EXPECT_TRUE(Validate(set->preparation).ok()) << name;
+  }
+}
+
+TEST(ValidateTest, ControlsRefusesEachBadField) {
+  ExpectEachRefused<Controls>({
+      {"time_step_factor", [](Controls& c) { c.time_step_factor = 0.0; }},
+      {"time_step_factor", [](Controls& c) { c.time_step_factor = 1.5; }},
+      {"time_step_factor", [](Controls& c) { c.time_step_factor = kNaN; }},
+      {"max_inertial_number", [](Controls& c) { c.max_inertial_number = 0.0; }},
+      {"pressure_floor", [](Controls& c) { c.pressure_floor = -1.0; }},
+      {"min_steps", [](Controls& c) { c.min_steps = 0; }},
+      {"max_stretch", [](Controls& c) { c.max_stretch = 0.0; }},
+      {"max_stretch", [](Controls& c) { c.max_stretch = kInf; }},
+      {"max_rotation", [](Controls& c) { c.max_rotation = 0.0; }},
+      {"max_rotation", [](Controls& c) { c.max_rotation = 2.0; }},  // > π/2
+      {"mass_scale", [](Controls& c) { c.mass_scale = 0.5; }},
+      {"skin", [](Controls& c) { c.skin = 0.0; }},
+      {"skin", [](Controls& c) { c.skin = 2.5; }},
+  });
+}
+
+std::vector<FieldCase<PreparationSpec>> BadPreparationCases() {
+  return {
+      {"num_particles", [](PreparationSpec& p) { p.num_particles = 1; }},
+      {"num_particles", [](PreparationSpec& p) { p.num_particles = 2000000; }},
+      {"radius_min", [](PreparationSpec& p) { p.radius_min = 0.0; }},
+      {"radius_max", [](PreparationSpec& p) { p.radius_max = 0.5 * p.radius_min; }},
+      {"pressure", [](PreparationSpec& p) { p.pressure = 0.0; }},
+      {"pressure", [](PreparationSpec& p) { p.pressure = kNaN; }},
+      {"target_void_ratio", [](PreparationSpec& p) { p.target_void_ratio = 10.0; }},
+      {"initial_permeability", [](PreparationSpec& p) { p.initial_permeability = 0.0; }},
+  };
+}
+
+TEST(ValidateTest, PreparationSpecRefusesEachBadField) {
+  ExpectEachRefused<PreparationSpec>(BadPreparationCases());
+}
+
+TEST(PreparePackingTest, BadInputsAreRefusedBeforeAnyWork) {
+  absl::StatusOr<ParameterSet> base = FindParameterSet("SET-dense");
+  ASSERT_TRUE(base.ok());
+  for (const FieldCase<PreparationSpec>& c : BadPreparationCases()) {
+    ParameterSet set = *base;
+    c.corrupt(set.preparation);
+    const absl::StatusOr<Packing> p = PreparePacking(set);
+    ASSERT_FALSE(p.ok()) << c.field;
+    EXPECT_EQ(p.status().code(), absl::StatusCode::kInvalidArgument) << p.status();
+    EXPECT_TRUE(HasSubstr(p.status().message(), c.field + " = "));
+  }
+  ParameterSet bad_material = *base;
+  bad_material.material.friction = -1.0;
+  absl::StatusOr<Packing> p = PreparePacking(bad_material);
+  EXPECT_EQ(p.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_TRUE(HasSubstr(p.status().message(), "friction"));
+  Controls bad_controls;
+  bad_controls.time_step_factor = 2.0;
+  p = PreparePacking(*base, bad_controls);
+  EXPECT_EQ(p.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_TRUE(HasSubstr(p.status().message(), "time_step_factor"));
+}
+
+TEST(ParameterSetTest, UnknownNameIsNotFoundAndListsTheNames) {
+  const absl::StatusOr<ParameterSet> set = FindParameterSet("nope");
+  ASSERT_FALSE(set.ok());
+  EXPECT_EQ(set.status().code(), absl::StatusCode::kNotFound);
+  EXPECT_TRUE(HasSubstr(set.status().message(), "'nope'"));
+  const std::vector<std::string> names = ParameterSetNames();
+  EXPECT_EQ(names.size(), 9u);  // shared/reference/README.md lists nine sets
+  for (const std::string& name : names) EXPECT_TRUE(HasSubstr(set.status().message(), name));
+  EXPECT_FALSE(FindParameterSet("set-dense").ok());  // names are case-sensitive
+}
+
+TEST(ParseElementTestKindTest, UnknownNameListsTheKinds) {
+  const absl::StatusOr<ElementTestKind> kind = ParseElementTestKind("triaxial");
+  ASSERT_FALSE(kind.ok());
+  EXPECT_EQ(kind.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_TRUE(HasSubstr(kind.status().message(), "'triaxial'"));
+  EXPECT_TRUE(HasSubstr(kind.status().message(), "drained-biaxial"));
+  EXPECT_TRUE(HasSubstr(kind.status().message(), "cyclic-simple-shear"));
+}
+
+// --- ApplyBatch. ---
+
+TEST(ApplyBatchTest, BadArgumentsChangeNoRve) {
+  Rve a = CreateOrDie(Loaded()), b = CreateOrDie(Loaded());
+  std::vector<Rve*> rves = {&a, &b};
+  const std::vector<Eigen::Matrix3d> one = {Diag(1.01, 1.0)};
+  const std::vector<Eigen::Matrix3d> two = {Diag(1.01, 1.0), Diag(1.0, 0.99)};
+  struct Case {
+    std::string what;
+    std::vector<Rve*> rves;
+    const std::vector<Eigen::Matrix3d>* delta_f;
+    int threads;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {"mismatched spans", rves, &one, 2, "2 RVEs but 1"},
+      {"no threads", rves, &two, 0, "threads = 0"},
+      {"negative threads", rves, &two, -3, "threads = -3"},
+      {"null RVE", {&a, nullptr}, &two, 2, "RVE 1 is null"},
+  };
+  for (const Case& c : cases) {
+    const auto result = ApplyBatch(c.rves, *c.delta_f, {}, c.threads);
+    ASSERT_FALSE(result.ok()) << c.what;
+    EXPECT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument) << c.what;
+    EXPECT_TRUE(HasSubstr(result.status().message(), c.message));
+    ExpectIdentical(a.ToPacking(), Loaded());
+    ExpectIdentical(b.ToPacking(), Loaded());
+  }
+}
+
+TEST(ApplyBatchTest, OneBadIncrementFailsOnlyItsRve) {
+  Rve a = CreateOrDie(Loaded()), b = CreateOrDie(Loaded());
+  const std::vector<Rve*> rves = {&a, &b};
+  const std::vector<Eigen::Matrix3d> delta_f = {Diag(1.01, 1.0), Diag(kNaN, 1.0)};
+  const auto result = ApplyBatch(rves, delta_f, {}, 2);
+  ASSERT_TRUE(result.ok()) << result.status();
+  ASSERT_EQ(result->size(), 2u);
+  EXPECT_TRUE((*result)[0].ok());
+  EXPECT_EQ((*result)[1].status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_GT(a.ToPacking().total_steps, Loaded().total_steps);
+  ExpectIdentical(b.ToPacking(), Loaded());
+}
+
+// --- RunElementTest. ---
+
+TEST(RunElementTestTest, BadSpecIsRefusedAndTheRveUntouched) {
+  struct Case {
+    std::string field;
+    std::function<void(ElementTestSpec&)> corrupt;
+  };
+  auto cyclic = [](ElementTestSpec& s) {
+    s.kind = ElementTestKind::kCyclicSimpleShear;
+    s.max_strain = 0.1;
+  };
+  const std::vector<Case> cases = {
+      {"confining", [](ElementTestSpec& s) { s.confining = 0.0; }},
+      {"confining", [](ElementTestSpec& s) { s.confining = -100e3; }},
+      {"confining", [](ElementTestSpec& s) { s.confining = kNaN; }},
+      {"confining", [](ElementTestSpec& s) { s.confining = kInf; }},
+      {"max_strain", [](ElementTestSpec& s) { s.max_strain = 0.5; }},
+      {"max_strain", [](ElementTestSpec& s) { s.max_strain = 0.0; }},
+      {"max_strain",
+       [](ElementTestSpec& s) {
+         s.kind = ElementTestKind::kOedometer;
+         s.max_strain = 0.6;
+       }},
+      {"max_strain",
+       [](ElementTestSpec& s) {
+         s.kind = ElementTestKind::kUndrainedSimpleShear;
+         s.max_strain = 10.0;
+       }},
+      {"inertial_number", [](ElementTestSpec& s) { s.inertial_number = 0.0; }},
+      {"inertial_number", [](ElementTestSpec& s) { s.inertial_number = 0.2; }},
+      {"rows", [](ElementTestSpec& s) { s.rows = 1; }},
+      {"cycles",
+       [&](ElementTestSpec& s) {
+         cyclic(s);
+         s.cycles = 0;
+       }},
+      {"cycles",
+       [&](ElementTestSpec& s) {
+         cyclic(s);
+         s.cycles = 10001;
+       }},
+      {"amplitude",
+       [&](ElementTestSpec& s) {
+         cyclic(s);
+         s.amplitude = 0.0;
+       }},
+      {"amplitude",
+       [&](ElementTestSpec& s) {
+         cyclic(s);
+         s.amplitude = 0.1;  // strain amplitude not below max_strain
+       }},
+  };
+  Rve rve = CreateOrDie(Loaded());
+  for (const Case& c : cases) {
+    ElementTestSpec spec;
+    c.corrupt(spec);
+    bool progressed = false;
+    const auto rows = RunElementTest(rve, spec, [&](double) { progressed = true; });
+    ASSERT_FALSE(rows.ok()) << c.field;
+    EXPECT_EQ(rows.status().code(), absl::StatusCode::kInvalidArgument) << rows.status();
+    EXPECT_TRUE(HasSubstr(rows.status().message(), c.field + " = "));
+    EXPECT_FALSE(progressed);
+    ExpectIdentical(rve.ToPacking(), Loaded());
+  }
+}
+
+// --- An RVE without contacts. ---
+
+void ExpectAllFinite(const RveState& s) {
+  EXPECT_TRUE(s.stress.allFinite());
+  EXPECT_TRUE(s.fabric.allFinite());
+  EXPECT_TRUE(s.fabric_anisotropy_tensor.allFinite());
+  EXPECT_TRUE(s.tangent.allFinite());
+  for (double v : {s.fabric_anisotropy, s.void_ratio, s.porosity, s.coordination,
+                   s.mechanical_coordination, s.permeability, s.mean_rotation, s.kinetic_energy,
+                   s.unbalanced_force_ratio, s.volume, s.time_step, s.mass_scale}) {
+    EXPECT_TRUE(std::isfinite(v)) << v;
+  }
+}
+
+TEST(DiluteTest, NoContactsGiveAZeroWellDefinedState) {
+  // 12 discs of 2–4 mm on a 4×3 grid, 3 cm apart: no contacts, and moving
+  // slowly enough that none form during the calls below.
+  Packing p;
+  p.cell << 0.12, 0.0, 0.0, 0.09;
+  for (int k = 0; k < 12; ++k) {
+    p.radius.push_back(2e-3 + 2e-3 * (k % 3) / 2.0);
+    p.sx.push_back((k % 4 + 0.5) / 4.0);
+    p.sy.push_back((k / 4 + 0.5) / 3.0);
+    p.vx.push_back(1e-3 * (k % 2 == 0 ? 1 : -1));
+    p.vy.push_back(0.0);
+    p.omega.push_back(0.1 * k);
+    p.theta.push_back(0.0);
+  }
+  p.permeability_coefficient = 1e-3;
+  Rve rve = CreateOrDie(p);
+  const RveState s = rve.Observe(/*want_tangent=*/true);
+  ExpectAllFinite(s);
+  EXPECT_EQ(s.num_contacts, 0);
+  EXPECT_FALSE(s.fabric_defined);
+  EXPECT_EQ(s.stress, Eigen::Matrix3d::Zero());
+  EXPECT_EQ(s.fabric, Eigen::Matrix3d::Zero());
+  EXPECT_EQ(s.fabric_anisotropy, 0.0);
+  EXPECT_EQ(s.tangent.norm(), 0.0);
+  EXPECT_EQ(s.coordination, 0.0);
+  EXPECT_EQ(s.mechanical_coordination, 0.0);
+  EXPECT_EQ(s.unbalanced_force_ratio, 0.0);
+  EXPECT_GT(s.kinetic_energy, 0.0);
+  const double solid = SolidArea(p.radius);
+  EXPECT_NEAR(s.void_ratio, (0.12 * 0.09 - solid) / solid, 1e-12);
+  EXPECT_TRUE(rve.Contacts().empty());
+
+  // Stepping, applying and relaxing a dilute RVE stays finite and contact-free.
+  CellControl shear;
+  shear.xy = {ControlMode::kStrainRate, 1.0};
+  ExpectAllFinite(rve.Run(shear, 10));
+  const absl::StatusOr<RveState> applied = rve.Apply(Diag(1.01, 0.99), {.want_tangent = true});
+  ASSERT_TRUE(applied.ok()) << applied.status();
+  ExpectAllFinite(*applied);
+  EXPECT_EQ(applied->num_contacts, 0);
+  EXPECT_EQ(applied->stress, Eigen::Matrix3d::Zero());
+  const RveState relaxed = rve.Relax(1e-4, 100);
+  ExpectAllFinite(relaxed);
+  EXPECT_EQ(relaxed.steps, 100);  // no contacts: the ratio criterion never holds
+  EXPECT_FALSE(relaxed.fabric_defined);
+}
+
+}  // namespace
+}  // namespace rvehub::dem

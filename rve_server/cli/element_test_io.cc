@@ -26,9 +26,9 @@ absl::Status WriteElementTestCsv(const std::string& path, const std::vector<Elem
     std::fprintf(file.get(),
                  "%lld,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,"
                  "%.10g,%.10g,%.10g\n",
-                 static_cast<long long>(r.step), r.axial_strain, r.vol_strain, r.sxx, r.syy,
-                 r.sxy, r.p, r.q, r.void_ratio, r.coordination, r.fabric_xx, r.fabric_yy,
-                 r.fabric_xy, r.fabric_anisotropy, r.permeability, r.shear_strain);
+                 static_cast<long long>(r.step), r.axial_strain, r.vol_strain, r.sxx, r.syy, r.sxy,
+                 r.p, r.q, r.void_ratio, r.coordination, r.fabric_xx, r.fabric_yy, r.fabric_xy,
+                 r.fabric_anisotropy, r.permeability, r.shear_strain);
   }
   if (std::ferror(file.get()) || std::fclose(file.release()) != 0) {
     return absl::UnavailableError(absl::StrCat("error while writing '", path, "'"));
@@ -37,7 +37,8 @@ absl::Status WriteElementTestCsv(const std::string& path, const std::vector<Elem
 }
 
 absl::Status WriteElementTestPlot(const std::string& path, ElementTestKind kind,
-                                  const std::string& title, const std::vector<ElementTestRow>& rows) {
+                                  const std::string& title,
+                                  const std::vector<ElementTestRow>& rows) {
   using Getter = std::function<double(const ElementTestRow&)>;
   auto series = [&](const std::string& label, const Getter& x, const Getter& y, double scale_x,
                     double scale_y) {
@@ -73,15 +74,21 @@ absl::Status WriteElementTestPlot(const std::string& path, ElementTestKind kind,
   std::vector<plot::Panel> panels;
   const bool shear_test = x_label.starts_with("shear");
   if (shear_test) {
-    panels.push_back({title + ": shear stress", x_label, "tau = sigma_xy (kPa)",
+    panels.push_back({title + ": shear stress",
+                      x_label,
+                      "tau = sigma_xy (kPa)",
                       {series("tau", x, tau, 100, 1e-3)}});
     panels.push_back({"stress path", "p (kPa)", "tau (kPa)", {series("tau", p, tau, 1e-3, 1e-3)}});
     panels.push_back({"mean stress", x_label, "p (kPa)", {series("p", x, p, 100, 1e-3)}});
   } else {
-    panels.push_back({title + ": stresses", x_label, "stress (kPa)",
+    panels.push_back({title + ": stresses",
+                      x_label,
+                      "stress (kPa)",
                       {series("sigma_yy", x, syy, 100, 1e-3), series("sigma_xx", x, sxx, 100, 1e-3),
                        series("q", x, q, 100, 1e-3)}});
-    panels.push_back({"volume change", x_label, "volumetric strain (%, compression +)",
+    panels.push_back({"volume change",
+                      x_label,
+                      "volumetric strain (%, compression +)",
                       {series("eps_v", x, vol, 100, 100)}});
     panels.push_back({"stress path", "p (kPa)", "q (kPa)", {series("q", p, q, 1e-3, 1e-3)}});
   }

@@ -57,7 +57,8 @@ absl::StatusOr<Flags> ParseFlags(int argc, char** argv, int first,
   Flags flags;
   for (int i = first; i < argc; ++i) {
     std::string arg = argv[i];
-    if (!arg.starts_with("--")) return absl::InvalidArgumentError(absl::StrCat("unexpected argument '", arg, "'"));
+    if (!arg.starts_with("--"))
+      return absl::InvalidArgumentError(absl::StrCat("unexpected argument '", arg, "'"));
     const std::size_t eq = arg.find('=');
     std::string key = arg.substr(2, eq == std::string::npos ? std::string::npos : eq - 2);
     std::string value = eq == std::string::npos ? "" : arg.substr(eq + 1);
@@ -83,12 +84,14 @@ absl::Status Get(const Flags& flags, const std::string& key, T* out) {
   } else {
     ok = absl::SimpleAtoi(it->second, out);
   }
-  if (!ok) return absl::InvalidArgumentError(absl::StrCat("bad value for --", key, ": '", it->second, "'"));
+  if (!ok)
+    return absl::InvalidArgumentError(
+        absl::StrCat("bad value for --", key, ": '", it->second, "'"));
   return absl::OkStatus();
 }
 
-#define RETURN_IF_ERROR(expr)              \
-  do {                                     \
+#define RETURN_IF_ERROR(expr)                          \
+  do {                                                 \
     if (absl::Status s_ = (expr); !s_.ok()) return s_; \
   } while (false)
 
@@ -105,11 +108,13 @@ absl::StatusOr<dem::Packing> Prepare(const Flags& flags, std::string* name) {
                static_cast<unsigned long long>(seed), set->preparation.num_particles);
   dem::PreparationReport report;
   absl::StatusOr<dem::Packing> packing = dem::PreparePacking(
-      *set, {}, &report, [](const std::string& line) { std::fprintf(stderr, "  %s\n", line.c_str()); });
+      *set, {}, &report,
+      [](const std::string& line) { std::fprintf(stderr, "  %s\n", line.c_str()); });
   if (!packing.ok()) return packing.status();
-  std::fprintf(stderr, "prepared: e0 = %.4f, p0 = %.1f Pa, Z = %.2f, compaction friction %.4f, %lld steps\n",
-               report.void_ratio, report.pressure, report.coordination, report.compaction_friction,
-               static_cast<long long>(report.steps));
+  std::fprintf(
+      stderr, "prepared: e0 = %.4f, p0 = %.1f Pa, Z = %.2f, compaction friction %.4f, %lld steps\n",
+      report.void_ratio, report.pressure, report.coordination, report.compaction_friction,
+      static_cast<long long>(report.steps));
   return packing;
 }
 
@@ -152,7 +157,8 @@ absl::Status ElementTest(const Flags& flags) {
         last_percent = percent;
         const double secs =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-        std::fprintf(stderr, "\r%s on %s: %3d%% (%.1f s)", test.c_str(), material.c_str(), percent, secs);
+        std::fprintf(stderr, "\r%s on %s: %3d%% (%.1f s)", test.c_str(), material.c_str(), percent,
+                     secs);
         std::fflush(stderr);
       });
   std::fprintf(stderr, "\n");
@@ -177,8 +183,9 @@ absl::Status PrepareCommand(const Flags& flags) {
               rve->num_particles(), s.void_ratio, s.porosity);
   std::printf("p_Pa %.3f\nsxx_Pa %.3f\nsyy_Pa %.3f\nsxy_Pa %.3f\n", -0.5 * s.stress.trace(),
               -s.stress(0, 0), -s.stress(1, 1), -s.stress(0, 1));
-  std::printf("coordination %.4f\nmechanical_coordination %.4f\nFa %.5f\npermeability_m_per_s %.6g\n",
-              s.coordination, s.mechanical_coordination, s.fabric_anisotropy, s.permeability);
+  std::printf(
+      "coordination %.4f\nmechanical_coordination %.4f\nFa %.5f\npermeability_m_per_s %.6g\n",
+      s.coordination, s.mechanical_coordination, s.fabric_anisotropy, s.permeability);
   std::printf("unbalanced_force_ratio %.3g\ntime_step_s %.6g\nD_xxxx_Pa %.6g\nD_yyyy_Pa %.6g\n",
               s.unbalanced_force_ratio, s.time_step, s.tangent(0, 0), s.tangent(4, 4));
   return absl::OkStatus();
@@ -210,7 +217,8 @@ int Main(int argc, char** argv) {
   } else if (command == "materials") {
     std::printf("%s\n", absl::StrJoin(dem::ParameterSetNames(), "\n").c_str());
   } else {
-    status = absl::InvalidArgumentError(absl::StrCat("unknown command '", command, "' (see --help)"));
+    status =
+        absl::InvalidArgumentError(absl::StrCat("unknown command '", command, "' (see --help)"));
   }
   if (!status.ok()) {
     std::fprintf(stderr, "rve_cli: %s\n", std::string(status.message()).c_str());

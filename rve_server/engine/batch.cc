@@ -15,7 +15,8 @@ absl::StatusOr<std::vector<absl::StatusOr<RveState>>> ApplyBatch(
     return absl::InvalidArgumentError(absl::StrCat("batch has ", rves.size(), " RVEs but ",
                                                    delta_f.size(), " deformation increments"));
   }
-  if (threads < 1) return absl::InvalidArgumentError(absl::StrCat("threads = ", threads, " must be >= 1"));
+  if (threads < 1)
+    return absl::InvalidArgumentError(absl::StrCat("threads = ", threads, " must be >= 1"));
   for (std::size_t k = 0; k < rves.size(); ++k) {
     if (rves[k] == nullptr) return absl::InvalidArgumentError(absl::StrCat("RVE ", k, " is null"));
   }

@@ -4,10 +4,9 @@
 #ifndef RVEHUB_RVE_SERVER_ENGINE_BATCH_H_
 #define RVEHUB_RVE_SERVER_ENGINE_BATCH_H_
 
+#include <Eigen/Dense>
 #include <span>
 #include <vector>
-
-#include <Eigen/Dense>
 
 #include "absl/status/statusor.h"
 #include "rve_server/engine/rve.h"

@@ -29,8 +29,8 @@ struct HertzResponse {
 // Hertz–Mindlin for two equal-material particles; E in Pa, radii and δ in m.
 inline HertzResponse HertzMindlin(double young, double poisson, double r1, double r2,
                                   double overlap) {
-  const double e_star = young / (2.0 * (1.0 - poisson * poisson));       // Pa
-  const double g_star = young / (4.0 * (1.0 + poisson) * (2.0 - poisson));  // Pa, G/(2(2-ν))
+  const double e_star = young / (2.0 * (1.0 - poisson * poisson));           // Pa
+  const double g_star = young / (4.0 * (1.0 + poisson) * (2.0 - poisson));   // Pa, G/(2(2-ν))
   const double a = std::sqrt(r1 * r2 / (r1 + r2) * std::max(overlap, 0.0));  // m
   return {4.0 / 3.0 * e_star * a * overlap, 2.0 * e_star * a, 8.0 * g_star * a};
 }

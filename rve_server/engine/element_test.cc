@@ -69,7 +69,8 @@ absl::Status CheckSpec(const ElementTestSpec& spec) {
       return bad("amplitude", spec.amplitude, "must be > 0");
     if (spec.cyclic_control == CyclicControl::kStrain && spec.amplitude >= spec.max_strain)
       return bad("amplitude", spec.amplitude, "a strain amplitude must be below max_strain");
-    if (spec.cycles < 1 || spec.cycles > 10000) return bad("cycles", spec.cycles, "must lie in [1, 1e4]");
+    if (spec.cycles < 1 || spec.cycles > 10000)
+      return bad("cycles", spec.cycles, "must lie in [1, 1e4]");
   }
   return absl::OkStatus();
 }
@@ -82,7 +83,8 @@ absl::StatusOr<ElementTestKind> ParseElementTestKind(absl::string_view name) {
     if (name == k.name) return k.kind;
     absl::StrAppend(&known, known.empty() ? "" : ", ", k.name);
   }
-  return absl::InvalidArgumentError(absl::StrCat("unknown element test '", name, "'; known: ", known));
+  return absl::InvalidArgumentError(
+      absl::StrCat("unknown element test '", name, "'; known: ", known));
 }
 
 std::string ElementTestName(ElementTestKind kind) {

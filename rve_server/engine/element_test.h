@@ -32,7 +32,7 @@ struct ElementTestSpec {
   int rows = 400;                 // rows recorded over max_strain (monotonic tests)
   // Cyclic simple shear:
   CyclicControl cyclic_control = CyclicControl::kStrain;
-  double amplitude = 0.005;       // γ amplitude, or τ = σxy amplitude in Pa
+  double amplitude = 0.005;  // γ amplitude, or τ = σxy amplitude in Pa
   int cycles = 5;
 };
 
@@ -43,8 +43,8 @@ struct ElementTestRow {
   double p = 0, q = 0;                      // Pa: p = tr σ/2, q = sqrt(½ s:s)
   double void_ratio = 0, coordination = 0;
   double fabric_xx = 0, fabric_yy = 0, fabric_xy = 0, fabric_anisotropy = 0;
-  double permeability = 0;                  // m/s
-  double shear_strain = 0;                  // γ = F_xy
+  double permeability = 0;  // m/s
+  double shear_strain = 0;  // γ = F_xy
 };
 
 absl::StatusOr<ElementTestKind> ParseElementTestKind(absl::string_view name);

@@ -16,8 +16,7 @@ absl::Status Check(bool ok, absl::string_view field, double value, absl::string_
 
 double TanDeg(double degrees) { return std::tan(degrees * std::numbers::pi / 180.0); }
 
-ParameterSet Make(std::string name, double young, double kt_kn, double friction,
-                  double e0) {
+ParameterSet Make(std::string name, double young, double kt_kn, double friction, double e0) {
   ParameterSet s;
   s.material.name = std::move(name);
   s.material.young_modulus = young;
@@ -34,10 +33,9 @@ std::vector<ParameterSet> AllSets() {
   // guo-et-al-spfem-dem Table 1: φ = 0.5 rad.
   sets.push_back(Make("SPFEM-biaxial", 800e6, 0.8, std::tan(0.5), 0.178));
   // liang-zhao-mpm-dem Table 2, with rolling resistance.
-  for (auto [name, young, phi, eta, e0] :
-       {std::tuple{"footing-dense", 800e6, 23.0, 0.05, 0.1874},
-        std::tuple{"footing-medium", 800e6, 23.0, 0.05, 0.2314},
-        std::tuple{"footing-soft", 80e6, 20.0, 0.02, 0.2299}}) {
+  for (auto [name, young, phi, eta, e0] : {std::tuple{"footing-dense", 800e6, 23.0, 0.05, 0.1874},
+                                           std::tuple{"footing-medium", 800e6, 23.0, 0.05, 0.2314},
+                                           std::tuple{"footing-soft", 80e6, 20.0, 0.02, 0.2299}}) {
     ParameterSet s = Make(name, young, 0.5, TanDeg(phi), e0);
     s.material.rolling_beta = 1.0;
     s.material.rolling_eta = eta;
@@ -61,7 +59,8 @@ absl::Status Validate(const Material& m) {
   for (const absl::Status& s : {
            Check(m.density > 0, "density", m.density, "must be > 0 kg/m³"),
            Check(m.young_modulus > 0, "young_modulus", m.young_modulus, "must be > 0 Pa"),
-           Check(m.stiffness_ratio >= 0, "stiffness_ratio", m.stiffness_ratio, "kt/kn must be >= 0"),
+           Check(m.stiffness_ratio >= 0, "stiffness_ratio", m.stiffness_ratio,
+                 "kt/kn must be >= 0"),
            Check(m.poisson_ratio > -1 && m.poisson_ratio < 0.5, "poisson_ratio", m.poisson_ratio,
                  "must lie in (-1, 0.5)"),
            Check(m.friction >= 0, "friction", m.friction, "μ = tan φ must be >= 0"),
@@ -81,8 +80,7 @@ absl::Status Validate(const PreparationSpec& p) {
            Check(p.num_particles >= 2 && p.num_particles <= 1000000, "num_particles",
                  p.num_particles, "must lie in [2, 1e6]"),
            Check(p.radius_min > 0, "radius_min", p.radius_min, "must be > 0 m"),
-           Check(p.radius_max >= p.radius_min, "radius_max", p.radius_max,
-                 "must be >= radius_min"),
+           Check(p.radius_max >= p.radius_min, "radius_max", p.radius_max, "must be >= radius_min"),
            Check(p.pressure > 0, "pressure", p.pressure, "must be > 0 Pa"),
            Check(p.target_void_ratio < 10, "target_void_ratio", p.target_void_ratio,
                  "must be < 10 (<= 0 means frictionless compaction)"),

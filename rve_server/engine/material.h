@@ -5,11 +5,11 @@
 
 #include <cstdint>
 #include <string>
-#include "absl/strings/string_view.h"
 #include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
 
 namespace rvehub::dem {
 
@@ -20,26 +20,26 @@ enum class ContactModel {
 
 struct Material {
   std::string name = "custom";
-  double density = 2650.0;          // ρ_p, kg/m³
-  double young_modulus = 600e6;     // E_c, Pa (linear: kn = E·r*)
-  double stiffness_ratio = 0.8;     // kt/kn, linear model only, [-]
-  double poisson_ratio = 0.25;      // ν, Hertz–Mindlin only, [-]
-  double friction = 0.5452;         // μ = tan φ, [-]
-  double rolling_beta = 0.0;        // β in kr = kt·r1·r2·β; 0 disables rolling resistance
-  double rolling_eta = 0.0;         // η in |M_r| ≤ η·r_min·fn, [-]
-  double bond_cohesion = 0.0;       // c, Pa; bond strength c·min(r1,r2)² (N); 0: no bonds
-  double damping = 0.1;             // local non-viscous damping α, [-]
-  double thickness = 0.1;           // out-of-plane disc thickness t, m (see shared/reference)
+  double density = 2650.0;       // ρ_p, kg/m³
+  double young_modulus = 600e6;  // E_c, Pa (linear: kn = E·r*)
+  double stiffness_ratio = 0.8;  // kt/kn, linear model only, [-]
+  double poisson_ratio = 0.25;   // ν, Hertz–Mindlin only, [-]
+  double friction = 0.5452;      // μ = tan φ, [-]
+  double rolling_beta = 0.0;     // β in kr = kt·r1·r2·β; 0 disables rolling resistance
+  double rolling_eta = 0.0;      // η in |M_r| ≤ η·r_min·fn, [-]
+  double bond_cohesion = 0.0;    // c, Pa; bond strength c·min(r1,r2)² (N); 0: no bonds
+  double damping = 0.1;          // local non-viscous damping α, [-]
+  double thickness = 0.1;        // out-of-plane disc thickness t, m (see shared/reference)
   ContactModel model = ContactModel::kLinear;
 };
 
 // How an RVE of a material is generated and prepared.
 struct PreparationSpec {
   int num_particles = 400;
-  double radius_min = 3e-3;          // m
-  double radius_max = 7e-3;          // m (radii uniform in [min, max])
-  double pressure = 100e3;           // p0, Pa, compression positive
-  double target_void_ratio = 0.177;  // e0 sought by the compaction friction; <= 0: frictionless
+  double radius_min = 3e-3;            // m
+  double radius_max = 7e-3;            // m (radii uniform in [min, max])
+  double pressure = 100e3;             // p0, Pa, compression positive
+  double target_void_ratio = 0.177;    // e0 sought by the compaction friction; <= 0: frictionless
   double initial_permeability = 1e-3;  // k0 at e0, m/s (hydraulic conductivity)
   std::uint64_t seed = 1;
 };

@@ -3,10 +3,9 @@
 #ifndef RVEHUB_RVE_SERVER_ENGINE_PACKING_H_
 #define RVEHUB_RVE_SERVER_ENGINE_PACKING_H_
 
+#include <Eigen/Dense>
 #include <cstdint>
 #include <vector>
-
-#include <Eigen/Dense>
 
 #include "absl/status/status.h"
 #include "rve_server/engine/material.h"
@@ -46,15 +45,15 @@ struct Packing {
   // Accumulated rigid rotation of the cell; local damping acts in this frame
   // so that a rigid rotation of the RVE is exactly objective.
   Eigen::Matrix2d frame = Eigen::Matrix2d::Identity();
-  std::vector<double> radius;                // m
-  std::vector<double> sx, sy;                // reduced coordinates, [-] (not wrapped)
-  std::vector<double> vx, vy;                // fluctuating velocity (total − L·x), m/s
-  std::vector<double> omega;                 // angular velocity, rad/s (counter-clockwise +)
-  std::vector<double> theta;                 // accumulated rotation, rad
-  std::vector<ContactHistory> contacts;      // sorted by (i, j)
-  double initial_void_ratio = 0.0;           // e0, [-]
-  double permeability_coefficient = 0.0;     // c in k = c·e³/(1+e), m/s
-  std::int64_t total_steps = 0;              // DEM steps since creation
+  std::vector<double> radius;             // m
+  std::vector<double> sx, sy;             // reduced coordinates, [-] (not wrapped)
+  std::vector<double> vx, vy;             // fluctuating velocity (total − L·x), m/s
+  std::vector<double> omega;              // angular velocity, rad/s (counter-clockwise +)
+  std::vector<double> theta;              // accumulated rotation, rad
+  std::vector<ContactHistory> contacts;   // sorted by (i, j)
+  double initial_void_ratio = 0.0;        // e0, [-]
+  double permeability_coefficient = 0.0;  // c in k = c·e³/(1+e), m/s
+  std::int64_t total_steps = 0;           // DEM steps since creation
 };
 
 absl::Status Validate(const Controls& c);

@@ -80,7 +80,8 @@ Packing GenerateLoosePacking(const ParameterSet& set, const Controls& controls) 
   p.controls = controls;
   const int n = spec.num_particles;
   p.radius.resize(n);
-  for (double& r : p.radius) r = spec.radius_min + (spec.radius_max - spec.radius_min) * Uniform(rng);
+  for (double& r : p.radius)
+    r = spec.radius_min + (spec.radius_max - spec.radius_min) * Uniform(rng);
   // Largest first places quickly and is still a fixed function of the seed.
   std::sort(p.radius.begin(), p.radius.end(), std::greater<>());
   const double side = std::sqrt(SolidArea(p.radius) / kInitialSolidFraction);
@@ -134,8 +135,9 @@ absl::StatusOr<Packing> PreparePacking(const ParameterSet& set, const Controls& 
     if (!s.ok()) return s.status();
     ++trials;
     if (progress) {
-      progress(absl::StrFormat("compaction trial %d: friction %.4f -> e = %.4f (target %.4f), %d steps",
-                               trials, friction, s->void_ratio, target, steps));
+      progress(
+          absl::StrFormat("compaction trial %d: friction %.4f -> e = %.4f (target %.4f), %d steps",
+                          trials, friction, s->void_ratio, target, steps));
     }
     return Trial{friction, s->void_ratio, rve->ToPacking()};
   };
@@ -177,8 +179,9 @@ absl::StatusOr<Packing> PreparePacking(const ParameterSet& set, const Controls& 
   out.total_steps = 0;
   out.reference_cell = out.cell;  // strains count from the prepared state
   if (report != nullptr) {
-    *report = {best.friction, trials, e0, -final_state->stress.trace() / 2.0,
-               final_state->coordination, steps};
+    *report = {
+        best.friction, trials, e0, -final_state->stress.trace() / 2.0, final_state->coordination,
+        steps};
   }
   return out;
 }

@@ -37,9 +37,9 @@ Packing GenerateLoosePacking(const ParameterSet& set, const Controls& controls =
 // compaction friction steered (a few trials) so that e lands near the target,
 // restores the material friction and stabilises (p within 1 %, unbalanced
 // force ratio < 1e-4). `progress`, when set, receives one line per trial.
-absl::StatusOr<Packing> PreparePacking(const ParameterSet& set, const Controls& controls = {},
-                                       PreparationReport* report = nullptr,
-                                       const std::function<void(const std::string&)>& progress = {});
+absl::StatusOr<Packing> PreparePacking(
+    const ParameterSet& set, const Controls& controls = {}, PreparationReport* report = nullptr,
+    const std::function<void(const std::string&)>& progress = {});
 
 }  // namespace rvehub::dem
 

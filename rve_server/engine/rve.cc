@@ -1,11 +1,10 @@
 #include "rve_server/engine/rve.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <utility>
-
-#include <Eigen/Dense>
 
 #include "absl/strings/str_cat.h"
 #include "rve_server/engine/contact_law.h"
@@ -123,8 +122,8 @@ Rve::Rve(Packing packing) : p_(std::move(packing)) {
       m.density * kPi * radius_min_ * radius_min_ * m.thickness * p_.controls.mass_scale;
   double kn_max = m.young_modulus * radius_max_;
   if (m.model == ContactModel::kHertzMindlin) {
-    const HertzResponse hz =
-        HertzMindlin(m.young_modulus, m.poisson_ratio, radius_max_, radius_max_, 0.01 * radius_max_);
+    const HertzResponse hz = HertzMindlin(m.young_modulus, m.poisson_ratio, radius_max_,
+                                          radius_max_, 0.01 * radius_max_);
     kn_max = std::max(hz.kn, hz.kt);
   } else {
     kn_max *= std::max(1.0, m.stiffness_ratio);
@@ -139,10 +138,15 @@ absl::StatusOr<Rve> Rve::Create(Packing p) {
   if (absl::Status s = Validate(p.material); !s.ok()) return s;
   if (absl::Status s = Validate(p.controls); !s.ok()) return s;
   const std::size_t n = p.radius.size();
-  if (n < 2) return absl::InvalidArgumentError(absl::StrCat("packing has ", n, " particles; needs >= 2"));
+  if (n < 2)
+    return absl::InvalidArgumentError(absl::StrCat("packing has ", n, " particles; needs >= 2"));
   if (n > (1u << 30)) return absl::InvalidArgumentError("packing has too many particles");
-  for (auto [vec, name] : {std::pair{&p.sx, "sx"}, {&p.sy, "sy"}, {&p.vx, "vx"}, {&p.vy, "vy"},
-                           {&p.omega, "omega"}, {&p.theta, "theta"}}) {
+  for (auto [vec, name] : {std::pair{&p.sx, "sx"},
+                           {&p.sy, "sy"},
+                           {&p.vx, "vx"},
+                           {&p.vy, "vy"},
+                           {&p.omega, "omega"},
+                           {&p.theta, "theta"}}) {
     if (vec->size() != n) {
       return absl::InvalidArgumentError(
           absl::StrCat("packing field ", name, " has ", vec->size(), " entries; radius has ", n));
@@ -153,7 +157,8 @@ absl::StatusOr<Rve> Rve::Create(Packing p) {
   }
   for (std::size_t i = 0; i < n; ++i) {
     if (!(p.radius[i] > 0) || !std::isfinite(p.radius[i])) {
-      return absl::InvalidArgumentError(absl::StrCat("radius[", i, "] = ", p.radius[i], " must be > 0 m"));
+      return absl::InvalidArgumentError(
+          absl::StrCat("radius[", i, "] = ", p.radius[i], " must be > 0 m"));
     }
   }
   if (!p.cell.allFinite() || !(p.cell.determinant() > 0)) {
@@ -180,7 +185,8 @@ absl::StatusOr<Rve> Rve::Create(Packing p) {
     }
     if (!std::isfinite(c.tangential_force) || !std::isfinite(c.rolling_moment) ||
         !std::isfinite(c.bond_strength) || c.bond_strength < 0) {
-      return absl::InvalidArgumentError(absl::StrCat("contact ", k, " has a non-finite or negative value"));
+      return absl::InvalidArgumentError(
+          absl::StrCat("contact ", k, " has a non-finite or negative value"));
     }
   }
   if (p.material.model == ContactModel::kHertzMindlin && p.material.bond_cohesion > 0) {
@@ -191,12 +197,13 @@ absl::StatusOr<Rve> Rve::Create(Packing p) {
   const double cutoff = 2.0 * rmax + p.controls.skin * rmin;
   if (CellHeights(p.cell).minCoeff() <= 2.0 * cutoff) {
     return absl::InvalidArgumentError(absl::StrCat(
-        "cell is too small for its particles: the smaller cell height ", CellHeights(p.cell).minCoeff(),
-        " m must exceed twice the pair cutoff ", cutoff, " m"));
+        "cell is too small for its particles: the smaller cell height ",
+        CellHeights(p.cell).minCoeff(), " m must exceed twice the pair cutoff ", cutoff, " m"));
   }
   if (!std::isfinite(p.initial_void_ratio) || !std::isfinite(p.permeability_coefficient) ||
       p.permeability_coefficient < 0) {
-    return absl::InvalidArgumentError("initial_void_ratio and permeability_coefficient must be finite, c >= 0");
+    return absl::InvalidArgumentError(
+        "initial_void_ratio and permeability_coefficient must be finite, c >= 0");
   }
   return Rve(std::move(p));
 }
@@ -227,9 +234,9 @@ Packing Rve::ToPacking() const {
 std::size_t Rve::MemoryBytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
   return sizeof(*this) + bytes(p_.radius) + bytes(p_.sx) + bytes(p_.sy) + bytes(p_.vx) +
-         bytes(p_.vy) + bytes(p_.omega) + bytes(p_.theta) + bytes(p_.contacts) +
-         bytes(row_start_) + bytes(nbr_j_) + bytes(nbr_ft_) + bytes(nbr_moment_) +
-         bytes(nbr_bond_) + bytes(inv_mass_) + bytes(inv_inertia_) + p_.material.name.capacity();
+         bytes(p_.vy) + bytes(p_.omega) + bytes(p_.theta) + bytes(p_.contacts) + bytes(row_start_) +
+         bytes(nbr_j_) + bytes(nbr_ft_) + bytes(nbr_moment_) + bytes(nbr_bond_) + bytes(inv_mass_) +
+         bytes(inv_inertia_) + p_.material.name.capacity();
 }
 
 // Cell-list neighbour search in reduced coordinates (valid for any cell shape
@@ -327,8 +334,8 @@ void Rve::MaybeRebuild() {
   // have eaten the skin.
   const auto [smin, smax] = SingularValues(p_.cell * cell_at_build_.inverse());
   const double skin = p_.controls.skin * radius_min_;
-  const double eaten = 2.0 * 1.25 * displacement_bound_ +
-                       std::max(0.0, 1.0 - smin) * 2.0 * radius_max_;
+  const double eaten =
+      2.0 * 1.25 * displacement_bound_ + std::max(0.0, 1.0 - smin) * 2.0 * radius_max_;
   if (eaten >= smin * skin || smax > 1.1) Rebuild(CollectHistory());
 }
 
@@ -338,8 +345,10 @@ void Rve::MaybeFlip() {
   const Eigen::Vector2d a = p_.cell.col(0), b = p_.cell.col(1);
   const double ab = a.dot(b);
   int kb = 0, ka = 0;
-  if (std::abs(ab) > 0.55 * a.squaredNorm()) kb = static_cast<int>(std::lround(ab / a.squaredNorm()));
-  else if (std::abs(ab) > 0.55 * b.squaredNorm()) ka = static_cast<int>(std::lround(ab / b.squaredNorm()));
+  if (std::abs(ab) > 0.55 * a.squaredNorm())
+    kb = static_cast<int>(std::lround(ab / a.squaredNorm()));
+  else if (std::abs(ab) > 0.55 * b.squaredNorm())
+    ka = static_cast<int>(std::lround(ab / b.squaredNorm()));
   if (kb == 0 && ka == 0) return;
   const std::size_t n = p_.radius.size();
   if (kb != 0) {  // b' = b − kb·a; s'_x = s_x + kb·s_y
@@ -495,14 +504,17 @@ Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
       ay = (fy[i] - alpha * std::abs(fy[i]) * Sign(wvy[i])) * inv_mass_[i];
     } else {
       const double lfx = q(0, 0) * fx[i] + q(1, 0) * fy[i], lfy = q(0, 1) * fx[i] + q(1, 1) * fy[i];
-      const double lvx = q(0, 0) * wvx[i] + q(1, 0) * wvy[i], lvy = q(0, 1) * wvx[i] + q(1, 1) * wvy[i];
-      const double dfx = -alpha * std::abs(lfx) * Sign(lvx), dfy = -alpha * std::abs(lfy) * Sign(lvy);
+      const double lvx = q(0, 0) * wvx[i] + q(1, 0) * wvy[i],
+                   lvy = q(0, 1) * wvx[i] + q(1, 1) * wvy[i];
+      const double dfx = -alpha * std::abs(lfx) * Sign(lvx),
+                   dfy = -alpha * std::abs(lfy) * Sign(lvy);
       ax = (fx[i] + q(0, 0) * dfx + q(0, 1) * dfy) * inv_mass_[i];
       ay = (fy[i] + q(1, 0) * dfx + q(1, 1) * dfy) * inv_mass_[i];
     }
     const double aw = (tq[i] - alpha * std::abs(tq[i]) * Sign(wom[i])) * inv_inertia_[i];
     // Velocities at the force time (mean of the two half steps) for the energy.
-    const double ux = wvx[i] + 0.5 * dt * ax, uy = wvy[i] + 0.5 * dt * ay, uw = wom[i] + 0.5 * dt * aw;
+    const double ux = wvx[i] + 0.5 * dt * ax, uy = wvy[i] + 0.5 * dt * ay,
+                 uw = wom[i] + 0.5 * dt * aw;
     kinetic2 += (ux * ux + uy * uy) / inv_mass_[i] + uw * uw / inv_inertia_[i];
     wvx[i] += dt * ax;
     wvy[i] += dt * ay;
@@ -551,8 +563,8 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) {
       if (!std::isfinite(delta_f(r, c))) {
-        return absl::InvalidArgumentError(absl::StrCat("ΔF(", r, ",", c, ") = ", delta_f(r, c),
-                                                       " is not finite"));
+        return absl::InvalidArgumentError(
+            absl::StrCat("ΔF(", r, ",", c, ") = ", delta_f(r, c), " is not finite"));
       }
     }
   }
@@ -629,8 +641,8 @@ RveState Rve::Run(CellControl& control, std::int64_t steps) {
     Eigen::Matrix2d l = Eigen::Matrix2d::Zero();
     l(0, 0) = servo(control.xx, stress(0, 0), stiffness.x(), integral[0]);
     l(1, 1) = servo(control.yy, stress(1, 1), stiffness.y(), integral[1]);
-    l(0, 1) = servo(control.xy, 0.5 * (stress(0, 1) + stress(1, 0)), 0.25 * stiffness.sum(),
-                    integral[2]);
+    l(0, 1) =
+        servo(control.xy, 0.5 * (stress(0, 1) + stress(1, 0)), 0.25 * stiffness.sum(), integral[2]);
     const Eigen::Matrix2d next = p_.cell + dt_ * l * p_.cell;
     const StepResult r = Step(l, next);
     stress = r.stress;
@@ -678,8 +690,8 @@ void Rve::ForEachContact(F&& f) const {
       c.normal = c.branch / dist;
       c.overlap = rsum - dist;
       if (mat.model == ContactModel::kHertzMindlin) {
-        const HertzResponse hz =
-            HertzMindlin(mat.young_modulus, mat.poisson_ratio, p_.radius[i], p_.radius[j], c.overlap);
+        const HertzResponse hz = HertzMindlin(mat.young_modulus, mat.poisson_ratio, p_.radius[i],
+                                              p_.radius[j], c.overlap);
         c.normal_force = hz.fn;
         c.kn = hz.kn;
         c.kt = hz.kt;
@@ -728,7 +740,8 @@ RveState Rve::Observe(bool want_tangent) const {
         for (int b = 0; b < 2; ++b)
           for (int e = 0; e < 2; ++e)
             for (int g = 0; g < 2; ++g)
-              d[a][b][e][g] += c.kn * nn[a] * br[b] * nn[e] * br[g] + c.kt * t[a] * br[b] * t[e] * br[g];
+              d[a][b][e][g] +=
+                  c.kn * nn[a] * br[b] * nn[e] * br[g] + c.kt * t[a] * br[b] * t[e] * br[g];
     }
   });
   RveState s;
@@ -775,7 +788,8 @@ RveState Rve::Observe(bool want_tangent) const {
     for (int a = 0; a < 2; ++a)
       for (int b = 0; b < 2; ++b)
         for (int c = 0; c < 2; ++c)
-          for (int e2 = 0; e2 < 2; ++e2) s.tangent(3 * a + b, 3 * c + e2) = d[a][b][c][e2] / s.volume;
+          for (int e2 = 0; e2 < 2; ++e2)
+            s.tangent(3 * a + b, 3 * c + e2) = d[a][b][c][e2] / s.volume;
   }
   return s;
 }

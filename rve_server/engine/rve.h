@@ -4,10 +4,9 @@
 #ifndef RVEHUB_RVE_SERVER_ENGINE_RVE_H_
 #define RVEHUB_RVE_SERVER_ENGINE_RVE_H_
 
+#include <Eigen/Dense>
 #include <cstdint>
 #include <vector>
-
-#include <Eigen/Dense>
 
 #include "absl/status/statusor.h"
 #include "rve_server/engine/packing.h"
@@ -20,22 +19,22 @@ struct RveState {
   Eigen::Matrix3d stress = Eigen::Matrix3d::Zero();  // Love–Weber Cauchy σ, Pa, tension +
   Eigen::Matrix3d fabric = Eigen::Matrix3d::Zero();  // φ = (1/Nc)Σ n⊗n, [-]
   Eigen::Matrix3d fabric_anisotropy_tensor = Eigen::Matrix3d::Zero();  // 4(φ − I/2), [-]
-  double fabric_anisotropy = 0.0;  // Fa = sqrt(½ Fa:Fa), [-]
-  bool fabric_defined = false;     // false when the RVE has no contacts
-  double void_ratio = 0.0;         // e = (A_cell − A_solid)/A_solid, 2-D areas, [-]
-  double porosity = 0.0;           // n = e/(1+e), [-]
-  double coordination = 0.0;       // Z = 2·Nc/N, [-]
+  double fabric_anisotropy = 0.0;                                      // Fa = sqrt(½ Fa:Fa), [-]
+  bool fabric_defined = false;           // false when the RVE has no contacts
+  double void_ratio = 0.0;               // e = (A_cell − A_solid)/A_solid, 2-D areas, [-]
+  double porosity = 0.0;                 // n = e/(1+e), [-]
+  double coordination = 0.0;             // Z = 2·Nc/N, [-]
   double mechanical_coordination = 0.0;  // without rattlers (< 2 contacts), [-]
-  double permeability = 0.0;       // k = c·e³/(1+e), m/s
-  double mean_rotation = 0.0;      // mean particle rotation since creation, rad (ccw +)
-  double kinetic_energy = 0.0;     // J (translational fluctuation + rotational)
-  double unbalanced_force_ratio = 0.0;  // mean |Σ F on particle| / mean |contact force|
+  double permeability = 0.0;             // k = c·e³/(1+e), m/s
+  double mean_rotation = 0.0;            // mean particle rotation since creation, rad (ccw +)
+  double kinetic_energy = 0.0;           // J (translational fluctuation + rotational)
+  double unbalanced_force_ratio = 0.0;   // mean |Σ F on particle| / mean |contact force|
   std::int64_t num_contacts = 0;
-  double volume = 0.0;             // V = A·t, m³
+  double volume = 0.0;  // V = A·t, m³
   // Of the call that produced this state:
-  std::int64_t steps = 0;          // DEM steps used
-  double time_step = 0.0;          // s
-  double mass_scale = 1.0;         // density scaling used
+  std::int64_t steps = 0;   // DEM steps used
+  double time_step = 0.0;   // s
+  double mass_scale = 1.0;  // density scaling used
   bool has_tangent = false;
   // Elastic tangent from contacts, D_ijkl = (1/V)Σ(kn n_i d_j n_k d_l + kt t_i d_j t_k d_l),
   // Pa, stored as D(3i+j, 3k+l).
@@ -43,8 +42,8 @@ struct RveState {
 };
 
 struct ApplyOptions {
-  bool relax = false;                // after the increment, relax at fixed cell
-  double relax_tolerance = 1e-4;     // unbalanced-force ratio to stop relaxing
+  bool relax = false;             // after the increment, relax at fixed cell
+  double relax_tolerance = 1e-4;  // unbalanced-force ratio to stop relaxing
   std::int64_t relax_max_steps = 20000;
   bool want_tangent = false;
 };
@@ -53,13 +52,14 @@ struct ApplyOptions {
 enum class ControlMode { kStrainRate, kStress };
 struct ComponentControl {
   ControlMode mode = ControlMode::kStrainRate;
-  double value = 0.0;  // kStrainRate: velocity-gradient component, 1/s; kStress: σ target, Pa (tension +)
+  double value =
+      0.0;  // kStrainRate: velocity-gradient component, 1/s; kStress: σ target, Pa (tension +)
 };
 struct CellControl {
   ComponentControl xx, yy;
-  ComponentControl xy;             // L(0,1) (x-velocity grows with y) or σxy
-  double max_strain_rate = 1.0;    // 1/s, cap on servo-driven components
-  double servo_gain = 0.05;        // fraction of the stress gap closed per step, [-]
+  ComponentControl xy;              // L(0,1) (x-velocity grows with y) or σxy
+  double max_strain_rate = 1.0;     // 1/s, cap on servo-driven components
+  double servo_gain = 0.05;         // fraction of the stress gap closed per step, [-]
   double servo_integral_steps = 0;  // integral time of the servo, in steps; 0: none
   // Servo memory (integral term per component xx, yy, xy, 1/s), carried
   // between Run calls so that a held stress has no steady-state error.
@@ -71,10 +71,10 @@ struct ContactForce {
   std::uint32_t i = 0, j = 0;
   Eigen::Vector2d branch = Eigen::Vector2d::Zero();  // x_j − x_i (nearest image), m
   Eigen::Vector2d normal = Eigen::Vector2d::Zero();  // n = branch/|branch|
-  double overlap = 0.0;            // δ = r_i + r_j − |branch|, m (< 0: stretched bond)
-  double normal_force = 0.0;       // fn, N, compression +
-  double tangential_force = 0.0;   // ft, N, along t = (−n_y, n_x)
-  double kn = 0.0, kt = 0.0;       // current stiffnesses, N/m
+  double overlap = 0.0;           // δ = r_i + r_j − |branch|, m (< 0: stretched bond)
+  double normal_force = 0.0;      // fn, N, compression +
+  double tangential_force = 0.0;  // ft, N, along t = (−n_y, n_x)
+  double kn = 0.0, kt = 0.0;      // current stiffnesses, N/m
   bool bonded = false;
   // Force on particle i, N: −fn·n + ft·t (particle j gets the opposite).
   Eigen::Vector2d ForceOnI() const {
@@ -122,9 +122,7 @@ class Rve {
   // The active contacts of the current configuration, sorted by (i, j).
   std::vector<ContactForce> Contacts() const;
   // Current position of particle i in the cell (x = h·s, unwrapped), m.
-  Eigen::Vector2d Position(int i) const {
-    return p_.cell * Eigen::Vector2d(p_.sx[i], p_.sy[i]);
-  }
+  Eigen::Vector2d Position(int i) const { return p_.cell * Eigen::Vector2d(p_.sx[i], p_.sy[i]); }
 
   // Time step Δt (s) from the controls, masses and stiffnesses.
   double time_step() const { return dt_; }
