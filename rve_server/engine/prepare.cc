@@ -35,11 +35,13 @@ absl::StatusOr<RveState> ConsolidateIsotropic(Rve& rve, double p, double balance
   CellControl control;
   control.xx = {ControlMode::kStress, -p};
   control.yy = {ControlMode::kStress, -p};
+  control.xy = {ControlMode::kStress, 0.0};  // isotropic means no shear stress either
   control.max_strain_rate = 2e-5 / rve.time_step();  // ≤ 2e-5 strain per step
   auto close = [&](const RveState& s) {
-    const double pm = -0.5 * s.stress.trace(), dq = 0.5 * std::abs(s.stress(0, 0) - s.stress(1, 1));
+    const double pm = -0.5 * s.stress.trace();
+    const double q = std::hypot(0.5 * (s.stress(0, 0) - s.stress(1, 1)), s.stress(0, 1));
     return s.num_contacts > 0 && std::abs(pm - p) < kPressureTolerance * p &&
-           dq < kPressureTolerance * p;
+           q < kPressureTolerance * p;
   };
   std::int64_t done = 0;
   for (int round = 0; round < kMaxRounds; ++round) {

@@ -25,7 +25,7 @@ struct PreparationReport {
 // Consolidates isotropically to p (Pa, compression +) by a cell servo, then
 // relaxes at fixed cell (a moving servo keeps stirring the packing) until the
 // unbalanced-force ratio < balance, repeating while relaxing moved p or the
-// deviator out of 1 % of p.
+// deviator q = sqrt(¼(σxx − σyy)² + σxy²) out of 1 % of p.
 absl::StatusOr<RveState> ConsolidateIsotropic(Rve& rve, double p, double balance = 1e-4,
                                               std::int64_t* steps = nullptr);
 
