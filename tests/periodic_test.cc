@@ -2,13 +2,13 @@
 // image of contacts across the cell boundary (orthogonal and sheared cells,
 // unwrapped coordinates), invariance of the homogenised state under a change
 // of lattice basis, and the cell flips that keep a sheared cell reduced.
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <ostream>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Dense>
 
 #include "absl/status/statusor.h"
 #include "gtest/gtest.h"
@@ -42,7 +42,7 @@ const Packing& SetDense() {
 
 struct CrossCase {
   std::string name;
-  Eigen::Matrix2d shape;  // cell matrix up to a scale
+  Eigen::Matrix2d shape;   // cell matrix up to a scale
   Eigen::Vector2d si, sj;  // reduced coordinates of the pair across the boundary
 };
 
@@ -66,8 +66,16 @@ std::vector<CrossCase> CrossCases() {
     cases.push_back({l + "_corner", shape, {kEdge, kEdge}, {1.0 - kEdge, 1.0 - kEdge}});
     cases.push_back({l + "_anticorner", shape, {1.0 - kEdge, kEdge}, {kEdge, 1.0 - kEdge}});
   }
+  // Cells less than 3 cutoffs across, where the neighbour search falls back
+  // from cell lists to all pairs: |Δs| = 10/32 gives a ~0.03 m cell.
+  constexpr double kFar = 5.0 / 32.0;
+  cases.push_back({"small_square_x", square, {kFar, 0.5}, {1.0 - kFar, 0.5}});
+  cases.push_back({"small_sheared_y", sheared, {0.5, 1.0 - kFar}, {0.5, kFar}});
   return cases;
 }
+
+// Test names instead of byte dumps in gtest's messages.
+void PrintTo(const CrossCase& c, std::ostream* os) { *os << c.name; }
 
 // Minimum image of sj − si (components in [−½, ½]).
 Eigen::Vector2d MinImage(const Eigen::Vector2d& si, const Eigen::Vector2d& sj) {
@@ -124,8 +132,7 @@ TEST_P(CrossBoundaryTest, SameContactAsInsideTheCell) {
     for (const std::vector<ContactForce>* other : {&cb, &cu}) {
       const ContactForce& o = (*other)[0];
       EXPECT_NEAR(o.normal_force, ca[0].normal_force, tol * ca[0].normal_force) << step;
-      EXPECT_NEAR(o.tangential_force, ca[0].tangential_force, tol * ca[0].normal_force)
-          << step;
+      EXPECT_NEAR(o.tangential_force, ca[0].tangential_force, tol * ca[0].normal_force) << step;
       EXPECT_NEAR(o.branch.x(), ca[0].branch.x(), tol * branch_scale) << step;
       EXPECT_NEAR(o.branch.y(), ca[0].branch.y(), tol * branch_scale) << step;
     }
@@ -153,6 +160,7 @@ INSTANTIATE_TEST_SUITE_P(Cells, CrossBoundaryTest, testing::ValuesIn(CrossCases(
 Packing ChangeBasis(const Packing& p, const Eigen::Matrix2d& m) {
   Packing out = p;
   out.cell = p.cell * m;
+  out.reference_cell = p.reference_cell * m;  // F = cell·reference⁻¹ is unchanged
   const Eigen::Matrix2d m_inv = m.inverse();  // integer: det M = 1
   for (std::size_t i = 0; i < p.sx.size(); ++i) {
     const Eigen::Vector2d s = m_inv * Eigen::Vector2d(p.sx[i], p.sy[i]);
@@ -169,9 +177,9 @@ struct BasisCase {
 
 std::vector<BasisCase> BasisCases() {
   Eigen::Matrix2d b_plus_a, b_minus_a, a_plus_b;
-  b_plus_a << 1, 1, 0, 1;   // b' = b + a, s'_x = s_x − s_y
+  b_plus_a << 1, 1, 0, 1;    // b' = b + a, s'_x = s_x − s_y
   b_minus_a << 1, -1, 0, 1;  // b' = b − a, s'_x = s_x + s_y
-  a_plus_b << 1, 0, 1, 1;   // a' = a + b, s'_y = s_y − s_x
+  a_plus_b << 1, 0, 1, 1;    // a' = a + b, s'_y = s_y − s_x
   return {{"b_plus_a", b_plus_a}, {"b_minus_a", b_minus_a}, {"a_plus_b", a_plus_b}};
 }
 
@@ -229,19 +237,21 @@ class CellFlipTest : public testing::Test {
     std::vector<double> change;  // |σ_k − σ_{k−1}| (Frobenius), Pa
     int flip_step = -1;          // index of the (first) step that flipped the cell
     int flips = 0;
-    Packing before_flip;         // state at the start of the flip step
+    Packing before_flip;  // state at the start of the flip step
     RveState end;
     Eigen::Matrix2d end_cell;
+    Eigen::Matrix2d end_f;  // deformation gradient since the prepared state
   };
   // Shears SET-dense to γ = 0.7 at a fixed xy strain rate, step by step.
   static const Record& Sheared() {
     static const Record* record = [] {
       auto* r = new Record;
+      if (SetDense().radius.empty()) return r;  // preparation failed (reported there)
       Rve rve = CreateOrDie(SetDense());
       CellControl control;
       control.xy = {ControlMode::kStrainRate, kStrainPerStep / rve.time_step()};
       RveState prev = rve.Observe();
-      const int steps = static_cast<int>(0.7 / kStrainPerStep);
+      const int steps = static_cast<int>(std::lround(0.7 / kStrainPerStep));
       for (int k = 0; k < steps; ++k) {
         const Eigen::Matrix2d h = rve.cell();
         const bool near = std::abs(h.col(0).dot(h.col(1))) > 0.5 * h.col(0).squaredNorm();
@@ -260,6 +270,7 @@ class CellFlipTest : public testing::Test {
       }
       r->end = prev;
       r->end_cell = rve.cell();
+      r->end_f = rve.DeformationGradient();
       return r;
     }();
     return *record;
@@ -281,6 +292,14 @@ TEST_F(CellFlipTest, ShearPastTheThresholdFlipsSmoothlyAndKeepsRunning) {
   // shear, and the flipped b is b − a.
   EXPECT_NEAR(r.end_cell.determinant(), SetDense().cell.determinant(),
               1e-9 * SetDense().cell.determinant());
+
+  // The deformation gradient is tracked through the flip: F = I + γ e_x⊗e_y
+  // with γ = 7000 steps × 1e-4 (round-off of 7000 products (I + Δt·L)).
+  const Eigen::Matrix2d f = r.end_f;
+  EXPECT_NEAR(f(0, 1), 0.7, 1e-9);
+  EXPECT_NEAR(f(0, 0), 1.0, 1e-12);
+  EXPECT_NEAR(f(1, 1), 1.0, 1e-12);
+  EXPECT_NEAR(f(1, 0), 0.0, 1e-12);
 
   // The flip is invisible in the stress history.
   ASSERT_GE(r.flip_step, 5);
@@ -315,6 +334,7 @@ TEST_F(CellFlipTest, FlipStepEqualsAStepInThePreFlippedBasis) {
   EXPECT_LT(flips.cell()(0, 1), h0(0, 1) - 0.5 * h0(0, 0)) << "did not flip: b' = b − a";
   // Same lattice basis afterwards, and the same state up to round-off of s'.
   EXPECT_LT((flips.cell() - pre_flipped.cell()).norm(), 1e-14 * h0.norm());
+  EXPECT_LT((flips.DeformationGradient() - pre_flipped.DeformationGradient()).norm(), 1e-14);
   EXPECT_LT((a.stress - b.stress).norm(), 1e-10 * a.stress.norm());
   EXPECT_EQ(a.num_contacts, b.num_contacts);
   const Packing pa = flips.ToPacking(), pb = pre_flipped.ToPacking();
@@ -324,8 +344,8 @@ TEST_F(CellFlipTest, FlipStepEqualsAStepInThePreFlippedBasis) {
     EXPECT_EQ(pa.contacts[k].i, pb.contacts[k].i);
     EXPECT_EQ(pa.contacts[k].j, pb.contacts[k].j);
     max_ft = std::max(max_ft, std::abs(pa.contacts[k].tangential_force));
-    max_dft = std::max(
-        max_dft, std::abs(pa.contacts[k].tangential_force - pb.contacts[k].tangential_force));
+    max_dft = std::max(max_dft,
+                       std::abs(pa.contacts[k].tangential_force - pb.contacts[k].tangential_force));
   }
   EXPECT_GT(max_ft, 0.0);  // the history is alive (material friction)
   EXPECT_LT(max_dft, 1e-9 * max_ft);

@@ -170,9 +170,10 @@ TEST(RvePhysicsTest, LoveWeberStressEqualsCutTraction) {
       const double c = (k + 0.137) / kCuts * height;
       const Eigen::Vector2d t = CutTraction(rve, contacts, m, c, height, along.norm());
       const double err = (t - expected).cwiseAbs().maxCoeff() / expected.norm();
-      std::printf("cut %d parallel to cell vector %d: t = (%.1f, %.1f) Pa vs σ·m = (%.1f, %.1f), "
-                  "err %.3g\n",
-                  k, side, t.x(), t.y(), expected.x(), expected.y(), err);
+      std::printf(
+          "cut %d parallel to cell vector %d: t = (%.1f, %.1f) Pa vs σ·m = (%.1f, %.1f), "
+          "err %.3g\n",
+          k, side, t.x(), t.y(), expected.x(), expected.y(), err);
       // 1 % of the normal traction: the residual unbalanced forces (ratio
       // < 1e-4 of the mean contact force) are all that separate a single
       // cut from the average over cuts, which is σ·m exactly.

@@ -2,22 +2,23 @@
 // specific status code and a message naming the problem, and a refused call
 // leaves the RVE bit-for-bit untouched. Also: an RVE without contacts reports
 // a well-defined (zero, NaN-free) state.
+#include <Eigen/Dense>
 #include <bit>
 #include <cmath>
 #include <cstdint>
 #include <functional>
 #include <limits>
 #include <numbers>
+#include <ostream>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Dense>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/match.h"
 #include "absl/strings/string_view.h"
+#include "gtest/gtest-spi.h"
 #include "gtest/gtest.h"
 #include "rve_server/engine/batch.h"
 #include "rve_server/engine/element_test.h"
@@ -44,8 +45,7 @@ bool SameBits(double a, double b) {
   return std::bit_cast<std::uint64_t>(a) == std::bit_cast<std::uint64_t>(b);
 }
 
-void ExpectSameBits(const std::vector<double>& a, const std::vector<double>& b,
-                    const char* what) {
+void ExpectSameBits(const std::vector<double>& a, const std::vector<double>& b, const char* what) {
   ASSERT_EQ(a.size(), b.size()) << what;
   for (std::size_t i = 0; i < a.size(); ++i) {
     EXPECT_TRUE(SameBits(a[i], b[i])) << what << "[" << i << "]: " << a[i] << " vs " << b[i];
@@ -70,14 +70,15 @@ void ExpectIdentical(const Packing& a, const Packing& b) {
     EXPECT_TRUE(SameBits(ma.*field, mb.*field)) << "material field";
   }
   const Controls &ca = a.controls, &cb = b.controls;
-  for (auto field : {&Controls::time_step_factor, &Controls::max_inertial_number,
-                     &Controls::pressure_floor, &Controls::max_stretch, &Controls::max_rotation,
-                     &Controls::mass_scale, &Controls::skin}) {
+  for (auto field :
+       {&Controls::time_step_factor, &Controls::max_inertial_number, &Controls::pressure_floor,
+        &Controls::max_stretch, &Controls::max_rotation, &Controls::mass_scale, &Controls::skin}) {
     EXPECT_TRUE(SameBits(ca.*field, cb.*field)) << "controls field";
   }
   EXPECT_EQ(ca.min_steps, cb.min_steps);
   ExpectSameBits(a.cell, b.cell, "cell");
   ExpectSameBits(a.frame, b.frame, "frame");
+  ExpectSameBits(a.reference_cell, b.reference_cell, "reference_cell");
   ExpectSameBits(a.radius, b.radius, "radius");
   ExpectSameBits(a.sx, b.sx, "sx");
   ExpectSameBits(a.sy, b.sy, "sy");
@@ -131,6 +132,7 @@ const Packing& Loaded() {
     p.vy.assign(n, 0.0);
     p.omega.assign(n, 0.0);
     p.theta.assign(n, 0.0);
+    p.reference_cell = p.cell;
     p.initial_void_ratio = 0.3;
     p.permeability_coefficient = 0.01;
     Rve rve = CreateOrDie(std::move(p));
@@ -157,6 +159,19 @@ TEST(LoadedPackingTest, HasAFullHistory) {
   EXPECT_TRUE(moment);
   EXPECT_NE(p.frame, Eigen::Matrix2d::Identity());
   EXPECT_GT(p.total_steps, 0);
+}
+
+// The comparison itself can fail: a one-ulp change anywhere is reported.
+TEST(LoadedPackingTest, ExpectIdenticalSeesAOneUlpChange) {
+  Packing p = Loaded();
+  p.sx[3] = std::nextafter(p.sx[3], 2.0);
+  EXPECT_NONFATAL_FAILURE(ExpectIdentical(p, Loaded()), "sx[3]");
+  Packing q = Loaded();
+  q.contacts[2].tangential_force = std::nextafter(q.contacts[2].tangential_force, 1e9);
+  EXPECT_NONFATAL_FAILURE(ExpectIdentical(q, Loaded()), "contact 2");
+  Packing r = Loaded();
+  r.frame(0, 1) = std::nextafter(r.frame(0, 1), 1.0);
+  EXPECT_NONFATAL_FAILURE(ExpectIdentical(r, Loaded()), "frame");
 }
 
 // --- Apply. ---
@@ -191,15 +206,17 @@ std::vector<ApplyCase> BadApplyCases() {
       {"nan_zz", With(id, 2, 2, kNaN), "ΔF(2,2)"},
       {"reflection", Diag(-1.0, 1.0), "det ΔF"},
       {"singular", Diag(1.0, 0.0), "det ΔF"},
-      {"point_inversion", Diag(-1.0, -1.0), "rotation"},  // det > 0: a rotation by π
-      {"stretch", Diag(1.06, 1.0), "stretch"},              // |V − I| = 0.06 > 0.05
-      {"shear_stretch", With(id, 0, 1, 0.11), "stretch"},   // |V − I| ≈ 0.078
-      {"rotation", Rotation(0.6), "rotation"},              // > max_rotation 0.5 rad
+      {"point_inversion", Diag(-1.0, -1.0), "rotation"},   // det > 0: a rotation by π
+      {"stretch", Diag(1.06, 1.0), "stretch"},             // |V − I| = 0.06 > 0.05
+      {"shear_stretch", With(id, 0, 1, 0.11), "stretch"},  // |V − I| ≈ 0.078
+      {"rotation", Rotation(0.6), "rotation"},             // > max_rotation 0.5 rad
       {"out_of_plane_zz", Diag(1.0, 1.0, 1.01), "plane strain"},
       {"out_of_plane_xz", With(id, 0, 2, 0.01), "plane strain"},
       {"out_of_plane_zy", With(id, 2, 1, 0.01), "plane strain"},
   };
 }
+
+void PrintTo(const ApplyCase& c, std::ostream* os) { *os << c.name; }
 
 class BadApplyTest : public testing::TestWithParam<ApplyCase> {};
 
@@ -257,14 +274,16 @@ struct CreateCase {
 std::vector<CreateCase> BadCreateCases() {
   std::vector<CreateCase> cases;
   using Field = std::vector<double> Packing::*;
-  for (const auto& [name, field] :
-       {std::pair<const char*, Field>{"sx", &Packing::sx}, {"sy", &Packing::sy},
-        {"vx", &Packing::vx}, {"vy", &Packing::vy}, {"omega", &Packing::omega},
-        {"theta", &Packing::theta}}) {
+  for (const auto& [name, field] : {std::pair<const char*, Field>{"sx", &Packing::sx},
+                                    {"sy", &Packing::sy},
+                                    {"vx", &Packing::vx},
+                                    {"vy", &Packing::vy},
+                                    {"omega", &Packing::omega},
+                                    {"theta", &Packing::theta}}) {
     const std::string n = name;
     const Field f = field;
-    cases.push_back({"short_" + n, [f](Packing& p) { (p.*f).pop_back(); },
-                     "field " + n + " has 24 entries"});
+    cases.push_back(
+        {"short_" + n, [f](Packing& p) { (p.*f).pop_back(); }, "field " + n + " has 24 entries"});
     cases.push_back({"long_" + n, [f](Packing& p) { (p.*f).push_back(0.0); },
                      "field " + n + " has 26 entries"});
     cases.push_back({"nan_" + n, [f](Packing& p) { (p.*f)[7] = kNaN; }, n + "[7]"});
@@ -282,30 +301,40 @@ std::vector<CreateCase> BadCreateCases() {
                      p.contacts.clear();
                    },
                    "1 particles"});
-  cases.push_back({"negative_det_cell",
-                   [](Packing& p) { p.cell.col(0).swap(p.cell.col(1)); }, "det"});
+  cases.push_back(
+      {"negative_det_cell", [](Packing& p) { p.cell.col(0).swap(p.cell.col(1)); }, "det"});
   cases.push_back({"singular_cell", [](Packing& p) { p.cell.col(1) = p.cell.col(0); }, "det"});
   cases.push_back({"nan_cell", [](Packing& p) { p.cell(1, 0) = kNaN; }, "cell matrix"});
   cases.push_back({"cell_too_small", [](Packing& p) { p.cell *= 0.4; }, "too small"});
+  cases.push_back(
+      {"nan_reference_cell", [](Packing& p) { p.reference_cell(0, 1) = kNaN; }, "reference_cell"});
+  cases.push_back({"singular_reference_cell", [](Packing& p) { p.reference_cell.col(0).setZero(); },
+                   "reference_cell"});
   cases.push_back({"frame_not_rotation", [](Packing& p) { p.frame *= 2.0; }, "frame"});
   cases.push_back({"frame_reflection", [](Packing& p) { p.frame.col(0) *= -1.0; }, "frame"});
-  cases.push_back({"contacts_unsorted",
-                   [](Packing& p) { std::swap(p.contacts[3], p.contacts[4]); }, "sorted"});
+  cases.push_back(
+      {"contacts_unsorted", [](Packing& p) { std::swap(p.contacts[3], p.contacts[4]); }, "sorted"});
   cases.push_back({"contacts_duplicate",
                    [](Packing& p) { p.contacts.insert(p.contacts.begin() + 2, p.contacts[2]); },
                    "without repeats"});
   cases.push_back({"contact_j_out_of_range",
-                   [](Packing& p) { p.contacts.push_back({3, 25, 0.1, 0.0, 0.0}); }, "need i < j"});
+                   [](Packing& p) {
+                     p.contacts.push_back({3, 25, 0.1, 0.0, 0.0});
+                   },
+                   "need i < j"});
   cases.push_back({"contact_i_equals_j",
-                   [](Packing& p) { p.contacts.back() = {24, 24, 0.1, 0.0, 0.0}; }, "need i < j"});
+                   [](Packing& p) {
+                     p.contacts.back() = {24, 24, 0.1, 0.0, 0.0};
+                   },
+                   "need i < j"});
   cases.push_back({"contact_i_above_j",
                    [](Packing& p) { std::swap(p.contacts[0].i, p.contacts[0].j); }, "need i < j"});
-  cases.push_back({"contact_nan_ft",
-                   [](Packing& p) { p.contacts[5].tangential_force = kNaN; }, "contact 5"});
-  cases.push_back({"contact_inf_moment",
-                   [](Packing& p) { p.contacts[6].rolling_moment = kInf; }, "contact 6"});
-  cases.push_back({"contact_negative_bond",
-                   [](Packing& p) { p.contacts[1].bond_strength = -1.0; }, "contact 1"});
+  cases.push_back(
+      {"contact_nan_ft", [](Packing& p) { p.contacts[5].tangential_force = kNaN; }, "contact 5"});
+  cases.push_back(
+      {"contact_inf_moment", [](Packing& p) { p.contacts[6].rolling_moment = kInf; }, "contact 6"});
+  cases.push_back({"contact_negative_bond", [](Packing& p) { p.contacts[1].bond_strength = -1.0; },
+                   "contact 1"});
   cases.push_back({"bad_material", [](Packing& p) { p.material.density = 0.0; }, "density"});
   cases.push_back({"bad_controls", [](Packing& p) { p.controls.skin = 0.0; }, "skin"});
   cases.push_back({"hertz_with_bonds",
@@ -314,13 +343,14 @@ std::vector<CreateCase> BadCreateCases() {
                      p.material.bond_cohesion = 1e6;
                    },
                    "linear contact model"});
-  cases.push_back({"nan_void_ratio", [](Packing& p) { p.initial_void_ratio = kNaN; },
-                   "initial_void_ratio"});
-  cases.push_back({"negative_permeability",
-                   [](Packing& p) { p.permeability_coefficient = -1.0; },
+  cases.push_back(
+      {"nan_void_ratio", [](Packing& p) { p.initial_void_ratio = kNaN; }, "initial_void_ratio"});
+  cases.push_back({"negative_permeability", [](Packing& p) { p.permeability_coefficient = -1.0; },
                    "permeability_coefficient"});
   return cases;
 }
+
+void PrintTo(const CreateCase& c, std::ostream* os) { *os << c.name; }
 
 class BadCreateTest : public testing::TestWithParam<CreateCase> {};
 
@@ -339,6 +369,21 @@ INSTANTIATE_TEST_SUITE_P(Cases, BadCreateTest, testing::ValuesIn(BadCreateCases(
                          [](const testing::TestParamInfo<CreateCase>& info) {
                            return info.param.name;
                          });
+
+// Two discs at the same centre have no contact normal (n = 0/0): Create
+// refuses them, naming the particles.
+TEST(CreateTest, CoincidentCentresAreRefused) {
+  Packing p;
+  p.cell = Eigen::Matrix2d::Identity() * 0.1;
+  p.radius = {5e-3, 5e-3, 5e-3};
+  p.sx = {0.5, 0.5, 0.2};
+  p.sy = {0.5, 0.5, 0.2};
+  p.vx = p.vy = p.omega = p.theta = {0.0, 0.0, 0.0};
+  absl::StatusOr<Rve> rve = Rve::Create(p);
+  ASSERT_FALSE(rve.ok());
+  EXPECT_EQ(rve.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_TRUE(HasSubstr(rve.status().message(), "particles 0 and 1 have coincident centres"));
+}
 
 // --- Validate(Material), Validate(Controls), Validate(PreparationSpec). ---
 
@@ -483,6 +528,7 @@ TEST(ApplyBatchTest, BadArgumentsChangeNoRve) {
       {"no threads", rves, &two, 0, "threads = 0"},
       {"negative threads", rves, &two, -3, "threads = -3"},
       {"null RVE", {&a, nullptr}, &two, 2, "RVE 1 is null"},
+      {"same RVE twice", {&a, &a}, &two, 2, "the same RVE appears twice"},
   };
   for (const Case& c : cases) {
     const auto result = ApplyBatch(c.rves, *c.delta_f, {}, c.threads);

@@ -20,6 +20,12 @@ absl::StatusOr<std::vector<absl::StatusOr<RveState>>> ApplyBatch(
   for (std::size_t k = 0; k < rves.size(); ++k) {
     if (rves[k] == nullptr) return absl::InvalidArgumentError(absl::StrCat("RVE ", k, " is null"));
   }
+  // One RVE twice would be advanced by two threads at once.
+  std::vector<Rve*> sorted(rves.begin(), rves.end());
+  std::sort(sorted.begin(), sorted.end());
+  if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) {
+    return absl::InvalidArgumentError("the same RVE appears twice in one batch");
+  }
   std::vector<absl::StatusOr<RveState>> results(rves.size(), absl::UnknownError("not run"));
   std::atomic<std::size_t> next{0};
   auto worker = [&] {

@@ -35,7 +35,7 @@ absl::StatusOr<RveState> ConsolidateIsotropic(Rve& rve, double p, double balance
   CellControl control;
   control.xx = {ControlMode::kStress, -p};
   control.yy = {ControlMode::kStress, -p};
-  control.xy = {ControlMode::kStress, 0.0};  // isotropic means no shear stress either
+  control.xy = {ControlMode::kStress, 0.0};          // isotropic means no shear stress either
   control.max_strain_rate = 2e-5 / rve.time_step();  // ≤ 2e-5 strain per step
   auto close = [&](const RveState& s) {
     const double pm = -0.5 * s.stress.trace();

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <type_traits>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -200,12 +201,24 @@ absl::StatusOr<Rve> Rve::Create(Packing p) {
         "cell is too small for its particles: the smaller cell height ",
         CellHeights(p.cell).minCoeff(), " m must exceed twice the pair cutoff ", cutoff, " m"));
   }
-  if (!std::isfinite(p.initial_void_ratio) || !std::isfinite(p.permeability_coefficient) ||
-      p.permeability_coefficient < 0) {
+  if (!std::isfinite(p.initial_void_ratio)) {
     return absl::InvalidArgumentError(
-        "initial_void_ratio and permeability_coefficient must be finite, c >= 0");
+        absl::StrCat("initial_void_ratio = ", p.initial_void_ratio, " must be finite"));
   }
-  return Rve(std::move(p));
+  if (!(p.permeability_coefficient >= 0) || !std::isfinite(p.permeability_coefficient)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "permeability_coefficient = ", p.permeability_coefficient, " must be finite and >= 0 m/s"));
+  }
+  Rve rve(std::move(p));
+  // Discs with (nearly) coincident centres have no contact normal.
+  const double min_distance = 1e-6 * rve.radius_min_;
+  for (const ContactForce& c : rve.Contacts()) {
+    if (c.branch.norm() < min_distance) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("particles ", c.i, " and ", c.j, " have coincident centres"));
+    }
+  }
+  return rve;
 }
 
 double Rve::Cutoff() const { return 2.0 * radius_max_ + p_.controls.skin * radius_min_; }
@@ -701,7 +714,11 @@ void Rve::ForEachContact(F&& f) const {
         c.normal_force = c.kn * c.overlap;
       }
       c.tangential_force = nbr_ft_[k];
-      f(c);
+      if constexpr (std::is_invocable_v<F, const ContactForce&, std::uint32_t>) {
+        f(c, k);
+      } else {
+        f(c);
+      }
     }
   }
 }
@@ -794,7 +811,17 @@ RveState Rve::Observe(bool want_tangent) const {
   return s;
 }
 
-void Rve::SetFriction(double friction) { p_.material.friction = friction; }
+absl::Status Rve::SetFriction(double friction) {
+  if (!(friction >= 0) || !std::isfinite(friction)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("friction = ", friction, " is invalid: μ = tan φ must be >= 0"));
+  }
+  p_.material.friction = friction;
+  ForEachContact([&](const ContactForce& c, std::uint32_t k) {
+    if (!c.bonded) nbr_ft_[k] = CoulombCap(c.tangential_force, c.normal_force, friction);
+  });
+  return absl::OkStatus();
+}
 
 void Rve::BondContacts() {
   const double c = p_.material.bond_cohesion;

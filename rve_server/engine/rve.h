@@ -130,8 +130,10 @@ class Rve {
   double QuasiStaticStrainRate(double inertial_number, double pressure) const;
   const StepEnergy& last_step_energy() const { return energy_; }
 
-  // Changes the friction of every contact (preparation); clamps stored forces.
-  void SetFriction(double friction);
+  // Changes the friction μ of every contact and clamps the stored tangential
+  // forces to the new Coulomb limit. InvalidArgument (nothing changed) for
+  // μ < 0 or not finite.
+  absl::Status SetFriction(double friction);
   // Bonds every pair now in contact (cemented material; needs bond_cohesion > 0).
   void BondContacts();
 
