@@ -4,6 +4,8 @@
 //       --confining=100000 --strain=0.1 --out=biaxial.csv [--plot=biaxial.png]
 //   rve_cli prepare --material=SET-dense --seed=1
 //   rve_cli materials
+#include <unistd.h>
+
 #include <chrono>
 #include <cstdio>
 #include <iostream>
@@ -149,19 +151,22 @@ absl::Status ElementTest(const Flags& flags) {
   if (!rve.ok()) return rve.status();
 
   const auto start = std::chrono::steady_clock::now();
+  // One updating line on a terminal; a line every 10 % in a log file.
+  const bool tty = isatty(fileno(stderr));
+  const int every = tty ? 1 : 10;
   int last_percent = -1;
   absl::StatusOr<std::vector<dem::ElementTestRow>> rows =
       dem::RunElementTest(*rve, spec, [&](double fraction) {
-        const int percent = static_cast<int>(fraction * 100);
+        const int percent = static_cast<int>(fraction * 100) / every * every;
         if (percent == last_percent) return;
         last_percent = percent;
         const double secs =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-        std::fprintf(stderr, "\r%s on %s: %3d%% (%.1f s)", test.c_str(), material.c_str(), percent,
-                     secs);
+        std::fprintf(stderr, "%s%s on %s: %3d%% (%.1f s)%s", tty ? "\r" : "", test.c_str(),
+                     material.c_str(), percent, secs, tty ? "" : "\n");
         std::fflush(stderr);
       });
-  std::fprintf(stderr, "\n");
+  if (tty) std::fprintf(stderr, "\n");
   if (!rows.ok()) return rows.status();
   RETURN_IF_ERROR(WriteElementTestCsv(out, *rows));
   std::fprintf(stderr, "wrote %zu rows to %s\n", rows->size(), out.c_str());
