@@ -113,12 +113,13 @@ class ReferenceDem {
         if (dsy > 0.5) dsy -= 1.0;
         if (dsy < -0.5) dsy += 1.0;
         const double dx = h_(0, 0) * dsx + h_(0, 1) * dsy, dy = h_(1, 0) * dsx + h_(1, 1) * dsy;
-        const double dist = std::sqrt(dx * dx + dy * dy), overlap = a.r + b.r - dist;
+        const double d2 = dx * dx + dy * dy, rsum = a.r + b.r;
         double& ft = ft_[i * n_ + j];
-        if (overlap <= 0.0) {
+        if (d2 >= rsum * rsum) {
           ft = 0.0;
           continue;
         }
+        const double dist = std::sqrt(d2), overlap = rsum - dist;
         const double nx = dx / dist, ny = dy / dist, tx = -ny, ty = nx;
         const double kn = m_.young_modulus * 2.0 * a.r * b.r / (a.r + b.r);
         const double fn = kn * overlap, li = a.r - 0.5 * overlap, lj = b.r - 0.5 * overlap;
@@ -151,6 +152,7 @@ class ReferenceDem {
   }
 
   std::size_t num_particles() const { return n_; }
+  // Pairs with tangential history (in a packing at rest: the contacts).
   std::size_t Contacts() const {
     return std::count_if(ft_.begin(), ft_.end(), [](double f) { return f != 0.0; });
   }
@@ -308,6 +310,7 @@ BENCHMARK(BM_MemoryPerRve)->Iterations(1)->Unit(benchmark::kMillisecond);
 // aggregate when repetitions are on, else the mean over the runs).
 class SummaryReporter : public benchmark::ConsoleReporter {
  public:
+  explicit SummaryReporter(OutputOptions options) : ConsoleReporter(options) {}
   void ReportRuns(const std::vector<Run>& runs) override {
     ConsoleReporter::ReportRuns(runs);
     for (const Run& run : runs) {
@@ -395,7 +398,10 @@ int main(int argc, char** argv) {
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   DensePacking();  // prepare before any timing
-  SummaryReporter reporter;
+  // Tabular counters; colour only on a terminal (--benchmark_color does not
+  // reach a reporter made here).
+  SummaryReporter reporter(isatty(STDOUT_FILENO) ? benchmark::ConsoleReporter::OO_ColorTabular
+                                                 : benchmark::ConsoleReporter::OO_Tabular);
   benchmark::RunSpecifiedBenchmarks(&reporter);
   PrintSummary(reporter);
   benchmark::Shutdown();
