@@ -110,6 +110,7 @@ EnergyRun RunAtFixedCell(double damping, double time_step_factor, double hertz_y
     }
     return std::pair(sum, scale);
   };
+  rve->set_track_energy(true);
   CellControl fixed;  // all strain rates 0: fixed cell
   rve->Run(fixed, 1);
   EnergyRun out;
@@ -169,6 +170,9 @@ TEST(EnergyTest, HertzMindlinIsConservativeToo) {
 TEST(EnergyTest, StepEnergyIsThatOfTheForceEvaluation) {
   absl::StatusOr<Rve> rve = Rve::Create(Agitated(/*damping=*/0.0, kTimeStepFactor));
   ASSERT_TRUE(rve.ok()) << rve.status();
+  // Off by default: the step then measures no energy at all.
+  EXPECT_EQ(rve->last_step_energy().kinetic, 0.0);
+  rve->set_track_energy(true);
   CellControl fixed;
   rve->Run(fixed, 5);
   const Packing before = rve->ToPacking();

@@ -27,6 +27,11 @@ inline double RoundNearest(double x) {
 // sign(x) ∈ {−1, 0, 1}.
 inline double Sign(double x) { return (x > 0.0) - (x < 0.0); }
 
+// Local non-viscous damping force −α|f|·sign(v) (N), one component.
+inline double Damping(double alpha, double f, double v) {
+  return -alpha * std::abs(f) * Sign(v);  // branch-free: sign(v) is unpredictable
+}
+
 // Heights of the cell (m): distance between the two pairs of opposite edges.
 Eigen::Vector2d CellHeights(const Eigen::Matrix2d& h) {
   const double area = std::abs(h.determinant());
@@ -248,8 +253,8 @@ std::size_t Rve::MemoryBytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
   return sizeof(*this) + bytes(p_.radius) + bytes(p_.sx) + bytes(p_.sy) + bytes(p_.vx) +
          bytes(p_.vy) + bytes(p_.omega) + bytes(p_.theta) + bytes(p_.contacts) + bytes(row_start_) +
-         bytes(nbr_j_) + bytes(nbr_ft_) + bytes(nbr_moment_) + bytes(nbr_bond_) + bytes(inv_mass_) +
-         bytes(inv_inertia_) + p_.material.name.capacity();
+         bytes(nbr_j_) + bytes(nbr_kn_) + bytes(nbr_ft_) + bytes(nbr_moment_) + bytes(nbr_bond_) +
+         bytes(inv_mass_) + bytes(inv_inertia_) + p_.material.name.capacity();
 }
 
 // Cell-list neighbour search in reduced coordinates (valid for any cell shape
@@ -325,6 +330,15 @@ void Rve::Rebuild(const std::vector<ContactHistory>& history) {
   }
   nbr_j_.shrink_to_fit();
   nbr_ft_.assign(nbr_j_.size(), 0.0);
+  if (p_.material.model == ContactModel::kLinear) {
+    nbr_kn_.resize(nbr_j_.size());
+    for (std::uint32_t i = 0; i < n; ++i) {
+      for (std::uint32_t k = row_start_[i]; k < row_start_[i + 1]; ++k) {
+        nbr_kn_[k] =
+            LinearNormalStiffness(p_.material.young_modulus, p_.radius[i], p_.radius[nbr_j_[k]]);
+      }
+    }
+  }
   nbr_moment_.assign(rolling ? nbr_j_.size() : 0, 0.0);
   nbr_bond_.assign(bonds ? nbr_j_.size() : 0, 0.0);
   // Merge: both sequences are sorted by (i, j).
@@ -394,7 +408,7 @@ void Rve::ApplyRigidRotation(double angle) {
   }
 }
 
-template <bool kRolling, bool kBonds, bool kHertz>
+template <bool kRolling, bool kBonds, bool kHertz, bool kMeasure>
 Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
   const std::size_t n = p_.radius.size();
   const Material& mat = p_.material;
@@ -443,12 +457,12 @@ Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
         fn = hz.fn;
         kn = hz.kn;
         kt = hz.kt;
-        elastic += 0.4 * fn * overlap;  // ∫ fn dδ = (2/5) fn δ
+        if constexpr (kMeasure) elastic += 0.4 * fn * overlap;  // ∫ fn dδ = (2/5) fn δ
       } else {
-        kn = young * EffectiveRadius(ri, rj);
+        kn = nbr_kn_[k];  // E·r*, cached per pair at the rebuild
         kt = kt_ratio * kn;
         fn = kn * overlap;
-        elastic += 0.5 * fn * overlap;
+        if constexpr (kMeasure) elastic += 0.5 * fn * overlap;
       }
       // Lever arms to the common contact point make a rigid motion of the
       // pair produce no relative tangential velocity.
@@ -485,13 +499,15 @@ Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
       fy[j] -= fcy;
       tqi += li * ft + moment;
       tq[j] += lj * ft - moment;
-      sxx += fcx * dx;
-      sxy += fcx * dy;
-      syx += fcy * dx;
-      syy += fcy * dy;
-      const double kd2 = kn * d2;
-      kxx += kd2 * (nx * nx) * (nx * nx);
-      kyy += kd2 * (ny * ny) * (ny * ny);
+      if constexpr (kMeasure) {
+        sxx += fcx * dx;
+        sxy += fcx * dy;
+        syx += fcy * dx;
+        syy += fcy * dy;
+        const double kd2 = kn * d2;
+        kxx += kd2 * (nx * nx) * (nx * nx);
+        kyy += kd2 * (ny * ny) * (ny * ny);
+      }
     }
     fx[i] += fxi;
     fy[i] += fyi;
@@ -500,6 +516,7 @@ Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
 
   // Leapfrog with local non-viscous damping, acting in the cell's frame.
   const double alpha = mat.damping;
+  const double mass_per_r2 = mat.density * kPi * mat.thickness * p_.controls.mass_scale;  // kg/m²
   const Eigen::Matrix2d& q = p_.frame;
   const bool rotated = q != Eigen::Matrix2d::Identity();
   const Eigen::Matrix2d hinv = p_.cell.inverse();
@@ -513,22 +530,25 @@ Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
   for (std::size_t i = 0; i < n; ++i) {
     double ax, ay;
     if (!rotated) {
-      ax = (fx[i] - alpha * std::abs(fx[i]) * Sign(wvx[i])) * inv_mass_[i];
-      ay = (fy[i] - alpha * std::abs(fy[i]) * Sign(wvy[i])) * inv_mass_[i];
+      ax = (fx[i] + Damping(alpha, fx[i], wvx[i])) * inv_mass_[i];
+      ay = (fy[i] + Damping(alpha, fy[i], wvy[i])) * inv_mass_[i];
     } else {
       const double lfx = q(0, 0) * fx[i] + q(1, 0) * fy[i], lfy = q(0, 1) * fx[i] + q(1, 1) * fy[i];
       const double lvx = q(0, 0) * wvx[i] + q(1, 0) * wvy[i],
                    lvy = q(0, 1) * wvx[i] + q(1, 1) * wvy[i];
-      const double dfx = -alpha * std::abs(lfx) * Sign(lvx),
-                   dfy = -alpha * std::abs(lfy) * Sign(lvy);
+      const double dfx = Damping(alpha, lfx, lvx), dfy = Damping(alpha, lfy, lvy);
       ax = (fx[i] + q(0, 0) * dfx + q(0, 1) * dfy) * inv_mass_[i];
       ay = (fy[i] + q(1, 0) * dfx + q(1, 1) * dfy) * inv_mass_[i];
     }
-    const double aw = (tq[i] - alpha * std::abs(tq[i]) * Sign(wom[i])) * inv_inertia_[i];
-    // Velocities at the force time (mean of the two half steps) for the energy.
-    const double ux = wvx[i] + 0.5 * dt * ax, uy = wvy[i] + 0.5 * dt * ay,
-                 uw = wom[i] + 0.5 * dt * aw;
-    kinetic2 += (ux * ux + uy * uy) / inv_mass_[i] + uw * uw / inv_inertia_[i];
+    const double aw = (tq[i] + Damping(alpha, tq[i], wom[i])) * inv_inertia_[i];
+    if constexpr (kMeasure) {
+      // Velocities at the force time (mean of the two half steps) for the energy;
+      // m = c·r², I = ½ m r²: multiplications instead of dividing by 1/m.
+      const double ux = wvx[i] + 0.5 * dt * ax, uy = wvy[i] + 0.5 * dt * ay,
+                   uw = wom[i] + 0.5 * dt * aw;
+      const double r2 = rad[i] * rad[i];
+      kinetic2 += mass_per_r2 * r2 * (ux * ux + uy * uy + 0.5 * r2 * uw * uw);
+    }
     wvx[i] += dt * ax;
     wvy[i] += dt * ay;
     wom[i] += dt * aw;
@@ -539,7 +559,7 @@ Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
     vmax2 = std::max(vmax2, wvx[i] * wvx[i] + wvy[i] * wvy[i]);
   }
   displacement_bound_ += std::sqrt(vmax2) * dt;
-  energy_ = {0.5 * kinetic2, elastic};
+  if constexpr (kMeasure) energy_ = {0.5 * kinetic2, elastic};
 
   const double volume = p_.cell.determinant() * mat.thickness;
   StepResult out;
@@ -548,17 +568,26 @@ Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
   return out;
 }
 
-Rve::StepResult Rve::Step(const Eigen::Matrix2d& l, const Eigen::Matrix2d& next_cell) {
+Rve::StepResult Rve::Step(const Eigen::Matrix2d& l, const Eigen::Matrix2d& next_cell,
+                          bool measure) {
   const bool rolling = !nbr_moment_.empty(), bonds = !nbr_bond_.empty();
   const bool hertz = p_.material.model == ContactModel::kHertzMindlin;
-  StepResult r;
-  if (hertz) {
-    r = rolling ? StepImpl<true, false, true>(l) : StepImpl<false, false, true>(l);
-  } else if (rolling) {
-    r = bonds ? StepImpl<true, true, false>(l) : StepImpl<true, false, false>(l);
-  } else {
-    r = bonds ? StepImpl<false, true, false>(l) : StepImpl<false, false, false>(l);
-  }
+  measure = measure || track_energy_;
+  // One instantiation per feature set keeps unused features out of the loop.
+  auto pick = [&]<bool kMeasure>() {
+    if (hertz) {
+      return rolling ? StepImpl<true, false, true, kMeasure>(l)
+                     : StepImpl<false, false, true, kMeasure>(l);
+    }
+    if (rolling) {
+      return bonds ? StepImpl<true, true, false, kMeasure>(l)
+                   : StepImpl<true, false, false, kMeasure>(l);
+    }
+    return bonds ? StepImpl<false, true, false, kMeasure>(l)
+                 : StepImpl<false, false, false, kMeasure>(l);
+  };
+  const StepResult r =
+      measure ? pick.template operator()<true>() : pick.template operator()<false>();
   p_.cell = next_cell;
   ++p_.total_steps;
   MaybeFlip();
@@ -623,7 +652,7 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
     const double tau = static_cast<double>(k + 1) / static_cast<double>(steps);
     const Eigen::Matrix2d next = (identity + (v - identity) * tau) * start;
     const Eigen::Matrix2d l = (next - p_.cell) * p_.cell.inverse() / dt_;
-    Step(l, next);
+    Step(l, next, /*measure=*/false);
   }
   std::int64_t used = steps;
   if (options.relax) used += Relax(options.relax_tolerance, options.relax_max_steps).steps;
@@ -650,6 +679,10 @@ RveState Rve::Run(CellControl& control, std::int64_t steps) {
     return std::clamp(p_term + integral, -cap, cap);
   };
   Eigen::Vector3d& integral = control.servo_integral;
+  // The step measures stress and stiffness only when a servo needs them.
+  const bool servo_on = control.xx.mode == ControlMode::kStress ||
+                        control.yy.mode == ControlMode::kStress ||
+                        control.xy.mode == ControlMode::kStress;
   for (std::int64_t k = 0; k < steps; ++k) {
     Eigen::Matrix2d l = Eigen::Matrix2d::Zero();
     l(0, 0) = servo(control.xx, stress(0, 0), stiffness.x(), integral[0]);
@@ -657,7 +690,7 @@ RveState Rve::Run(CellControl& control, std::int64_t steps) {
     l(0, 1) =
         servo(control.xy, 0.5 * (stress(0, 1) + stress(1, 0)), 0.25 * stiffness.sum(), integral[2]);
     const Eigen::Matrix2d next = p_.cell + dt_ * l * p_.cell;
-    const StepResult r = Step(l, next);
+    const StepResult r = Step(l, next, servo_on);
     stress = r.stress;
     stiffness = r.stiffness;
   }
@@ -672,7 +705,8 @@ RveState Rve::Relax(double tolerance, std::int64_t max_steps) {
   RveState s = Observe();
   while (done < max_steps && !(s.unbalanced_force_ratio < tolerance && s.num_contacts > 0)) {
     const std::int64_t chunk = std::min(kCheckEvery, max_steps - done);
-    for (std::int64_t k = 0; k < chunk; ++k) Step(Eigen::Matrix2d::Zero(), p_.cell);
+    for (std::int64_t k = 0; k < chunk; ++k)
+      Step(Eigen::Matrix2d::Zero(), p_.cell, /*measure=*/false);
     done += chunk;
     s = Observe();
   }

@@ -128,6 +128,9 @@ class Rve {
   double time_step() const { return dt_; }
   // Strain rate (1/s) keeping the inertial number at I for pressure p (Pa).
   double QuasiStaticStrainRate(double inertial_number, double pressure) const;
+  // Energy of the last step; measured only while tracking is on (it costs
+  // a few percent of the step).
+  void set_track_energy(bool on) { track_energy_ = on; }
   const StepEnergy& last_step_energy() const { return energy_; }
 
   // Changes the friction μ of every contact and clamps the stored tangential
@@ -143,12 +146,13 @@ class Rve {
     Eigen::Matrix2d stress = Eigen::Matrix2d::Zero();  // Pa, this step's contact stress
     Eigen::Vector2d stiffness = Eigen::Vector2d::Zero();  // Pa, (1/V)Σ kn d⁴ n_x⁴ … for the servo
   };
-  template <bool kRolling, bool kBonds, bool kHertz>
+  template <bool kRolling, bool kBonds, bool kHertz, bool kMeasure>
   StepResult StepImpl(const Eigen::Matrix2d& l);
   // One DEM step: forces at the current positions with velocity gradient l
   // (1/s) for the affine relative motion, then velocities, positions and the
   // cell (to next_cell, m) advance by Δt.
-  StepResult Step(const Eigen::Matrix2d& l, const Eigen::Matrix2d& next_cell);
+  // `measure`: also sum the step's stress and servo stiffness (and energy).
+  StepResult Step(const Eigen::Matrix2d& l, const Eigen::Matrix2d& next_cell, bool measure);
   void MaybeRebuild();
   void Rebuild(const std::vector<ContactHistory>& history);
   void MaybeFlip();
@@ -164,6 +168,7 @@ class Rve {
   // Half Verlet list in CSR form, rows i ascending, columns j > i ascending.
   std::vector<std::uint32_t> row_start_;
   std::vector<std::uint32_t> nbr_j_;
+  std::vector<double> nbr_kn_;  // N/m, E·r* per pair (linear model)
   std::vector<double> nbr_ft_, nbr_moment_, nbr_bond_;
   // Rebuild trigger: cell at the last rebuild and a bound on the largest
   // fluctuation displacement since.
@@ -171,6 +176,7 @@ class Rve {
   double displacement_bound_ = 0.0;
   std::vector<double> inv_mass_, inv_inertia_;  // 1/kg, 1/(kg m²), mass-scaled
   StepEnergy energy_;
+  bool track_energy_ = false;
   double radius_min_ = 0.0, radius_max_ = 0.0, radius_mean_ = 0.0, solid_area_ = 0.0;
 };
 
