@@ -268,7 +268,12 @@ void Rve::Rebuild(const std::vector<ContactHistory>& history) {
   const int nbx = static_cast<int>(heights.x() / cutoff);
   const int nby = static_cast<int>(heights.y() / cutoff);
 
-  std::vector<std::vector<std::uint32_t>> rows(n);
+  // Pairs as (i << 32 | j), i < j: one flat array, sorted once.
+  thread_local std::vector<std::uint64_t> pairs;
+  pairs.clear();
+  auto add = [&](std::uint32_t i, std::uint32_t j) {
+    pairs.push_back(static_cast<std::uint64_t>(std::min(i, j)) << 32 | std::max(i, j));
+  };
   auto consider = [&](std::uint32_t i, std::uint32_t j) {
     double dsx = p_.sx[j] - p_.sx[i];
     double dsy = p_.sy[j] - p_.sy[i];
@@ -277,7 +282,7 @@ void Rve::Rebuild(const std::vector<ContactHistory>& history) {
     const double dx = h(0, 0) * dsx + h(0, 1) * dsy;
     const double dy = h(1, 0) * dsx + h(1, 1) * dsy;
     const double reach = p_.radius[i] + p_.radius[j] + cutoff_skin;
-    if (dx * dx + dy * dy < reach * reach) rows[std::min(i, j)].push_back(std::max(i, j));
+    if (dx * dx + dy * dy < reach * reach) add(i, j);
   };
   if (nbx >= 3 && nby >= 3) {
     const int nbins = nbx * nby;
@@ -312,23 +317,22 @@ void Rve::Rebuild(const std::vector<ContactHistory>& history) {
   }
   // Bonded pairs stay listed whatever their distance.
   for (const ContactHistory& c : history) {
-    if (c.bond_strength > 0) rows[c.i].push_back(c.j);
+    if (c.bond_strength > 0) add(c.i, c.j);
   }
 
   const bool rolling = p_.material.rolling_beta > 0;
   const bool bonds = p_.material.bond_cohesion > 0 ||
                      std::any_of(history.begin(), history.end(),
                                  [](const ContactHistory& c) { return c.bond_strength > 0; });
+  std::sort(pairs.begin(), pairs.end());
+  pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
   row_start_.assign(n + 1, 0);
-  nbr_j_.clear();
-  for (std::uint32_t i = 0; i < n; ++i) {
-    std::vector<std::uint32_t>& r = rows[i];
-    std::sort(r.begin(), r.end());
-    r.erase(std::unique(r.begin(), r.end()), r.end());
-    nbr_j_.insert(nbr_j_.end(), r.begin(), r.end());
-    row_start_[i + 1] = static_cast<std::uint32_t>(nbr_j_.size());
+  nbr_j_.resize(pairs.size());
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    nbr_j_[k] = static_cast<std::uint32_t>(pairs[k]);
+    ++row_start_[(pairs[k] >> 32) + 1];
   }
-  nbr_j_.shrink_to_fit();
+  for (std::size_t i = 0; i < n; ++i) row_start_[i + 1] += row_start_[i];
   nbr_ft_.assign(nbr_j_.size(), 0.0);
   if (p_.material.model == ContactModel::kLinear) {
     nbr_kn_.resize(nbr_j_.size());
