@@ -18,9 +18,13 @@
 #include "rve_server/engine/material.h"
 #include "rve_server/engine/packing.h"
 #include "rve_server/engine/rve.h"
+#include "tests/test_util.h"
 
 namespace rvehub::dem {
 namespace {
+
+using testing_util::CreateOrDie;
+using testing_util::SquareLattice;
 
 constexpr double kPi = std::numbers::pi;
 
@@ -65,12 +69,6 @@ Packing MakePair(const PairSpec& spec) {
     p.contacts.push_back(h);
   }
   return p;
-}
-
-Rve CreateOrDie(Packing p) {
-  absl::StatusOr<Rve> rve = Rve::Create(std::move(p));
-  EXPECT_TRUE(rve.ok()) << rve.status();
-  return *std::move(rve);
 }
 
 // Runs `steps` DEM steps at a fixed cell.
@@ -371,21 +369,10 @@ TEST(ObjectivityTest, ApplyOfAPureRotationRotatesTheForceAndKeepsFt) {
 TEST(ObjectivityTest, ApplyOfARotationIsObjectiveForADampedPacking) {
   constexpr int kSide = 4;
   constexpr double kR = 5e-3, kSpacing = 2 * kR * 0.998;
-  Packing p;
+  Packing p = SquareLattice(kSide, kSpacing,
+                            [](int x, int y) { return kR * (1.0 + 0.002 * ((3 * x + y) % 4)); });
   p.material.damping = 0.1;
-  p.cell = Eigen::Matrix2d::Identity() * (kSide * kSpacing);
-  for (int y = 0; y < kSide; ++y) {
-    for (int x = 0; x < kSide; ++x) {
-      p.radius.push_back(kR * (1.0 + 0.002 * ((3 * x + y) % 4)));
-      p.sx.push_back((x + 0.5) / kSide);
-      p.sy.push_back((y + 0.5) / kSide);
-    }
-  }
   const std::size_t n = p.radius.size();
-  p.vx.assign(n, 0.0);
-  p.vy.assign(n, 0.0);
-  p.omega.assign(n, 0.0);
-  p.theta.assign(n, 0.0);
   Rve start = CreateOrDie(p);
   CellControl shear;
   shear.xy = {ControlMode::kStrainRate, 5e-5 / start.time_step()};

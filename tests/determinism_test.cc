@@ -6,11 +6,8 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <cstring>
-#include <map>
 #include <span>
 #include <string>
-#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -19,32 +16,17 @@
 #include "rve_server/engine/batch.h"
 #include "rve_server/engine/material.h"
 #include "rve_server/engine/packing.h"
-#include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
+#include "tests/test_util.h"
 
 namespace rvehub::dem {
 namespace {
 
-// Preparing 400 discs takes 1–2 s: each set (seed 1) is prepared once per
-// process.
-const Packing& Prepared(const std::string& name = "SET-dense") {
-  static auto* cache = new std::map<std::string, Packing>();
-  auto it = cache->find(name);
-  if (it == cache->end()) {
-    absl::StatusOr<ParameterSet> set = FindParameterSet(name);
-    EXPECT_TRUE(set.ok()) << set.status();
-    absl::StatusOr<Packing> packing = PreparePacking(*set);
-    EXPECT_TRUE(packing.ok()) << name << ": " << packing.status();
-    it = cache->emplace(name, packing.ok() ? *std::move(packing) : Packing{}).first;
-  }
-  return it->second;
-}
-
-Rve MakeRve(const Packing& packing) {
-  absl::StatusOr<Rve> rve = Rve::Create(packing);
-  EXPECT_TRUE(rve.ok()) << rve.status();
-  return *std::move(rve);
-}
+using testing_util::CreateOrDie;
+using testing_util::ExpectIdenticalPackings;
+using testing_util::ExpectIdenticalStates;
+using testing_util::Prepared;
+using testing_util::SameBits;
 
 // ΔF = [[1, 2e-4], [0, 1 − 1e-4]]: simple shear with axial compression.
 Eigen::Matrix3d ShearIncrement(double scale = 1.0) {
@@ -52,103 +34,6 @@ Eigen::Matrix3d ShearIncrement(double scale = 1.0) {
   df(0, 1) = 2e-4 * scale;
   df(1, 1) = 1.0 - 1e-4 * scale;
   return df;
-}
-
-bool SameBits(double a, double b) { return std::memcmp(&a, &b, sizeof(double)) == 0; }
-
-template <typename Matrix>
-bool SameBits(const Matrix& a, const Matrix& b) {
-  return a.size() == b.size() &&
-         std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<std::size_t>(a.size())) == 0;
-}
-
-bool SameBits(const std::vector<double>& a, const std::vector<double>& b) {
-  return a.size() == b.size() &&
-         (a.empty() || std::memcmp(a.data(), b.data(), sizeof(double) * a.size()) == 0);
-}
-
-// Every field of two states, bit for bit.
-void ExpectIdenticalStates(const RveState& a, const RveState& b, const std::string& where) {
-  SCOPED_TRACE(where);
-  EXPECT_TRUE(SameBits(a.stress, b.stress)) << a.stress << "\nvs\n" << b.stress;
-  EXPECT_TRUE(SameBits(a.fabric, b.fabric));
-  EXPECT_TRUE(SameBits(a.fabric_anisotropy_tensor, b.fabric_anisotropy_tensor));
-  EXPECT_TRUE(SameBits(a.tangent, b.tangent));
-  EXPECT_EQ(a.fabric_defined, b.fabric_defined);
-  EXPECT_EQ(a.has_tangent, b.has_tangent);
-  EXPECT_EQ(a.num_contacts, b.num_contacts);
-  EXPECT_EQ(a.steps, b.steps);
-  for (auto [x, y, name] : {std::tuple{a.fabric_anisotropy, b.fabric_anisotropy, "Fa"},
-                            {a.void_ratio, b.void_ratio, "void_ratio"},
-                            {a.porosity, b.porosity, "porosity"},
-                            {a.coordination, b.coordination, "coordination"},
-                            {a.mechanical_coordination, b.mechanical_coordination, "mech_coord"},
-                            {a.permeability, b.permeability, "permeability"},
-                            {a.mean_rotation, b.mean_rotation, "mean_rotation"},
-                            {a.kinetic_energy, b.kinetic_energy, "kinetic_energy"},
-                            {a.unbalanced_force_ratio, b.unbalanced_force_ratio, "unbalanced"},
-                            {a.volume, b.volume, "volume"},
-                            {a.time_step, b.time_step, "time_step"},
-                            {a.mass_scale, b.mass_scale, "mass_scale"}}) {
-    EXPECT_TRUE(SameBits(x, y)) << name << ": " << x << " vs " << y;
-  }
-}
-
-// Every field of the material and the controls, doubles bit for bit.
-void ExpectSameMaterialAndControls(const Packing& a, const Packing& b) {
-  const Material &ma = a.material, &mb = b.material;
-  const Controls &ca = a.controls, &cb = b.controls;
-  EXPECT_EQ(ma.name, mb.name);
-  EXPECT_EQ(ma.model, mb.model);
-  EXPECT_EQ(ca.min_steps, cb.min_steps);
-  for (auto [x, y, field] :
-       {std::tuple{ma.density, mb.density, "density"},
-        {ma.young_modulus, mb.young_modulus, "young_modulus"},
-        {ma.stiffness_ratio, mb.stiffness_ratio, "stiffness_ratio"},
-        {ma.poisson_ratio, mb.poisson_ratio, "poisson_ratio"},
-        {ma.friction, mb.friction, "friction"},
-        {ma.rolling_beta, mb.rolling_beta, "rolling_beta"},
-        {ma.rolling_eta, mb.rolling_eta, "rolling_eta"},
-        {ma.bond_cohesion, mb.bond_cohesion, "bond_cohesion"},
-        {ma.damping, mb.damping, "damping"},
-        {ma.thickness, mb.thickness, "thickness"},
-        {ca.time_step_factor, cb.time_step_factor, "time_step_factor"},
-        {ca.max_inertial_number, cb.max_inertial_number, "max_inertial_number"},
-        {ca.pressure_floor, cb.pressure_floor, "pressure_floor"},
-        {ca.max_stretch, cb.max_stretch, "max_stretch"},
-        {ca.max_rotation, cb.max_rotation, "max_rotation"},
-        {ca.mass_scale, cb.mass_scale, "mass_scale"},
-        {ca.skin, cb.skin, "skin"}}) {
-    EXPECT_TRUE(SameBits(x, y)) << field << ": " << x << " vs " << y;
-  }
-}
-
-// Every field of two packings, bit for bit.
-void ExpectIdenticalPackings(const Packing& a, const Packing& b, const std::string& where) {
-  SCOPED_TRACE(where);
-  ExpectSameMaterialAndControls(a, b);
-  EXPECT_TRUE(SameBits(a.cell, b.cell)) << a.cell << "\nvs\n" << b.cell;
-  EXPECT_TRUE(SameBits(a.frame, b.frame));
-  EXPECT_TRUE(SameBits(a.radius, b.radius));
-  EXPECT_TRUE(SameBits(a.sx, b.sx));
-  EXPECT_TRUE(SameBits(a.sy, b.sy));
-  EXPECT_TRUE(SameBits(a.vx, b.vx));
-  EXPECT_TRUE(SameBits(a.vy, b.vy));
-  EXPECT_TRUE(SameBits(a.omega, b.omega));
-  EXPECT_TRUE(SameBits(a.theta, b.theta));
-  EXPECT_TRUE(SameBits(a.initial_void_ratio, b.initial_void_ratio));
-  EXPECT_TRUE(SameBits(a.permeability_coefficient, b.permeability_coefficient));
-  EXPECT_EQ(a.total_steps, b.total_steps);
-  ASSERT_EQ(a.contacts.size(), b.contacts.size());
-  for (std::size_t k = 0; k < a.contacts.size(); ++k) {
-    const ContactHistory &ca = a.contacts[k], &cb = b.contacts[k];
-    ASSERT_TRUE(ca.i == cb.i && ca.j == cb.j &&
-                SameBits(ca.tangential_force, cb.tangential_force) &&
-                SameBits(ca.rolling_moment, cb.rolling_moment) &&
-                SameBits(ca.bond_strength, cb.bond_strength))
-        << "contact " << k << ": (" << ca.i << ", " << ca.j << ") ft " << ca.tangential_force
-        << " vs (" << cb.i << ", " << cb.j << ") ft " << cb.tangential_force;
-  }
 }
 
 // Runs `n` increments of ShearIncrement on `rve`, the last one asking for
@@ -167,8 +52,8 @@ std::vector<RveState> RunIncrements(Rve& rve, int n) {
 }
 
 TEST(DeterminismTest, SameStateAndIncrementsGiveIdenticalResults) {
-  Rve a = MakeRve(Prepared());
-  Rve b = MakeRve(Prepared());
+  Rve a = CreateOrDie(Prepared("SET-dense"));
+  Rve b = CreateOrDie(Prepared("SET-dense"));
   const std::vector<RveState> sa = RunIncrements(a, 20);
   const std::vector<RveState> sb = RunIncrements(b, 20);
   ASSERT_EQ(sa.size(), 20u);
@@ -180,7 +65,7 @@ TEST(DeterminismTest, SameStateAndIncrementsGiveIdenticalResults) {
   // The run did something: the sheared state differs from the start, so the
   // comparison above is not between two untouched copies.
   EXPECT_GT(a.ToPacking().total_steps, 0);
-  EXPECT_NE(sa.back().stress(0, 1), MakeRve(Prepared()).Observe().stress(0, 1));
+  EXPECT_NE(sa.back().stress(0, 1), CreateOrDie(Prepared("SET-dense")).Observe().stress(0, 1));
   EXPECT_TRUE(sa.back().has_tangent);
 }
 
@@ -189,8 +74,8 @@ TEST(DeterminismTest, ApplyBatchIsIndependentOfThreadCount) {
   constexpr int kRounds = 4;
   std::vector<Rve> one, two;
   for (int k = 0; k < kRves; ++k) {
-    one.push_back(MakeRve(Prepared()));
-    two.push_back(MakeRve(Prepared()));
+    one.push_back(CreateOrDie(Prepared("SET-dense")));
+    two.push_back(CreateOrDie(Prepared("SET-dense")));
   }
   std::vector<Rve*> ptr_one, ptr_two;
   for (int k = 0; k < kRves; ++k) {
@@ -225,7 +110,7 @@ TEST(DeterminismTest, ApplyBatchIsIndependentOfThreadCount) {
   // The RVEs did follow their own increments (they differ from each other).
   EXPECT_FALSE(SameBits(one[0].Observe().stress, one[kRves - 1].Observe().stress));
   // A batch result equals the same RVE driven alone by Apply.
-  Rve alone = MakeRve(Prepared());
+  Rve alone = CreateOrDie(Prepared("SET-dense"));
   absl::StatusOr<RveState> last;
   for (int round = 0; round < kRounds; ++round) last = alone.Apply(df[kRves - 1], options);
   ASSERT_TRUE(last.ok()) << last.status();
@@ -233,10 +118,10 @@ TEST(DeterminismTest, ApplyBatchIsIndependentOfThreadCount) {
 }
 
 TEST(DeterminismTest, RestartFromPackingContinuesBitIdentically) {
-  Rve original = MakeRve(Prepared());
+  Rve original = CreateOrDie(Prepared("SET-dense"));
   ASSERT_EQ(RunIncrements(original, 10).size(), 10u);
   const Packing saved = original.ToPacking();
-  Rve restored = MakeRve(saved);
+  Rve restored = CreateOrDie(saved);
   // The restored RVE holds the same state before it moves on.
   ExpectIdenticalStates(original.Observe(true), restored.Observe(true), "at restart");
   ExpectIdenticalPackings(saved, restored.ToPacking(), "round trip");
@@ -256,14 +141,14 @@ TEST(DeterminismTest, RestartFromPackingContinuesBitIdentically) {
 // particles move (no relaxation before the save), continued by increments
 // that relax: the contact history must carry over exactly.
 TEST(DeterminismTest, RestartMidShearWithRelaxContinuesBitIdentically) {
-  Rve original = MakeRve(Prepared());
+  Rve original = CreateOrDie(Prepared("SET-dense"));
   ApplyOptions options;
   options.relax = true;
   options.relax_tolerance = 1e-3;
   Eigen::Matrix3d big = Eigen::Matrix3d::Identity();
   big(0, 1) = 0.01;
   for (int k = 0; k < 3; ++k) ASSERT_TRUE(original.Apply(big).ok());
-  Rve restored = MakeRve(original.ToPacking());
+  Rve restored = CreateOrDie(original.ToPacking());
   for (int k = 0; k < 5; ++k) {
     absl::StatusOr<RveState> so = original.Apply(ShearIncrement(10.0), options);
     absl::StatusOr<RveState> sr = restored.Apply(ShearIncrement(10.0), options);
@@ -278,7 +163,7 @@ TEST(DeterminismTest, RestartMidShearWithRelaxContinuesBitIdentically) {
 // a·b > 0.55 |a|², i.e. γ ≈ 0.55 for a square cell): the continuation
 // crosses the change of lattice basis on both copies at the same step.
 TEST(DeterminismTest, RestartBeforeCellFlipContinuesBitIdentically) {
-  Rve original = MakeRve(Prepared());
+  Rve original = CreateOrDie(Prepared("SET-dense"));
   Eigen::Matrix3d shear = Eigen::Matrix3d::Identity();
   shear(0, 1) = 0.05;  // |V − I| ≈ 0.035 < Controls::max_stretch
   for (int k = 0; k < 10; ++k) ASSERT_TRUE(original.Apply(shear).ok()) << "increment " << k;
@@ -287,7 +172,7 @@ TEST(DeterminismTest, RestartBeforeCellFlipContinuesBitIdentically) {
   };
   ASSERT_GT(skew(original), 0.4);   // sheared ...
   ASSERT_LT(skew(original), 0.55);  // ... but not yet reduced
-  Rve restored = MakeRve(original.ToPacking());
+  Rve restored = CreateOrDie(original.ToPacking());
   for (int k = 0; k < 4; ++k) {
     absl::StatusOr<RveState> so = original.Apply(shear);
     absl::StatusOr<RveState> sr = restored.Apply(shear);
@@ -312,7 +197,7 @@ TEST(DeterminismTest, RestartCarriesRollingMomentsAndBonds) {
        {std::pair<std::string, Packing>{"footing-dense", Prepared("footing-dense")},
         {"cemented SET-dense", cemented}}) {
     SCOPED_TRACE(name);
-    Rve original = MakeRve(start);
+    Rve original = CreateOrDie(start);
     original.BondContacts();  // no-op without cohesion
     Eigen::Matrix3d df = Eigen::Matrix3d::Identity();
     df(0, 1) = 5e-3;
@@ -329,7 +214,7 @@ TEST(DeterminismTest, RestartCarriesRollingMomentsAndBonds) {
     // The histories under test are there (the check is not vacuous).
     EXPECT_EQ(moments > 0, start.material.rolling_beta > 0);
     EXPECT_EQ(bonds > 0, start.material.bond_cohesion > 0);
-    Rve restored = MakeRve(saved);
+    Rve restored = CreateOrDie(saved);
     for (int k = 0; k < 10; ++k) {
       absl::StatusOr<RveState> so = original.Apply(ShearIncrement(10.0));
       absl::StatusOr<RveState> sr = restored.Apply(ShearIncrement(10.0));

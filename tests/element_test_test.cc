@@ -10,7 +10,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <map>
 #include <string>
 #include <utility>
 #include <vector>
@@ -19,27 +18,13 @@
 #include "gtest/gtest.h"
 #include "rve_server/engine/material.h"
 #include "rve_server/engine/packing.h"
-#include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
+#include "tests/test_util.h"
 
 namespace rvehub::dem {
 namespace {
 
-// Preparing 400 discs takes 1–2 s: each set (seed 1) is prepared once per
-// process.
-const Packing& Prepared(const std::string& name) {
-  static auto* cache = new std::map<std::string, Packing>();
-  auto it = cache->find(name);
-  if (it == cache->end()) {
-    absl::StatusOr<ParameterSet> set = FindParameterSet(name);
-    EXPECT_TRUE(set.ok()) << set.status();
-    EXPECT_EQ(set->preparation.seed, 1u);
-    absl::StatusOr<Packing> packing = PreparePacking(*set);
-    EXPECT_TRUE(packing.ok()) << name << ": " << packing.status();
-    it = cache->emplace(name, packing.ok() ? *std::move(packing) : Packing{}).first;
-  }
-  return it->second;
-}
+using testing_util::Prepared;
 
 std::vector<ElementTestRow> RunOn(const std::string& set, const ElementTestSpec& spec) {
   absl::StatusOr<Rve> rve = Rve::Create(Prepared(set));

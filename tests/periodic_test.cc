@@ -10,33 +10,17 @@
 #include <utility>
 #include <vector>
 
-#include "absl/status/statusor.h"
 #include "gtest/gtest.h"
 #include "rve_server/engine/material.h"
 #include "rve_server/engine/packing.h"
-#include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
+#include "tests/test_util.h"
 
 namespace rvehub::dem {
 namespace {
 
-Rve CreateOrDie(Packing p) {
-  absl::StatusOr<Rve> rve = Rve::Create(std::move(p));
-  EXPECT_TRUE(rve.ok()) << rve.status();
-  return *std::move(rve);
-}
-
-// The prepared SET-dense RVE (400 discs, ~1–2 s), shared by the tests.
-const Packing& SetDense() {
-  static const Packing* packing = [] {
-    absl::StatusOr<ParameterSet> set = FindParameterSet("SET-dense");
-    EXPECT_TRUE(set.ok()) << set.status();
-    absl::StatusOr<Packing> p = PreparePacking(*set);
-    EXPECT_TRUE(p.ok()) << p.status();
-    return new Packing(p.ok() ? *std::move(p) : Packing{});
-  }();
-  return *packing;
-}
+using testing_util::CreateOrDie;
+using testing_util::Prepared;
 
 // --- Contacts across the periodic boundary. ---
 
@@ -214,7 +198,7 @@ void ExpectSameStateInBasis(const Packing& original, const Eigen::Matrix2d& m) {
 
 // One test over all bases: each test process prepares SET-dense once.
 TEST(LatticeBasisTest, SkewedBasisGivesTheSameState) {
-  const Packing& original = SetDense();
+  const Packing& original = Prepared("SET-dense");
   ASSERT_FALSE(original.radius.empty());
   for (const BasisCase& basis : BasisCases()) {
     SCOPED_TRACE(basis.name);
@@ -246,8 +230,8 @@ class CellFlipTest : public testing::Test {
   static const Record& Sheared() {
     static const Record* record = [] {
       auto* r = new Record;
-      if (SetDense().radius.empty()) return r;  // preparation failed (reported there)
-      Rve rve = CreateOrDie(SetDense());
+      if (Prepared("SET-dense").radius.empty()) return r;  // preparation failed (reported there)
+      Rve rve = CreateOrDie(Prepared("SET-dense"));
       CellControl control;
       control.xy = {ControlMode::kStrainRate, kStrainPerStep / rve.time_step()};
       RveState prev = rve.Observe();
@@ -290,8 +274,8 @@ TEST_F(CellFlipTest, ShearPastTheThresholdFlipsSmoothlyAndKeepsRunning) {
   EXPECT_TRUE(std::isfinite(r.end.fabric_anisotropy));
   // The cell shape is the same lattice as F·h0: |det| is preserved by simple
   // shear, and the flipped b is b − a.
-  EXPECT_NEAR(r.end_cell.determinant(), SetDense().cell.determinant(),
-              1e-9 * SetDense().cell.determinant());
+  EXPECT_NEAR(r.end_cell.determinant(), Prepared("SET-dense").cell.determinant(),
+              1e-9 * Prepared("SET-dense").cell.determinant());
 
   // The deformation gradient is tracked through the flip: F = I + γ e_x⊗e_y
   // with γ = 7000 steps × 1e-4 (round-off of 7000 products (I + Δt·L)).

@@ -6,12 +6,9 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <cstring>
 #include <map>
 #include <string>
-#include <tuple>
 #include <utility>
-#include <vector>
 
 #include "absl/status/statusor.h"
 #include "gtest/gtest.h"
@@ -19,9 +16,13 @@
 #include "rve_server/engine/packing.h"
 #include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
+#include "tests/test_util.h"
 
 namespace rvehub::dem {
 namespace {
+
+using testing_util::ExpectIdenticalPackings;
+using testing_util::SameBits;
 
 struct Prepared {
   Packing packing;
@@ -61,77 +62,6 @@ RveState ObserveOf(const Packing& packing) {
 }
 
 double Pressure(const RveState& s) { return -0.5 * s.stress.trace(); }  // Pa, compression +
-
-// Bitwise equality of doubles (distinguishes −0 from +0; NaN equals itself).
-bool SameBits(double a, double b) { return std::memcmp(&a, &b, sizeof(double)) == 0; }
-
-void ExpectSameBits(const std::vector<double>& a, const std::vector<double>& b, const char* what) {
-  ASSERT_EQ(a.size(), b.size()) << what;
-  for (std::size_t k = 0; k < a.size(); ++k) {
-    ASSERT_TRUE(SameBits(a[k], b[k])) << what << "[" << k << "]: " << a[k] << " vs " << b[k];
-  }
-}
-
-void ExpectSameBits(const Eigen::Matrix2d& a, const Eigen::Matrix2d& b, const char* what) {
-  EXPECT_EQ(std::memcmp(a.data(), b.data(), sizeof(double) * 4), 0) << what << "\n"
-                                                                    << a << "\nvs\n"
-                                                                    << b;
-}
-
-// Every field of the material and the controls, doubles bit for bit.
-void ExpectSameMaterialAndControls(const Packing& a, const Packing& b) {
-  const Material &ma = a.material, &mb = b.material;
-  const Controls &ca = a.controls, &cb = b.controls;
-  EXPECT_EQ(ma.name, mb.name);
-  EXPECT_EQ(ma.model, mb.model);
-  EXPECT_EQ(ca.min_steps, cb.min_steps);
-  for (auto [x, y, field] :
-       {std::tuple{ma.density, mb.density, "density"},
-        {ma.young_modulus, mb.young_modulus, "young_modulus"},
-        {ma.stiffness_ratio, mb.stiffness_ratio, "stiffness_ratio"},
-        {ma.poisson_ratio, mb.poisson_ratio, "poisson_ratio"},
-        {ma.friction, mb.friction, "friction"},
-        {ma.rolling_beta, mb.rolling_beta, "rolling_beta"},
-        {ma.rolling_eta, mb.rolling_eta, "rolling_eta"},
-        {ma.bond_cohesion, mb.bond_cohesion, "bond_cohesion"},
-        {ma.damping, mb.damping, "damping"},
-        {ma.thickness, mb.thickness, "thickness"},
-        {ca.time_step_factor, cb.time_step_factor, "time_step_factor"},
-        {ca.max_inertial_number, cb.max_inertial_number, "max_inertial_number"},
-        {ca.pressure_floor, cb.pressure_floor, "pressure_floor"},
-        {ca.max_stretch, cb.max_stretch, "max_stretch"},
-        {ca.max_rotation, cb.max_rotation, "max_rotation"},
-        {ca.mass_scale, cb.mass_scale, "mass_scale"},
-        {ca.skin, cb.skin, "skin"}}) {
-    EXPECT_TRUE(SameBits(x, y)) << field << ": " << x << " vs " << y;
-  }
-}
-
-// Every field of two packings, doubles compared bit for bit.
-void ExpectIdenticalPackings(const Packing& a, const Packing& b) {
-  ExpectSameMaterialAndControls(a, b);
-  EXPECT_TRUE(SameBits(a.initial_void_ratio, b.initial_void_ratio));
-  EXPECT_TRUE(SameBits(a.permeability_coefficient, b.permeability_coefficient));
-  EXPECT_EQ(a.total_steps, b.total_steps);
-  ExpectSameBits(a.cell, b.cell, "cell");
-  ExpectSameBits(a.frame, b.frame, "frame");
-  ExpectSameBits(a.radius, b.radius, "radius");
-  ExpectSameBits(a.sx, b.sx, "sx");
-  ExpectSameBits(a.sy, b.sy, "sy");
-  ExpectSameBits(a.vx, b.vx, "vx");
-  ExpectSameBits(a.vy, b.vy, "vy");
-  ExpectSameBits(a.omega, b.omega, "omega");
-  ExpectSameBits(a.theta, b.theta, "theta");
-  ASSERT_EQ(a.contacts.size(), b.contacts.size());
-  for (std::size_t k = 0; k < a.contacts.size(); ++k) {
-    const ContactHistory &ca = a.contacts[k], &cb = b.contacts[k];
-    ASSERT_EQ(ca.i, cb.i) << "contact " << k;
-    ASSERT_EQ(ca.j, cb.j) << "contact " << k;
-    ASSERT_TRUE(SameBits(ca.tangential_force, cb.tangential_force)) << "contact " << k;
-    ASSERT_TRUE(SameBits(ca.rolling_moment, cb.rolling_moment)) << "contact " << k;
-    ASSERT_TRUE(SameBits(ca.bond_strength, cb.bond_strength)) << "contact " << k;
-  }
-}
 
 // SET-dense (liang-zhao-mpm-dem Table 1): e0 = 0.177 at p0 = 100 kPa.
 TEST(PreparationTest, SetDenseMeetsPublishedTargets) {

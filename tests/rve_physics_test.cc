@@ -8,7 +8,6 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <map>
 #include <string>
 #include <utility>
 #include <vector>
@@ -17,31 +16,14 @@
 #include "gtest/gtest.h"
 #include "rve_server/engine/material.h"
 #include "rve_server/engine/packing.h"
-#include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
+#include "tests/test_util.h"
 
 namespace rvehub::dem {
 namespace {
 
-// Preparing 400 discs takes 1–2 s: each set is prepared once per process.
-const Packing& Prepared(const std::string& name) {
-  static auto* cache = new std::map<std::string, Packing>();
-  auto it = cache->find(name);
-  if (it == cache->end()) {
-    absl::StatusOr<ParameterSet> set = FindParameterSet(name);
-    EXPECT_TRUE(set.ok()) << set.status();
-    absl::StatusOr<Packing> packing = PreparePacking(*set);
-    EXPECT_TRUE(packing.ok()) << name << ": " << packing.status();
-    it = cache->emplace(name, packing.ok() ? *std::move(packing) : Packing{}).first;
-  }
-  return it->second;
-}
-
-Rve MakeRve(const Packing& packing) {
-  absl::StatusOr<Rve> rve = Rve::Create(packing);
-  EXPECT_TRUE(rve.ok()) << rve.status();
-  return *std::move(rve);
-}
+using testing_util::CreateOrDie;
+using testing_util::Prepared;
 
 Eigen::Matrix3d Rotation3(double angle) {
   Eigen::Matrix3d r = Eigen::Matrix3d::Identity();
@@ -57,8 +39,8 @@ Eigen::Matrix3d Rotation3(double angle) {
 // steps, so the same residual motion), then σ_rot = R σ_twin Rᵀ.
 TEST(RvePhysicsTest, RigidRotationRotatesStressAndFabric) {
   const Packing& packing = Prepared("SET-dense");
-  Rve rotated = MakeRve(packing);
-  Rve twin = MakeRve(packing);
+  Rve rotated = CreateOrDie(packing);
+  Rve twin = CreateOrDie(packing);
   const RveState before = twin.Observe();
   constexpr double kAngle = 0.3;  // rad, below Controls::max_rotation = 0.5
   const Eigen::Matrix3d r = Rotation3(kAngle);
@@ -143,7 +125,7 @@ Eigen::Vector2d CutTraction(const Rve& rve, const std::vector<ContactForce>& con
 // a packing in static equilibrium (the cut average of the traction is σ·e
 // exactly; equilibrium of each strip makes every cut carry the same force).
 TEST(RvePhysicsTest, LoveWeberStressEqualsCutTraction) {
-  Rve rve = MakeRve(Prepared("SET-dense"));
+  Rve rve = CreateOrDie(Prepared("SET-dense"));
   const RveState s = rve.Relax(1e-5, 200000);
   std::printf("relaxed: unbalanced %.3g after %lld steps\n", s.unbalanced_force_ratio,
               static_cast<long long>(s.steps));
@@ -194,7 +176,7 @@ TEST(RvePhysicsTest, LoveWeberStressEqualsCutTraction) {
 // not by more than a factor 2 (the bound the issue sets for a dense packing
 // at Z ≈ 4 under small strain).
 TEST(RvePhysicsTest, AffineTangentBoundsOedometricStiffness) {
-  Rve rve = MakeRve(Prepared("consolidation"));
+  Rve rve = CreateOrDie(Prepared("consolidation"));
   const RveState start = rve.Observe(/*want_tangent=*/true);
   ASSERT_TRUE(start.has_tangent);
   // The prepared packing is already relaxed (unbalanced < 1e-4), so Δσ below

@@ -3,7 +3,6 @@
 // leaves the RVE bit-for-bit untouched. Also: an RVE without contacts reports
 // a well-defined (zero, NaN-free) state.
 #include <Eigen/Dense>
-#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <functional>
@@ -26,6 +25,7 @@
 #include "rve_server/engine/packing.h"
 #include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
+#include "tests/test_util.h"
 
 namespace rvehub::dem {
 namespace {
@@ -39,72 +39,9 @@ testing::AssertionResult HasSubstr(absl::string_view text, absl::string_view par
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// --- Bitwise comparison of complete packings. ---
-
-bool SameBits(double a, double b) {
-  return std::bit_cast<std::uint64_t>(a) == std::bit_cast<std::uint64_t>(b);
-}
-
-void ExpectSameBits(const std::vector<double>& a, const std::vector<double>& b, const char* what) {
-  ASSERT_EQ(a.size(), b.size()) << what;
-  for (std::size_t i = 0; i < a.size(); ++i) {
-    EXPECT_TRUE(SameBits(a[i], b[i])) << what << "[" << i << "]: " << a[i] << " vs " << b[i];
-  }
-}
-
-void ExpectSameBits(const Eigen::Matrix2d& a, const Eigen::Matrix2d& b, const char* what) {
-  for (int k = 0; k < 4; ++k) {
-    EXPECT_TRUE(SameBits(a.data()[k], b.data()[k])) << what << " entry " << k;
-  }
-}
-
-// Every field of the two packings is bit-identical, contact history included.
-void ExpectIdentical(const Packing& a, const Packing& b) {
-  const Material &ma = a.material, &mb = b.material;
-  EXPECT_EQ(ma.name, mb.name);
-  EXPECT_EQ(ma.model, mb.model);
-  for (auto field : {&Material::density, &Material::young_modulus, &Material::stiffness_ratio,
-                     &Material::poisson_ratio, &Material::friction, &Material::rolling_beta,
-                     &Material::rolling_eta, &Material::bond_cohesion, &Material::damping,
-                     &Material::thickness}) {
-    EXPECT_TRUE(SameBits(ma.*field, mb.*field)) << "material field";
-  }
-  const Controls &ca = a.controls, &cb = b.controls;
-  for (auto field :
-       {&Controls::time_step_factor, &Controls::max_inertial_number, &Controls::pressure_floor,
-        &Controls::max_stretch, &Controls::max_rotation, &Controls::mass_scale, &Controls::skin}) {
-    EXPECT_TRUE(SameBits(ca.*field, cb.*field)) << "controls field";
-  }
-  EXPECT_EQ(ca.min_steps, cb.min_steps);
-  ExpectSameBits(a.cell, b.cell, "cell");
-  ExpectSameBits(a.frame, b.frame, "frame");
-  ExpectSameBits(a.reference_cell, b.reference_cell, "reference_cell");
-  ExpectSameBits(a.radius, b.radius, "radius");
-  ExpectSameBits(a.sx, b.sx, "sx");
-  ExpectSameBits(a.sy, b.sy, "sy");
-  ExpectSameBits(a.vx, b.vx, "vx");
-  ExpectSameBits(a.vy, b.vy, "vy");
-  ExpectSameBits(a.omega, b.omega, "omega");
-  ExpectSameBits(a.theta, b.theta, "theta");
-  ASSERT_EQ(a.contacts.size(), b.contacts.size());
-  for (std::size_t k = 0; k < a.contacts.size(); ++k) {
-    const ContactHistory &x = a.contacts[k], &y = b.contacts[k];
-    EXPECT_EQ(x.i, y.i) << "contact " << k;
-    EXPECT_EQ(x.j, y.j) << "contact " << k;
-    EXPECT_TRUE(SameBits(x.tangential_force, y.tangential_force)) << "contact " << k;
-    EXPECT_TRUE(SameBits(x.rolling_moment, y.rolling_moment)) << "contact " << k;
-    EXPECT_TRUE(SameBits(x.bond_strength, y.bond_strength)) << "contact " << k;
-  }
-  EXPECT_TRUE(SameBits(a.initial_void_ratio, b.initial_void_ratio));
-  EXPECT_TRUE(SameBits(a.permeability_coefficient, b.permeability_coefficient));
-  EXPECT_EQ(a.total_steps, b.total_steps);
-}
-
-Rve CreateOrDie(Packing p) {
-  absl::StatusOr<Rve> rve = Rve::Create(std::move(p));
-  EXPECT_TRUE(rve.ok()) << rve.status();
-  return *std::move(rve);
-}
+using testing_util::CreateOrDie;
+using testing_util::ExpectIdenticalPackings;
+using testing_util::SquareLattice;
 
 // --- A small, loaded RVE with a non-trivial history. ---
 
@@ -115,23 +52,12 @@ const Packing& Loaded() {
   static const Packing* packing = [] {
     constexpr int kSide = 5;
     constexpr double kR = 5e-3, kSpacing = 2 * kR * 0.999;
-    Packing p;
+    Packing p = SquareLattice(kSide, kSpacing, [](int x, int y) {
+      return kR * (1.0 + 0.001 * ((x + 2 * y) % 3));  // slightly polydisperse
+    });
     p.material.name = "validation";
     p.material.rolling_beta = 1.0;
     p.material.rolling_eta = 0.05;
-    p.cell = Eigen::Matrix2d::Identity() * (kSide * kSpacing);
-    for (int y = 0; y < kSide; ++y) {
-      for (int x = 0; x < kSide; ++x) {
-        p.radius.push_back(kR * (1.0 + 0.001 * ((x + 2 * y) % 3)));  // slightly polydisperse
-        p.sx.push_back((x + 0.5) / kSide);
-        p.sy.push_back((y + 0.5) / kSide);
-      }
-    }
-    const std::size_t n = p.radius.size();
-    p.vx.assign(n, 0.0);
-    p.vy.assign(n, 0.0);
-    p.omega.assign(n, 0.0);
-    p.theta.assign(n, 0.0);
     p.reference_cell = p.cell;
     p.initial_void_ratio = 0.3;
     p.permeability_coefficient = 0.01;
@@ -165,13 +91,13 @@ TEST(LoadedPackingTest, HasAFullHistory) {
 TEST(LoadedPackingTest, ExpectIdenticalSeesAOneUlpChange) {
   Packing p = Loaded();
   p.sx[3] = std::nextafter(p.sx[3], 2.0);
-  EXPECT_NONFATAL_FAILURE(ExpectIdentical(p, Loaded()), "sx[3]");
+  EXPECT_NONFATAL_FAILURE(ExpectIdenticalPackings(p, Loaded()), "sx[3]");
   Packing q = Loaded();
   q.contacts[2].tangential_force = std::nextafter(q.contacts[2].tangential_force, 1e9);
-  EXPECT_NONFATAL_FAILURE(ExpectIdentical(q, Loaded()), "contact 2");
+  EXPECT_NONFATAL_FAILURE(ExpectIdenticalPackings(q, Loaded()), "contact 2");
   Packing r = Loaded();
   r.frame(0, 1) = std::nextafter(r.frame(0, 1), 1.0);
-  EXPECT_NONFATAL_FAILURE(ExpectIdentical(r, Loaded()), "frame");
+  EXPECT_NONFATAL_FAILURE(ExpectIdenticalPackings(r, Loaded()), "frame");
 }
 
 // --- Apply. ---
@@ -228,13 +154,13 @@ TEST_P(BadApplyTest, RefusedWithInvalidArgumentAndNoChange) {
   ASSERT_FALSE(s.ok());
   EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument) << s.status();
   EXPECT_TRUE(HasSubstr(s.status().message(), c.message));
-  ExpectIdentical(rve.ToPacking(), Loaded());
+  ExpectIdenticalPackings(rve.ToPacking(), Loaded());
   // Nothing hidden changed either: both continue identically.
   CellControl shear;
   shear.xy = {ControlMode::kStrainRate, 1e-5 / rve.time_step()};
   rve.Run(shear, 20);
   twin.Run(shear, 20);
-  ExpectIdentical(rve.ToPacking(), twin.ToPacking());
+  ExpectIdenticalPackings(rve.ToPacking(), twin.ToPacking());
 }
 
 INSTANTIATE_TEST_SUITE_P(Cases, BadApplyTest, testing::ValuesIn(BadApplyCases()),
@@ -260,7 +186,7 @@ TEST(ApplyTest, CellThinnerThanTheCutoffIsAFailedPrecondition) {
   ASSERT_FALSE(s.ok());
   EXPECT_EQ(s.status().code(), absl::StatusCode::kFailedPrecondition) << s.status();
   EXPECT_TRUE(HasSubstr(s.status().message(), "cutoff"));
-  ExpectIdentical(rve.ToPacking(), before);
+  ExpectIdenticalPackings(rve.ToPacking(), before);
 }
 
 // --- Create. ---
@@ -535,8 +461,8 @@ TEST(ApplyBatchTest, BadArgumentsChangeNoRve) {
     ASSERT_FALSE(result.ok()) << c.what;
     EXPECT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument) << c.what;
     EXPECT_TRUE(HasSubstr(result.status().message(), c.message));
-    ExpectIdentical(a.ToPacking(), Loaded());
-    ExpectIdentical(b.ToPacking(), Loaded());
+    ExpectIdenticalPackings(a.ToPacking(), Loaded());
+    ExpectIdenticalPackings(b.ToPacking(), Loaded());
   }
 }
 
@@ -550,7 +476,7 @@ TEST(ApplyBatchTest, OneBadIncrementFailsOnlyItsRve) {
   EXPECT_TRUE((*result)[0].ok());
   EXPECT_EQ((*result)[1].status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_GT(a.ToPacking().total_steps, Loaded().total_steps);
-  ExpectIdentical(b.ToPacking(), Loaded());
+  ExpectIdenticalPackings(b.ToPacking(), Loaded());
 }
 
 // --- RunElementTest. ---
@@ -615,7 +541,7 @@ TEST(RunElementTestTest, BadSpecIsRefusedAndTheRveUntouched) {
     EXPECT_EQ(rows.status().code(), absl::StatusCode::kInvalidArgument) << rows.status();
     EXPECT_TRUE(HasSubstr(rows.status().message(), c.field + " = "));
     EXPECT_FALSE(progressed);
-    ExpectIdentical(rve.ToPacking(), Loaded());
+    ExpectIdenticalPackings(rve.ToPacking(), Loaded());
   }
 }
 
