@@ -109,10 +109,13 @@ class Rve {
 
   // F_new = ΔF·F_old. ΔF is 3×3 plane strain (ΔF_zz = 1, no out-of-plane
   // coupling). Rejects non-finite ΔF, det ≤ 0, or a stretch/rotation beyond
-  // the controls' limits with InvalidArgument, leaving the RVE untouched.
+  // the controls' limits with InvalidArgument, and a ΔF that would make the
+  // cell thinner than twice the pair cutoff with FailedPrecondition, leaving
+  // the RVE untouched.
   absl::StatusOr<RveState> Apply(const Eigen::Matrix3d& delta_f, const ApplyOptions& options = {});
 
-  // Runs `steps` DEM steps under mixed control. Returns the state afterwards.
+  // Runs `steps` DEM steps under mixed control and returns the state
+  // afterwards; updates control.servo_integral (the servo's memory).
   RveState Run(CellControl& control, std::int64_t steps);
   // Relaxes at fixed cell until the unbalanced-force ratio < tolerance or the cap.
   RveState Relax(double tolerance, std::int64_t max_steps);
@@ -137,7 +140,8 @@ class Rve {
   // forces to the new Coulomb limit. InvalidArgument (nothing changed) for
   // μ < 0 or not finite.
   absl::Status SetFriction(double friction);
-  // Bonds every pair now in contact (cemented material; needs bond_cohesion > 0).
+  // Bonds every pair now in contact (cemented material); does nothing when
+  // the material's bond_cohesion is 0.
   void BondContacts();
 
  private:
@@ -159,7 +163,8 @@ class Rve {
   void ApplyRigidRotation(double angle);
   std::vector<ContactHistory> CollectHistory() const;
   double Cutoff() const;  // m, pair distance beyond which discs are not listed
-  // Calls f(const ContactForce&) for every active contact, in (i, j) order.
+  // Calls f(const ContactForce&), or f(contact, list index k), for every
+  // active contact, in (i, j) order.
   template <typename F>
   void ForEachContact(F&& f) const;
 
@@ -180,7 +185,6 @@ class Rve {
   double radius_min_ = 0.0, radius_max_ = 0.0, radius_mean_ = 0.0, solid_area_ = 0.0;
 };
 
-// Creates RVE state quantities shared by tests and tools.
 double SolidArea(const std::vector<double>& radius);  // Σ π r², m²
 
 }  // namespace rvehub::dem
