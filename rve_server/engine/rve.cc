@@ -420,24 +420,31 @@ Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
   const double h00 = p_.cell(0, 0), h01 = p_.cell(0, 1), h10 = p_.cell(1, 0), h11 = p_.cell(1, 1);
   const double l00 = l(0, 0), l01 = l(0, 1), l10 = l(1, 0), l11 = l(1, 1);
   const double young = mat.young_modulus, kt_ratio = mat.stiffness_ratio, mu = mat.friction;
-  const double* rad = p_.radius.data();
-  const double* sx = p_.sx.data();
-  const double* sy = p_.sy.data();
-  const double* vx = p_.vx.data();
-  const double* vy = p_.vy.data();
-  const double* om = p_.omega.data();
+  // __restrict: the arrays never overlap, so stores to forces and history
+  // need not reload the particle data.
+  const double* __restrict rad = p_.radius.data();
+  const double* __restrict sx = p_.sx.data();
+  const double* __restrict sy = p_.sy.data();
+  const double* __restrict vx = p_.vx.data();
+  const double* __restrict vy = p_.vy.data();
+  const double* __restrict om = p_.omega.data();
+  const std::uint32_t* __restrict row_start = row_start_.data();
+  const std::uint32_t* __restrict nbr_j = nbr_j_.data();
+  const double* __restrict nbr_kn = nbr_kn_.data();
+  double* __restrict nbr_ft = nbr_ft_.data();
   Scratch& scratch = ThreadScratch();
   scratch.Reset(n);
-  double* fx = scratch.fx.data();
-  double* fy = scratch.fy.data();
-  double* tq = scratch.torque.data();
+  double* __restrict fx = scratch.fx.data();
+  double* __restrict fy = scratch.fy.data();
+  double* __restrict tq = scratch.torque.data();
   double sxx = 0, sxy = 0, syx = 0, syy = 0, kxx = 0, kyy = 0, elastic = 0;
 
   for (std::uint32_t i = 0; i < n; ++i) {
     const double ri = rad[i], sxi = sx[i], syi = sy[i], vxi = vx[i], vyi = vy[i], omi = om[i];
     double fxi = 0, fyi = 0, tqi = 0;
-    for (std::uint32_t k = row_start_[i]; k < row_start_[i + 1]; ++k) {
-      const std::uint32_t j = nbr_j_[k];
+    const std::uint32_t row_end = row_start[i + 1];
+    for (std::uint32_t k = row_start[i]; k < row_end; ++k) {
+      const std::uint32_t j = nbr_j[k];
       double dsx = sx[j] - sxi, dsy = sy[j] - syi;
       dsx -= RoundNearest(dsx);
       dsy -= RoundNearest(dsy);
@@ -447,7 +454,7 @@ Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
       const double d2 = dx * dx + dy * dy;
       bool bonded = kBonds && nbr_bond_[k] > 0;
       if (d2 >= rsum * rsum && !bonded) {
-        nbr_ft_[k] = 0.0;
+        nbr_ft[k] = 0.0;
         if constexpr (kRolling) nbr_moment_[k] = 0.0;
         continue;
       }
@@ -463,7 +470,7 @@ Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
         kt = hz.kt;
         if constexpr (kMeasure) elastic += 0.4 * fn * overlap;  // ∫ fn dδ = (2/5) fn δ
       } else {
-        kn = nbr_kn_[k];  // E·r*, cached per pair at the rebuild
+        kn = nbr_kn[k];  // E·r*, cached per pair at the rebuild
         kt = kt_ratio * kn;
         fn = kn * overlap;
         if constexpr (kMeasure) elastic += 0.5 * fn * overlap;
@@ -474,20 +481,20 @@ Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
       const double vrx = vx[j] - vxi + l00 * dx + l01 * dy;
       const double vry = vy[j] - vyi + l10 * dx + l11 * dy;
       const double vt = vrx * tx + vry * ty - (omi * li + om[j] * lj);
-      double ft = nbr_ft_[k] + kt * vt * dt;
+      double ft = nbr_ft[k] + kt * vt * dt;
       if constexpr (kBonds) {
         if (bonded && (-fn > nbr_bond_[k] || std::abs(ft) > nbr_bond_[k])) {
           nbr_bond_[k] = 0.0;  // broken: purely frictional from now on
           bonded = false;
         }
         if (!bonded && overlap <= 0.0) {
-          nbr_ft_[k] = 0.0;
+          nbr_ft[k] = 0.0;
           if constexpr (kRolling) nbr_moment_[k] = 0.0;
           continue;
         }
       }
       if (!bonded) ft = CoulombCap(ft, fn, mu);
-      nbr_ft_[k] = ft;
+      nbr_ft[k] = ft;
       double moment = 0.0;
       if constexpr (kRolling) {
         const double kr = RollingStiffness(kt, ri, rj, mat.rolling_beta);
