@@ -228,6 +228,14 @@ absl::StatusOr<Rve> Rve::Create(Packing p) {
 
 double Rve::Cutoff() const { return 2.0 * radius_max_ + p_.controls.skin * radius_min_; }
 
+Eigen::Vector2d Rve::Branch(std::uint32_t i, std::uint32_t j) const {
+  double dsx = p_.sx[j] - p_.sx[i], dsy = p_.sy[j] - p_.sy[i];
+  dsx -= RoundNearest(dsx);
+  dsy -= RoundNearest(dsy);
+  const Eigen::Matrix2d& h = p_.cell;
+  return {h(0, 0) * dsx + h(0, 1) * dsy, h(1, 0) * dsx + h(1, 1) * dsy};
+}
+
 std::vector<ContactHistory> Rve::CollectHistory() const {
   std::vector<ContactHistory> out;
   const bool rolling = !nbr_moment_.empty(), bonds = !nbr_bond_.empty();
@@ -275,12 +283,8 @@ void Rve::Rebuild(const std::vector<ContactHistory>& history) {
     pairs.push_back(static_cast<std::uint64_t>(std::min(i, j)) << 32 | std::max(i, j));
   };
   auto consider = [&](std::uint32_t i, std::uint32_t j) {
-    double dsx = p_.sx[j] - p_.sx[i];
-    double dsy = p_.sy[j] - p_.sy[i];
-    dsx -= RoundNearest(dsx);
-    dsy -= RoundNearest(dsy);
-    const double dx = h(0, 0) * dsx + h(0, 1) * dsy;
-    const double dy = h(1, 0) * dsx + h(1, 1) * dsy;
+    const Eigen::Vector2d d = Branch(i, j);
+    const double dx = d.x(), dy = d.y();
     const double reach = p_.radius[i] + p_.radius[j] + cutoff_skin;
     if (dx * dx + dy * dy < reach * reach) add(i, j);
   };
@@ -445,6 +449,7 @@ Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
     const std::uint32_t row_end = row_start[i + 1];
     for (std::uint32_t k = row_start[i]; k < row_end; ++k) {
       const std::uint32_t j = nbr_j[k];
+      // Branch(i, j) inlined with the cell and particle i hoisted.
       double dsx = sx[j] - sxi, dsy = sy[j] - syi;
       dsx -= RoundNearest(dsx);
       dsy -= RoundNearest(dsy);
@@ -729,16 +734,12 @@ template <typename F>
 void Rve::ForEachContact(F&& f) const {
   const std::size_t n = p_.radius.size();
   const Material& mat = p_.material;
-  const Eigen::Matrix2d& h = p_.cell;
   const bool bonds = !nbr_bond_.empty();
   ContactForce c;
   for (std::uint32_t i = 0; i < n; ++i) {
     for (std::uint32_t k = row_start_[i]; k < row_start_[i + 1]; ++k) {
       const std::uint32_t j = nbr_j_[k];
-      double dsx = p_.sx[j] - p_.sx[i], dsy = p_.sy[j] - p_.sy[i];
-      dsx -= RoundNearest(dsx);
-      dsy -= RoundNearest(dsy);
-      c.branch = {h(0, 0) * dsx + h(0, 1) * dsy, h(1, 0) * dsx + h(1, 1) * dsy};
+      c.branch = Branch(i, j);
       const double rsum = p_.radius[i] + p_.radius[j];
       c.bonded = bonds && nbr_bond_[k] > 0;
       const double dist = c.branch.norm();
@@ -872,19 +873,11 @@ void Rve::BondContacts() {
   const double c = p_.material.bond_cohesion;
   if (c <= 0) return;
   if (nbr_bond_.size() != nbr_j_.size()) nbr_bond_.assign(nbr_j_.size(), 0.0);
-  const Eigen::Matrix2d& h = p_.cell;
-  for (std::uint32_t i = 0; i + 1 < row_start_.size(); ++i) {
-    for (std::uint32_t k = row_start_[i]; k < row_start_[i + 1]; ++k) {
-      const std::uint32_t j = nbr_j_[k];
-      double dsx = p_.sx[j] - p_.sx[i], dsy = p_.sy[j] - p_.sy[i];
-      dsx -= RoundNearest(dsx);
-      dsy -= RoundNearest(dsy);
-      const Eigen::Vector2d br(h(0, 0) * dsx + h(0, 1) * dsy, h(1, 0) * dsx + h(1, 1) * dsy);
-      if (br.norm() < p_.radius[i] + p_.radius[j]) {
-        nbr_bond_[k] = BondStrength(c, p_.radius[i], p_.radius[j]);
-      }
+  ForEachContact([&](const ContactForce& contact, std::uint32_t k) {
+    if (contact.overlap > 0) {
+      nbr_bond_[k] = BondStrength(c, p_.radius[contact.i], p_.radius[contact.j]);
     }
-  }
+  });
 }
 
 }  // namespace rvehub::dem

@@ -163,6 +163,8 @@ class Rve {
   void ApplyRigidRotation(double angle);
   std::vector<ContactHistory> CollectHistory() const;
   double Cutoff() const;  // m, pair distance beyond which discs are not listed
+  // x_j − x_i to the nearest image of j, m (needs a reduced, large-enough cell).
+  Eigen::Vector2d Branch(std::uint32_t i, std::uint32_t j) const;
   // Calls f(const ContactForce&), or f(contact, list index k), for every
   // active contact, in (i, j) order.
   template <typename F>
