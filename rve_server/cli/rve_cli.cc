@@ -186,7 +186,7 @@ absl::Status PrepareCommand(const Flags& flags) {
   const dem::RveState s = rve->Observe(/*want_tangent=*/true);
   std::printf("material %s\nparticles %d\nvoid_ratio %.6f\nporosity %.6f\n", material.c_str(),
               rve->num_particles(), s.void_ratio, s.porosity);
-  std::printf("p_Pa %.3f\nsxx_Pa %.3f\nsyy_Pa %.3f\nsxy_Pa %.3f\n", -0.5 * s.stress.trace(),
+  std::printf("p_Pa %.3f\nsxx_Pa %.3f\nsyy_Pa %.3f\nsxy_Pa %.3f\n", s.MeanPressure(),
               -s.stress(0, 0), -s.stress(1, 1), -s.stress(0, 1));
   std::printf(
       "coordination %.4f\nmechanical_coordination %.4f\nFa %.5f\npermeability_m_per_s %.6g\n",

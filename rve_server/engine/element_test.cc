@@ -36,8 +36,8 @@ ElementTestRow MakeRow(const RveState& s, const Eigen::Matrix2d& f, std::int64_t
   r.sxx = -s.stress(0, 0);
   r.syy = -s.stress(1, 1);
   r.sxy = -s.stress(0, 1);
-  r.p = 0.5 * (r.sxx + r.syy);
-  r.q = std::sqrt(0.25 * (r.sxx - r.syy) * (r.sxx - r.syy) + r.sxy * r.sxy);
+  r.p = s.MeanPressure();
+  r.q = s.DeviatorStress();
   r.void_ratio = s.void_ratio;
   r.coordination = s.coordination;
   r.fabric_xx = s.fabric(0, 0);
@@ -87,13 +87,6 @@ absl::StatusOr<ElementTestKind> ParseElementTestKind(absl::string_view name) {
       absl::StrCat("unknown element test '", name, "'; known: ", known));
 }
 
-std::string ElementTestName(ElementTestKind kind) {
-  for (const NamedKind& k : kKinds) {
-    if (k.kind == kind) return k.name;
-  }
-  return "unknown";
-}
-
 absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
     Rve& rve, const ElementTestSpec& spec, const std::function<void(double)>& progress) {
   if (absl::Status s = CheckSpec(spec); !s.ok()) return s;
@@ -133,16 +126,16 @@ absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
                                    : spec.max_strain / spec.rows;
   const std::int64_t steps_per_row =
       std::max<std::int64_t>(1, std::llround(row_strain / (rate * rve.time_step())));
-  // Progress measure and stop rule per test.
-  auto measure = [&](const Eigen::Matrix2d& f) {
+  // Progress measure and stop rule per test: the row's strain of its kind.
+  auto measure = [&](const ElementTestRow& r) {
     switch (spec.kind) {
       case ElementTestKind::kDrainedBiaxial:
       case ElementTestKind::kOedometer:
-        return 1.0 - f(1, 1);
+        return r.axial_strain;
       case ElementTestKind::kIsotropic:
-        return 1.0 - f.determinant();
+        return r.vol_strain;
       default:
-        return std::abs(f(0, 1));
+        return std::abs(r.shear_strain);
     }
   };
 
@@ -155,12 +148,11 @@ absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
   for (;;) {
     const RveState s = rve.Run(control, steps_per_row);
     step += steps_per_row;
-    const Eigen::Matrix2d f = strain_f();
-    rows.push_back(MakeRow(s, f, step));
+    rows.push_back(MakeRow(s, strain_f(), step));
     const ElementTestRow& r = rows.back();
     if (!cyclic) {
-      if (progress) progress(std::min(1.0, measure(f) / spec.max_strain));
-      if (measure(f) >= spec.max_strain) break;
+      if (progress) progress(std::min(1.0, measure(r) / spec.max_strain));
+      if (measure(r) >= spec.max_strain) break;
       continue;
     }
     // Cyclic: reverse at the amplitude (γ or τ); a cycle is two reversals,

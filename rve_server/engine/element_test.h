@@ -48,7 +48,6 @@ struct ElementTestRow {
 };
 
 absl::StatusOr<ElementTestKind> ParseElementTestKind(absl::string_view name);
-std::string ElementTestName(ElementTestKind kind);
 
 // Consolidates to spec.confining, then runs the test. `progress` receives
 // the fraction done in [0, 1].

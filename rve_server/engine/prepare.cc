@@ -38,10 +38,8 @@ absl::StatusOr<RveState> ConsolidateIsotropic(Rve& rve, double p, double balance
   control.xy = {ControlMode::kStress, 0.0};          // isotropic means no shear stress either
   control.max_strain_rate = 2e-5 / rve.time_step();  // ≤ 2e-5 strain per step
   auto close = [&](const RveState& s) {
-    const double pm = -0.5 * s.stress.trace();
-    const double q = std::hypot(0.5 * (s.stress(0, 0) - s.stress(1, 1)), s.stress(0, 1));
-    return s.num_contacts > 0 && std::abs(pm - p) < kPressureTolerance * p &&
-           q < kPressureTolerance * p;
+    return s.num_contacts > 0 && std::abs(s.MeanPressure() - p) < kPressureTolerance * p &&
+           s.DeviatorStress() < kPressureTolerance * p;
   };
   std::int64_t done = 0;
   for (int round = 0; round < kMaxRounds; ++round) {
@@ -61,7 +59,7 @@ absl::StatusOr<RveState> ConsolidateIsotropic(Rve& rve, double p, double balance
   const RveState s = rve.Observe();
   return absl::DeadlineExceededError(absl::StrFormat(
       "isotropic consolidation to %.4g Pa did not converge: p = %.4g Pa, unbalanced %.3g", p,
-      -0.5 * s.stress.trace(), s.unbalanced_force_ratio));
+      s.MeanPressure(), s.unbalanced_force_ratio));
 }
 
 namespace {
@@ -181,9 +179,8 @@ absl::StatusOr<Packing> PreparePacking(const ParameterSet& set, const Controls& 
   out.total_steps = 0;
   out.reference_cell = out.cell;  // strains count from the prepared state
   if (report != nullptr) {
-    *report = {
-        best.friction, trials, e0, -final_state->stress.trace() / 2.0, final_state->coordination,
-        steps};
+    *report = {best.friction, trials, e0, final_state->MeanPressure(), final_state->coordination,
+               steps};
   }
   return out;
 }

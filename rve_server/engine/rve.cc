@@ -659,7 +659,7 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
   ApplyRigidRotation(angle);
   const Eigen::Matrix2d start = p_.cell;
   const Eigen::Matrix2d identity = Eigen::Matrix2d::Identity();
-  const double pressure = -Observe().stress.trace() / 2.0;
+  const double pressure = Observe().MeanPressure();
   const double rate = QuasiStaticStrainRate(p_.controls.max_inertial_number, pressure);
   const double steps_needed = std::ceil(stretch / (rate * dt_));
   const std::int64_t steps =

@@ -5,6 +5,7 @@
 #define RVEHUB_RVE_SERVER_ENGINE_RVE_H_
 
 #include <Eigen/Dense>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -36,6 +37,13 @@ struct RveState {
   double time_step = 0.0;   // s
   double mass_scale = 1.0;  // density scaling used
   bool has_tangent = false;
+  // In-plane invariants (shared/reference): p = −tr σ/2 (Pa, compression +)
+  // and q = sqrt(½ s:s) = sqrt(¼(σxx − σyy)² + σxy²) (Pa).
+  double MeanPressure() const { return -0.5 * (stress(0, 0) + stress(1, 1)); }
+  double DeviatorStress() const {
+    const double d = stress(0, 0) - stress(1, 1);
+    return std::sqrt(0.25 * d * d + stress(0, 1) * stress(0, 1));
+  }
   // Elastic tangent from contacts, D_ijkl = (1/V)Σ(kn n_i d_j n_k d_l + kt t_i d_j t_k d_l),
   // Pa, stored as D(3i+j, 3k+l).
   Eigen::Matrix<double, 9, 9> tangent = Eigen::Matrix<double, 9, 9>::Zero();
