@@ -364,7 +364,7 @@ TEST(ValidateTest, ControlsRefusesEachBadField) {
       {"time_step_factor", [](Controls& c) { c.time_step_factor = kNaN; }},
       {"max_inertial_number", [](Controls& c) { c.max_inertial_number = 0.0; }},
       {"pressure_floor", [](Controls& c) { c.pressure_floor = -1.0; }},
-      {"min_steps", [](Controls& c) { c.min_steps = 0; }},
+      {"min_steps", [](Controls& c) { c.min_steps = -1; }},
       {"max_stretch", [](Controls& c) { c.max_stretch = 0.0; }},
       {"max_stretch", [](Controls& c) { c.max_stretch = kInf; }},
       {"max_rotation", [](Controls& c) { c.max_rotation = 0.0; }},

@@ -17,7 +17,7 @@ struct Controls {
   double time_step_factor = 0.5;      // Δt = factor·sqrt(m_min/kn_max), [-]
   double max_inertial_number = 1e-3;  // I = γ̇·d_mean·sqrt(ρ/p) bound for Apply, [-]
   double pressure_floor = 1e3;        // Pa; p used in I when the RVE is looser than this
-  std::int64_t min_steps = 20;        // DEM steps per Apply at least
+  std::int64_t min_steps = 20;        // DEM steps per Apply at least (0: an identity ΔF takes none)
   double max_stretch = 0.05;          // per-Apply bound on |V − I| (Frobenius), [-]
   double max_rotation = 0.5;          // per-Apply bound on the rigid rotation, rad
   double mass_scale = 1.0;            // density scaling λ ≥ 1 for quasi-static work, [-]

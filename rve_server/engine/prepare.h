@@ -29,6 +29,13 @@ struct PreparationReport {
 absl::StatusOr<RveState> ConsolidateIsotropic(Rve& rve, double p, double balance = 1e-4,
                                               std::int64_t* steps = nullptr);
 
+// Same for an anisotropic state with principal axes x, y (e.g. K0 with y
+// vertical): σxx, σyy in Pa, compression +; p and the deviator error
+// sqrt(¼((σxx − σyy) − (target difference))² + σxy²) within 1 % of p.
+absl::StatusOr<RveState> ConsolidateToStress(Rve& rve, double sxx, double syy,
+                                             double balance = 1e-4,
+                                             std::int64_t* steps = nullptr);
+
 // Random discs, placed without overlap in a loose square cell (seeded,
 // platform-independent random numbers).
 Packing GenerateLoosePacking(const ParameterSet& set, const Controls& controls = {});

@@ -92,7 +92,7 @@ absl::Status Validate(const Controls& c) {
            check(c.max_inertial_number > 0, "max_inertial_number", c.max_inertial_number,
                  "must be > 0"),
            check(c.pressure_floor > 0, "pressure_floor", c.pressure_floor, "must be > 0 Pa"),
-           check(c.min_steps >= 1, "min_steps", static_cast<double>(c.min_steps), "must be >= 1"),
+           check(c.min_steps >= 0, "min_steps", static_cast<double>(c.min_steps), "must be >= 0"),
            check(c.max_stretch > 0, "max_stretch", c.max_stretch, "must be > 0"),
            check(c.max_rotation > 0 && c.max_rotation <= kPi / 2, "max_rotation", c.max_rotation,
                  "must lie in (0, π/2] rad"),
@@ -617,7 +617,7 @@ double Rve::QuasiStaticStrainRate(double inertial_number, double pressure) const
   return inertial_number / (2.0 * radius_mean_ * std::sqrt(rho / p));  // I = γ̇ d sqrt(ρ/p)
 }
 
-absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyOptions& options) {
+absl::Status ValidateDeltaF(const Eigen::Matrix3d& delta_f) {
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) {
       if (!std::isfinite(delta_f(r, c))) {
@@ -633,10 +633,16 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
     return absl::InvalidArgumentError(
         "ΔF must be plane strain for a 2-D RVE: ΔF_zz = 1 and no out-of-plane coupling");
   }
-  const Eigen::Matrix2d f = delta_f.topLeftCorner<2, 2>();
-  if (!(f.determinant() > 0)) {
-    return absl::InvalidArgumentError(absl::StrCat("det ΔF = ", f.determinant(), " must be > 0"));
+  const double det = delta_f.topLeftCorner<2, 2>().determinant();
+  if (!(det > 0)) {
+    return absl::InvalidArgumentError(absl::StrCat("det ΔF = ", det, " must be > 0"));
   }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyOptions& options) {
+  if (absl::Status valid = ValidateDeltaF(delta_f); !valid.ok()) return valid;
+  const Eigen::Matrix2d f = delta_f.topLeftCorner<2, 2>();
   // Polar split ΔF = V·R: rotate rigidly (exact, objective), then stretch.
   const double angle = std::atan2(f(1, 0) - f(0, 1), f(0, 0) + f(1, 1));
   const Eigen::Matrix2d v = f * Rotation(angle).transpose();
@@ -660,7 +666,11 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
   const Eigen::Matrix2d start = p_.cell;
   const Eigen::Matrix2d identity = Eigen::Matrix2d::Identity();
   const double pressure = Observe().MeanPressure();
-  const double rate = QuasiStaticStrainRate(p_.controls.max_inertial_number, pressure);
+  const double inertial_number = options.max_inertial_number > 0
+                                     ? std::min(options.max_inertial_number,
+                                                p_.controls.max_inertial_number)
+                                     : p_.controls.max_inertial_number;
+  const double rate = QuasiStaticStrainRate(inertial_number, pressure);
   const double steps_needed = std::ceil(stretch / (rate * dt_));
   const std::int64_t steps =
       std::max<std::int64_t>(p_.controls.min_steps, static_cast<std::int64_t>(steps_needed));

@@ -54,7 +54,14 @@ struct ApplyOptions {
   double relax_tolerance = 1e-4;  // unbalanced-force ratio to stop relaxing
   std::int64_t relax_max_steps = 20000;
   bool want_tangent = false;
+  // Tighter bound on the inertial number for this call, [-]; 0 (or a value
+  // above the RVE's Controls::max_inertial_number): the RVE's own bound.
+  double max_inertial_number = 0.0;
 };
+
+// The checks Apply makes on ΔF before touching anything: 9 finite values,
+// plane strain (ΔF_zz = 1, no out-of-plane coupling) and det ΔF > 0.
+absl::Status ValidateDeltaF(const Eigen::Matrix3d& delta_f);
 
 // Mixed control of the cell for element tests and preparation.
 enum class ControlMode { kStrainRate, kStress };
