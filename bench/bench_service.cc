@@ -1,0 +1,179 @@
+// Service overhead of rve_server (figures only, never pass/fail).
+//
+// A real server on loopback hosts 256 RVEs of the SET-dense template. One
+// Apply call advances all of them; we time
+//   zero   ΔF = I with Controls::min_steps = 0: no DEM step, so the call is
+//          transport + protobuf + registry + the homogenisation of the result;
+//   engine the same zero-step increments straight on dem::Rve (no service):
+//          the homogenisation alone;
+//   full   a default increment (ε_yy = 1e-5, default controls: 20 DEM steps).
+// and print µs per RVE for each, the service overhead (zero − engine) and its
+// share of the compute of a default increment (full − zero + engine). Runs
+// with 1 worker thread and with all cores.
+//
+//   build/bench/bench_service [--rves=256] [--reps=20]
+#include <grpcpp/grpcpp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "rve_server/engine/material.h"
+#include "rve_server/engine/prepare.h"
+#include "rve_server/engine/rve.h"
+#include "rve_server/service/convert.h"
+#include "rve_server/service/log.h"
+#include "rve_server/service/server.h"
+#include "rvehub/v1/rve_service.grpc.pb.h"
+
+namespace {
+
+namespace dem = rvehub::dem;
+namespace service = rvehub::service;
+namespace v1 = rvehub::v1;
+using Clock = std::chrono::steady_clock;
+
+double Seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+
+struct Figures {
+  double zero_us = 0, engine_us = 0, full_us = 0;  // per RVE, best of reps
+  double registry_us = 0;  // zero-step batch through the registry, no gRPC
+};
+
+v1::ApplyRequest Batch(const std::string& run, std::int64_t step, int rves, double strain) {
+  v1::ApplyRequest req;
+  req.set_run_id(run);
+  req.set_step(step);
+  req.set_mode(v1::APPLY_MODE_COMMIT);
+  for (int id = 0; id < rves; ++id) {
+    v1::Increment* inc = req.add_increments();
+    inc->set_id(id);
+    for (double v : {1.0, 0.0, 0.0, 0.0, 1.0 - strain, 0.0, 0.0, 0.0, 1.0}) inc->add_delta_f(v);
+  }
+  return req;
+}
+
+Figures Measure(const dem::Packing& packing, int threads, int rves, int reps) {
+  service::ServerConfig config;
+  config.listen = "127.0.0.1:0";
+  config.registry.threads = threads;
+  absl::StatusOr<std::unique_ptr<service::RveServer>> server = service::RveServer::Start(config);
+  if (!server.ok()) {
+    std::fprintf(stderr, "cannot start server: %s\n", server.status().ToString().c_str());
+    std::exit(1);
+  }
+  auto channel = grpc::CreateChannel((*server)->address(), grpc::InsecureChannelCredentials());
+  auto stub = v1::RveService::NewStub(channel);
+  v1::UploadTemplateRequest up;
+  up.mutable_entry()->set_name("t");
+  service::ToProto(packing, up.mutable_entry()->mutable_packing());
+  v1::TemplateInfo info;
+  grpc::ClientContext uctx;
+  if (!stub->UploadTemplate(&uctx, up, &info).ok()) std::exit(1);
+  auto create = [&](const std::string& run, bool zero_steps) {
+    v1::CreateRvesRequest req;
+    req.set_run_id(run);
+    req.set_template_name("t");
+    for (int id = 0; id < rves; ++id) req.add_ids(id);
+    dem::Controls c = packing.controls;
+    if (zero_steps) c.min_steps = 0;
+    service::ToProto(c, req.mutable_controls());
+    v1::CreateRvesResponse resp;
+    grpc::ClientContext ctx;
+    if (!stub->CreateRves(&ctx, req, &resp).ok()) std::exit(1);
+  };
+  create("zero", true);
+  create("full", false);
+
+  Figures f;
+  f.zero_us = f.full_us = f.engine_us = 1e30;
+  auto time_call = [&](const v1::ApplyRequest& req) {
+    v1::ApplyResponse resp;
+    grpc::ClientContext ctx;
+    const Clock::time_point t0 = Clock::now();
+    const grpc::Status s = stub->Apply(&ctx, req, &resp);
+    const double us = Seconds(Clock::now() - t0) * 1e6 / rves;
+    if (!s.ok() || resp.failed() != 0) {
+      std::fprintf(stderr, "apply failed: %s\n", s.error_message().c_str());
+      std::exit(1);
+    }
+    return us;
+  };
+  for (int r = 0; r < reps; ++r) {
+    f.zero_us = std::min(f.zero_us, time_call(Batch("zero", r + 1, rves, 0.0)));
+    f.full_us = std::min(f.full_us, time_call(Batch("full", r + 1, rves, 1e-5)));
+  }
+  // The registry without gRPC (in-process client path), same increments.
+  f.registry_us = 1e30;
+  {
+    std::vector<service::Increment> incs(rves);
+    for (int k = 0; k < rves; ++k) incs[k].id = k;
+    for (int r = 0; r < reps; ++r) {
+      const Clock::time_point t0 = Clock::now();
+      absl::StatusOr<std::vector<service::RveOutcome>> out = (*server)->registry().Apply(
+          "zero", reps + r + 1, service::ApplyMode::kCommit, {}, incs);
+      if (!out.ok()) std::exit(1);
+      f.registry_us = std::min(f.registry_us, Seconds(Clock::now() - t0) * 1e6 / rves);
+    }
+  }
+  // The engine alone, same zero-step increments, same number of threads.
+  dem::Packing zero = packing;
+  zero.controls.min_steps = 0;
+  std::vector<dem::Rve> engine;
+  for (int k = 0; k < rves; ++k) engine.push_back(*dem::Rve::Create(zero));
+  for (int r = 0; r < reps; ++r) {
+    std::vector<std::thread> pool;
+    const Clock::time_point t0 = Clock::now();
+    for (int t = 0; t < threads; ++t) {
+      pool.emplace_back([&, t] {
+        for (int k = t; k < rves; k += threads) {
+          if (!engine[k].Apply(Eigen::Matrix3d::Identity()).ok()) std::exit(1);
+        }
+      });
+    }
+    for (std::thread& t : pool) t.join();
+    f.engine_us = std::min(f.engine_us, Seconds(Clock::now() - t0) * 1e6 / rves);
+  }
+  (void)(*server)->Stop(std::chrono::seconds(1));
+  return f;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int rves = 256, reps = 20;
+  for (int i = 1; i < argc; ++i) {
+    if (std::strncmp(argv[i], "--rves=", 7) == 0) rves = std::atoi(argv[i] + 7);
+    if (std::strncmp(argv[i], "--reps=", 7) == 0) reps = std::atoi(argv[i] + 7);
+  }
+  setenv("GRPC_CLIENT_CHANNEL_BACKUP_POLL_INTERVAL_MS", "50", 1);  // quick drains
+  service::SetLogEnabled(false);
+  absl::StatusOr<dem::ParameterSet> set = dem::FindParameterSet("SET-dense");
+  absl::StatusOr<dem::Packing> packing = dem::PreparePacking(*set);
+  if (!packing.ok()) {
+    std::fprintf(stderr, "%s\n", packing.status().ToString().c_str());
+    return 1;
+  }
+  std::printf("bench_service: %d RVEs of %zu discs (SET-dense), best of %d calls\n", rves,
+              packing->radius.size(), reps);
+  std::printf("%8s %12s %12s %12s %12s %14s %14s %10s\n", "threads", "zero us/RVE",
+              "registry us", "engine us", "full us/RVE", "overhead us", "compute us", "share");
+  const int cores = std::max(1u, std::thread::hardware_concurrency());
+  std::vector<int> thread_counts = {1};
+  if (cores > 1) thread_counts.push_back(cores);
+  for (int threads : thread_counts) {
+    const Figures f = Measure(*packing, threads, rves, reps);
+    const double overhead = f.zero_us - f.engine_us;          // transport, protobuf, registry
+    const double compute = f.full_us - f.zero_us + f.engine_us;  // DEM steps + homogenisation
+    std::printf("%8d %12.2f %12.2f %12.2f %12.2f %14.2f %14.2f %9.2f%%\n", threads, f.zero_us,
+                f.registry_us, f.engine_us, f.full_us, overhead, compute,
+                100.0 * overhead / compute);
+  }
+  std::printf("goal: service overhead <= 1 %% of the compute of a default increment\n");
+  return 0;
+}

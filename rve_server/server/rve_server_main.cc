@@ -1,0 +1,92 @@
+// rve_server: hosts DEM RVEs over gRPC (rvehub.v1.RveService).
+//   rve_server --listen=0.0.0.0:50051 --threads=16 --checkpoint_dir=/var/lib/rvehub
+// SIGTERM or SIGINT drains calls in flight and, with --checkpoint_dir, saves
+// every RVE to HDF5 (reloaded on the next start).
+#include <csignal>
+#include <cstdio>
+#include <thread>
+
+#include "absl/flags/flag.h"
+#include "absl/flags/parse.h"
+#include "absl/flags/usage.h"
+#include "absl/strings/str_cat.h"
+#include "rve_server/service/log.h"
+#include "rve_server/service/server.h"
+
+ABSL_FLAG(std::string, listen, "127.0.0.1:50051", "HOST:PORT to listen on (port 0: any free)");
+ABSL_FLAG(int, threads, 0, "worker threads evaluating RVEs (0: all cores)");
+ABSL_FLAG(int64_t, max_rves, 1000000, "RVEs hosted at most (beyond: RESOURCE_EXHAUSTED)");
+ABSL_FLAG(int64_t, max_memory_mb, 16384,
+          "resident RVE memory at most, MiB (beyond: RESOURCE_EXHAUSTED)");
+ABSL_FLAG(int64_t, max_batch, 100000, "RVEs per call at most");
+ABSL_FLAG(int64_t, max_message_mb, 64, "gRPC message size limit, MiB, both ways");
+ABSL_FLAG(std::string, auth_token_file, "",
+          "file holding a bearer token; calls must then carry \"authorization: Bearer <token>\"");
+ABSL_FLAG(std::string, tls_cert, "", "PEM certificate chain file (with --tls_key: TLS)");
+ABSL_FLAG(std::string, tls_key, "", "PEM private key file");
+ABSL_FLAG(std::string, checkpoint_dir, "",
+          "directory for rves.h5/templates.h5: loaded on start, written on SIGTERM");
+ABSL_FLAG(int, drain_seconds, 30, "grace for calls in flight on SIGTERM, s");
+
+namespace {
+
+int Fail(const absl::Status& s) {
+  rvehub::service::Log("error", "cannot start", {{"error", std::string(s.message())}});
+  return 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  absl::SetProgramUsageMessage(
+      "hosts DEM RVEs over gRPC (rvehub.v1.RveService, health, reflection).\n"
+      "usage: rve_server [--listen=HOST:PORT] [--threads=N] [--checkpoint_dir=DIR] "
+      "[--auth_token_file=F] [--tls_cert=F --tls_key=F] ...");
+  absl::ParseCommandLine(argc, argv);
+  using rvehub::service::ServerConfig;
+  ServerConfig config;
+  config.listen = absl::GetFlag(FLAGS_listen);
+  const int threads = absl::GetFlag(FLAGS_threads);
+  config.registry.threads =
+      threads > 0 ? threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  config.registry.max_rves = absl::GetFlag(FLAGS_max_rves);
+  config.registry.max_memory_bytes = absl::GetFlag(FLAGS_max_memory_mb) << 20;
+  config.registry.max_batch = absl::GetFlag(FLAGS_max_batch);
+  config.max_message_bytes = absl::GetFlag(FLAGS_max_message_mb) << 20;
+  config.checkpoint_dir = absl::GetFlag(FLAGS_checkpoint_dir);
+  if (const std::string f = absl::GetFlag(FLAGS_auth_token_file); !f.empty()) {
+    absl::StatusOr<std::string> token = rvehub::service::ReadTokenFile(f);
+    if (!token.ok()) return Fail(token.status());
+    config.auth_token = *token;
+  }
+  if (!absl::GetFlag(FLAGS_tls_cert).empty() || !absl::GetFlag(FLAGS_tls_key).empty()) {
+    absl::StatusOr<std::string> cert = rvehub::service::ReadTextFile(absl::GetFlag(FLAGS_tls_cert));
+    if (!cert.ok()) return Fail(cert.status());
+    absl::StatusOr<std::string> key = rvehub::service::ReadTextFile(absl::GetFlag(FLAGS_tls_key));
+    if (!key.ok()) return Fail(key.status());
+    config.tls_cert_pem = *cert;
+    config.tls_key_pem = *key;
+  }
+
+  // Block the stop signals in every thread (gRPC's included) and take them
+  // synchronously here.
+  sigset_t stop_signals;
+  sigemptyset(&stop_signals);
+  sigaddset(&stop_signals, SIGTERM);
+  sigaddset(&stop_signals, SIGINT);
+  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+
+  absl::StatusOr<std::unique_ptr<rvehub::service::RveServer>> server =
+      rvehub::service::RveServer::Start(config);
+  if (!server.ok()) return Fail(server.status());
+  // The bound address on stdout, for scripts that start on port 0.
+  std::printf("listening on %s\n", (*server)->address().c_str());
+  std::fflush(stdout);
+
+  int signal = 0;
+  sigwait(&stop_signals, &signal);
+  rvehub::service::Log("info", "signal", {{"signal", signal == SIGTERM ? "SIGTERM" : "SIGINT"}});
+  const absl::Status stopped =
+      (*server)->Stop(std::chrono::seconds(absl::GetFlag(FLAGS_drain_seconds)));
+  return stopped.ok() ? 0 : 1;
+}

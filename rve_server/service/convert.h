@@ -1,0 +1,51 @@
+// Translation between the wire messages (proto/rvehub/v1) and engine/store
+// types. Pure functions; malformed messages give InvalidArgument naming the
+// field.
+#ifndef RVEHUB_RVE_SERVER_SERVICE_CONVERT_H_
+#define RVEHUB_RVE_SERVER_SERVICE_CONVERT_H_
+
+#include <Eigen/Dense>
+
+#include "absl/status/statusor.h"
+#include "rve_server/engine/element_test.h"
+#include "rve_server/engine/packing.h"
+#include "rve_server/engine/rve.h"
+#include "rve_server/service/registry.h"
+#include "rvehub/v1/rve_service.pb.h"
+#include "store/record.h"
+
+namespace rvehub::service {
+
+// 3×3 row-major, 9 values.
+void ToProto(const Eigen::Matrix3d& m, google::protobuf::RepeatedField<double>* out);
+absl::StatusOr<Eigen::Matrix3d> Matrix3FromProto(const google::protobuf::RepeatedField<double>& v,
+                                                 absl::string_view field);
+
+void ToProto(const dem::Material& m, v1::Material* out);
+dem::Material FromProto(const v1::Material& m);
+void ToProto(const dem::Controls& c, v1::Controls* out);
+dem::Controls FromProto(const v1::Controls& c);
+
+void ToProto(const dem::Packing& p, v1::Packing* out);
+// Shapes are checked (cell 4 values, particle and contact arrays of one
+// length each); physics is checked later by dem::Rve::Create.
+absl::StatusOr<dem::Packing> FromProto(const v1::Packing& p);
+
+void ToProto(const store::RveRecord& r, v1::RveRecord* out);
+absl::StatusOr<store::RveRecord> FromProto(const v1::RveRecord& r);
+
+void ToProto(const dem::RveState& s, const Eigen::Matrix3d& deformation_gradient,
+             v1::RveState* out);
+// RveOutcome → RveResult (code from the absl status).
+void ToProto(const RveOutcome& o, v1::RveResult* out);
+
+void ToProto(const TemplateSummary& t, v1::TemplateInfo* out);
+
+absl::StatusOr<dem::ApplyOptions> FromProto(const v1::ApplyOptions& o);
+absl::StatusOr<dem::ElementTestSpec> FromProto(const v1::ElementTestRequest& r);
+void ToProto(const dem::ElementTestRow& r, v1::ElementTestRow* out);
+dem::ElementTestRow FromProto(const v1::ElementTestRow& r);
+
+}  // namespace rvehub::service
+
+#endif  // RVEHUB_RVE_SERVER_SERVICE_CONVERT_H_

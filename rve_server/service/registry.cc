@@ -1,0 +1,587 @@
+#include "rve_server/service/registry.h"
+
+#include <algorithm>
+#include <set>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "rve_server/engine/prepare.h"
+
+namespace rvehub::service {
+namespace {
+
+constexpr std::size_t kMaxNameLength = 128;
+constexpr int kMaxListedIds = 8;  // ids named in one error message at most
+
+// "1, 2, 3 and 5 more" for error messages.
+std::string ListIds(const std::vector<std::int64_t>& ids) {
+  const std::size_t shown = std::min<std::size_t>(ids.size(), kMaxListedIds);
+  std::string s = absl::StrJoin(ids.begin(), ids.begin() + shown, ", ");
+  if (ids.size() > shown) absl::StrAppend(&s, " and ", ids.size() - shown, " more");
+  return s;
+}
+
+// Duplicates among ids, sorted.
+std::vector<std::int64_t> Repeated(std::span<const std::int64_t> ids) {
+  std::vector<std::int64_t> sorted(ids.begin(), ids.end());
+  std::sort(sorted.begin(), sorted.end());
+  std::vector<std::int64_t> repeated;
+  for (std::size_t k = 1; k < sorted.size(); ++k) {
+    if (sorted[k] == sorted[k - 1] && (repeated.empty() || repeated.back() != sorted[k]))
+      repeated.push_back(sorted[k]);
+  }
+  return repeated;
+}
+
+// Why an RVE was not computed, or OK to go on.
+absl::Status CheckCancelled(const CancelFn& cancelled) {
+  if (!cancelled) return absl::OkStatus();
+  absl::Status s = cancelled();
+  if (s.ok()) return s;
+  return absl::Status(s.code(), absl::StrCat(s.message(),
+                                             ": this RVE was not computed and stays at its "
+                                             "committed step"));
+}
+
+TemplateSummary Summarise(const store::TemplateRecord& t, const dem::RveState& s) {
+  return {t.name,
+          t.description,
+          t.packing.material.name,
+          static_cast<std::int64_t>(t.packing.radius.size()),
+          s.void_ratio,
+          s.MeanPressure()};
+}
+
+}  // namespace
+
+absl::Status ValidateName(absl::string_view what, absl::string_view name) {
+  if (name.empty() || name.size() > kMaxNameLength) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(what, " must have 1 to ", kMaxNameLength, " characters, got ", name.size()));
+  }
+  for (char c : name) {
+    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+                    c == '.' || c == '_' || c == '-';
+    if (!ok) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(what, " \"", name,
+                       "\" may contain only letters, digits, '.', '_' and '-'"));
+    }
+  }
+  return absl::OkStatus();
+}
+
+Registry::Registry(const RegistryOptions& options) : options_(options), pool_(options.threads) {}
+
+absl::StatusOr<TemplateSummary> Registry::PutTemplate(store::TemplateRecord record, bool replace) {
+  if (absl::Status s = ValidateName("template name", record.name); !s.ok()) return s;
+  // Creating an RVE validates every field and array of the packing.
+  absl::StatusOr<dem::Rve> rve = dem::Rve::Create(record.packing);
+  if (!rve.ok()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("template \"", record.name, "\": ", rve.status().message()));
+  }
+  const TemplateSummary summary = Summarise(record, rve->Observe());
+  absl::MutexLock lock(&mu_);
+  if (!replace && templates_.contains(record.name)) {
+    return absl::AlreadyExistsError(absl::StrCat(
+        "template \"", record.name, "\" exists; upload with replace to overwrite it"));
+  }
+  std::string name = record.name;
+  templates_.insert_or_assign(std::move(name), std::move(record));
+  return summary;
+}
+
+std::vector<TemplateSummary> Registry::ListTemplates() const {
+  std::vector<store::TemplateRecord> all = AllTemplates();
+  std::vector<TemplateSummary> out;
+  for (const store::TemplateRecord& t : all) {
+    absl::StatusOr<dem::Rve> rve = dem::Rve::Create(t.packing);  // validated on upload
+    out.push_back(Summarise(t, rve.ok() ? rve->Observe() : dem::RveState{}));
+  }
+  return out;
+}
+
+std::vector<store::TemplateRecord> Registry::AllTemplates() const {
+  absl::MutexLock lock(&mu_);
+  std::vector<store::TemplateRecord> out;
+  for (const auto& [name, t] : templates_) out.push_back(t);
+  return out;
+}
+
+absl::Status Registry::CheckCapacity(std::int64_t count, std::int64_t bytes) const {
+  if (num_rves_ + count > options_.max_rves) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat("adding ", count, " RVEs to the ", num_rves_,
+                     " hosted would exceed the server's limit of ", options_.max_rves));
+  }
+  if (memory_bytes_ + bytes > options_.max_memory_bytes) {
+    return absl::ResourceExhaustedError(absl::StrCat(
+        "adding ", count, " RVEs (", bytes, " bytes) to the ", memory_bytes_,
+        " bytes hosted would exceed the server's memory limit of ", options_.max_memory_bytes,
+        " bytes"));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
+    absl::string_view run_id, absl::string_view template_name, std::span<const std::int64_t> ids,
+    const InitialStress& initial, const std::optional<dem::Controls>& controls, bool want_state,
+    const CancelFn& cancelled) {
+  if (absl::Status s = ValidateName("run id", run_id); !s.ok()) return s;
+  if (ids.empty()) return absl::InvalidArgumentError("no material-point ids to create");
+  if (static_cast<std::int64_t>(ids.size()) > options_.max_batch) {
+    return absl::InvalidArgumentError(absl::StrCat("batch of ", ids.size(),
+                                                   " RVEs exceeds the server's max batch of ",
+                                                   options_.max_batch));
+  }
+  if (std::vector<std::int64_t> rep = Repeated(ids); !rep.empty()) {
+    return absl::AlreadyExistsError(
+        absl::StrCat("material-point ids repeated in the request: ", ListIds(rep)));
+  }
+  switch (initial.kind) {
+    case InitialStress::Kind::kTemplate:
+      break;
+    case InitialStress::Kind::kIsotropic:
+      if (!(std::isfinite(initial.pressure) && initial.pressure > 0)) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "initial pressure ", initial.pressure, " Pa must be finite and > 0 (compression +)"));
+      }
+      break;
+    case InitialStress::Kind::kK0:
+      if (!(std::isfinite(initial.vertical_compression) && initial.vertical_compression > 0 &&
+            std::isfinite(initial.k0) && initial.k0 > 0)) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "K0 state needs a finite vertical stress > 0 (compression +) and K0 > 0, got σv = ",
+            initial.vertical_compression, " Pa, K0 = ", initial.k0));
+      }
+      break;
+  }
+  if (controls.has_value()) {
+    if (absl::Status s = dem::Validate(*controls); !s.ok()) return s;
+  }
+
+  dem::Packing base;
+  std::int64_t bytes_each = 0;
+  {
+    absl::MutexLock lock(&mu_);
+    auto t = templates_.find(template_name);
+    if (t == templates_.end()) {
+      return absl::NotFoundError(
+          absl::StrCat("unknown template \"", absl::string_view(template_name.data(),
+                                                               template_name.size()),
+                       "\"; upload it first (ListTemplates shows the known ones)"));
+    }
+    base = t->second.packing;
+  }
+  if (controls.has_value()) base.controls = *controls;
+  absl::StatusOr<dem::Rve> prototype = dem::Rve::Create(base);
+  if (!prototype.ok()) return prototype.status();
+  bytes_each = static_cast<std::int64_t>(prototype->MemoryBytes());
+  const std::int64_t n = static_cast<std::int64_t>(ids.size());
+  {
+    absl::MutexLock lock(&mu_);
+    auto run = runs_.find(run_id);
+    if (run != runs_.end()) {
+      std::vector<std::int64_t> taken;
+      for (std::int64_t id : ids)
+        if (run->second.contains(id)) taken.push_back(id);
+      if (!taken.empty()) {
+        return absl::AlreadyExistsError(absl::StrCat("run \"", std::string(run_id),
+                                                     "\" already has material points ",
+                                                     ListIds(taken)));
+      }
+    }
+    if (absl::Status s = CheckCapacity(n, n * bytes_each); !s.ok()) return s;
+  }
+
+  // Consolidation is the expensive part: one RVE per work item. Every new RVE
+  // starts from the same template, so identical requests give identical RVEs.
+  std::vector<std::optional<dem::Rve>> made(ids.size());
+  std::vector<absl::Status> status(ids.size());
+  pool_.ParallelFor(ids.size(), [&](std::size_t k) {
+    if (absl::Status c = CheckCancelled(cancelled); !c.ok()) {
+      status[k] = c;
+      return;
+    }
+    dem::Rve rve = *prototype;
+    absl::StatusOr<dem::RveState> s = dem::RveState{};
+    if (initial.kind == InitialStress::Kind::kIsotropic) {
+      s = dem::ConsolidateIsotropic(rve, initial.pressure);
+    } else if (initial.kind == InitialStress::Kind::kK0) {
+      s = dem::ConsolidateToStress(rve, initial.k0 * initial.vertical_compression,
+                                   initial.vertical_compression);
+    }
+    if (!s.ok()) {
+      status[k] = s.status();
+      return;
+    }
+    rve.ResetReference();  // F is measured from the consolidated state
+    made[k].emplace(std::move(rve));
+  });
+  for (std::size_t k = 0; k < ids.size(); ++k) {
+    if (!status[k].ok()) {
+      return absl::Status(status[k].code(), absl::StrCat("creating material point ", ids[k],
+                                                         ": ", status[k].message()));
+    }
+  }
+
+  std::vector<RveOutcome> out(ids.size());
+  {
+    absl::MutexLock lock(&mu_);
+    // Another call may have created some of these ids or used the capacity
+    // while this one consolidated.
+    Run& run = runs_[std::string(run_id)];
+    std::vector<std::int64_t> taken;
+    for (std::int64_t id : ids)
+      if (run.contains(id)) taken.push_back(id);
+    absl::Status s = taken.empty() ? CheckCapacity(n, n * bytes_each)
+                                   : absl::AlreadyExistsError(absl::StrCat(
+                                         "run \"", std::string(run_id),
+                                         "\" already has material points ", ListIds(taken)));
+    if (!s.ok()) {
+      if (run.empty()) runs_.erase(runs_.find(run_id));
+      return s;
+    }
+    for (std::size_t k = 0; k < ids.size(); ++k) {
+      auto entry = std::make_shared<Entry>(std::move(*made[k]));
+      entry->memory_bytes = bytes_each;
+      out[k].id = ids[k];
+      if (want_state) {
+        absl::MutexLock entry_lock(&entry->mu);
+        out[k].state = entry->rve.Observe();
+      }
+      run.emplace(ids[k], std::move(entry));
+    }
+    num_rves_ += n;
+    memory_bytes_ += n * bytes_each;
+  }
+  return out;
+}
+
+absl::StatusOr<std::vector<std::pair<std::int64_t, Registry::EntryPtr>>> Registry::Lookup(
+    absl::string_view run_id, std::span<const std::int64_t> ids) const {
+  absl::MutexLock lock(&mu_);
+  auto run = runs_.find(run_id);
+  if (run == runs_.end()) {
+    return absl::NotFoundError(
+        absl::StrCat("unknown run \"", run_id, "\""));
+  }
+  std::vector<std::pair<std::int64_t, EntryPtr>> out;
+  if (ids.empty()) {
+    for (const auto& [id, e] : run->second) out.emplace_back(id, e);
+    return out;
+  }
+  std::vector<std::int64_t> missing;
+  for (std::int64_t id : ids) {
+    auto e = run->second.find(id);
+    if (e == run->second.end()) {
+      missing.push_back(id);
+    } else {
+      out.emplace_back(id, e->second);
+    }
+  }
+  if (!missing.empty()) {
+    return absl::NotFoundError(absl::StrCat("run \"", std::string(run_id),
+                                            "\" has no material points ", ListIds(missing)));
+  }
+  return out;
+}
+
+absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id,
+                                                        std::int64_t step, ApplyMode mode,
+                                                        const dem::ApplyOptions& options,
+                                                        std::span<const Increment> increments,
+                                                        const CancelFn& cancelled) {
+  if (increments.empty()) return absl::InvalidArgumentError("empty batch: no increments");
+  if (static_cast<std::int64_t>(increments.size()) > options_.max_batch) {
+    return absl::InvalidArgumentError(absl::StrCat("batch of ", increments.size(),
+                                                   " increments exceeds the server's max batch of ",
+                                                   options_.max_batch));
+  }
+  if (step < 1) return absl::InvalidArgumentError(absl::StrCat("step ", step, " must be >= 1"));
+  if (!(options.max_inertial_number >= 0 && std::isfinite(options.max_inertial_number)) ||
+      !(options.relax_tolerance > 0 && std::isfinite(options.relax_tolerance)) ||
+      options.relax_max_steps < 0) {
+    return absl::InvalidArgumentError(
+        "apply options: max inertial number must be finite and >= 0, relax tolerance finite and "
+        "> 0, relax max steps >= 0");
+  }
+  std::vector<std::int64_t> ids;
+  ids.reserve(increments.size());
+  for (const Increment& inc : increments) {
+    if (absl::Status s = dem::ValidateDeltaF(inc.delta_f); !s.ok()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("material point ", inc.id, ": ", s.message()));
+    }
+    ids.push_back(inc.id);
+  }
+  if (std::vector<std::int64_t> rep = Repeated(ids); !rep.empty()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("material-point ids repeated in the batch: ", ListIds(rep)));
+  }
+  absl::StatusOr<std::vector<std::pair<std::int64_t, EntryPtr>>> entries = Lookup(run_id, ids);
+  if (!entries.ok()) return entries.status();
+
+  std::vector<RveOutcome> out(increments.size());
+  pool_.ParallelFor(increments.size(), [&](std::size_t k) {
+    const Increment& inc = increments[k];
+    Entry& e = *(*entries)[k].second;
+    RveOutcome& o = out[k];
+    o.id = inc.id;
+    absl::MutexLock lock(&e.mu);
+    o.step = e.step;
+    const bool retry = mode == ApplyMode::kCommit && e.step == step;
+    if (retry) {
+      // A retried COMMIT must be the same increment, bit for bit.
+      if (e.last_delta_f != inc.delta_f) {
+        o.status = absl::FailedPreconditionError(absl::StrCat(
+            "material point ", inc.id, " already committed step ", step,
+            " with a different ΔF; its current step is ", e.step));
+        return;
+      }
+      if (e.last_result.has_value() && (!options.want_tangent || e.last_result->has_tangent)) {
+        o.state = *e.last_result;
+      } else {  // after a restore: same committed state, observed again
+        o.state = e.rve.Observe(options.want_tangent);
+      }
+      o.deformation_gradient.topLeftCorner<2, 2>() = e.rve.DeformationGradient();
+      return;
+    }
+    if (e.step != step - 1) {
+      o.status = absl::FailedPreconditionError(
+          absl::StrCat("material point ", inc.id, " is at step ", e.step, "; step ", step,
+                       " needs it at step ", step - 1));
+      return;
+    }
+    if (absl::Status c = CheckCancelled(cancelled); !c.ok()) {
+      o.status = c;
+      return;
+    }
+    if (mode == ApplyMode::kTrial) {
+      dem::Rve trial = e.rve;  // the committed state stays as it is
+      absl::StatusOr<dem::RveState> s = trial.Apply(inc.delta_f, options);
+      if (!s.ok()) {
+        o.status = s.status();
+        return;
+      }
+      o.state = *std::move(s);
+      o.deformation_gradient.topLeftCorner<2, 2>() = trial.DeformationGradient();
+      return;
+    }
+    absl::StatusOr<dem::RveState> s = e.rve.Apply(inc.delta_f, options);
+    if (!s.ok()) {  // the engine leaves the RVE untouched on error
+      o.status = s.status();
+      return;
+    }
+    e.step = step;
+    e.last_delta_f = inc.delta_f;
+    e.last_result = *s;
+    o.step = step;
+    o.state = *std::move(s);
+    o.deformation_gradient.topLeftCorner<2, 2>() = e.rve.DeformationGradient();
+  });
+  return out;
+}
+
+absl::StatusOr<std::vector<RveOutcome>> Registry::Get(absl::string_view run_id,
+                                                      std::span<const std::int64_t> ids,
+                                                      bool want_tangent) const {
+  std::vector<std::pair<std::int64_t, EntryPtr>> entries;
+  std::vector<std::int64_t> missing;
+  {
+    absl::MutexLock lock(&mu_);
+    auto run = runs_.find(run_id);
+    if (run == runs_.end()) {
+      return absl::NotFoundError(
+          absl::StrCat("unknown run \"", run_id, "\""));
+    }
+    if (ids.empty()) {
+      for (const auto& [id, e] : run->second) entries.emplace_back(id, e);
+    } else {
+      for (std::int64_t id : ids) {
+        auto e = run->second.find(id);
+        entries.emplace_back(id, e == run->second.end() ? nullptr : e->second);
+      }
+    }
+  }
+  std::vector<RveOutcome> out(entries.size());
+  pool_.ParallelFor(entries.size(), [&](std::size_t k) {
+    RveOutcome& o = out[k];
+    o.id = entries[k].first;
+    if (entries[k].second == nullptr) {
+      o.status = absl::NotFoundError(absl::StrCat("run \"", std::string(run_id),
+                                                  "\" has no material point ", o.id));
+      return;
+    }
+    Entry& e = *entries[k].second;
+    absl::MutexLock lock(&e.mu);
+    o.step = e.step;
+    o.state = e.rve.Observe(want_tangent);
+    o.deformation_gradient.topLeftCorner<2, 2>() = e.rve.DeformationGradient();
+  });
+  return out;
+}
+
+absl::Status Registry::Export(absl::string_view run_id, std::span<const std::int64_t> ids,
+                              const std::function<absl::Status(store::RveRecord&&)>& sink) const {
+  absl::StatusOr<std::vector<std::pair<std::int64_t, EntryPtr>>> entries = Lookup(run_id, ids);
+  if (!entries.ok()) return entries.status();
+  for (const auto& [id, e] : *entries) {
+    store::RveRecord r;
+    r.run_id = std::string(run_id);
+    r.id = id;
+    {
+      absl::MutexLock lock(&e->mu);
+      r.step = e->step;
+      r.last_delta_f = e->last_delta_f;
+      r.packing = e->rve.ToPacking();
+    }
+    if (absl::Status s = sink(std::move(r)); !s.ok()) return s;
+  }
+  return absl::OkStatus();
+}
+
+absl::Status Registry::ExportAll(
+    const std::function<absl::Status(store::RveRecord&&)>& sink) const {
+  std::vector<std::string> run_ids;
+  {
+    absl::MutexLock lock(&mu_);
+    for (const auto& [id, run] : runs_) run_ids.push_back(id);
+  }
+  for (const std::string& run : run_ids) {
+    absl::Status s = Export(run, {}, sink);
+    if (absl::IsNotFound(s)) continue;  // dropped meanwhile
+    if (!s.ok()) return s;
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::int64_t> Registry::Import(std::vector<store::RveRecord> records) {
+  if (records.empty()) return absl::InvalidArgumentError("import of no RVEs");
+  // Validate and build every RVE before touching the registry.
+  std::vector<std::optional<dem::Rve>> made(records.size());
+  std::vector<absl::Status> status(records.size());
+  pool_.ParallelFor(records.size(), [&](std::size_t k) {
+    const store::RveRecord& r = records[k];
+    absl::Status s = ValidateName("run id", r.run_id);
+    if (s.ok() && r.step < 0) s = absl::InvalidArgumentError(absl::StrCat("step ", r.step, " < 0"));
+    if (s.ok() && !r.last_delta_f.allFinite())
+      s = absl::InvalidArgumentError("last ΔF is not finite");
+    if (s.ok()) {
+      absl::StatusOr<dem::Rve> rve = dem::Rve::Create(r.packing);
+      if (rve.ok()) {
+        made[k].emplace(*std::move(rve));
+      } else {
+        s = rve.status();
+      }
+    }
+    if (!s.ok()) {
+      status[k] = absl::InvalidArgumentError(absl::StrCat(
+          "record ", k, " (run \"", r.run_id, "\", material point ", r.id, "): ", s.message()));
+    }
+  });
+  for (const absl::Status& s : status)
+    if (!s.ok()) return s;
+  std::set<std::pair<absl::string_view, std::int64_t>> seen;
+  std::int64_t bytes = 0;
+  for (std::size_t k = 0; k < records.size(); ++k) {
+    if (!seen.emplace(records[k].run_id, records[k].id).second) {
+      return absl::AlreadyExistsError(absl::StrCat("run \"", records[k].run_id,
+                                                   "\", material point ", records[k].id,
+                                                   " appears twice in the import"));
+    }
+    bytes += static_cast<std::int64_t>(made[k]->MemoryBytes());
+  }
+  const std::int64_t n = static_cast<std::int64_t>(records.size());
+  absl::MutexLock lock(&mu_);
+  for (const store::RveRecord& r : records) {
+    auto run = runs_.find(r.run_id);
+    if (run != runs_.end() && run->second.contains(r.id)) {
+      return absl::AlreadyExistsError(absl::StrCat("run \"", r.run_id, "\" already has material point ",
+                                                   r.id, "; drop it before importing"));
+    }
+  }
+  if (absl::Status s = CheckCapacity(n, bytes); !s.ok()) return s;
+  for (std::size_t k = 0; k < records.size(); ++k) {
+    auto entry = std::make_shared<Entry>(std::move(*made[k]));
+    entry->memory_bytes = static_cast<std::int64_t>(entry->rve.MemoryBytes());
+    {
+      absl::MutexLock entry_lock(&entry->mu);
+      entry->step = records[k].step;
+      entry->last_delta_f = records[k].last_delta_f;
+    }
+    runs_[records[k].run_id].emplace(records[k].id, std::move(entry));
+  }
+  num_rves_ += n;
+  memory_bytes_ += bytes;
+  return n;
+}
+
+absl::StatusOr<std::int64_t> Registry::Drop(absl::string_view run_id,
+                                            std::span<const std::int64_t> ids) {
+  absl::MutexLock lock(&mu_);
+  auto run = runs_.find(run_id);
+  if (run == runs_.end()) {
+    return absl::NotFoundError(
+        absl::StrCat("unknown run \"", run_id, "\""));
+  }
+  std::vector<std::int64_t> missing;
+  for (std::int64_t id : ids)
+    if (!run->second.contains(id)) missing.push_back(id);
+  if (!missing.empty()) {
+    return absl::NotFoundError(absl::StrCat("run \"", std::string(run_id),
+                                            "\" has no material points ", ListIds(missing)));
+  }
+  std::int64_t dropped = 0;
+  auto drop = [&](Run::iterator it) {
+    memory_bytes_ -= it->second->memory_bytes;
+    --num_rves_;
+    ++dropped;
+    return run->second.erase(it);
+  };
+  if (ids.empty()) {
+    for (auto it = run->second.begin(); it != run->second.end();) it = drop(it);
+  } else {
+    for (std::int64_t id : ids) {
+      auto it = run->second.find(id);
+      if (it != run->second.end()) drop(it);  // an id repeated in `ids` is gone already
+    }
+  }
+  if (run->second.empty()) runs_.erase(run);
+  return dropped;
+}
+
+std::vector<RunSummary> Registry::ListRuns() const {
+  std::vector<std::pair<std::string, std::vector<EntryPtr>>> runs;
+  {
+    absl::MutexLock lock(&mu_);
+    for (const auto& [id, run] : runs_) {
+      std::vector<EntryPtr> entries;
+      for (const auto& [mp, e] : run) entries.push_back(e);
+      runs.emplace_back(id, std::move(entries));
+    }
+  }
+  std::vector<RunSummary> out;
+  for (const auto& [id, entries] : runs) {
+    RunSummary r{id, static_cast<std::int64_t>(entries.size()), 0, 0};
+    bool first = true;
+    for (const EntryPtr& e : entries) {
+      absl::MutexLock lock(&e->mu);
+      r.min_step = first ? e->step : std::min(r.min_step, e->step);
+      r.max_step = first ? e->step : std::max(r.max_step, e->step);
+      first = false;
+    }
+    out.push_back(std::move(r));
+  }
+  return out;
+}
+
+RegistryStats Registry::Stats() const {
+  absl::MutexLock lock(&mu_);
+  return {num_rves_, memory_bytes_, static_cast<std::int64_t>(runs_.size()),
+          static_cast<std::int64_t>(templates_.size())};
+}
+
+}  // namespace rvehub::service

@@ -1,0 +1,179 @@
+// The RVEs a server hosts, keyed by (run id, material-point id), with their
+// commit/trial step protocol, templates and limits. Plain C++ over the engine
+// (no gRPC, no HDF5): the gRPC service translates to it, and an in-process
+// client can use it directly.
+#ifndef RVEHUB_RVE_SERVER_SERVICE_REGISTRY_H_
+#define RVEHUB_RVE_SERVER_SERVICE_REGISTRY_H_
+
+#include <Eigen/Dense>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "absl/base/thread_annotations.h"
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
+#include "absl/synchronization/mutex.h"
+#include "rve_server/engine/rve.h"
+#include "rve_server/service/worker_pool.h"
+#include "store/record.h"
+
+namespace rvehub::service {
+
+struct RegistryOptions {
+  int threads = 1;                             // workers evaluating a batch
+  std::int64_t max_rves = 1'000'000;           // hosted RVEs at most
+  std::int64_t max_memory_bytes = 16LL << 30;  // resident estimate of all RVEs at most
+  std::int64_t max_batch = 100'000;            // RVEs per call at most
+};
+
+enum class ApplyMode { kCommit, kTrial };
+
+struct Increment {
+  std::int64_t id = 0;
+  Eigen::Matrix3d delta_f = Eigen::Matrix3d::Identity();  // [-]
+};
+
+// Outcome for one RVE of a batch call.
+struct RveOutcome {
+  std::int64_t id = 0;
+  absl::Status status;    // per-RVE result
+  std::int64_t step = 0;  // the RVE's committed step after the call
+  dem::RveState state;    // valid when status is OK
+  Eigen::Matrix3d deformation_gradient = Eigen::Matrix3d::Identity();  // F since creation
+};
+
+// Initial stress of new RVEs (compression +, Pa). kTemplate keeps the
+// template's state as it is.
+struct InitialStress {
+  enum class Kind { kTemplate, kIsotropic, kK0 };
+  Kind kind = Kind::kTemplate;
+  double pressure = 0.0;              // kIsotropic: p, Pa
+  double vertical_compression = 0.0;  // kK0: σv = σyy, Pa
+  double k0 = 0.0;                    // kK0: σxx/σyy, [-]
+};
+
+struct TemplateSummary {
+  std::string name;
+  std::string description;
+  std::string material_name;
+  std::int64_t num_particles = 0;
+  double void_ratio = 0.0;     // [-]
+  double mean_pressure = 0.0;  // Pa, compression +
+};
+
+struct RunSummary {
+  std::string run_id;
+  std::int64_t num_rves = 0;
+  std::int64_t min_step = 0;
+  std::int64_t max_step = 0;
+};
+
+struct RegistryStats {
+  std::int64_t num_rves = 0;
+  std::int64_t memory_bytes = 0;
+  std::int64_t num_runs = 0;
+  std::int64_t num_templates = 0;
+};
+
+// OK while the call goes on; DeadlineExceeded or Cancelled once the caller
+// gave up (then RVEs not yet started are skipped).
+using CancelFn = std::function<absl::Status()>;
+
+// Checks a run id or template name: [A-Za-z0-9._-], 1..128 characters.
+absl::Status ValidateName(absl::string_view what, absl::string_view name);
+
+class Registry {
+ public:
+  explicit Registry(const RegistryOptions& options);
+  Registry(const Registry&) = delete;
+  Registry& operator=(const Registry&) = delete;
+
+  const RegistryOptions& options() const { return options_; }
+
+  // Templates. InvalidArgument for a bad name or packing, AlreadyExists
+  // unless `replace`.
+  absl::StatusOr<TemplateSummary> PutTemplate(store::TemplateRecord record, bool replace);
+  std::vector<TemplateSummary> ListTemplates() const;
+  std::vector<store::TemplateRecord> AllTemplates() const;
+
+  // Creates RVEs from a template, optionally consolidated to an initial
+  // stress (in parallel) and with other controls. All or nothing:
+  // NotFound (template), AlreadyExists (id in the run, or twice in the
+  // request), ResourceExhausted (limits), InvalidArgument (malformed).
+  absl::StatusOr<std::vector<RveOutcome>> Create(absl::string_view run_id,
+                                                 absl::string_view template_name,
+                                                 std::span<const std::int64_t> ids,
+                                                 const InitialStress& initial,
+                                                 const std::optional<dem::Controls>& controls,
+                                                 bool want_state, const CancelFn& cancelled = {});
+
+  // One increment for a batch (see proto ApplyRequest for the protocol).
+  // Whole-call errors change no RVE; per-RVE outcomes otherwise.
+  absl::StatusOr<std::vector<RveOutcome>> Apply(absl::string_view run_id, std::int64_t step,
+                                                ApplyMode mode, const dem::ApplyOptions& options,
+                                                std::span<const Increment> increments,
+                                                const CancelFn& cancelled = {});
+
+  // Current states; empty ids: the whole run (sorted by id). Unknown ids get
+  // a NotFound outcome; an unknown run is NotFound for the call.
+  absl::StatusOr<std::vector<RveOutcome>> Get(absl::string_view run_id,
+                                              std::span<const std::int64_t> ids,
+                                              bool want_tangent) const;
+
+  // Full states, one record at a time to `sink` (in id order; empty ids: the
+  // whole run). Stops at the first error of `sink`.
+  absl::Status Export(absl::string_view run_id, std::span<const std::int64_t> ids,
+                      const std::function<absl::Status(store::RveRecord&&)>& sink) const;
+  // Every RVE of every run (for checkpoints), sorted by (run, id).
+  absl::Status ExportAll(const std::function<absl::Status(store::RveRecord&&)>& sink) const;
+
+  // All or nothing: InvalidArgument naming a malformed record, AlreadyExists
+  // when a (run, id) is hosted or repeated, ResourceExhausted beyond limits.
+  absl::StatusOr<std::int64_t> Import(std::vector<store::RveRecord> records);
+
+  // Drops RVEs (empty ids: the whole run); NotFound for an unknown run or id
+  // (then nothing is dropped). Returns how many were dropped.
+  absl::StatusOr<std::int64_t> Drop(absl::string_view run_id, std::span<const std::int64_t> ids);
+
+  std::vector<RunSummary> ListRuns() const;
+  RegistryStats Stats() const;
+
+ private:
+  struct Entry {
+    mutable absl::Mutex mu;
+    dem::Rve rve ABSL_GUARDED_BY(mu);
+    std::int64_t step ABSL_GUARDED_BY(mu) = 0;
+    Eigen::Matrix3d last_delta_f ABSL_GUARDED_BY(mu) = Eigen::Matrix3d::Identity();
+    // Result of the last COMMIT, returned again for a retry of that step.
+    std::optional<dem::RveState> last_result ABSL_GUARDED_BY(mu);
+    std::int64_t memory_bytes = 0;  // fixed at creation
+    explicit Entry(dem::Rve r) : rve(std::move(r)) {}
+  };
+  using EntryPtr = std::shared_ptr<Entry>;
+  using Run = std::map<std::int64_t, EntryPtr>;
+
+  // Entries of `ids` in a run (empty: all), or NotFound naming the missing.
+  absl::StatusOr<std::vector<std::pair<std::int64_t, EntryPtr>>> Lookup(
+      absl::string_view run_id, std::span<const std::int64_t> ids) const;
+  absl::Status CheckCapacity(std::int64_t count, std::int64_t bytes) const
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+
+  const RegistryOptions options_;
+  mutable WorkerPool pool_;
+  mutable absl::Mutex mu_;
+  std::map<std::string, Run, std::less<>> runs_ ABSL_GUARDED_BY(mu_);
+  std::map<std::string, store::TemplateRecord, std::less<>> templates_ ABSL_GUARDED_BY(mu_);
+  std::int64_t num_rves_ ABSL_GUARDED_BY(mu_) = 0;
+  std::int64_t memory_bytes_ ABSL_GUARDED_BY(mu_) = 0;
+};
+
+}  // namespace rvehub::service
+
+#endif  // RVEHUB_RVE_SERVER_SERVICE_REGISTRY_H_

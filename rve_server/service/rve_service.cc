@@ -1,0 +1,363 @@
+#include "rve_server/service/rve_service.h"
+
+#include <algorithm>
+#include <utility>
+
+#include "absl/strings/match.h"
+#include "absl/strings/str_cat.h"
+#include "rve_server/engine/element_test.h"
+#include "rve_server/service/convert.h"
+#include "rve_server/service/log.h"
+
+namespace rvehub::service {
+namespace {
+
+constexpr std::int64_t kChunkOverheadBytes = 64 << 10;  // headroom below the message limit
+
+std::vector<std::int64_t> Ids(const google::protobuf::RepeatedField<std::int64_t>& ids) {
+  return {ids.begin(), ids.end()};
+}
+
+// Deadline or cancellation of the call, as the registry's CancelFn.
+CancelFn Canceller(grpc::ServerContext* ctx) {
+  return [ctx]() -> absl::Status {
+    if (ctx->IsCancelled()) return absl::CancelledError("the call was cancelled");
+    if (std::chrono::system_clock::now() > ctx->deadline())
+      return absl::DeadlineExceededError("the call's deadline passed");
+    return absl::OkStatus();
+  };
+}
+
+std::string Peer(grpc::ServerContext* ctx) { return ctx->peer(); }
+
+}  // namespace
+
+grpc::Status ToGrpc(const absl::Status& s) {
+  if (s.ok()) return grpc::Status::OK;
+  return grpc::Status(static_cast<grpc::StatusCode>(s.code()), std::string(s.message()));
+}
+
+bool Authorized(const std::multimap<grpc::string_ref, grpc::string_ref>& metadata,
+                const std::string& token) {
+  if (token.empty()) return true;
+  auto it = metadata.find("authorization");
+  if (it == metadata.end()) return false;
+  const std::string_view value(it->second.data(), it->second.size());
+  const std::string expected = absl::StrCat("Bearer ", token);
+  // Compare every byte whatever the first mismatch (no timing hint).
+  if (value.size() != expected.size()) return false;
+  unsigned char diff = 0;
+  for (std::size_t k = 0; k < value.size(); ++k) diff |= value[k] ^ expected[k];
+  return diff == 0;
+}
+
+RveServiceImpl::RveServiceImpl(Registry& registry, ServiceOptions options)
+    : registry_(registry),
+      options_(std::move(options)),
+      started_(std::chrono::steady_clock::now()) {}
+
+grpc::Status RveServiceImpl::CheckAuth(grpc::ServerContext* ctx) const {
+  if (Authorized(ctx->client_metadata(), options_.auth_token)) return grpc::Status::OK;
+  Log("warn", "unauthenticated", {{"peer", Peer(ctx)}});
+  return grpc::Status(grpc::StatusCode::UNAUTHENTICATED,
+                      "this server needs \"authorization: Bearer <token>\" metadata");
+}
+
+grpc::Status RveServiceImpl::UploadTemplate(grpc::ServerContext* ctx,
+                                            const v1::UploadTemplateRequest* req,
+                                            v1::TemplateInfo* resp) {
+  if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
+  if (!req->has_entry()) {
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "entry (the template) is missing");
+  }
+  absl::StatusOr<dem::Packing> packing = FromProto(req->entry().packing());
+  if (!packing.ok()) return ToGrpc(packing.status());
+  store::TemplateRecord record{req->entry().name(), req->entry().description(),
+                               *std::move(packing)};
+  absl::StatusOr<TemplateSummary> s = registry_.PutTemplate(std::move(record), req->replace());
+  if (!s.ok()) return ToGrpc(s.status());
+  ToProto(*s, resp);
+  Log("info", "template uploaded",
+      {{"name", s->name}, {"particles", absl::StrCat(s->num_particles)}});
+  return grpc::Status::OK;
+}
+
+grpc::Status RveServiceImpl::ListTemplates(grpc::ServerContext* ctx,
+                                           const v1::ListTemplatesRequest*,
+                                           v1::ListTemplatesResponse* resp) {
+  if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
+  for (const TemplateSummary& t : registry_.ListTemplates()) ToProto(t, resp->add_templates());
+  return grpc::Status::OK;
+}
+
+grpc::Status RveServiceImpl::CreateRves(grpc::ServerContext* ctx,
+                                        const v1::CreateRvesRequest* req,
+                                        v1::CreateRvesResponse* resp) {
+  if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
+  InitialStress initial;
+  if (req->has_initial_stress()) {
+    const v1::InitialStress& is = req->initial_stress();
+    switch (is.kind_case()) {
+      case v1::InitialStress::kPressure:
+        initial.kind = InitialStress::Kind::kIsotropic;
+        initial.pressure = is.pressure();
+        break;
+      case v1::InitialStress::kK0:
+        initial.kind = InitialStress::Kind::kK0;
+        initial.vertical_compression = is.k0().vertical_compression();
+        initial.k0 = is.k0().k0();
+        break;
+      default:
+        return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                            "initial_stress is set but names neither pressure nor k0");
+    }
+  }
+  std::optional<dem::Controls> controls;
+  if (req->has_controls()) controls = FromProto(req->controls());
+  const std::vector<std::int64_t> ids = Ids(req->ids());
+  const auto t0 = std::chrono::steady_clock::now();
+  absl::StatusOr<std::vector<RveOutcome>> out =
+      registry_.Create(req->run_id(), req->template_name(), ids, initial, controls,
+                       req->want_state(), Canceller(ctx));
+  if (!out.ok()) return ToGrpc(out.status());
+  for (const RveOutcome& o : *out) {
+    v1::RveResult* r = resp->add_results();
+    r->set_id(o.id);
+    r->set_step(o.step);
+    if (req->want_state()) ToProto(o.state, o.deformation_gradient, r->mutable_state());
+  }
+  Log("info", "created",
+      {{"run", req->run_id()},
+       {"template", req->template_name()},
+       {"count", absl::StrCat(ids.size())},
+       {"seconds", absl::StrCat(std::chrono::duration<double>(
+                                    std::chrono::steady_clock::now() - t0)
+                                    .count())}});
+  return grpc::Status::OK;
+}
+
+grpc::Status RveServiceImpl::Apply(grpc::ServerContext* ctx, const v1::ApplyRequest* req,
+                                   v1::ApplyResponse* resp) {
+  if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
+  ApplyMode mode;
+  switch (req->mode()) {
+    case v1::APPLY_MODE_COMMIT:
+      mode = ApplyMode::kCommit;
+      break;
+    case v1::APPLY_MODE_TRIAL:
+      mode = ApplyMode::kTrial;
+      break;
+    default:
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                          "mode must be APPLY_MODE_COMMIT or APPLY_MODE_TRIAL");
+  }
+  absl::StatusOr<dem::ApplyOptions> options = FromProto(req->options());
+  if (!options.ok()) return ToGrpc(options.status());
+  std::vector<Increment> increments(req->increments_size());
+  for (int k = 0; k < req->increments_size(); ++k) {
+    const v1::Increment& inc = req->increments(k);
+    absl::StatusOr<Eigen::Matrix3d> f = Matrix3FromProto(
+        inc.delta_f(), absl::StrCat("increments[", k, "] (id ", inc.id(), ").delta_f"));
+    if (!f.ok()) return ToGrpc(f.status());
+    increments[k] = {inc.id(), *f};
+  }
+  absl::StatusOr<std::vector<RveOutcome>> out = registry_.Apply(
+      req->run_id(), req->step(), mode, *options, increments, Canceller(ctx));
+  if (!out.ok()) return ToGrpc(out.status());
+  std::int64_t failed = 0;
+  for (const RveOutcome& o : *out) {
+    failed += o.status.ok() ? 0 : 1;
+    ToProto(o, resp->add_results());
+  }
+  resp->set_failed(failed);
+  if (failed > 0) {
+    Log("warn", "apply had failures",
+        {{"run", req->run_id()},
+         {"step", absl::StrCat(req->step())},
+         {"failed", absl::StrCat(failed)},
+         {"of", absl::StrCat(out->size())}});
+  }
+  return grpc::Status::OK;
+}
+
+grpc::Status RveServiceImpl::GetStates(grpc::ServerContext* ctx,
+                                       const v1::GetStatesRequest* req,
+                                       v1::GetStatesResponse* resp) {
+  if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
+  const std::vector<std::int64_t> ids = Ids(req->ids());
+  absl::StatusOr<std::vector<RveOutcome>> out =
+      registry_.Get(req->run_id(), ids, req->want_tangent());
+  if (!out.ok()) return ToGrpc(out.status());
+  for (const RveOutcome& o : *out) ToProto(o, resp->add_results());
+  return grpc::Status::OK;
+}
+
+grpc::Status RveServiceImpl::Export(grpc::ServerContext* ctx, const v1::ExportRequest* req,
+                                    grpc::ServerWriter<v1::RveChunk>* writer) {
+  if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
+  const std::vector<std::int64_t> ids = Ids(req->ids());
+  // Chunks stay below the message limit with headroom for framing.
+  const std::int64_t budget = std::max<std::int64_t>(
+      options_.max_message_bytes - kChunkOverheadBytes, options_.max_message_bytes / 2);
+  std::int64_t chunk_bytes = 0;  // serialised size of the records in `chunk`
+  v1::RveChunk chunk;
+  std::int64_t sent = 0;
+  std::int64_t total = 0;
+  if (ids.empty()) {
+    for (const RunSummary& r : registry_.ListRuns())
+      if (r.run_id == req->run_id()) total = r.num_rves;
+  } else {
+    total = static_cast<std::int64_t>(ids.size());
+  }
+  auto flush = [&]() -> absl::Status {
+    if (chunk.records_size() == 0) return absl::OkStatus();
+    if (sent == 0) chunk.set_total_records(total);
+    sent += chunk.records_size();
+    if (!writer->Write(chunk)) return absl::CancelledError("the client went away during export");
+    chunk.Clear();
+    chunk_bytes = 0;
+    return absl::OkStatus();
+  };
+  absl::Status s = registry_.Export(req->run_id(), ids, [&](store::RveRecord&& r) {
+    v1::RveRecord record;
+    ToProto(r, &record);
+    const std::int64_t size = static_cast<std::int64_t>(record.ByteSizeLong());
+    if (chunk.records_size() > 0 && chunk_bytes + size > budget) {
+      if (absl::Status f = flush(); !f.ok()) return f;
+    }
+    chunk_bytes += size + 8;  // + field tag and length
+    *chunk.add_records() = std::move(record);
+    return absl::OkStatus();
+  });
+  if (s.ok()) s = flush();
+  if (!s.ok()) return ToGrpc(s);
+  Log("info", "exported", {{"run", req->run_id()}, {"count", absl::StrCat(sent)}});
+  return grpc::Status::OK;
+}
+
+grpc::Status RveServiceImpl::Import(grpc::ServerContext* ctx,
+                                    grpc::ServerReader<v1::RveChunk>* reader,
+                                    v1::ImportResponse* resp) {
+  if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
+  std::vector<store::RveRecord> records;
+  v1::RveChunk chunk;
+  std::int64_t declared = -1;
+  int chunks = 0;
+  while (reader->Read(&chunk)) {
+    if (chunks == 0 && chunk.total_records() > 0) declared = chunk.total_records();
+    for (int k = 0; k < chunk.records_size(); ++k) {
+      absl::StatusOr<store::RveRecord> r = FromProto(chunk.records(k));
+      if (!r.ok()) {
+        return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                            absl::StrCat("import chunk ", chunks, " record ", k, ": ",
+                                         r.status().message(), "; nothing imported"));
+      }
+      records.push_back(*std::move(r));
+    }
+    ++chunks;
+  }
+  if (ctx->IsCancelled()) return grpc::Status(grpc::StatusCode::CANCELLED, "import cancelled");
+  if (declared >= 0 && declared != static_cast<std::int64_t>(records.size())) {
+    return grpc::Status(
+        grpc::StatusCode::INVALID_ARGUMENT,
+        absl::StrCat("import stream declared ", declared, " records but carried ",
+                     records.size(), " (truncated stream?); nothing imported"));
+  }
+  absl::StatusOr<std::int64_t> n = registry_.Import(std::move(records));
+  if (!n.ok()) return ToGrpc(n.status());
+  resp->set_imported(*n);
+  Log("info", "imported", {{"count", absl::StrCat(*n)}, {"chunks", absl::StrCat(chunks)}});
+  return grpc::Status::OK;
+}
+
+grpc::Status RveServiceImpl::Drop(grpc::ServerContext* ctx, const v1::DropRequest* req,
+                                  v1::DropResponse* resp) {
+  if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
+  const std::vector<std::int64_t> ids = Ids(req->ids());
+  absl::StatusOr<std::int64_t> n = registry_.Drop(req->run_id(), ids);
+  if (!n.ok()) return ToGrpc(n.status());
+  resp->set_dropped(*n);
+  Log("info", "dropped", {{"run", req->run_id()}, {"count", absl::StrCat(*n)}});
+  return grpc::Status::OK;
+}
+
+grpc::Status RveServiceImpl::ListRuns(grpc::ServerContext* ctx, const v1::ListRunsRequest*,
+                                      v1::ListRunsResponse* resp) {
+  if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
+  for (const RunSummary& r : registry_.ListRuns()) {
+    v1::RunInfo* info = resp->add_runs();
+    info->set_run_id(r.run_id);
+    info->set_num_rves(r.num_rves);
+    info->set_min_step(r.min_step);
+    info->set_max_step(r.max_step);
+  }
+  return grpc::Status::OK;
+}
+
+grpc::Status RveServiceImpl::GetServerInfo(grpc::ServerContext* ctx,
+                                           const v1::ServerInfoRequest*, v1::ServerInfo* resp) {
+  if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
+  const RegistryStats s = registry_.Stats();
+  const RegistryOptions& o = registry_.options();
+  resp->set_version(options_.version);
+  resp->set_api_version("rvehub.v1");
+  resp->set_threads(o.threads);
+  resp->set_num_rves(s.num_rves);
+  resp->set_max_rves(o.max_rves);
+  resp->set_memory_bytes(s.memory_bytes);
+  resp->set_max_memory_bytes(o.max_memory_bytes);
+  resp->set_num_runs(s.num_runs);
+  resp->set_num_templates(s.num_templates);
+  resp->set_max_batch(o.max_batch);
+  resp->set_max_message_bytes(options_.max_message_bytes);
+  resp->set_uptime_seconds(
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count());
+  resp->set_auth_required(!options_.auth_token.empty());
+  resp->set_tls(options_.tls);
+  return grpc::Status::OK;
+}
+
+grpc::Status RveServiceImpl::RunElementTest(grpc::ServerContext* ctx,
+                                            const v1::ElementTestRequest* req,
+                                            grpc::ServerWriter<v1::ElementTestUpdate>* writer) {
+  if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
+  absl::StatusOr<dem::ElementTestSpec> spec = FromProto(*req);
+  if (!spec.ok()) return ToGrpc(spec.status());
+  std::optional<store::TemplateRecord> tmpl;
+  for (store::TemplateRecord& t : registry_.AllTemplates()) {
+    if (t.name == req->template_name()) tmpl = std::move(t);
+  }
+  if (!tmpl.has_value()) {
+    return grpc::Status(grpc::StatusCode::NOT_FOUND,
+                        absl::StrCat("unknown template \"", req->template_name(), "\""));
+  }
+  absl::StatusOr<dem::Rve> rve = dem::Rve::Create(tmpl->packing);
+  if (!rve.ok()) return ToGrpc(rve.status());
+  // A fresh RVE of the template, tested in this call's thread (an element
+  // test is one long sequential run). Progress goes out every 5 %.
+  double last_sent = -1.0;
+  bool client_gone = false;
+  absl::StatusOr<std::vector<dem::ElementTestRow>> rows =
+      dem::RunElementTest(*rve, *spec, [&](double fraction) {
+        if (client_gone || fraction - last_sent < 0.05) return;
+        v1::ElementTestUpdate u;
+        u.set_progress(fraction);
+        client_gone = !writer->Write(u) || ctx->IsCancelled();
+        last_sent = fraction;
+      });
+  if (!rows.ok()) return ToGrpc(rows.status());
+  if (client_gone) return grpc::Status(grpc::StatusCode::CANCELLED, "the client went away");
+  constexpr int kRowsPerMessage = 1000;
+  for (std::size_t k = 0; k < rows->size(); k += kRowsPerMessage) {
+    v1::ElementTestUpdate u;
+    u.set_progress(1.0);
+    for (std::size_t r = k; r < std::min(rows->size(), k + kRowsPerMessage); ++r)
+      ToProto((*rows)[r], u.add_rows());
+    if (!writer->Write(u)) return grpc::Status(grpc::StatusCode::CANCELLED, "the client went away");
+  }
+  Log("info", "element test",
+      {{"template", req->template_name()}, {"rows", absl::StrCat(rows->size())}});
+  return grpc::Status::OK;
+}
+
+}  // namespace rvehub::service

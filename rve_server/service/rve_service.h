@@ -1,0 +1,70 @@
+// The gRPC face of a Registry: translates rvehub.v1 messages to registry
+// calls and absl::Status to grpc::Status (the only place that mapping lives).
+#ifndef RVEHUB_RVE_SERVER_SERVICE_RVE_SERVICE_H_
+#define RVEHUB_RVE_SERVER_SERVICE_RVE_SERVICE_H_
+
+#include <grpcpp/grpcpp.h>
+
+#include <chrono>
+#include <string>
+
+#include "absl/status/status.h"
+#include "rve_server/service/registry.h"
+#include "rvehub/v1/rve_service.grpc.pb.h"
+
+namespace rvehub::service {
+
+// absl::Status → grpc::Status (codes are numbered alike).
+grpc::Status ToGrpc(const absl::Status& s);
+
+struct ServiceOptions {
+  std::string version;            // reported by GetServerInfo
+  std::string auth_token;         // empty: no authentication
+  bool tls = false;               // reported only
+  std::int64_t max_message_bytes = 64 << 20;
+};
+
+// "authorization: Bearer <token>" check shared by the service and the
+// interceptor that guards grpc's own services (health, reflection).
+bool Authorized(const std::multimap<grpc::string_ref, grpc::string_ref>& metadata,
+                const std::string& token);
+
+class RveServiceImpl final : public v1::RveService::Service {
+ public:
+  RveServiceImpl(Registry& registry, ServiceOptions options);
+
+  grpc::Status UploadTemplate(grpc::ServerContext* ctx, const v1::UploadTemplateRequest* req,
+                              v1::TemplateInfo* resp) override;
+  grpc::Status ListTemplates(grpc::ServerContext* ctx, const v1::ListTemplatesRequest* req,
+                             v1::ListTemplatesResponse* resp) override;
+  grpc::Status CreateRves(grpc::ServerContext* ctx, const v1::CreateRvesRequest* req,
+                          v1::CreateRvesResponse* resp) override;
+  grpc::Status Apply(grpc::ServerContext* ctx, const v1::ApplyRequest* req,
+                     v1::ApplyResponse* resp) override;
+  grpc::Status GetStates(grpc::ServerContext* ctx, const v1::GetStatesRequest* req,
+                         v1::GetStatesResponse* resp) override;
+  grpc::Status Export(grpc::ServerContext* ctx, const v1::ExportRequest* req,
+                      grpc::ServerWriter<v1::RveChunk>* writer) override;
+  grpc::Status Import(grpc::ServerContext* ctx, grpc::ServerReader<v1::RveChunk>* reader,
+                      v1::ImportResponse* resp) override;
+  grpc::Status Drop(grpc::ServerContext* ctx, const v1::DropRequest* req,
+                    v1::DropResponse* resp) override;
+  grpc::Status ListRuns(grpc::ServerContext* ctx, const v1::ListRunsRequest* req,
+                        v1::ListRunsResponse* resp) override;
+  grpc::Status GetServerInfo(grpc::ServerContext* ctx, const v1::ServerInfoRequest* req,
+                             v1::ServerInfo* resp) override;
+  grpc::Status RunElementTest(grpc::ServerContext* ctx, const v1::ElementTestRequest* req,
+                              grpc::ServerWriter<v1::ElementTestUpdate>* writer) override;
+
+ private:
+  // UNAUTHENTICATED unless the call carries the token (when one is set).
+  grpc::Status CheckAuth(grpc::ServerContext* ctx) const;
+
+  Registry& registry_;
+  const ServiceOptions options_;
+  const std::chrono::steady_clock::time_point started_;
+};
+
+}  // namespace rvehub::service
+
+#endif  // RVEHUB_RVE_SERVER_SERVICE_RVE_SERVICE_H_

@@ -1,0 +1,257 @@
+#include "rve_server/service/server.h"
+
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <grpcpp/support/server_interceptor.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/strip.h"
+#include "absl/strings/ascii.h"
+#include "rve_server/service/log.h"
+#include "store/checkpoint.h"
+
+namespace rvehub::service {
+namespace {
+
+constexpr char kRvesFile[] = "rves.h5";
+constexpr char kTemplatesFile[] = "templates.h5";
+
+// Guards every method, grpc's own health and reflection services included:
+// without the token the reply is replaced by an empty message and the status
+// by UNAUTHENTICATED. (Our service also refuses such calls before doing
+// anything; grpc's services only read, so replacing their reply suffices.)
+class AuthInterceptor final : public grpc::experimental::Interceptor {
+ public:
+  AuthInterceptor(grpc::experimental::ServerRpcInfo* info, const std::string* token)
+      : info_(info), token_(token) {}
+
+  void Intercept(grpc::experimental::InterceptorBatchMethods* methods) override {
+    using grpc::experimental::InterceptionHookPoints;
+    if (methods->QueryInterceptionHookPoint(InterceptionHookPoints::POST_RECV_INITIAL_METADATA)) {
+      denied_ = !Authorized(*methods->GetRecvInitialMetadata(), *token_);
+    }
+    if (denied_ &&
+        methods->QueryInterceptionHookPoint(InterceptionHookPoints::PRE_SEND_MESSAGE)) {
+      grpc::ByteBuffer* buffer = methods->GetSerializedSendMessage();
+      if (buffer != nullptr) {
+        grpc::Slice empty("");
+        *buffer = grpc::ByteBuffer(&empty, 1);
+      }
+    }
+    if (denied_ &&
+        methods->QueryInterceptionHookPoint(InterceptionHookPoints::PRE_SEND_STATUS)) {
+      methods->ModifySendStatus(
+          grpc::Status(grpc::StatusCode::UNAUTHENTICATED,
+                       absl::StrCat(info_->method(),
+                                    " needs \"authorization: Bearer <token>\" metadata")));
+    }
+    methods->Proceed();
+  }
+
+ private:
+  grpc::experimental::ServerRpcInfo* info_;
+  const std::string* token_;
+  bool denied_ = false;
+};
+
+class AuthInterceptorFactory final
+    : public grpc::experimental::ServerInterceptorFactoryInterface {
+ public:
+  explicit AuthInterceptorFactory(std::string token) : token_(std::move(token)) {}
+  grpc::experimental::Interceptor* CreateServerInterceptor(
+      grpc::experimental::ServerRpcInfo* info) override {
+    return new AuthInterceptor(info, &token_);
+  }
+
+ private:
+  const std::string token_;
+};
+
+std::string NowUtc() {
+  return absl::FormatTime("%Y-%m-%dT%H:%M:%SZ", absl::Now(), absl::UTCTimeZone());
+}
+
+}  // namespace
+
+absl::StatusOr<std::string> ReadTextFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return absl::NotFoundError(absl::StrCat("cannot read ", path));
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+absl::StatusOr<std::string> ReadTokenFile(const std::string& path) {
+  absl::StatusOr<std::string> text = ReadTextFile(path);
+  if (!text.ok()) return text.status();
+  std::string token(absl::StripAsciiWhitespace(*text));
+  if (token.empty()) return absl::InvalidArgumentError(absl::StrCat("token file ", path, " is empty"));
+  return token;
+}
+
+absl::StatusOr<std::unique_ptr<RveServer>> RveServer::Start(const ServerConfig& config) {
+  if (config.registry.threads < 1 || config.registry.max_rves < 1 ||
+      config.registry.max_memory_bytes < 1 || config.registry.max_batch < 1 ||
+      config.max_message_bytes < (1 << 20)) {
+    return absl::InvalidArgumentError(
+        "threads, max RVEs, max memory and max batch must be >= 1 and the max message size "
+        ">= 1 MiB");
+  }
+  if (config.tls_cert_pem.empty() != config.tls_key_pem.empty()) {
+    return absl::InvalidArgumentError("TLS needs both a certificate and a key");
+  }
+  std::unique_ptr<RveServer> s(new RveServer());
+  s->config_ = config;
+  s->registry_ = std::make_unique<Registry>(config.registry);
+  if (!config.checkpoint_dir.empty()) {
+    if (absl::Status l = s->LoadCheckpoint(config.checkpoint_dir); !l.ok()) return l;
+  }
+  ServiceOptions options;
+  options.version = kServerVersion;
+  options.auth_token = config.auth_token;
+  options.tls = !config.tls_cert_pem.empty();
+  options.max_message_bytes = config.max_message_bytes;
+  s->service_ = std::make_unique<RveServiceImpl>(*s->registry_, options);
+
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  grpc::ServerBuilder builder;
+  std::shared_ptr<grpc::ServerCredentials> creds;
+  if (options.tls) {
+    grpc::SslServerCredentialsOptions ssl;
+    ssl.pem_key_cert_pairs.push_back({config.tls_key_pem, config.tls_cert_pem});
+    creds = grpc::SslServerCredentials(ssl);
+  } else {
+    creds = grpc::InsecureServerCredentials();
+  }
+  builder.AddListeningPort(config.listen, creds, &s->port_);
+  builder.RegisterService(s->service_.get());
+  builder.SetMaxReceiveMessageSize(static_cast<int>(config.max_message_bytes));
+  builder.SetMaxSendMessageSize(static_cast<int>(config.max_message_bytes));
+  if (!config.auth_token.empty()) {
+    std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> f;
+    f.push_back(std::make_unique<AuthInterceptorFactory>(config.auth_token));
+    builder.experimental().SetInterceptorCreators(std::move(f));
+  }
+  s->server_ = builder.BuildAndStart();
+  if (s->server_ == nullptr || s->port_ == 0) {
+    return absl::UnavailableError(absl::StrCat("cannot listen on ", config.listen,
+                                               " (address in use or not local?)"));
+  }
+  // Health by service name too, so that probes may ask for ours.
+  s->server_->GetHealthCheckService()->SetServingStatus(v1::RveService::service_full_name(),
+                                                        true);
+  s->server_->GetHealthCheckService()->SetServingStatus(true);
+  const RegistryStats stats = s->registry_->Stats();
+  Log("info", "listening",
+      {{"address", s->address()},
+       {"threads", absl::StrCat(config.registry.threads)},
+       {"tls", options.tls ? "on" : "off"},
+       {"auth", config.auth_token.empty() ? "off" : "on"},
+       {"rves", absl::StrCat(stats.num_rves)},
+       {"templates", absl::StrCat(stats.num_templates)},
+       {"version", kServerVersion}});
+  return s;
+}
+
+std::string RveServer::address() const {
+  const std::string& l = config_.listen;
+  const std::size_t colon = l.rfind(':');
+  return absl::StrCat(l.substr(0, colon), ":", port_);
+}
+
+RveServer::~RveServer() {
+  if (server_ != nullptr && !stopped_) {
+    server_->Shutdown(std::chrono::system_clock::now());
+    server_->Wait();
+  }
+}
+
+absl::Status RveServer::Stop(std::chrono::milliseconds grace) {
+  if (stopped_) return absl::OkStatus();
+  stopped_ = true;
+  Log("info", "draining", {{"grace_ms", absl::StrCat(grace.count())}});
+  server_->GetHealthCheckService()->SetServingStatus(false);
+  server_->Shutdown(std::chrono::system_clock::now() + grace);
+  server_->Wait();
+  absl::Status saved = absl::OkStatus();
+  if (!config_.checkpoint_dir.empty()) saved = SaveCheckpoint(config_.checkpoint_dir);
+  Log(saved.ok() ? "info" : "error", "stopped",
+      {{"checkpoint", saved.ok() ? "ok" : std::string(saved.message())}});
+  return saved;
+}
+
+void RveServer::Wait() { server_->Wait(); }
+
+absl::Status RveServer::SaveCheckpoint(const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) {
+    return absl::PermissionDeniedError(
+        absl::StrCat("cannot create checkpoint directory ", dir, ": ", ec.message()));
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  std::vector<store::RveRecord> rves;
+  absl::Status s = registry_->ExportAll([&](store::RveRecord&& r) {
+    rves.push_back(std::move(r));
+    return absl::OkStatus();
+  });
+  if (!s.ok()) return s;
+  const store::FileInfo info{absl::StrCat("rve_server ", kServerVersion), NowUtc(), 0};
+  if (s = store::WriteRves((std::filesystem::path(dir) / kRvesFile).string(), rves, info);
+      !s.ok()) {
+    return s;
+  }
+  const std::vector<store::TemplateRecord> templates = registry_->AllTemplates();
+  if (s = store::WriteTemplates((std::filesystem::path(dir) / kTemplatesFile).string(),
+                                templates, info);
+      !s.ok()) {
+    return s;
+  }
+  Log("info", "checkpoint written",
+      {{"dir", dir},
+       {"rves", absl::StrCat(rves.size())},
+       {"templates", absl::StrCat(templates.size())},
+       {"seconds",
+        absl::StrCat(
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count())}});
+  return absl::OkStatus();
+}
+
+absl::Status RveServer::LoadCheckpoint(const std::string& dir) {
+  const std::string templates_path = (std::filesystem::path(dir) / kTemplatesFile).string();
+  const std::string rves_path = (std::filesystem::path(dir) / kRvesFile).string();
+  std::int64_t num_templates = 0, num_rves = 0;
+  if (std::filesystem::exists(templates_path)) {
+    absl::StatusOr<std::vector<store::TemplateRecord>> t = store::ReadTemplates(templates_path);
+    if (!t.ok()) return t.status();
+    for (store::TemplateRecord& r : *t) {
+      absl::StatusOr<TemplateSummary> put = registry_->PutTemplate(std::move(r), true);
+      if (!put.ok()) return put.status();
+      ++num_templates;
+    }
+  }
+  if (std::filesystem::exists(rves_path)) {
+    absl::StatusOr<std::vector<store::RveRecord>> r = store::ReadRves(rves_path);
+    if (!r.ok()) return r.status();
+    if (!r->empty()) {
+      absl::StatusOr<std::int64_t> n = registry_->Import(*std::move(r));
+      if (!n.ok()) {
+        return absl::Status(n.status().code(), absl::StrCat("restoring ", rves_path, ": ",
+                                                            n.status().message()));
+      }
+      num_rves = *n;
+    }
+  }
+  Log("info", "checkpoint loaded",
+      {{"dir", dir},
+       {"rves", absl::StrCat(num_rves)},
+       {"templates", absl::StrCat(num_templates)}});
+  return absl::OkStatus();
+}
+
+}  // namespace rvehub::service

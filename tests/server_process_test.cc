@@ -1,0 +1,268 @@
+// The rve_server binary as users run it: a child process on a free loopback
+// port. Health and reflection respond; SIGTERM drains a call in flight and
+// writes the checkpoint, and a restart from it continues bit-identically.
+// (This binary must not link grpc++_reflection: it carries its own copy of
+// the reflection messages to call the server's reflection service.)
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <future>
+#include <string>
+#include <vector>
+
+#include "health_probe.grpc.pb.h"
+#include "reflection_probe.grpc.pb.h"
+#include "rve_server/service/convert.h"
+#include "rvehub/v1/rve_service.grpc.pb.h"
+#include "tests/test_util.h"
+
+namespace rvehub::service {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A drain waits for each connected client to acknowledge the server's GOAWAY;
+// an idle gRPC client channel reads its socket only from its backup poller
+// (every 5 s by default), which would make each stop here take 5 s.
+const bool kFastClientPolling = [] {
+  setenv("GRPC_CLIENT_CHANNEL_BACKUP_POLL_INTERVAL_MS", "50", 1);
+  return true;
+}();
+
+// A running rve_server child; SIGKILLed if the test did not stop it.
+class ServerProcess {
+ public:
+  explicit ServerProcess(std::vector<std::string> args) {
+    int out[2];
+    EXPECT_EQ(pipe(out), 0);
+    pid_ = fork();
+    if (pid_ == 0) {
+      dup2(out[1], STDOUT_FILENO);
+      close(out[0]);
+      close(out[1]);
+      std::vector<char*> argv;
+      std::string path = RVE_SERVER_PATH;
+      argv.push_back(path.data());
+      for (std::string& a : args) argv.push_back(a.data());
+      argv.push_back(nullptr);
+      execv(path.c_str(), argv.data());
+      _exit(127);
+    }
+    close(out[1]);
+    // First stdout line: "listening on HOST:PORT".
+    FILE* f = fdopen(out[0], "r");
+    char line[256] = {0};
+    if (std::fgets(line, sizeof line, f) != nullptr) {
+      std::string s(line);
+      const std::string prefix = "listening on ";
+      if (s.rfind(prefix, 0) == 0) address_ = s.substr(prefix.size(), s.find('\n') - prefix.size());
+    }
+    std::fclose(f);
+    EXPECT_FALSE(address_.empty()) << "the server did not report its address";
+    channel_ = grpc::CreateChannel(address_, grpc::InsecureChannelCredentials());
+    stub_ = v1::RveService::NewStub(channel_);
+  }
+  ~ServerProcess() {
+    if (pid_ > 0) {
+      kill(pid_, SIGKILL);
+      waitpid(pid_, nullptr, 0);
+    }
+  }
+
+  // SIGTERM, then the exit status (−1 when it did not exit normally).
+  int Terminate() {
+    kill(pid_, SIGTERM);
+    int status = 0;
+    waitpid(pid_, &status, 0);
+    pid_ = -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+
+  v1::RveService::Stub& stub() { return *stub_; }
+  std::shared_ptr<grpc::Channel> channel() { return channel_; }
+
+ private:
+  pid_t pid_ = -1;
+  std::string address_;
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<v1::RveService::Stub> stub_;
+};
+
+std::unique_ptr<grpc::ClientContext> Ctx() {
+  auto ctx = std::make_unique<grpc::ClientContext>();
+  ctx->set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(60));
+  return ctx;
+}
+
+v1::ApplyRequest Increments(std::int64_t step, int count, double strain) {
+  v1::ApplyRequest req;
+  req.set_run_id("run");
+  req.set_step(step);
+  req.set_mode(v1::APPLY_MODE_COMMIT);
+  for (int id = 0; id < count; ++id) {
+    v1::Increment* inc = req.add_increments();
+    inc->set_id(id);
+    for (double v : {1.0, 0.0, 0.0, 0.0, 1.0 - strain, 0.0, 0.0, 0.0, 1.0}) inc->add_delta_f(v);
+  }
+  return req;
+}
+
+v1::RveRecord ExportOne(v1::RveService::Stub& stub, std::int64_t id) {
+  v1::ExportRequest req;
+  req.set_run_id("run");
+  req.add_ids(id);
+  auto ctx = Ctx();
+  auto reader = stub.Export(ctx.get(), req);
+  v1::RveChunk chunk;
+  v1::RveRecord out;
+  while (reader->Read(&chunk))
+    if (chunk.records_size() > 0) out = chunk.records(0);
+  EXPECT_TRUE(reader->Finish().ok());
+  return out;
+}
+
+TEST(ServerProcess, HealthAndReflectionRespond) {
+  ServerProcess server({"--listen=127.0.0.1:0", "--threads=1"});
+  auto health = grpc::health::v1::Health::NewStub(server.channel());
+  grpc::health::v1::HealthCheckRequest hreq;
+  grpc::health::v1::HealthCheckResponse hresp;
+  ASSERT_TRUE(health->Check(Ctx().get(), hreq, &hresp).ok());
+  EXPECT_EQ(hresp.status(), grpc::health::v1::HealthCheckResponse::SERVING);
+
+  auto reflection = grpc::reflection::v1alpha::ServerReflection::NewStub(server.channel());
+  auto ctx = Ctx();
+  auto stream = reflection->ServerReflectionInfo(ctx.get());
+  grpc::reflection::v1alpha::ServerReflectionRequest rreq;
+  rreq.set_list_services("*");
+  ASSERT_TRUE(stream->Write(rreq));
+  grpc::reflection::v1alpha::ServerReflectionResponse rresp;
+  ASSERT_TRUE(stream->Read(&rresp));
+  stream->WritesDone();
+  EXPECT_TRUE(stream->Finish().ok());
+  std::vector<std::string> names;
+  for (const auto& s : rresp.list_services_response().service()) names.push_back(s.name());
+  EXPECT_NE(std::find(names.begin(), names.end(), "rvehub.v1.RveService"), names.end());
+  EXPECT_NE(std::find(names.begin(), names.end(), "grpc.health.v1.Health"), names.end());
+  EXPECT_EQ(server.Terminate(), 0);
+}
+
+TEST(ServerProcess, SigtermDrainsCheckpointsAndRestartContinues) {
+  const fs::path dir = fs::temp_directory_path() / ("rvehub_ckpt_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  const std::string dir_flag = "--checkpoint_dir=" + dir.string();
+  constexpr int kRves = 32;  // step 2 then keeps both workers busy for ~1 s
+  v1::ApplyResponse uninterrupted;
+  v1::RveRecord before_stop;
+  {
+    ServerProcess server({"--listen=127.0.0.1:0", "--threads=2", dir_flag});
+    v1::UploadTemplateRequest up;
+    up.mutable_entry()->set_name("t");
+    dem::Packing p = dem::testing_util::Prepared("SET-dense");
+    p.controls.min_steps = 10;
+    ToProto(p, up.mutable_entry()->mutable_packing());
+    v1::TemplateInfo info;
+    ASSERT_TRUE(server.stub().UploadTemplate(Ctx().get(), up, &info).ok());
+    v1::CreateRvesRequest create;
+    create.set_run_id("run");
+    create.set_template_name("t");
+    for (int id = 0; id < kRves; ++id) create.add_ids(id);
+    v1::CreateRvesResponse created;
+    ASSERT_TRUE(server.stub().CreateRves(Ctx().get(), create, &created).ok());
+    v1::ApplyResponse r;
+    ASSERT_TRUE(server.stub().Apply(Ctx().get(), Increments(1, kRves, 1e-4), &r).ok());
+    ASSERT_EQ(r.failed(), 0);
+
+    // A long call in flight when SIGTERM arrives is drained, not cut.
+    std::promise<void> started;
+    auto in_flight = std::async(std::launch::async, [&] {
+      v1::ApplyResponse resp;
+      auto ctx = Ctx();
+      started.set_value();
+      grpc::Status s = server.stub().Apply(ctx.get(), Increments(2, kRves, 0.04), &resp);
+      return std::make_pair(s, resp);
+    });
+    started.get_future().wait();
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    EXPECT_EQ(server.Terminate(), 0);
+    auto [status, resp] = in_flight.get();
+    ASSERT_TRUE(status.ok()) << status.error_message();
+    ASSERT_EQ(resp.failed(), 0);
+    EXPECT_EQ(resp.results(0).step(), 2);
+  }
+  ASSERT_TRUE(fs::exists(dir / "rves.h5"));
+  ASSERT_TRUE(fs::exists(dir / "templates.h5"));
+
+  // Reference: the same three steps on a server that never stopped.
+  {
+    ServerProcess ref({"--listen=127.0.0.1:0", "--threads=1"});
+    v1::UploadTemplateRequest up;
+    up.mutable_entry()->set_name("t");
+    dem::Packing p = dem::testing_util::Prepared("SET-dense");
+    p.controls.min_steps = 10;
+    ToProto(p, up.mutable_entry()->mutable_packing());
+    v1::TemplateInfo info;
+    ASSERT_TRUE(ref.stub().UploadTemplate(Ctx().get(), up, &info).ok());
+    v1::CreateRvesRequest create;
+    create.set_run_id("run");
+    create.set_template_name("t");
+    for (int id = 0; id < kRves; ++id) create.add_ids(id);
+    v1::CreateRvesResponse created;
+    ASSERT_TRUE(ref.stub().CreateRves(Ctx().get(), create, &created).ok());
+    v1::ApplyResponse r;
+    ASSERT_TRUE(ref.stub().Apply(Ctx().get(), Increments(1, kRves, 1e-4), &r).ok());
+    ASSERT_TRUE(ref.stub().Apply(Ctx().get(), Increments(2, kRves, 0.04), &r).ok());
+    ASSERT_TRUE(ref.stub().Apply(Ctx().get(), Increments(3, kRves, 1e-4), &uninterrupted).ok());
+    ASSERT_EQ(uninterrupted.failed(), 0);
+    before_stop = ExportOne(ref.stub(), kRves - 1);
+    EXPECT_EQ(ref.Terminate(), 0);
+  }
+
+  ServerProcess restarted({"--listen=127.0.0.1:0", "--threads=1", dir_flag});
+  v1::ListRunsResponse runs;
+  ASSERT_TRUE(restarted.stub().ListRuns(Ctx().get(), {}, &runs).ok());
+  ASSERT_EQ(runs.runs_size(), 1);
+  EXPECT_EQ(runs.runs(0).num_rves(), kRves);
+  EXPECT_EQ(runs.runs(0).min_step(), 2);
+  v1::ListTemplatesResponse templates;
+  ASSERT_TRUE(restarted.stub().ListTemplates(Ctx().get(), {}, &templates).ok());
+  ASSERT_EQ(templates.templates_size(), 1);
+  v1::ApplyResponse continued;
+  ASSERT_TRUE(
+      restarted.stub().Apply(Ctx().get(), Increments(3, kRves, 1e-4), &continued).ok());
+  ASSERT_EQ(continued.failed(), 0);
+  for (int k = 0; k < kRves; ++k) {
+    EXPECT_EQ(continued.results(k).state().SerializeAsString(),
+              uninterrupted.results(k).state().SerializeAsString())
+        << "id " << k;
+  }
+  EXPECT_EQ(ExportOne(restarted.stub(), kRves - 1).SerializeAsString(),
+            before_stop.SerializeAsString());
+  EXPECT_EQ(restarted.Terminate(), 0);
+  fs::remove_all(dir);
+}
+
+TEST(ServerProcess, BadFlagsFailToStart) {
+  // A missing token file is reported and the process exits 1 before listening.
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const int null = open("/dev/null", O_WRONLY);
+    dup2(null, STDERR_FILENO);
+    dup2(null, STDOUT_FILENO);
+    execl(RVE_SERVER_PATH, RVE_SERVER_PATH, "--listen=127.0.0.1:0",
+          "--auth_token_file=/nonexistent/token", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 1);
+}
+
+}  // namespace
+}  // namespace rvehub::service
