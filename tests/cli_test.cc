@@ -1,14 +1,24 @@
 // The rve_cli tool (rve_server/cli/rve_cli.cc), run as a subprocess: usage,
-// exit codes and error messages, and one short oedometer run whose CSV and
-// PNG outputs are checked.
+// exit codes and error messages, one short oedometer run whose CSV and PNG
+// outputs are checked, and the server commands against real rve_server
+// processes on free loopback ports (templates, an element test on the server
+// bit-identical to the local one, get, checkpoint and restore).
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <iterator>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -16,8 +26,13 @@
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
 #include "gtest/gtest.h"
+#include "rve_server/client/channel.h"
+#include "rvehub/v1/rve_service.grpc.pb.h"
+
+extern char** environ;
 
 namespace rvehub::cli {
 namespace {
@@ -27,9 +42,11 @@ struct Result {
   std::string output;  // stdout and stderr together
 };
 
-// Runs rve_cli with `args` (already shell-quoted where needed).
-Result RunCli(const std::string& args) {
-  const std::string command = absl::StrCat("'", RVE_CLI_PATH, "' ", args, " 2>&1");
+// Runs rve_cli with `args` (already shell-quoted where needed); `output` has
+// stdout and stderr together, or stdout only when `stdout_only`.
+Result RunCli(const std::string& args, bool stdout_only = false) {
+  const std::string command =
+      absl::StrCat("'", RVE_CLI_PATH, "' ", args, stdout_only ? " 2>/dev/null" : " 2>&1");
   Result r;
   FILE* pipe = popen(command.c_str(), "r");
   if (pipe == nullptr) return r;
@@ -51,17 +68,46 @@ std::string TempPath(const std::string& name) {
   return absl::StrCat(testing::TempDir(), "/cli_test_", getpid(), "_", name);
 }
 
+const char* const kCommands[] = {"element-test", "prepare",         "materials",  "info",
+                                 "get",          "upload-template", "checkpoint", "restore"};
+const char* const kServerCommands[] = {"info", "get", "upload-template", "checkpoint", "restore"};
+
 TEST(CliTest, HelpPrintsTheUsageAndExitsZero) {
   const Result r = RunCli("--help");
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(absl::StrContains(r.output, "Commands:")) << r.output;
-  EXPECT_TRUE(absl::StrContains(r.output, "element-test")) << r.output;
-  EXPECT_TRUE(absl::StrContains(r.output, "--material=NAME")) << r.output;
-  EXPECT_TRUE(absl::StrContains(r.output, "--out=FILE.csv")) << r.output;
-  // --help after a command, too.
-  const Result sub = RunCli("element-test --help");
-  EXPECT_EQ(sub.exit_code, 0);
-  EXPECT_EQ(sub.output, r.output);
+  for (const char* command : kCommands) {
+    EXPECT_TRUE(absl::StrContains(r.output, absl::StrCat("\n  ", command, " "))) << command;
+  }
+  EXPECT_TRUE(absl::StrContains(r.output, "--server=HOST:PORT")) << r.output;
+  EXPECT_TRUE(absl::StrContains(r.output, "--timeout=SECONDS")) << r.output;
+}
+
+TEST(CliTest, EveryCommandHasItsOwnHelp) {
+  for (const char* command : kCommands) {
+    const Result r = RunCli(absl::StrCat(command, " --help"));
+    EXPECT_EQ(r.exit_code, 0) << command << ": " << r.output;
+    EXPECT_TRUE(absl::StrContains(r.output, absl::StrCat("rve_cli ", command, " ")))
+        << command << ": " << r.output;
+    EXPECT_FALSE(absl::StrContains(r.output, "Commands:")) << command << ": not the usage";
+    // `help COMMAND` is the same text, and --help wins over other options.
+    EXPECT_EQ(RunCli(absl::StrCat("help ", command)).output, r.output) << command;
+    EXPECT_EQ(RunCli(absl::StrCat(command, " --bogus=1 --help")).output, r.output) << command;
+  }
+  for (const char* command : kServerCommands) {
+    const Result r = RunCli(absl::StrCat(command, " --help"));
+    for (const char* option :
+         {"--server=HOST:PORT", "--token-file=FILE", "--tls-ca=FILE", "--timeout=SECONDS"}) {
+      EXPECT_TRUE(absl::StrContains(r.output, option)) << command << " lacks " << option;
+    }
+  }
+  const Result element_test = RunCli("element-test --help");
+  for (const char* option : {"--material=NAME", "--out=FILE.csv", "--template=NAME",
+                             "--server=HOST:PORT", "--cyclic-control"}) {
+    EXPECT_TRUE(absl::StrContains(element_test.output, option)) << option;
+  }
+  EXPECT_TRUE(absl::StrContains(RunCli("prepare --help").output, "--out=FILE.h5"));
+  EXPECT_TRUE(absl::StrContains(RunCli("get --help").output, "--format=FORMAT"));
 }
 
 TEST(CliTest, NoArgumentsIsAUsageError) {
@@ -164,6 +210,471 @@ TEST(CliTest, OedometerRunWritesTheCsvAndThePlot) {
   ASSERT_GE(png.size(), signature.size());
   EXPECT_EQ(png.substr(0, signature.size()), signature);
   EXPECT_GT(png.size(), 1000u);  // a real image, not just a header
+}
+
+// ---------------------------------------------------------------------------
+// Usage errors of the server commands (no server needed).
+
+TEST(CliTest, ServerCommandsWithoutServerAreUsageErrors) {
+  const std::string missing = TempPath("missing.h5");
+  for (const std::string& args : {std::string("info"), std::string("get --run=a --id=1"),
+                                  absl::StrCat("checkpoint --out='", missing, "'"),
+                                  absl::StrCat("restore --file='", missing, "'"),
+                                  absl::StrCat("upload-template --file='", missing, "'")}) {
+    const Result r = RunCli(args);
+    EXPECT_EQ(r.exit_code, 2) << args << ": " << r.output;
+    EXPECT_TRUE(absl::StrContains(r.output, "--server=HOST:PORT is required")) << r.output;
+  }
+  const std::string csv = TempPath("usage.csv");
+  struct Case {
+    std::string args, message;
+  };
+  for (const Case& c : std::vector<Case>{
+           {"element-test --template=t", "--template needs --server"},
+           {"element-test --server=127.0.0.1:1", "--template=NAME is required with --server"},
+           {"element-test --server=127.0.0.1:1 --template=t --material=SET-dense",
+            "--material/--seed do not apply with --server"},
+           {"get --server=127.0.0.1:1 --id=1", "--run=RUN is required"},
+           {"get --server=127.0.0.1:1 --run=a", "--id=N is required"},
+           {"get --server=127.0.0.1:1 --run=a --id=x", "bad value for --id"},
+           {"get --server=127.0.0.1:1 --run=a --id=1 --format=xml", "--format must be"},
+           {"get --server=127.0.0.1:1 --run=a --id=1 --timeout=-1", "--timeout"},
+           {"checkpoint --server=127.0.0.1:1", "--out=FILE.h5 is required"},
+           {"restore --server=127.0.0.1:1", "--file=FILE.h5 is required"},
+           {"prepare --name=x", "--name needs --out"},
+           {"prepare --out=x.h5 --name=bad/name", "--name"},
+           {"info --server=127.0.0.1:1 --run=a", "unknown option --run"},
+       }) {
+    const std::string args =
+        c.args.starts_with("element-test") ? absl::StrCat(c.args, " --out='", csv, "'") : c.args;
+    const Result r = RunCli(args);
+    EXPECT_EQ(r.exit_code, 2) << c.args << ": " << r.output;
+    EXPECT_TRUE(absl::StrContains(r.output, c.message)) << c.args << ": " << r.output;
+  }
+  EXPECT_FALSE(std::ifstream(csv).good());
+}
+
+TEST(CliTest, UnreachableServerFailsNamingUnavailable) {
+  const Result r = RunCli("info --server=127.0.0.1:1 --timeout=10");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_TRUE(absl::StrContains(r.output, "UNAVAILABLE: ")) << r.output;
+  EXPECT_TRUE(absl::StrContains(r.output, "127.0.0.1:1")) << r.output;
+}
+
+// ---------------------------------------------------------------------------
+// Against real servers.
+
+// A running rve_server on a free loopback port; stopped with SIGTERM (and
+// waited for) by Stop or at destruction.
+class ServerProcess {
+ public:
+  explicit ServerProcess(std::vector<std::string> extra_args = {}) {
+    static int count = 0;
+    log_path_ = TempPath(absl::StrCat("server", ++count, ".log"));
+    std::vector<std::string> args = {RVE_SERVER_PATH, "--listen=127.0.0.1:0", "--threads=1",
+                                     "--drain_seconds=5"};
+    args.insert(args.end(), extra_args.begin(), extra_args.end());
+    std::vector<char*> argv;
+    for (std::string& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    int out[2];
+    // Close-on-exec, so that the rve_cli children do not hold the pipe.
+    if (pipe2(out, O_CLOEXEC) != 0) {
+      ADD_FAILURE() << "pipe2: " << std::strerror(errno);
+      return;
+    }
+    // posix_spawn rather than fork: this process runs gRPC threads.
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_adddup2(&actions, out[1], STDOUT_FILENO);
+    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, log_path_.c_str(),
+                                     O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int spawned = posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
+    close(out[1]);
+    if (spawned != 0) {
+      close(out[0]);
+      pid_ = -1;
+      ADD_FAILURE() << "cannot start " << RVE_SERVER_PATH << ": " << std::strerror(spawned);
+      return;
+    }
+    // The server's first stdout line: "listening on HOST:PORT".
+    FILE* f = fdopen(out[0], "r");
+    char line[256] = {0};
+    if (std::fgets(line, sizeof line, f) != nullptr) {
+      const std::string text(line);
+      const std::string prefix = "listening on ";
+      if (text.starts_with(prefix)) {
+        address_ = text.substr(prefix.size(), text.find('\n') - prefix.size());
+      }
+    }
+    std::fclose(f);
+    EXPECT_FALSE(address_.empty()) << "rve_server did not report its address; log:\n" << Log();
+    stub_ = v1::RveService::NewStub(client::MakeChannel(address_, {}));
+  }
+  ~ServerProcess() {
+    Stop();
+    if (!testing::Test::HasFailure()) std::remove(log_path_.c_str());
+  }
+  ServerProcess(const ServerProcess&) = delete;
+  ServerProcess& operator=(const ServerProcess&) = delete;
+
+  // SIGTERM and wait; the exit status (−1 when it did not exit normally).
+  int Stop() {
+    if (pid_ <= 0) return exit_code_;
+    // Our idle connection would hold the server's drain up for seconds.
+    stub_.reset();
+    kill(pid_, SIGTERM);
+    int status = 0;
+    waitpid(pid_, &status, 0);
+    pid_ = -1;
+    exit_code_ = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return exit_code_;
+  }
+
+  const std::string& address() const { return address_; }
+  std::string server_flag() const { return absl::StrCat("--server=", address_); }
+  v1::RveService::Stub& stub() { return *stub_; }
+  std::string Log() const { return ReadFile(log_path_); }
+
+ private:
+  pid_t pid_ = -1;
+  int exit_code_ = -1;
+  std::string address_, log_path_;
+  std::unique_ptr<v1::RveService::Stub> stub_;
+};
+
+std::unique_ptr<grpc::ClientContext> Ctx() {
+  auto ctx = std::make_unique<grpc::ClientContext>();
+  client::Prepare(*ctx, {}, std::chrono::seconds(60));
+  return ctx;
+}
+
+// rve_cli prepare --out (SET-dense, ~0.5 s) and upload-template; the name.
+std::string PrepareAndUpload(const ServerProcess& server, int seed) {
+  const std::string file = TempPath(absl::StrCat("template", seed, ".h5"));
+  const Result prepared =
+      RunCli(absl::StrCat("prepare --material=SET-dense --seed=", seed, " --out='", file, "'"));
+  EXPECT_EQ(prepared.exit_code, 0) << prepared.output;
+  const std::string name = absl::StrCat("SET-dense-seed", seed);
+  EXPECT_TRUE(absl::StrContains(prepared.output, absl::StrCat("template ", name, "\n")))
+      << prepared.output;
+  const Result uploaded =
+      RunCli(absl::StrCat("upload-template ", server.server_flag(), " --file='", file, "'"));
+  EXPECT_EQ(uploaded.exit_code, 0) << uploaded.output;
+  std::remove(file.c_str());
+  return name;
+}
+
+void CreateRves(ServerProcess& server, const std::string& run, const std::string& template_name,
+                const std::vector<std::int64_t>& ids) {
+  v1::CreateRvesRequest request;
+  request.set_run_id(run);
+  request.set_template_name(template_name);
+  for (std::int64_t id : ids) request.add_ids(id);
+  v1::CreateRvesResponse response;
+  const grpc::Status s = server.stub().CreateRves(Ctx().get(), request, &response);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+}
+
+// Commits `step` for `ids` with a small compression; the results.
+v1::ApplyResponse Compress(ServerProcess& server, const std::string& run, std::int64_t step,
+                           const std::vector<std::int64_t>& ids) {
+  v1::ApplyRequest request;
+  request.set_run_id(run);
+  request.set_step(step);
+  request.set_mode(v1::APPLY_MODE_COMMIT);
+  request.mutable_options()->set_want_tangent(true);
+  for (std::int64_t id : ids) {
+    v1::Increment* inc = request.add_increments();
+    inc->set_id(id);
+    for (double v : {1.0, 0.0, 0.0, 0.0, 1.0 - 1e-4, 0.0, 0.0, 0.0, 1.0}) inc->add_delta_f(v);
+  }
+  v1::ApplyResponse response;
+  const grpc::Status s = server.stub().Apply(Ctx().get(), request, &response);
+  EXPECT_TRUE(s.ok()) << s.error_message();
+  EXPECT_EQ(response.failed(), 0);
+  return response;
+}
+
+// The serialized records of a run, one Export call per RVE (so that the
+// server's own chunking does not matter here).
+std::vector<std::string> ExportRun(ServerProcess& server, const std::string& run,
+                                   const std::vector<std::int64_t>& ids) {
+  std::vector<std::string> records;
+  for (std::int64_t id : ids) {
+    v1::ExportRequest request;
+    request.set_run_id(run);
+    request.add_ids(id);
+    auto ctx = Ctx();
+    auto reader = server.stub().Export(ctx.get(), request);
+    v1::RveChunk chunk;
+    while (reader->Read(&chunk)) {
+      for (const v1::RveRecord& r : chunk.records()) records.push_back(r.SerializeAsString());
+    }
+    const grpc::Status s = reader->Finish();
+    EXPECT_TRUE(s.ok()) << s.error_message();
+  }
+  return records;
+}
+
+// Same bits, value by value.
+void ExpectSameBits(const std::vector<std::vector<double>>& a,
+                    const std::vector<std::vector<double>>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    ASSERT_EQ(a[k].size(), b[k].size()) << "row " << k;
+    for (std::size_t c = 0; c < a[k].size(); ++c) {
+      EXPECT_EQ(std::memcmp(&a[k][c], &b[k][c], sizeof(double)), 0)
+          << "row " << k << " column " << c << ": " << a[k][c] << " vs " << b[k][c];
+    }
+  }
+}
+
+// prepare --out, upload-template, info, and an isotropic test on the server
+// that matches the local run of the same material and seed bit for bit.
+TEST(CliServerTest, ElementTestOnTheServerMatchesTheLocalRun) {
+  ServerProcess server;
+  ASSERT_FALSE(server.address().empty());
+  const std::string name = PrepareAndUpload(server, 1);
+
+  const std::string file = TempPath("template1_again.h5");
+  ASSERT_EQ(RunCli(absl::StrCat("prepare --seed=1 --out='", file, "' --name=renamed")).exit_code,
+            0);
+  const Result again =
+      RunCli(absl::StrCat("upload-template ", server.server_flag(), " --file='", file, "'"));
+  EXPECT_EQ(again.exit_code, 0) << again.output;
+  EXPECT_TRUE(absl::StrContains(again.output, "uploaded renamed: 400 particles")) << again.output;
+  const Result duplicate =
+      RunCli(absl::StrCat("upload-template ", server.server_flag(), " --file='", file, "'"));
+  EXPECT_EQ(duplicate.exit_code, 1) << duplicate.output;
+  EXPECT_TRUE(absl::StrContains(duplicate.output, "ALREADY_EXISTS: ")) << duplicate.output;
+  const Result replaced = RunCli(
+      absl::StrCat("upload-template ", server.server_flag(), " --file='", file, "' --replace"));
+  EXPECT_EQ(replaced.exit_code, 0) << replaced.output;
+  std::remove(file.c_str());
+
+  const Result info = RunCli(absl::StrCat("info ", server.server_flag()), true);
+  EXPECT_EQ(info.exit_code, 0) << info.output;
+  for (const std::string& part :
+       {std::string("version    0.3.0 (rvehub.v1)"), std::string("threads    1\n"),
+        std::string("templates: 2\n"), std::string("runs: 0\n"), absl::StrCat("  ", name, " "),
+        std::string("  renamed "), std::string(" 400 "),
+        std::string("material SET-dense, seed 1")}) {
+    EXPECT_TRUE(absl::StrContains(info.output, part)) << "no '" << part << "' in\n" << info.output;
+  }
+
+  const std::string test = "--test=isotropic --strain=0.01 --rows=20";
+  const std::string remote_csv = TempPath("remote.csv"), local_csv = TempPath("local.csv");
+  const std::string png = TempPath("remote.png");
+  const Result remote =
+      RunCli(absl::StrCat("element-test ", server.server_flag(), " --template=", name, " ", test,
+                          " --out='", remote_csv, "' --plot='", png, "'"));
+  ASSERT_EQ(remote.exit_code, 0) << remote.output;
+  EXPECT_TRUE(absl::StrContains(remote.output, "100%")) << remote.output;
+  const Result local = RunCli(absl::StrCat("element-test --material=SET-dense --seed=1 ", test,
+                                           " --out='", local_csv, "'"));
+  ASSERT_EQ(local.exit_code, 0) << local.output;
+  const std::string remote_text = ReadFile(remote_csv), local_text = ReadFile(local_csv);
+  const std::string png_bytes = ReadFile(png);
+  std::remove(remote_csv.c_str());
+  std::remove(local_csv.c_str());
+  std::remove(png.c_str());
+  const std::vector<std::vector<double>> remote_rows = ParseRows(remote_text);
+  ASSERT_GT(remote_rows.size(), 5u);
+  ExpectSameBits(remote_rows, ParseRows(local_text));
+  EXPECT_EQ(remote_text, local_text);
+  EXPECT_GE(remote_rows.back()[kVol], 0.01);
+  EXPECT_EQ(png_bytes.substr(0, 4), "\x89PNG");
+
+  const Result unknown = RunCli(absl::StrCat("element-test ", server.server_flag(),
+                                             " --template=nope --out='", remote_csv, "'"));
+  EXPECT_EQ(unknown.exit_code, 1) << unknown.output;
+  EXPECT_TRUE(absl::StrContains(unknown.output, "NOT_FOUND: unknown template \"nope\""))
+      << unknown.output;
+  EXPECT_FALSE(std::ifstream(remote_csv).good());
+  EXPECT_EQ(server.Stop(), 0) << server.Log();
+}
+
+// A number in a one-line JSON object: the text after "\"key\": ".
+double JsonField(const std::string& json, const std::string& key) {
+  const std::string tag = absl::StrCat("\"", key, "\": ");
+  const std::size_t at = json.find(tag);
+  if (at == std::string::npos) {
+    ADD_FAILURE() << "no " << key << " in " << json;
+    return NAN;
+  }
+  const std::size_t begin = at + tag.size();
+  const std::size_t end = json.find_first_of(",}", begin);
+  double v = NAN;
+  EXPECT_TRUE(absl::SimpleAtod(json.substr(begin, end - begin), &v)) << key;
+  return v;
+}
+
+TEST(CliServerTest, GetPrintsOneRve) {
+  ServerProcess server;
+  ASSERT_FALSE(server.address().empty());
+  const std::string name = PrepareAndUpload(server, 2);
+  CreateRves(server, "g", name, {5, 6});
+  const v1::ApplyResponse applied = Compress(server, "g", 1, {5});
+  ASSERT_EQ(applied.results_size(), 1);
+  const v1::RveState& state = applied.results(0).state();
+
+  const std::string get = absl::StrCat("get ", server.server_flag(), " --run=g --id=5");
+  const Result text = RunCli(get, true);
+  ASSERT_EQ(text.exit_code, 0) << text.output;
+  for (const char* key : {"run ", "id ", "step ", "stress_Pa (tension +) ", "p_Pa", "q_Pa",
+                          "void_ratio ", "porosity ", "coordination ", "mechanical_coordination ",
+                          "contacts ", "fabric ", "Fa ", "permeability_m_per_s ", "F "}) {
+    EXPECT_TRUE(absl::StrContains(text.output, absl::StrCat("\n", key)) ||
+                text.output.starts_with(key))
+        << "no " << key << " in\n"
+        << text.output;
+  }
+  EXPECT_TRUE(absl::StrContains(text.output, "\nstep                       1\n")) << text.output;
+  EXPECT_FALSE(absl::StrContains(text.output, "tangent")) << text.output;
+  const Result with_tangent = RunCli(absl::StrCat(get, " --tangent"), true);
+  ASSERT_EQ(with_tangent.exit_code, 0) << with_tangent.output;
+  EXPECT_TRUE(absl::StrContains(with_tangent.output, "\ntangent_Pa ")) << with_tangent.output;
+  EXPECT_EQ(std::count(with_tangent.output.begin(), with_tangent.output.end(), '\n'),
+            std::count(text.output.begin(), text.output.end(), '\n') + 10);
+
+  const Result json = RunCli(absl::StrCat(get, " --format=json --tangent"), true);
+  ASSERT_EQ(json.exit_code, 0) << json.output;
+  EXPECT_TRUE(json.output.starts_with("{\"run_id\": \"g\", \"id\": 5, \"step\": 1, "))
+      << json.output;
+  EXPECT_TRUE(json.output.ends_with("]]}\n")) << json.output;
+  EXPECT_EQ(std::count(json.output.begin(), json.output.end(), '\n'), 1);
+  EXPECT_EQ(std::count(json.output.begin(), json.output.end(), '['),
+            std::count(json.output.begin(), json.output.end(), ']'));
+  // %.17g round-trips: the numbers are the server's, bit for bit.
+  for (const auto& [key, value] :
+       {std::pair<const char*, double>{"mean_pressure", state.mean_pressure()},
+        {"deviator_stress", state.deviator_stress()},
+        {"void_ratio", state.void_ratio()},
+        {"coordination", state.coordination()},
+        {"permeability", state.permeability()},
+        {"fabric_anisotropy", state.fabric_anisotropy()}}) {
+    const double got = JsonField(json.output, key);
+    EXPECT_EQ(std::memcmp(&got, &value, sizeof(double)), 0)
+        << key << ": " << got << " vs " << value;
+  }
+  EXPECT_TRUE(absl::StrContains(
+      json.output, absl::StrCat("\"stress\": [[", absl::StrFormat("%.17g", state.stress(0)), ", ")))
+      << json.output;
+  EXPECT_TRUE(absl::StrContains(json.output, "\"tangent\": [[")) << json.output;
+  const Result json_step0 =
+      RunCli(absl::StrCat("get ", server.server_flag(), " --run=g --id=6 --format=json"), true);
+  ASSERT_EQ(json_step0.exit_code, 0) << json_step0.output;
+  EXPECT_TRUE(absl::StrContains(json_step0.output, "\"step\": 0,")) << json_step0.output;
+  EXPECT_FALSE(absl::StrContains(json_step0.output, "tangent")) << json_step0.output;
+
+  const Result unknown_run = RunCli(absl::StrCat("get ", server.server_flag(), " --run=x --id=5"));
+  EXPECT_EQ(unknown_run.exit_code, 1) << unknown_run.output;
+  EXPECT_TRUE(absl::StrContains(unknown_run.output, "NOT_FOUND: unknown run \"x\""))
+      << unknown_run.output;
+  const Result unknown_id = RunCli(absl::StrCat("get ", server.server_flag(), " --run=g --id=99"));
+  EXPECT_EQ(unknown_id.exit_code, 1) << unknown_id.output;
+  EXPECT_TRUE(absl::StrContains(unknown_id.output, "NOT_FOUND: ")) << unknown_id.output;
+  EXPECT_TRUE(absl::StrContains(unknown_id.output, "99")) << unknown_id.output;
+  EXPECT_EQ(server.Stop(), 0) << server.Log();
+}
+
+// checkpoint from one server, restore into another (whose small message
+// limit makes the import take several chunks); the restored RVEs are the
+// exported ones bit for bit and continue identically.
+TEST(CliServerTest, CheckpointAndRestoreRoundTrip) {
+  ServerProcess source;
+  ServerProcess target({"--max_message_mb=1"});
+  ASSERT_FALSE(source.address().empty());
+  ASSERT_FALSE(target.address().empty());
+  const std::string name = PrepareAndUpload(source, 2);
+  std::vector<std::int64_t> ids_a;
+  for (std::int64_t id = 1; id <= 24; ++id) ids_a.push_back(id * 10);
+  const std::vector<std::int64_t> ids_b = {7, 8};
+  CreateRves(source, "a", name, ids_a);
+  CreateRves(source, "b", name, ids_b);
+  Compress(source, "a", 1, ids_a);
+
+  const Result info = RunCli(absl::StrCat("info ", source.server_flag()), true);
+  EXPECT_TRUE(absl::StrContains(info.output, "RVEs       26 of at most")) << info.output;
+  EXPECT_TRUE(absl::StrContains(info.output, "runs: 2\n")) << info.output;
+  EXPECT_TRUE(absl::StrContains(info.output, "  a           24  1\n")) << info.output;
+  EXPECT_TRUE(absl::StrContains(info.output, "  b            2  0\n")) << info.output;
+
+  const std::string all = TempPath("all.h5"), only_b = TempPath("b.h5");
+  const Result saved =
+      RunCli(absl::StrCat("checkpoint ", source.server_flag(), " --out='", all, "'"));
+  ASSERT_EQ(saved.exit_code, 0) << saved.output;
+  EXPECT_TRUE(absl::StrContains(saved.output, "wrote 26 RVEs of 2 runs")) << saved.output;
+  EXPECT_TRUE(absl::StrContains(saved.output, " bytes, ")) << saved.output;
+  const Result saved_b =
+      RunCli(absl::StrCat("checkpoint ", source.server_flag(), " --run=b --out='", only_b, "'"));
+  ASSERT_EQ(saved_b.exit_code, 0) << saved_b.output;
+  EXPECT_TRUE(absl::StrContains(saved_b.output, "wrote 2 RVEs of 1 runs")) << saved_b.output;
+  const Result missing_run =
+      RunCli(absl::StrCat("checkpoint ", source.server_flag(), " --run=x --out='", only_b, "'"));
+  EXPECT_EQ(missing_run.exit_code, 1) << missing_run.output;
+  EXPECT_TRUE(absl::StrContains(missing_run.output, "NOT_FOUND: unknown run \"x\""))
+      << missing_run.output;
+
+  const std::string restore = absl::StrCat("restore ", target.server_flag(), " --file='", all, "'");
+  const Result restored_a = RunCli(absl::StrCat(restore, " --run=a"));
+  ASSERT_EQ(restored_a.exit_code, 0) << restored_a.output;
+  EXPECT_TRUE(absl::StrContains(restored_a.output, "imported 24 RVEs")) << restored_a.output;
+  EXPECT_FALSE(absl::StrContains(restored_a.output, "(1 chunks")) << restored_a.output;
+  // All or nothing: run a is there already, so b is not imported either.
+  const Result twice = RunCli(restore);
+  EXPECT_EQ(twice.exit_code, 1) << twice.output;
+  EXPECT_TRUE(absl::StrContains(twice.output, "ALREADY_EXISTS: ")) << twice.output;
+  const Result none = RunCli(absl::StrCat(restore, " --run=zzz"));
+  EXPECT_EQ(none.exit_code, 1) << none.output;
+  EXPECT_TRUE(absl::StrContains(none.output, "NOT_FOUND: ")) << none.output;
+  const Result restored_b =
+      RunCli(absl::StrCat("restore ", target.server_flag(), " --file='", only_b, "'"));
+  EXPECT_EQ(restored_b.exit_code, 0) << restored_b.output;
+  EXPECT_TRUE(absl::StrContains(restored_b.output, "imported 2 RVEs")) << restored_b.output;
+  const Result wrong_kind = RunCli(
+      absl::StrCat("restore ", target.server_flag(), " --file='", TempPath("nonexistent.h5"), "'"));
+  EXPECT_EQ(wrong_kind.exit_code, 1) << wrong_kind.output;
+  const Result from_target =
+      RunCli(absl::StrCat("checkpoint ", target.server_flag(), " --out='", all, "'"));
+  EXPECT_EQ(from_target.exit_code, 0) << from_target.output;
+  std::remove(all.c_str());
+  std::remove(only_b.c_str());
+
+  EXPECT_EQ(ExportRun(target, "a", ids_a), ExportRun(source, "a", ids_a));
+  EXPECT_EQ(ExportRun(target, "b", ids_b), ExportRun(source, "b", ids_b));
+  const v1::ApplyResponse next_source = Compress(source, "a", 2, ids_a);
+  const v1::ApplyResponse next_target = Compress(target, "a", 2, ids_a);
+  ASSERT_EQ(next_source.results_size(), next_target.results_size());
+  for (int k = 0; k < next_source.results_size(); ++k) {
+    EXPECT_EQ(next_source.results(k).SerializeAsString(),
+              next_target.results(k).SerializeAsString())
+        << "id " << ids_a[k];
+  }
+  EXPECT_EQ(source.Stop(), 0) << source.Log();
+  EXPECT_EQ(target.Stop(), 0) << target.Log();
+}
+
+TEST(CliServerTest, TokenFromTheTokenFile) {
+  const std::string token_file = TempPath("token");
+  std::ofstream(token_file) << "  s3cret-token\n";
+  ServerProcess server({absl::StrCat("--auth_token_file=", token_file)});
+  ASSERT_FALSE(server.address().empty());
+  const Result refused = RunCli(absl::StrCat("info ", server.server_flag()));
+  EXPECT_EQ(refused.exit_code, 1) << refused.output;
+  EXPECT_TRUE(absl::StrContains(refused.output, "UNAUTHENTICATED: ")) << refused.output;
+  const Result accepted =
+      RunCli(absl::StrCat("info ", server.server_flag(), " --token-file='", token_file, "'"));
+  EXPECT_EQ(accepted.exit_code, 0) << accepted.output;
+  EXPECT_TRUE(absl::StrContains(accepted.output, "authentication on")) << accepted.output;
+  const Result no_file = RunCli(
+      absl::StrCat("info ", server.server_flag(), " --token-file='", TempPath("no_token"), "'"));
+  EXPECT_EQ(no_file.exit_code, 1) << no_file.output;
+  EXPECT_TRUE(absl::StrContains(no_file.output, "NOT_FOUND: ")) << no_file.output;
+  std::remove(token_file.c_str());
+  EXPECT_EQ(server.Stop(), 0) << server.Log();
 }
 
 }  // namespace

@@ -1,43 +1,113 @@
-// rve_cli: query single RVEs and run element tests.
+// rve_cli: RVEHub's command-line tool. Locally it prepares packings and runs
+// element tests; as a client of rve_server it inspects servers and RVEs,
+// uploads templates, runs element tests on the server, and checkpoints or
+// restores RVEs through HDF5 files.
 //
 //   rve_cli element-test --test=drained-biaxial --material=SET-dense --seed=1
 //       --confining=100000 --strain=0.1 --out=biaxial.csv [--plot=biaxial.png]
-//   rve_cli prepare --material=SET-dense --seed=1
+//   rve_cli prepare --material=SET-dense --seed=1 [--out=dense.h5]
+//   rve_cli upload-template --server=HOST:PORT --file=dense.h5
+//   rve_cli element-test --server=HOST:PORT --template=SET-dense-seed1 ...
+//   rve_cli info | get | checkpoint | restore --server=HOST:PORT ...
 //   rve_cli materials
+//
+// Exit status: 0 success, 1 failure, 2 usage error.
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <cstdint>
 #include <cstdio>
-#include <iostream>
+#include <filesystem>
+#include <limits>
+#include <memory>
+#include <span>
 #include <string>
+#include <system_error>
+#include <type_traits>
+#include <vector>
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/strings/cord.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
+#include "absl/strings/string_view.h"
 #include "rve_server/cli/element_test_io.h"
+#include "rve_server/client/channel.h"
 #include "rve_server/engine/element_test.h"
 #include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
+#include "rve_server/service/convert.h"
+#include "rve_server/service/registry.h"
+#include "rve_server/service/server.h"
+#include "rvehub/v1/rve_service.grpc.pb.h"
+#include "store/checkpoint.h"
+#include "store/record.h"
 
 namespace rvehub::cli {
 namespace {
 
-constexpr char kUsage[] = R"(rve_cli — single-RVE tools of RVEHub (2-D DEM packings of discs)
+// ---------------------------------------------------------------------------
+// Usage texts.
+
+constexpr char kUsage[] = R"(rve_cli — command-line tool of RVEHub (2-D DEM packings of discs)
+
+Usage: rve_cli COMMAND [--option=value ...]
+       rve_cli COMMAND --help      the options of one command
 
 Commands:
-  element-test   prepare an RVE and run an element test, writing a CSV (and a PNG)
-  prepare        prepare an RVE and print its initial state
-  materials      list the parameter sets (shared/reference/README.md)
+  element-test     run an element test on a freshly prepared RVE, writing a CSV (and a
+                   PNG); with --server, on a template hosted by an rve_server
+  prepare          prepare an RVE and print its initial state; --out saves it as a
+                   template file
+  materials        list the parameter sets (shared/reference/README.md)
+  info             a server's version, limits, load, runs and templates
+  get              one hosted RVE's homogenised state (text or JSON)
+  upload-template  upload the templates of a template file (from prepare --out)
+  checkpoint       export hosted RVEs (one run or all) into an HDF5 file
+  restore          import RVEs from a checkpoint file into a server
 
-element-test options:
+Server options (info, get, upload-template, checkpoint, restore, element-test --server):
+  --server=HOST:PORT   the rve_server to talk to
+  --token-file=FILE    file holding the bearer token of a server started with
+                       --auth_token_file
+  --tls-ca=FILE        PEM CA certificate verifying a TLS server (default: plaintext)
+  --timeout=SECONDS    deadline of each call (default 600; 0: none)
+
+Exit status: 0 success, 1 failure (the message names the error code), 2 usage error.
+)";
+
+constexpr char kServerOptions[] = R"(
+Server options:
+  --server=HOST:PORT   the rve_server to talk to
+  --token-file=FILE    file holding the bearer token of a server started with
+                       --auth_token_file
+  --tls-ca=FILE        PEM CA certificate verifying a TLS server (default: plaintext)
+  --timeout=SECONDS    deadline of each call (default 600; 0: none)
+)";
+
+constexpr char kElementTestHelp[] = R"(rve_cli element-test — run an element test on one RVE
+
+  rve_cli element-test --test=NAME [--material=NAME --seed=N] --out=FILE.csv [options]
+  rve_cli element-test --server=HOST:PORT --template=NAME --test=NAME --out=FILE.csv [options]
+
+Locally, prepares the packing of --material/--seed and runs the test in this
+process. With --server, the server runs the test on a fresh RVE of its template
+--template (the packing comes from the template, so --material/--seed do not
+apply); the rows come back and are written alike.
+
+Options:
   --test=NAME        drained-biaxial | isotropic | oedometer | undrained-simple-shear |
-                     cyclic-simple-shear
+                     cyclic-simple-shear (default drained-biaxial)
   --material=NAME    parameter set, e.g. SET-dense, SPFEM-biaxial, consolidation
-  --seed=N           packing seed (default 1)
+                     (local only; default SET-dense)
+  --seed=N           packing seed (local only; default 1)
+  --template=NAME    the server's template to test (with --server)
   --confining=PA     consolidation / lateral stress in Pa, compression + (default 100000)
   --strain=MAX       axial strain (biaxial, oedometer), volumetric strain (isotropic) or
                      shear strain (simple shear) to stop at (default 0.1)
@@ -52,27 +122,123 @@ element-test options:
   --cycles=N         number of cycles (default 5)
 )";
 
+constexpr char kPrepareHelp[] =
+    R"(rve_cli prepare — prepare an RVE packing and print its initial state
+
+  rve_cli prepare [--material=NAME] [--seed=N] [--out=FILE.h5 [--name=NAME]]
+
+Options:
+  --material=NAME    parameter set (default SET-dense; see `rve_cli materials`)
+  --seed=N           packing seed (default 1)
+  --out=FILE.h5      also write the packing as a template file (for upload-template)
+  --name=NAME        template name, [A-Za-z0-9._-]{1,128} (default MATERIAL-seedN)
+)";
+
+constexpr char kMaterialsHelp[] = R"(rve_cli materials — list the parameter sets
+
+  rve_cli materials
+)";
+
+constexpr char kInfoHelp[] = R"(rve_cli info — a server's version, limits, load, runs and templates
+
+  rve_cli info --server=HOST:PORT
+)";
+
+constexpr char kGetHelp[] = R"(rve_cli get — one hosted RVE's homogenised state
+
+  rve_cli get --server=HOST:PORT --run=RUN --id=N [--tangent] [--format=text|json]
+
+Prints the committed step, Cauchy stress (Pa, tension +) with p and q
+(compression +), void ratio, porosity, coordination (all contacts and without
+rattlers), fabric and its anisotropy, permeability, deformation gradient and
+contact count; --tangent adds the 9×9 contact tangent D[3i+j][3k+l] (Pa).
+--format=json prints one JSON object with the rvehub.v1 RveState field names
+(tensors as nested 3×3 or 9×9 arrays). An RVE that cannot be read (unknown id)
+exits 1 with the server's message.
+
+Options:
+  --run=RUN          run id
+  --id=N             material-point id
+  --tangent          include the tangent
+  --format=FORMAT    text (default) or json
+)";
+
+constexpr char kUploadTemplateHelp[] = R"(rve_cli upload-template — upload templates to a server
+
+  rve_cli upload-template --server=HOST:PORT --file=FILE.h5 [--replace]
+
+Uploads every template of a template file (written by `rve_cli prepare --out`
+or by a server checkpoint) and prints what the server reports of each.
+
+Options:
+  --file=FILE.h5     template file
+  --replace          replace templates of the same name (else ALREADY_EXISTS)
+)";
+
+constexpr char kCheckpointHelp[] = R"(rve_cli checkpoint — export hosted RVEs into an HDF5 file
+
+  rve_cli checkpoint --server=HOST:PORT --out=FILE.h5 [--run=RUN]
+
+Exports the full state of every RVE of one run (or of every run) and writes
+them to FILE.h5 (replaced atomically). The runs are exported one after the
+other, so RVEs committed meanwhile may be at different steps.
+
+Options:
+  --out=FILE.h5      output file
+  --run=RUN          only this run (default: every run)
+)";
+
+constexpr char kRestoreHelp[] = R"(rve_cli restore — import RVEs from a checkpoint file
+
+  rve_cli restore --server=HOST:PORT --file=FILE.h5 [--run=RUN]
+
+Imports the RVEs of FILE.h5 (from `rve_cli checkpoint` or a server's rves.h5).
+All or nothing: ALREADY_EXISTS when any (run, id) is already hosted.
+
+Options:
+  --file=FILE.h5     checkpoint file
+  --run=RUN          only the records of this run
+)";
+
+// ---------------------------------------------------------------------------
+// Errors and flags.
+
+// Usage errors (exit 2) carry this payload; every other failure exits 1.
+constexpr char kUsagePayload[] = "type.rvehub.dev/rve_cli.UsageError";
+
+absl::Status UsageError(absl::string_view message) {
+  absl::Status s = absl::InvalidArgumentError(message);
+  s.SetPayload(kUsagePayload, absl::Cord("1"));
+  return s;
+}
+
+bool IsUsageError(const absl::Status& s) { return s.GetPayload(kUsagePayload).has_value(); }
+
+#define RETURN_IF_ERROR(expr)                          \
+  do {                                                 \
+    if (absl::Status s_ = (expr); !s_.ok()) return s_; \
+  } while (false)
+
 using Flags = absl::flat_hash_map<std::string, std::string>;
 
 absl::StatusOr<Flags> ParseFlags(int argc, char** argv, int first,
-                                 std::initializer_list<const char*> known) {
+                                 const std::vector<std::string>& known) {
   Flags flags;
   for (int i = first; i < argc; ++i) {
     std::string arg = argv[i];
-    if (!arg.starts_with("--"))
-      return absl::InvalidArgumentError(absl::StrCat("unexpected argument '", arg, "'"));
+    if (!arg.starts_with("--")) return UsageError(absl::StrCat("unexpected argument '", arg, "'"));
     const std::size_t eq = arg.find('=');
     std::string key = arg.substr(2, eq == std::string::npos ? std::string::npos : eq - 2);
     std::string value = eq == std::string::npos ? "" : arg.substr(eq + 1);
-    if (std::find_if(known.begin(), known.end(), [&](const char* k) { return key == k; }) ==
-        known.end()) {
-      return absl::InvalidArgumentError(absl::StrCat("unknown option --", key, " (see --help)"));
+    if (std::find(known.begin(), known.end(), key) == known.end()) {
+      return UsageError(absl::StrCat("unknown option --", key, " (see --help)"));
     }
     flags[key] = value;
   }
   return flags;
 }
 
+// Reads --key into `out` when present (absent: `out` keeps its default).
 template <typename T>
 absl::Status Get(const Flags& flags, const std::string& key, T* out) {
   auto it = flags.find(key);
@@ -86,43 +252,260 @@ absl::Status Get(const Flags& flags, const std::string& key, T* out) {
   } else {
     ok = absl::SimpleAtoi(it->second, out);
   }
-  if (!ok)
-    return absl::InvalidArgumentError(
-        absl::StrCat("bad value for --", key, ": '", it->second, "'"));
+  if (!ok) return UsageError(absl::StrCat("bad value for --", key, ": '", it->second, "'"));
   return absl::OkStatus();
 }
 
-#define RETURN_IF_ERROR(expr)                          \
-  do {                                                 \
-    if (absl::Status s_ = (expr); !s_.ok()) return s_; \
-  } while (false)
+// A switch: --key, --key=true or --key=false.
+absl::Status GetBool(const Flags& flags, const std::string& key, bool* out) {
+  auto it = flags.find(key);
+  if (it == flags.end()) return absl::OkStatus();
+  if (it->second.empty() || it->second == "true" || it->second == "1") {
+    *out = true;
+  } else if (it->second == "false" || it->second == "0") {
+    *out = false;
+  } else {
+    return UsageError(absl::StrCat("bad value for --", key, ": '", it->second, "'"));
+  }
+  return absl::OkStatus();
+}
 
-absl::StatusOr<dem::Packing> Prepare(const Flags& flags, std::string* name) {
-  std::string material = "SET-dense";
-  std::uint64_t seed = 1;
-  RETURN_IF_ERROR(Get(flags, "material", &material));
-  RETURN_IF_ERROR(Get(flags, "seed", &seed));
-  absl::StatusOr<dem::ParameterSet> set = dem::FindParameterSet(material);
+absl::Status Require(const Flags& flags, const std::string& key, absl::string_view form,
+                     std::string* out) {
+  RETURN_IF_ERROR(Get(flags, key, out));
+  if (out->empty()) return UsageError(absl::StrCat("--", key, "=", form, " is required"));
+  return absl::OkStatus();
+}
+
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+std::string CreatedBy() { return absl::StrCat("rve_cli ", service::kServerVersion); }
+
+// ---------------------------------------------------------------------------
+// Talking to a server.
+
+const std::vector<std::string> kServerFlags = {"server", "token-file", "tls-ca", "timeout"};
+
+std::vector<std::string> WithServerFlags(std::vector<std::string> flags) {
+  flags.insert(flags.end(), kServerFlags.begin(), kServerFlags.end());
+  return flags;
+}
+
+struct Remote {
+  std::string target;
+  client::ClientOptions options;
+  std::chrono::milliseconds timeout{600'000};
+  std::unique_ptr<v1::RveService::Stub> stub;
+
+  // A ClientContext serves one call; this readies one (token, deadline).
+  void Ready(grpc::ClientContext& ctx) const { client::Prepare(ctx, options, timeout); }
+
+  // A failed call's status, its message followed by the call and server.
+  absl::Status Check(const grpc::Status& s, absl::string_view rpc) const {
+    if (s.ok()) return absl::OkStatus();
+    const absl::Status a = client::FromGrpc(s);
+    return absl::Status(a.code(), absl::StrCat(a.message(), " (", rpc, " on ", target, ")"));
+  }
+
+  template <typename Request, typename Response>
+  absl::Status Call(absl::string_view rpc,
+                    grpc::Status (v1::RveService::Stub::*method)(grpc::ClientContext*,
+                                                                 const Request&, Response*),
+                    const Request& request, Response* response) const {
+    grpc::ClientContext ctx;
+    Ready(ctx);
+    return Check((stub.get()->*method)(&ctx, request, response), rpc);
+  }
+};
+
+absl::StatusOr<Remote> Connect(const Flags& flags) {
+  Remote r;
+  RETURN_IF_ERROR(Require(flags, "server", "HOST:PORT", &r.target));
+  double timeout = 600;
+  RETURN_IF_ERROR(Get(flags, "timeout", &timeout));
+  if (timeout < 0 || timeout > 1e9) return UsageError("--timeout must lie in [0, 1e9] seconds");
+  r.timeout = std::chrono::milliseconds(static_cast<std::int64_t>(std::llround(timeout * 1e3)));
+  std::string token_file, tls_ca;
+  RETURN_IF_ERROR(Get(flags, "token-file", &token_file));
+  RETURN_IF_ERROR(Get(flags, "tls-ca", &tls_ca));
+  absl::StatusOr<client::ClientOptions> options =
+      client::ClientOptionsFromFiles(token_file, tls_ca);
+  if (!options.ok()) return options.status();
+  r.options = *std::move(options);
+  r.stub = v1::RveService::NewStub(client::MakeChannel(r.target, r.options));
+  return r;
+}
+
+// ---------------------------------------------------------------------------
+// Output helpers.
+
+// One updating line on a terminal; a line every 10 % in a log file.
+class ProgressLine {
+ public:
+  explicit ProgressLine(std::string label)
+      : label_(std::move(label)),
+        tty_(isatty(fileno(stderr))),
+        start_(std::chrono::steady_clock::now()) {}
+
+  void Update(double fraction) {
+    const int every = tty_ ? 1 : 10;
+    const int percent = static_cast<int>(fraction * 100) / every * every;
+    if (percent == last_percent_) return;
+    last_percent_ = percent;
+    std::fprintf(stderr, "%s%s: %3d%% (%.1f s)%s", tty_ ? "\r" : "", label_.c_str(), percent,
+                 SecondsSince(start_), tty_ ? "" : "\n");
+    std::fflush(stderr);
+  }
+
+  void Done() {
+    if (tty_ && last_percent_ >= 0) std::fprintf(stderr, "\n");
+  }
+
+ private:
+  const std::string label_;
+  const bool tty_;
+  const std::chrono::steady_clock::time_point start_;
+  int last_percent_ = -1;
+};
+
+// %.17g round-trips a double; JSON has no NaN or infinity.
+std::string JsonNumber(double v) { return std::isfinite(v) ? absl::StrFormat("%.17g", v) : "null"; }
+
+std::string JsonString(absl::string_view s) {
+  std::string out = "\"";
+  for (const char c : s) {
+    switch (c) {
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      default:
+        if (static_cast<unsigned char>(c) < 0x20) {
+          absl::StrAppendFormat(&out, "\\u%04x", c);
+        } else {
+          out += c;
+        }
+    }
+  }
+  return out + "\"";
+}
+
+// A row-major n×n matrix of a repeated field as nested JSON arrays.
+std::string JsonMatrix(const google::protobuf::RepeatedField<double>& v, int n) {
+  if (v.size() != n * n) return "null";
+  std::vector<std::string> rows;
+  for (int r = 0; r < n; ++r) {
+    std::vector<std::string> row;
+    for (int c = 0; c < n; ++c) row.push_back(JsonNumber(v[n * r + c]));
+    rows.push_back(absl::StrCat("[", absl::StrJoin(row, ", "), "]"));
+  }
+  return absl::StrCat("[", absl::StrJoin(rows, ", "), "]");
+}
+
+constexpr int kKeyWidth = 26;
+
+void PrintValue(absl::string_view key, const std::string& value) {
+  std::printf("%-*s %s\n", kKeyWidth, std::string(key).c_str(), value.c_str());
+}
+
+// A row-major n×n matrix, one row a line, under `key`.
+void PrintMatrix(absl::string_view key, const google::protobuf::RepeatedField<double>& v, int n) {
+  if (v.size() != n * n) {
+    PrintValue(key, absl::StrCat("(", v.size(), " values)"));
+    return;
+  }
+  for (int r = 0; r < n; ++r) {
+    std::string row;
+    for (int c = 0; c < n; ++c) absl::StrAppendFormat(&row, " %16.9g", v[n * r + c]);
+    std::printf("%-*s%s\n", kKeyWidth, r == 0 ? std::string(key).c_str() : "", row.c_str());
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Local commands.
+
+absl::StatusOr<dem::Packing> PreparePacking(const Flags& flags, std::string* material,
+                                            std::uint64_t* seed, dem::PreparationReport* report) {
+  *material = "SET-dense";
+  *seed = 1;
+  RETURN_IF_ERROR(Get(flags, "material", material));
+  RETURN_IF_ERROR(Get(flags, "seed", seed));
+  absl::StatusOr<dem::ParameterSet> set = dem::FindParameterSet(*material);
   if (!set.ok()) return set.status();
-  set->preparation.seed = seed;
-  *name = material;
-  std::fprintf(stderr, "preparing %s (seed %llu, %d discs)...\n", material.c_str(),
-               static_cast<unsigned long long>(seed), set->preparation.num_particles);
-  dem::PreparationReport report;
+  set->preparation.seed = *seed;
+  std::fprintf(stderr, "preparing %s (seed %llu, %d discs)...\n", material->c_str(),
+               static_cast<unsigned long long>(*seed), set->preparation.num_particles);
   absl::StatusOr<dem::Packing> packing = dem::PreparePacking(
-      *set, {}, &report,
+      *set, {}, report,
       [](const std::string& line) { std::fprintf(stderr, "  %s\n", line.c_str()); });
   if (!packing.ok()) return packing.status();
   std::fprintf(
       stderr, "prepared: e0 = %.4f, p0 = %.1f Pa, Z = %.2f, compaction friction %.4f, %lld steps\n",
-      report.void_ratio, report.pressure, report.coordination, report.compaction_friction,
-      static_cast<long long>(report.steps));
+      report->void_ratio, report->pressure, report->coordination, report->compaction_friction,
+      static_cast<long long>(report->steps));
   return packing;
 }
 
-absl::Status ElementTest(const Flags& flags) {
+v1::ElementTest ToProto(dem::ElementTestKind kind) {
+  switch (kind) {
+    case dem::ElementTestKind::kDrainedBiaxial:
+      return v1::ELEMENT_TEST_DRAINED_BIAXIAL;
+    case dem::ElementTestKind::kIsotropic:
+      return v1::ELEMENT_TEST_ISOTROPIC;
+    case dem::ElementTestKind::kOedometer:
+      return v1::ELEMENT_TEST_OEDOMETER;
+    case dem::ElementTestKind::kUndrainedSimpleShear:
+      return v1::ELEMENT_TEST_UNDRAINED_SIMPLE_SHEAR;
+    case dem::ElementTestKind::kCyclicSimpleShear:
+      return v1::ELEMENT_TEST_CYCLIC_SIMPLE_SHEAR;
+  }
+  return v1::ELEMENT_TEST_UNSPECIFIED;
+}
+
+// RunElementTest on the server: progress on stderr, the rows at the end.
+absl::StatusOr<std::vector<dem::ElementTestRow>> RunOnServer(const Flags& flags,
+                                                             const dem::ElementTestSpec& spec,
+                                                             const std::string& test,
+                                                             const std::string& template_name) {
+  absl::StatusOr<Remote> remote = Connect(flags);
+  if (!remote.ok()) return remote.status();
+  v1::ElementTestRequest request;
+  request.set_template_name(template_name);
+  request.set_test(ToProto(spec.kind));
+  request.set_confining_pressure(spec.confining);
+  request.set_max_strain(spec.max_strain);
+  request.set_inertial_number(spec.inertial_number);
+  request.set_rows(spec.rows);
+  request.set_cyclic_stress_control(spec.cyclic_control == dem::CyclicControl::kStress);
+  request.set_amplitude(spec.amplitude);
+  request.set_cycles(spec.cycles);
+
+  grpc::ClientContext ctx;
+  remote->Ready(ctx);
+  std::unique_ptr<grpc::ClientReader<v1::ElementTestUpdate>> reader =
+      remote->stub->RunElementTest(&ctx, request);
+  ProgressLine progress(absl::StrCat(test, " on ", template_name, " at ", remote->target));
+  std::vector<dem::ElementTestRow> rows;
+  v1::ElementTestUpdate update;
+  while (reader->Read(&update)) {
+    progress.Update(update.progress());
+    for (const v1::ElementTestRow& row : update.rows()) rows.push_back(service::FromProto(row));
+  }
+  progress.Done();
+  RETURN_IF_ERROR(remote->Check(reader->Finish(), "RunElementTest"));
+  return rows;
+}
+
+absl::Status ElementTestCommand(const Flags& flags) {
   dem::ElementTestSpec spec;
-  std::string test = "drained-biaxial", out, plot_path, cyclic = "strain";
+  std::string test = "drained-biaxial", out, plot_path, cyclic = "strain", template_name;
   RETURN_IF_ERROR(Get(flags, "test", &test));
   RETURN_IF_ERROR(Get(flags, "out", &out));
   RETURN_IF_ERROR(Get(flags, "plot", &plot_path));
@@ -133,55 +516,76 @@ absl::Status ElementTest(const Flags& flags) {
   RETURN_IF_ERROR(Get(flags, "amplitude", &spec.amplitude));
   RETURN_IF_ERROR(Get(flags, "cycles", &spec.cycles));
   RETURN_IF_ERROR(Get(flags, "cyclic-control", &cyclic));
-  if (out.empty()) return absl::InvalidArgumentError("--out=FILE.csv is required");
+  RETURN_IF_ERROR(Get(flags, "template", &template_name));
+  if (out.empty()) return UsageError("--out=FILE.csv is required");
   absl::StatusOr<dem::ElementTestKind> kind = dem::ParseElementTestKind(test);
-  if (!kind.ok()) return kind.status();
+  if (!kind.ok()) return UsageError(kind.status().message());
   spec.kind = *kind;
   if (cyclic == "strain") {
     spec.cyclic_control = dem::CyclicControl::kStrain;
   } else if (cyclic == "stress") {
     spec.cyclic_control = dem::CyclicControl::kStress;
   } else {
-    return absl::InvalidArgumentError("--cyclic-control must be strain or stress");
+    return UsageError("--cyclic-control must be strain or stress");
   }
-  std::string material;
-  absl::StatusOr<dem::Packing> packing = Prepare(flags, &material);
-  if (!packing.ok()) return packing.status();
-  absl::StatusOr<dem::Rve> rve = dem::Rve::Create(*std::move(packing));
-  if (!rve.ok()) return rve.status();
 
-  const auto start = std::chrono::steady_clock::now();
-  // One updating line on a terminal; a line every 10 % in a log file.
-  const bool tty = isatty(fileno(stderr));
-  const int every = tty ? 1 : 10;
-  int last_percent = -1;
-  absl::StatusOr<std::vector<dem::ElementTestRow>> rows =
-      dem::RunElementTest(*rve, spec, [&](double fraction) {
-        const int percent = static_cast<int>(fraction * 100) / every * every;
-        if (percent == last_percent) return;
-        last_percent = percent;
-        const double secs =
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-        std::fprintf(stderr, "%s%s on %s: %3d%% (%.1f s)%s", tty ? "\r" : "", test.c_str(),
-                     material.c_str(), percent, secs, tty ? "" : "\n");
-        std::fflush(stderr);
-      });
-  if (tty) std::fprintf(stderr, "\n");
+  const bool on_server = flags.contains("server");
+  std::string title;
+  absl::StatusOr<std::vector<dem::ElementTestRow>> rows;
+  if (on_server) {
+    // The template fixes the packing: a material or seed here would be
+    // silently ignored, which is worse than refusing it.
+    if (flags.contains("material") || flags.contains("seed")) {
+      return UsageError(
+          "--material/--seed do not apply with --server (the template fixes the "
+          "packing)");
+    }
+    if (template_name.empty()) return UsageError("--template=NAME is required with --server");
+    title = absl::StrCat(test, " on ", template_name);
+    rows = RunOnServer(flags, spec, test, template_name);
+  } else {
+    for (const std::string& key : WithServerFlags({"template"})) {
+      if (flags.contains(key)) return UsageError(absl::StrCat("--", key, " needs --server"));
+    }
+    std::string material;
+    std::uint64_t seed;
+    dem::PreparationReport report;
+    absl::StatusOr<dem::Packing> packing = PreparePacking(flags, &material, &seed, &report);
+    if (!packing.ok()) return packing.status();
+    absl::StatusOr<dem::Rve> rve = dem::Rve::Create(*std::move(packing));
+    if (!rve.ok()) return rve.status();
+    title = absl::StrCat(test, " on ", material);
+    ProgressLine progress(title);
+    rows = dem::RunElementTest(*rve, spec, [&](double fraction) { progress.Update(fraction); });
+    progress.Done();
+  }
   if (!rows.ok()) return rows.status();
   RETURN_IF_ERROR(WriteElementTestCsv(out, *rows));
   std::fprintf(stderr, "wrote %zu rows to %s\n", rows->size(), out.c_str());
   if (!plot_path.empty()) {
-    RETURN_IF_ERROR(WriteElementTestPlot(plot_path, spec.kind, test + " on " + material, *rows));
+    RETURN_IF_ERROR(WriteElementTestPlot(plot_path, spec.kind, title, *rows));
     std::fprintf(stderr, "wrote plot to %s\n", plot_path.c_str());
   }
   return absl::OkStatus();
 }
 
 absl::Status PrepareCommand(const Flags& flags) {
+  std::string out, name;
+  RETURN_IF_ERROR(Get(flags, "out", &out));
+  RETURN_IF_ERROR(Get(flags, "name", &name));
+  if (!name.empty() && out.empty()) return UsageError("--name needs --out=FILE.h5");
+  // A bad name would only be refused at upload, after the preparation.
+  if (!name.empty()) {
+    if (absl::Status s = service::ValidateName("--name", name); !s.ok()) {
+      return UsageError(s.message());
+    }
+  }
   std::string material;
-  absl::StatusOr<dem::Packing> packing = Prepare(flags, &material);
+  std::uint64_t seed;
+  dem::PreparationReport report;
+  absl::StatusOr<dem::Packing> packing = PreparePacking(flags, &material, &seed, &report);
   if (!packing.ok()) return packing.status();
-  absl::StatusOr<dem::Rve> rve = dem::Rve::Create(*std::move(packing));
+  absl::StatusOr<dem::Rve> rve = dem::Rve::Create(*packing);
   if (!rve.ok()) return rve.status();
   const dem::RveState s = rve->Observe(/*want_tangent=*/true);
   std::printf("material %s\nparticles %d\nvoid_ratio %.6f\nporosity %.6f\n", material.c_str(),
@@ -193,43 +597,440 @@ absl::Status PrepareCommand(const Flags& flags) {
       s.coordination, s.mechanical_coordination, s.fabric_anisotropy, s.permeability);
   std::printf("unbalanced_force_ratio %.3g\ntime_step_s %.6g\nD_xxxx_Pa %.6g\nD_yyyy_Pa %.6g\n",
               s.unbalanced_force_ratio, s.time_step, s.tangent(0, 0), s.tangent(4, 4));
+  if (out.empty()) return absl::OkStatus();
+
+  store::TemplateRecord record;
+  record.name = name.empty() ? absl::StrCat(material, "-seed", seed) : name;
+  record.description = absl::StrFormat("material %s, seed %d, e0 = %.4f, p0 = %.1f Pa", material,
+                                       seed, report.void_ratio, report.pressure);
+  record.packing = *std::move(packing);
+  store::FileInfo info;
+  info.created_by = CreatedBy();
+  RETURN_IF_ERROR(
+      store::WriteTemplates(out, std::span<const store::TemplateRecord>(&record, 1), info));
+  std::printf("template %s\nwrote %s\n", record.name.c_str(), out.c_str());
   return absl::OkStatus();
 }
 
+absl::Status MaterialsCommand(const Flags&) {
+  std::printf("%s\n", absl::StrJoin(dem::ParameterSetNames(), "\n").c_str());
+  return absl::OkStatus();
+}
+
+// ---------------------------------------------------------------------------
+// Server commands.
+
+std::string Mib(std::int64_t bytes) {
+  return absl::StrFormat("%.1f MiB", static_cast<double>(bytes) / (1 << 20));
+}
+
+absl::Status InfoCommand(const Flags& flags) {
+  absl::StatusOr<Remote> remote = Connect(flags);
+  if (!remote.ok()) return remote.status();
+  v1::ServerInfo info;
+  v1::ListRunsResponse runs;
+  v1::ListTemplatesResponse templates;
+  RETURN_IF_ERROR(remote->Call("GetServerInfo", &v1::RveService::Stub::GetServerInfo,
+                               v1::ServerInfoRequest(), &info));
+  RETURN_IF_ERROR(
+      remote->Call("ListRuns", &v1::RveService::Stub::ListRuns, v1::ListRunsRequest(), &runs));
+  RETURN_IF_ERROR(remote->Call("ListTemplates", &v1::RveService::Stub::ListTemplates,
+                               v1::ListTemplatesRequest(), &templates));
+
+  std::printf("server     %s\n", remote->target.c_str());
+  std::printf("version    %s (%s), up %.1f s\n", info.version().c_str(), info.api_version().c_str(),
+              info.uptime_seconds());
+  std::printf("threads    %d\n", info.threads());
+  std::printf("RVEs       %lld of at most %lld, in %lld runs\n",
+              static_cast<long long>(info.num_rves()), static_cast<long long>(info.max_rves()),
+              static_cast<long long>(info.num_runs()));
+  std::printf("memory     %s of at most %s\n", Mib(info.memory_bytes()).c_str(),
+              Mib(info.max_memory_bytes()).c_str());
+  std::printf("limits     %lld RVEs per call, %s per message\n",
+              static_cast<long long>(info.max_batch()), Mib(info.max_message_bytes()).c_str());
+  std::printf("security   authentication %s, TLS %s\n", info.auth_required() ? "on" : "off",
+              info.tls() ? "on" : "off");
+
+  std::printf("\nruns: %d\n", runs.runs_size());
+  if (runs.runs_size() > 0) {
+    int width = 3;
+    for (const v1::RunInfo& r : runs.runs()) width = std::max<int>(width, r.run_id().size());
+    std::printf("  %-*s %10s  %s\n", width, "RUN", "RVES", "STEPS");
+    for (const v1::RunInfo& r : runs.runs()) {
+      const std::string steps = r.min_step() == r.max_step()
+                                    ? absl::StrCat(r.min_step())
+                                    : absl::StrCat(r.min_step(), "..", r.max_step());
+      std::printf("  %-*s %10lld  %s\n", width, r.run_id().c_str(),
+                  static_cast<long long>(r.num_rves()), steps.c_str());
+    }
+  }
+  std::printf("\ntemplates: %d\n", templates.templates_size());
+  if (templates.templates_size() > 0) {
+    int width = 4, material_width = 8;
+    for (const v1::TemplateInfo& t : templates.templates()) {
+      width = std::max<int>(width, t.name().size());
+      material_width = std::max<int>(material_width, t.material_name().size());
+    }
+    std::printf("  %-*s %9s %10s %14s  %-*s  %s\n", width, "NAME", "PARTICLES", "VOID_RATIO",
+                "P_PA", material_width, "MATERIAL", "DESCRIPTION");
+    for (const v1::TemplateInfo& t : templates.templates()) {
+      std::printf("  %-*s %9lld %10.4f %14.1f  %-*s  %s\n", width, t.name().c_str(),
+                  static_cast<long long>(t.num_particles()), t.void_ratio(), t.mean_pressure(),
+                  material_width, t.material_name().c_str(), t.description().c_str());
+    }
+  }
+  return absl::OkStatus();
+}
+
+void PrintStateText(const std::string& run, const v1::RveResult& r) {
+  const v1::RveState& s = r.state();
+  PrintValue("run", run);
+  PrintValue("id", absl::StrCat(r.id()));
+  PrintValue("step", absl::StrCat(r.step()));
+  PrintMatrix("stress_Pa (tension +)", s.stress(), 3);
+  PrintValue("p_Pa (compression +)", absl::StrFormat("%.10g", s.mean_pressure()));
+  PrintValue("q_Pa", absl::StrFormat("%.10g", s.deviator_stress()));
+  PrintValue("void_ratio", absl::StrFormat("%.10g", s.void_ratio()));
+  PrintValue("porosity", absl::StrFormat("%.10g", s.porosity()));
+  PrintValue("coordination", absl::StrFormat("%.10g", s.coordination()));
+  PrintValue("mechanical_coordination", absl::StrFormat("%.10g", s.mechanical_coordination()));
+  PrintValue("contacts", absl::StrCat(s.num_contacts()));
+  PrintMatrix(s.fabric_defined() ? "fabric" : "fabric (no contacts)", s.fabric(), 3);
+  PrintMatrix("fabric_anisotropy_tensor", s.fabric_anisotropy_tensor(), 3);
+  PrintValue("Fa", absl::StrFormat("%.10g", s.fabric_anisotropy()));
+  PrintValue("permeability_m_per_s", absl::StrFormat("%.10g", s.permeability()));
+  PrintMatrix("F", s.deformation_gradient(), 3);
+  PrintValue("mean_rotation_rad", absl::StrFormat("%.10g", s.mean_rotation()));
+  PrintValue("kinetic_energy_J", absl::StrFormat("%.10g", s.kinetic_energy()));
+  PrintValue("unbalanced_force_ratio", absl::StrFormat("%.10g", s.unbalanced_force_ratio()));
+  PrintValue("volume_m3", absl::StrFormat("%.10g", s.volume()));
+  PrintValue("last_call_dem_steps", absl::StrCat(s.steps()));
+  PrintValue("time_step_s", absl::StrFormat("%.10g", s.time_step()));
+  PrintValue("mass_scale", absl::StrFormat("%.10g", s.mass_scale()));
+  if (s.tangent_size() > 0) {
+    PrintValue("tangent_Pa", "D[3i+j][3k+l], rows and columns xx xy xz yx yy yz zx zy zz");
+    PrintMatrix("", s.tangent(), 9);
+  }
+}
+
+void PrintStateJson(const std::string& run, const v1::RveResult& r) {
+  const v1::RveState& s = r.state();
+  std::vector<std::string> fields = {
+      absl::StrCat("\"run_id\": ", JsonString(run)),
+      absl::StrCat("\"id\": ", r.id()),
+      absl::StrCat("\"step\": ", r.step()),
+      absl::StrCat("\"stress\": ", JsonMatrix(s.stress(), 3)),
+      absl::StrCat("\"mean_pressure\": ", JsonNumber(s.mean_pressure())),
+      absl::StrCat("\"deviator_stress\": ", JsonNumber(s.deviator_stress())),
+      absl::StrCat("\"void_ratio\": ", JsonNumber(s.void_ratio())),
+      absl::StrCat("\"porosity\": ", JsonNumber(s.porosity())),
+      absl::StrCat("\"coordination\": ", JsonNumber(s.coordination())),
+      absl::StrCat("\"mechanical_coordination\": ", JsonNumber(s.mechanical_coordination())),
+      absl::StrCat("\"num_contacts\": ", s.num_contacts()),
+      absl::StrCat("\"fabric_defined\": ", s.fabric_defined() ? "true" : "false"),
+      absl::StrCat("\"fabric\": ", JsonMatrix(s.fabric(), 3)),
+      absl::StrCat("\"fabric_anisotropy_tensor\": ", JsonMatrix(s.fabric_anisotropy_tensor(), 3)),
+      absl::StrCat("\"fabric_anisotropy\": ", JsonNumber(s.fabric_anisotropy())),
+      absl::StrCat("\"permeability\": ", JsonNumber(s.permeability())),
+      absl::StrCat("\"deformation_gradient\": ", JsonMatrix(s.deformation_gradient(), 3)),
+      absl::StrCat("\"mean_rotation\": ", JsonNumber(s.mean_rotation())),
+      absl::StrCat("\"kinetic_energy\": ", JsonNumber(s.kinetic_energy())),
+      absl::StrCat("\"unbalanced_force_ratio\": ", JsonNumber(s.unbalanced_force_ratio())),
+      absl::StrCat("\"volume\": ", JsonNumber(s.volume())),
+      absl::StrCat("\"steps\": ", s.steps()),
+      absl::StrCat("\"time_step\": ", JsonNumber(s.time_step())),
+      absl::StrCat("\"mass_scale\": ", JsonNumber(s.mass_scale())),
+  };
+  if (s.tangent_size() > 0)
+    fields.push_back(absl::StrCat("\"tangent\": ", JsonMatrix(s.tangent(), 9)));
+  std::printf("{%s}\n", absl::StrJoin(fields, ", ").c_str());
+}
+
+absl::Status GetCommand(const Flags& flags) {
+  std::string run, format = "text";
+  std::int64_t id = 0;
+  bool tangent = false;
+  RETURN_IF_ERROR(Require(flags, "run", "RUN", &run));
+  if (!flags.contains("id")) return UsageError("--id=N is required");
+  RETURN_IF_ERROR(Get(flags, "id", &id));
+  RETURN_IF_ERROR(GetBool(flags, "tangent", &tangent));
+  RETURN_IF_ERROR(Get(flags, "format", &format));
+  if (format != "text" && format != "json") return UsageError("--format must be text or json");
+  absl::StatusOr<Remote> remote = Connect(flags);
+  if (!remote.ok()) return remote.status();
+  v1::GetStatesRequest request;
+  request.set_run_id(run);
+  request.add_ids(id);
+  request.set_want_tangent(tangent);
+  v1::GetStatesResponse response;
+  RETURN_IF_ERROR(remote->Call("GetStates", &v1::RveService::Stub::GetStates, request, &response));
+  if (response.results_size() != 1) {
+    return absl::InternalError(
+        absl::StrCat("GetStates returned ", response.results_size(), " results for one id"));
+  }
+  const v1::RveResult& r = response.results(0);
+  if (r.code() != 0) return absl::Status(static_cast<absl::StatusCode>(r.code()), r.message());
+  if (format == "json") {
+    PrintStateJson(run, r);
+  } else {
+    PrintStateText(run, r);
+  }
+  return absl::OkStatus();
+}
+
+absl::Status UploadTemplateCommand(const Flags& flags) {
+  std::string file;
+  bool replace = false;
+  RETURN_IF_ERROR(Require(flags, "file", "FILE.h5", &file));
+  RETURN_IF_ERROR(GetBool(flags, "replace", &replace));
+  absl::StatusOr<Remote> remote = Connect(flags);
+  if (!remote.ok()) return remote.status();
+  absl::StatusOr<std::vector<store::TemplateRecord>> templates = store::ReadTemplates(file);
+  if (!templates.ok()) return templates.status();
+  if (templates->empty()) {
+    return absl::FailedPreconditionError(absl::StrCat("'", file, "' holds no templates"));
+  }
+  for (const store::TemplateRecord& t : *templates) {
+    v1::UploadTemplateRequest request;
+    request.mutable_entry()->set_name(t.name);
+    request.mutable_entry()->set_description(t.description);
+    service::ToProto(t.packing, request.mutable_entry()->mutable_packing());
+    request.set_replace(replace);
+    v1::TemplateInfo info;
+    RETURN_IF_ERROR(
+        remote->Call("UploadTemplate", &v1::RveService::Stub::UploadTemplate, request, &info));
+    std::printf("uploaded %s: %lld particles, e = %.4f, p = %.1f Pa, material %s (%s)\n",
+                info.name().c_str(), static_cast<long long>(info.num_particles()),
+                info.void_ratio(), info.mean_pressure(), info.material_name().c_str(),
+                info.description().c_str());
+  }
+  return absl::OkStatus();
+}
+
+// Every record of one run, through the Export stream.
+absl::Status ExportRun(const Remote& remote, const std::string& run,
+                       std::vector<store::RveRecord>* records) {
+  v1::ExportRequest request;
+  request.set_run_id(run);
+  grpc::ClientContext ctx;
+  remote.Ready(ctx);
+  std::unique_ptr<grpc::ClientReader<v1::RveChunk>> reader = remote.stub->Export(&ctx, request);
+  v1::RveChunk chunk;
+  std::int64_t declared = -1, received = 0;
+  absl::Status failed;
+  while (failed.ok() && reader->Read(&chunk)) {
+    if (declared < 0) declared = chunk.total_records();
+    for (const v1::RveRecord& r : chunk.records()) {
+      absl::StatusOr<store::RveRecord> record = service::FromProto(r);
+      if (!record.ok()) {
+        failed = absl::DataLossError(absl::StrCat("run \"", run, "\" record ", received, " (id ",
+                                                  r.id(), "): ", record.status().message()));
+        break;
+      }
+      records->push_back(*std::move(record));
+      ++received;
+    }
+  }
+  if (!failed.ok()) {
+    ctx.TryCancel();
+    (void)reader->Finish();  // the stream is abandoned; its status adds nothing
+    return failed;
+  }
+  RETURN_IF_ERROR(remote.Check(reader->Finish(), absl::StrCat("Export of run \"", run, "\"")));
+  if (declared > 0 && declared != received) {
+    return absl::DataLossError(absl::StrCat("export of run \"", run, "\" declared ", declared,
+                                            " records but carried ", received));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status CheckpointCommand(const Flags& flags) {
+  std::string out, run;
+  RETURN_IF_ERROR(Require(flags, "out", "FILE.h5", &out));
+  RETURN_IF_ERROR(Get(flags, "run", &run));
+  absl::StatusOr<Remote> remote = Connect(flags);
+  if (!remote.ok()) return remote.status();
+  const auto start = std::chrono::steady_clock::now();
+  std::vector<std::string> runs;
+  if (!run.empty()) {
+    runs.push_back(run);
+  } else {
+    v1::ListRunsResponse list;
+    RETURN_IF_ERROR(
+        remote->Call("ListRuns", &v1::RveService::Stub::ListRuns, v1::ListRunsRequest(), &list));
+    for (const v1::RunInfo& r : list.runs()) runs.push_back(r.run_id());
+  }
+  std::vector<store::RveRecord> records;
+  for (const std::string& r : runs) RETURN_IF_ERROR(ExportRun(*remote, r, &records));
+  store::FileInfo info;
+  info.created_by = CreatedBy();
+  RETURN_IF_ERROR(store::WriteRves(out, records, info));
+  std::error_code error;
+  const std::uintmax_t bytes = std::filesystem::file_size(out, error);
+  std::printf("wrote %zu RVEs of %zu runs to %s (%llu bytes, %.2f s)\n", records.size(),
+              runs.size(), out.c_str(), error ? 0ULL : static_cast<unsigned long long>(bytes),
+              SecondsSince(start));
+  return absl::OkStatus();
+}
+
+absl::Status RestoreCommand(const Flags& flags) {
+  std::string file, run;
+  RETURN_IF_ERROR(Require(flags, "file", "FILE.h5", &file));
+  RETURN_IF_ERROR(Get(flags, "run", &run));
+  absl::StatusOr<Remote> remote = Connect(flags);
+  if (!remote.ok()) return remote.status();
+  const auto start = std::chrono::steady_clock::now();
+  absl::StatusOr<std::vector<store::RveRecord>> all = store::ReadRves(file);
+  if (!all.ok()) return all.status();
+  std::vector<const store::RveRecord*> records;
+  for (const store::RveRecord& r : *all) {
+    if (run.empty() || r.run_id == run) records.push_back(&r);
+  }
+  if (records.empty() && !run.empty()) {
+    return absl::NotFoundError(absl::StrCat("'", file, "' holds no RVE of run \"", run, "\""));
+  }
+  if (records.empty()) {
+    std::printf("imported 0 RVEs (%s holds none)\n", file.c_str());
+    return absl::OkStatus();
+  }
+
+  // Chunks stay below the smaller of the two message limits, with the same
+  // headroom the server keeps for its export chunks.
+  v1::ServerInfo info;
+  RETURN_IF_ERROR(remote->Call("GetServerInfo", &v1::RveService::Stub::GetServerInfo,
+                               v1::ServerInfoRequest(), &info));
+  std::int64_t limit = info.max_message_bytes() > 0 ? info.max_message_bytes()
+                                                    : std::numeric_limits<std::int32_t>::max();
+  if (remote->options.max_message_bytes > 0) {
+    limit = std::min(limit, remote->options.max_message_bytes);
+  }
+  constexpr std::int64_t kOverhead = 64 << 10;
+  const std::int64_t budget = std::max<std::int64_t>(limit - kOverhead, limit / 2);
+
+  grpc::ClientContext ctx;
+  remote->Ready(ctx);
+  v1::ImportResponse response;
+  std::unique_ptr<grpc::ClientWriter<v1::RveChunk>> writer = remote->stub->Import(&ctx, &response);
+  v1::RveChunk chunk;
+  chunk.set_total_records(static_cast<std::int64_t>(records.size()));
+  std::int64_t chunk_bytes = 16, chunks = 0;
+  bool stream_ok = true;
+  absl::Status failed;
+  for (const store::RveRecord* r : records) {
+    v1::RveRecord record;
+    service::ToProto(*r, &record);
+    // The record's bytes in the chunk: field tag and length prefix included.
+    const std::int64_t size = static_cast<std::int64_t>(record.ByteSizeLong()) + 16;
+    if (size > budget) {
+      failed = absl::ResourceExhaustedError(
+          absl::StrCat("RVE (\"", r->run_id, "\", ", r->id, ") takes ", size,
+                       " bytes, over the message limit of ", limit, " bytes"));
+      break;
+    }
+    if (chunk.records_size() > 0 && chunk_bytes + size > budget) {
+      stream_ok = writer->Write(chunk);
+      if (!stream_ok) break;
+      ++chunks;
+      chunk.Clear();
+      chunk_bytes = 16;
+    }
+    *chunk.add_records() = std::move(record);
+    chunk_bytes += size;
+  }
+  if (!failed.ok()) {
+    // Cancelling makes the server drop what it got (import is all or nothing).
+    ctx.TryCancel();
+    (void)writer->Finish();
+    return failed;
+  }
+  if (stream_ok && chunk.records_size() > 0) {
+    stream_ok = writer->Write(chunk);
+    if (stream_ok) ++chunks;
+  }
+  if (stream_ok) writer->WritesDone();
+  // A broken stream's reason comes with Finish.
+  RETURN_IF_ERROR(remote->Check(writer->Finish(), "Import"));
+  std::printf("imported %lld RVEs into %s (%lld chunks, %.2f s)\n",
+              static_cast<long long>(response.imported()), remote->target.c_str(),
+              static_cast<long long>(chunks), SecondsSince(start));
+  return absl::OkStatus();
+}
+
+// ---------------------------------------------------------------------------
+// Dispatch.
+
+struct Command {
+  const char* name;
+  const char* help;
+  bool server;  // takes the server options
+  std::vector<std::string> flags;
+  absl::Status (*run)(const Flags&);
+};
+
+const std::vector<Command>& Commands() {
+  static const auto* commands = new std::vector<Command>{
+      {"element-test",
+       kElementTestHelp,
+       true,
+       {"test", "material", "seed", "confining", "strain", "out", "plot", "rows", "inertial-number",
+        "cyclic-control", "amplitude", "cycles", "template"},
+       &ElementTestCommand},
+      {"prepare", kPrepareHelp, false, {"material", "seed", "out", "name"}, &PrepareCommand},
+      {"materials", kMaterialsHelp, false, {}, &MaterialsCommand},
+      {"info", kInfoHelp, true, {}, &InfoCommand},
+      {"get", kGetHelp, true, {"run", "id", "tangent", "format"}, &GetCommand},
+      {"upload-template", kUploadTemplateHelp, true, {"file", "replace"}, &UploadTemplateCommand},
+      {"checkpoint", kCheckpointHelp, true, {"out", "run"}, &CheckpointCommand},
+      {"restore", kRestoreHelp, true, {"file", "run"}, &RestoreCommand},
+  };
+  return *commands;
+}
+
+void PrintHelp(const Command& c) {
+  std::fputs(c.help, stdout);
+  if (c.server) std::fputs(kServerOptions, stdout);
+}
+
 int Main(int argc, char** argv) {
-  if (argc < 2 || std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h" ||
-      std::string(argv[1]) == "help") {
+  const std::string first = argc < 2 ? "" : argv[1];
+  if (argc < 2 || first == "--help" || first == "-h" || first == "help") {
+    if (first == "help" && argc > 2) {
+      for (const Command& c : Commands()) {
+        if (argv[2] == std::string(c.name)) {
+          PrintHelp(c);
+          return 0;
+        }
+      }
+    }
     std::fputs(kUsage, argc < 2 ? stderr : stdout);
     return argc < 2 ? 2 : 0;
   }
-  const std::string command = argv[1];
-  for (int i = 2; i < argc; ++i) {
-    if (std::string(argv[i]) == "--help") {
-      std::fputs(kUsage, stdout);
-      return 0;
-    }
+  const Command* command = nullptr;
+  for (const Command& c : Commands()) {
+    if (first == c.name) command = &c;
   }
   absl::Status status;
-  if (command == "element-test") {
-    absl::StatusOr<Flags> flags =
-        ParseFlags(argc, argv, 2,
-                   {"test", "material", "seed", "confining", "strain", "out", "plot", "rows",
-                    "inertial-number", "cyclic-control", "amplitude", "cycles"});
-    status = flags.ok() ? ElementTest(*flags) : flags.status();
-  } else if (command == "prepare") {
-    absl::StatusOr<Flags> flags = ParseFlags(argc, argv, 2, {"material", "seed"});
-    status = flags.ok() ? PrepareCommand(*flags) : flags.status();
-  } else if (command == "materials") {
-    std::printf("%s\n", absl::StrJoin(dem::ParameterSetNames(), "\n").c_str());
+  if (command == nullptr) {
+    status = UsageError(absl::StrCat("unknown command '", first, "' (see --help)"));
   } else {
-    status =
-        absl::InvalidArgumentError(absl::StrCat("unknown command '", command, "' (see --help)"));
+    for (int i = 2; i < argc; ++i) {
+      if (std::string(argv[i]) == "--help" || std::string(argv[i]) == "-h") {
+        PrintHelp(*command);
+        return 0;
+      }
+    }
+    absl::StatusOr<Flags> flags = ParseFlags(
+        argc, argv, 2, command->server ? WithServerFlags(command->flags) : command->flags);
+    status = flags.ok() ? command->run(*flags) : flags.status();
   }
-  if (!status.ok()) {
+  if (status.ok()) return 0;
+  if (IsUsageError(status)) {
     std::fprintf(stderr, "rve_cli: %s\n", std::string(status.message()).c_str());
-    return status.code() == absl::StatusCode::kInvalidArgument ? 2 : 1;
+    return 2;
   }
-  return 0;
+  std::fprintf(stderr, "rve_cli: %s: %s\n", absl::StatusCodeToString(status.code()).c_str(),
+               std::string(status.message()).c_str());
+  return 1;
 }
 
 }  // namespace
