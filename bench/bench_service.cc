@@ -42,7 +42,7 @@ double Seconds(Clock::duration d) { return std::chrono::duration<double>(d).coun
 
 struct Figures {
   double zero_us = 0, engine_us = 0, full_us = 0;  // per RVE, best of reps
-  double registry_us = 0;  // zero-step batch through the registry, no gRPC
+  double registry_us = 0;                          // zero-step batch through the registry, no gRPC
 };
 
 v1::ApplyRequest Batch(const std::string& run, std::int64_t step, int rves, double strain) {
@@ -115,8 +115,8 @@ Figures Measure(const dem::Packing& packing, int threads, int rves, int reps) {
     for (int k = 0; k < rves; ++k) incs[k].id = k;
     for (int r = 0; r < reps; ++r) {
       const Clock::time_point t0 = Clock::now();
-      absl::StatusOr<std::vector<service::RveOutcome>> out = (*server)->registry().Apply(
-          "zero", reps + r + 1, service::ApplyMode::kCommit, {}, incs);
+      absl::StatusOr<std::vector<service::RveOutcome>> out =
+          (*server)->registry().Apply("zero", reps + r + 1, service::ApplyMode::kCommit, {}, incs);
       if (!out.ok()) std::exit(1);
       f.registry_us = std::min(f.registry_us, Seconds(Clock::now() - t0) * 1e6 / rves);
     }
@@ -161,14 +161,14 @@ int main(int argc, char** argv) {
   }
   std::printf("bench_service: %d RVEs of %zu discs (SET-dense), best of %d calls\n", rves,
               packing->radius.size(), reps);
-  std::printf("%8s %12s %12s %12s %12s %14s %14s %10s\n", "threads", "zero us/RVE",
-              "registry us", "engine us", "full us/RVE", "overhead us", "compute us", "share");
+  std::printf("%8s %12s %12s %12s %12s %14s %14s %10s\n", "threads", "zero us/RVE", "registry us",
+              "engine us", "full us/RVE", "overhead us", "compute us", "share");
   const int cores = std::max(1u, std::thread::hardware_concurrency());
   std::vector<int> thread_counts = {1};
   if (cores > 1) thread_counts.push_back(cores);
   for (int threads : thread_counts) {
     const Figures f = Measure(*packing, threads, rves, reps);
-    const double overhead = f.zero_us - f.engine_us;          // transport, protobuf, registry
+    const double overhead = f.zero_us - f.engine_us;             // transport, protobuf, registry
     const double compute = f.full_us - f.zero_us + f.engine_us;  // DEM steps + homogenisation
     std::printf("%8d %12.2f %12.2f %12.2f %12.2f %14.2f %14.2f %9.2f%%\n", threads, f.zero_us,
                 f.registry_us, f.engine_us, f.full_us, overhead, compute,

@@ -3,9 +3,9 @@
 // writes the checkpoint, and a restart from it continues bit-identically.
 // (This binary must not link grpc++_reflection: it carries its own copy of
 // the reflection messages to call the server's reflection service.)
+#include <fcntl.h>
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
-#include <fcntl.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -233,8 +233,7 @@ TEST(ServerProcess, SigtermDrainsCheckpointsAndRestartContinues) {
   ASSERT_TRUE(restarted.stub().ListTemplates(Ctx().get(), {}, &templates).ok());
   ASSERT_EQ(templates.templates_size(), 1);
   v1::ApplyResponse continued;
-  ASSERT_TRUE(
-      restarted.stub().Apply(Ctx().get(), Increments(3, kRves, 1e-4), &continued).ok());
+  ASSERT_TRUE(restarted.stub().Apply(Ctx().get(), Increments(3, kRves, 1e-4), &continued).ok());
   ASSERT_EQ(continued.failed(), 0);
   for (int k = 0; k < kRves; ++k) {
     EXPECT_EQ(continued.results(k).state().SerializeAsString(),

@@ -3,12 +3,12 @@
 // concurrency, deadlines, health.
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <limits>
 #include <memory>
 #include <thread>
-#include <unistd.h>
 
 #include "health_probe.grpc.pb.h"
 #include "rve_server/service/convert.h"
@@ -170,7 +170,7 @@ TEST_F(ServiceTest, CreateApplyGetRoundTrip) {
     // Compressed along y: σyy more compressive (tension +) than the 100 kPa start.
     EXPECT_LT(r.state().stress(4), -100e3 * 1.01);
     EXPECT_NEAR(r.state().deformation_gradient(4), 1 - 1e-4, 1e-15);
-    EXPECT_EQ(r.state().stress(8), 0.0);  // plane strain, no σzz from a 2-D RVE
+    EXPECT_EQ(r.state().stress(8), 0.0);           // plane strain, no σzz from a 2-D RVE
     EXPECT_GT(r.state().tangent(9 * 4 + 4), 1e7);  // D_yyyy of order 10–100 MPa
   }
   // Same template, same increment: same result for every material point.
@@ -370,8 +370,7 @@ TEST_F(ServiceTest, BadInputGetsSpecificCodeAndChangesNothing) {
   const dem::Packing before = h_.PackingOf("r", 1);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   v1::ApplyResponse resp;
-  ExpectError(h_.Apply("r", 1, v1::APPLY_MODE_COMMIT, {1, 2}, {1, 0, 0, 0, nan, 0, 0, 0, 1},
-                       &resp),
+  ExpectError(h_.Apply("r", 1, v1::APPLY_MODE_COMMIT, {1, 2}, {1, 0, 0, 0, nan, 0, 0, 0, 1}, &resp),
               grpc::StatusCode::INVALID_ARGUMENT, "not finite");
   ExpectError(h_.Apply("r", 1, v1::APPLY_MODE_COMMIT, {1}, {-1, 0, 0, 0, 1, 0, 0, 0, 1}, &resp),
               grpc::StatusCode::INVALID_ARGUMENT, "det");
@@ -452,8 +451,7 @@ TEST_F(ServiceTest, BadInputGetsSpecificCodeAndChangesNothing) {
     drop.add_ids(1);
     drop.add_ids(42);
     v1::DropResponse out;
-    ExpectError(h_.stub().Drop(h_.Context().get(), drop, &out), grpc::StatusCode::NOT_FOUND,
-                "42");
+    ExpectError(h_.stub().Drop(h_.Context().get(), drop, &out), grpc::StatusCode::NOT_FOUND, "42");
   }
   ExpectIdenticalPackings(before, h_.PackingOf("r", 1), "after every refused call");
   v1::ListRunsResponse runs;
@@ -515,8 +513,7 @@ TEST(ServiceAuth, TokenRequiredWhenSet) {
     req.set_template_name(kTemplate);
     req.add_ids(1);
     v1::CreateRvesResponse out;
-    EXPECT_EQ(h.stub().CreateRves(&ctx, req, &out).error_code(),
-              grpc::StatusCode::UNAUTHENTICATED);
+    EXPECT_EQ(h.stub().CreateRves(&ctx, req, &out).error_code(), grpc::StatusCode::UNAUTHENTICATED);
   }
   ASSERT_TRUE(h.stub().GetServerInfo(h.Context().get(), {}, &info).ok());
   EXPECT_TRUE(info.auth_required());
@@ -552,8 +549,9 @@ TEST(ServiceTls, EncryptedCallsWithTokenWork) {
   // A throw-away self-signed certificate for 127.0.0.1 (openssl is one of
   // deploy/install_deps.sh's packages).
   const std::string dir = ::testing::TempDir() + "rvehub_tls_" + std::to_string(getpid());
-  const std::string cmd = "mkdir -p " + dir + " && openssl req -x509 -newkey rsa:2048 -nodes -keyout " +
-                          dir + "/key.pem -out " + dir +
+  const std::string cmd = "mkdir -p " + dir +
+                          " && openssl req -x509 -newkey rsa:2048 -nodes -keyout " + dir +
+                          "/key.pem -out " + dir +
                           "/cert.pem -days 1 -subj /CN=localhost -addext "
                           "subjectAltName=IP:127.0.0.1 >/dev/null 2>&1";
   ASSERT_EQ(std::system(cmd.c_str()), 0) << "openssl could not make a certificate";
@@ -570,8 +568,8 @@ TEST(ServiceTls, EncryptedCallsWithTokenWork) {
   ASSERT_TRUE(server.ok()) << server.status();
   grpc::SslCredentialsOptions ssl;
   ssl.pem_root_certs = *cert;
-  auto stub = v1::RveService::NewStub(
-      grpc::CreateChannel((*server)->address(), grpc::SslCredentials(ssl)));
+  auto stub =
+      v1::RveService::NewStub(grpc::CreateChannel((*server)->address(), grpc::SslCredentials(ssl)));
   v1::ServerInfo info;
   {
     grpc::ClientContext ctx;
@@ -665,8 +663,7 @@ TEST(ServiceDeadline, UnfinishedRvesStayCommittedAndARetryCompletes) {
   {
     grpc::ClientContext ctx;
     ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(30));
-    EXPECT_EQ(h.stub().Apply(&ctx, req, &resp).error_code(),
-              grpc::StatusCode::DEADLINE_EXCEEDED);
+    EXPECT_EQ(h.stub().Apply(&ctx, req, &resp).error_code(), grpc::StatusCode::DEADLINE_EXCEEDED);
   }
   // Let the server finish the call (RVEs in progress complete; the rest are skipped).
   v1::ListRunsResponse runs;

@@ -25,9 +25,8 @@ void Put2(const Eigen::Matrix2d& m, RepeatedField<double>* out) {
 
 absl::StatusOr<Eigen::Matrix2d> Take2(const RepeatedField<double>& v, absl::string_view field) {
   if (v.size() != 4) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "packing.", field,
-        " must have 4 values (2×2 row-major), got ", v.size()));
+    return absl::InvalidArgumentError(
+        absl::StrCat("packing.", field, " must have 4 values (2×2 row-major), got ", v.size()));
   }
   Eigen::Matrix2d m;
   m << v[0], v[1], v[2], v[3];
@@ -47,8 +46,7 @@ absl::StatusOr<Eigen::Matrix3d> Matrix3FromProto(const RepeatedField<double>& v,
                                                  absl::string_view field) {
   if (v.size() != 9) {
     return absl::InvalidArgumentError(
-        absl::StrCat(field,
-                     " must have 9 values (3×3 row-major), got ", v.size()));
+        absl::StrCat(field, " must have 9 values (3×3 row-major), got ", v.size()));
   }
   Eigen::Matrix3d m;
   for (int r = 0; r < 3; ++r)
@@ -69,7 +67,7 @@ void ToProto(const dem::Material& m, v1::Material* out) {
   out->set_damping(m.damping);
   out->set_thickness(m.thickness);
   out->set_model(m.model == dem::ContactModel::kHertzMindlin ? v1::CONTACT_MODEL_HERTZ_MINDLIN
-                                                              : v1::CONTACT_MODEL_LINEAR);
+                                                             : v1::CONTACT_MODEL_LINEAR);
 }
 
 dem::Material FromProto(const v1::Material& m) {
@@ -162,12 +160,12 @@ absl::StatusOr<dem::Packing> FromProto(const v1::Packing& p) {
   out.frame = *frame;
   const int n = p.radius_size();
   const std::pair<const char*, int> particle_arrays[] = {
-      {"sx", p.sx_size()},       {"sy", p.sy_size()},       {"vx", p.vx_size()},
-      {"vy", p.vy_size()},       {"omega", p.omega_size()}, {"theta", p.theta_size()}};
+      {"sx", p.sx_size()}, {"sy", p.sy_size()},       {"vx", p.vx_size()},
+      {"vy", p.vy_size()}, {"omega", p.omega_size()}, {"theta", p.theta_size()}};
   for (const auto& [name, size] : particle_arrays) {
     if (size != n) {
-      return absl::InvalidArgumentError(absl::StrCat("packing.", name, " has ", size,
-                                                     " values but packing.radius has ", n));
+      return absl::InvalidArgumentError(
+          absl::StrCat("packing.", name, " has ", size, " values but packing.radius has ", n));
     }
   }
   const int nc = p.contact_i_size();
@@ -178,8 +176,8 @@ absl::StatusOr<dem::Packing> FromProto(const v1::Packing& p) {
       {"contact_bond_strength", p.contact_bond_strength_size()}};
   for (const auto& [name, size] : contact_arrays) {
     if (size != nc) {
-      return absl::InvalidArgumentError(absl::StrCat("packing.", name, " has ", size,
-                                                     " values but packing.contact_i has ", nc));
+      return absl::InvalidArgumentError(
+          absl::StrCat("packing.", name, " has ", size, " values but packing.contact_i has ", nc));
     }
   }
   out.radius = Take(p.radius());
@@ -281,13 +279,12 @@ absl::StatusOr<dem::ApplyOptions> FromProto(const v1::ApplyOptions& o) {
   if (o.relax_tolerance() != 0) out.relax_tolerance = o.relax_tolerance();
   if (o.relax_max_steps() != 0) out.relax_max_steps = o.relax_max_steps();
   if (!(std::isfinite(out.max_inertial_number) && out.max_inertial_number >= 0)) {
-    return absl::InvalidArgumentError(absl::StrCat("options.max_inertial_number = ",
-                                                   o.max_inertial_number(),
-                                                   " must be finite and >= 0"));
+    return absl::InvalidArgumentError(absl::StrCat(
+        "options.max_inertial_number = ", o.max_inertial_number(), " must be finite and >= 0"));
   }
   if (!(std::isfinite(out.relax_tolerance) && out.relax_tolerance > 0)) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "options.relax_tolerance = ", o.relax_tolerance(), " must be finite and > 0"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("options.relax_tolerance = ", o.relax_tolerance(), " must be finite and > 0"));
   }
   if (out.relax_max_steps < 0) {
     return absl::InvalidArgumentError(

@@ -18,11 +18,8 @@ absl::Mutex log_mu;
 std::string Quote(absl::string_view v) {
   const bool plain = !v.empty() && v.find_first_of(" \"=\n\t") == absl::string_view::npos;
   if (plain) return std::string(v);
-  return absl::StrCat(
-      "\"",
-      absl::StrReplaceAll(v,
-                          {{"\\", "\\\\"}, {"\"", "\\\""}, {"\n", "\\n"}}),
-      "\"");
+  return absl::StrCat("\"", absl::StrReplaceAll(v, {{"\\", "\\\\"}, {"\"", "\\\""}, {"\n", "\\n"}}),
+                      "\"");
 }
 
 }  // namespace

@@ -4,9 +4,10 @@
 #define RVEHUB_RVE_SERVER_SERVICE_LOG_H_
 
 #include <string>
-#include "absl/strings/string_view.h"
 #include <utility>
 #include <vector>
+
+#include "absl/strings/string_view.h"
 
 namespace rvehub::service {
 

@@ -65,8 +65,7 @@ absl::Status ValidateName(absl::string_view what, absl::string_view name) {
                     c == '.' || c == '_' || c == '-';
     if (!ok) {
       return absl::InvalidArgumentError(
-          absl::StrCat(what, " \"", name,
-                       "\" may contain only letters, digits, '.', '_' and '-'"));
+          absl::StrCat(what, " \"", name, "\" may contain only letters, digits, '.', '_' and '-'"));
     }
   }
   return absl::OkStatus();
@@ -85,8 +84,8 @@ absl::StatusOr<TemplateSummary> Registry::PutTemplate(store::TemplateRecord reco
   const TemplateSummary summary = Summarise(record, rve->Observe());
   absl::MutexLock lock(&mu_);
   if (!replace && templates_.contains(record.name)) {
-    return absl::AlreadyExistsError(absl::StrCat(
-        "template \"", record.name, "\" exists; upload with replace to overwrite it"));
+    return absl::AlreadyExistsError(
+        absl::StrCat("template \"", record.name, "\" exists; upload with replace to overwrite it"));
   }
   std::string name = record.name;
   templates_.insert_or_assign(std::move(name), std::move(record));
@@ -112,15 +111,15 @@ std::vector<store::TemplateRecord> Registry::AllTemplates() const {
 
 absl::Status Registry::CheckCapacity(std::int64_t count, std::int64_t bytes) const {
   if (num_rves_ + count > options_.max_rves) {
-    return absl::ResourceExhaustedError(
-        absl::StrCat("adding ", count, " RVEs to the ", num_rves_,
-                     " hosted would exceed the server's limit of ", options_.max_rves));
+    return absl::ResourceExhaustedError(absl::StrCat("adding ", count, " RVEs to the ", num_rves_,
+                                                     " hosted would exceed the server's limit of ",
+                                                     options_.max_rves));
   }
   if (memory_bytes_ + bytes > options_.max_memory_bytes) {
-    return absl::ResourceExhaustedError(absl::StrCat(
-        "adding ", count, " RVEs (", bytes, " bytes) to the ", memory_bytes_,
-        " bytes hosted would exceed the server's memory limit of ", options_.max_memory_bytes,
-        " bytes"));
+    return absl::ResourceExhaustedError(
+        absl::StrCat("adding ", count, " RVEs (", bytes, " bytes) to the ", memory_bytes_,
+                     " bytes hosted would exceed the server's memory limit of ",
+                     options_.max_memory_bytes, " bytes"));
   }
   return absl::OkStatus();
 }
@@ -132,9 +131,8 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
   if (absl::Status s = ValidateName("run id", run_id); !s.ok()) return s;
   if (ids.empty()) return absl::InvalidArgumentError("no material-point ids to create");
   if (static_cast<std::int64_t>(ids.size()) > options_.max_batch) {
-    return absl::InvalidArgumentError(absl::StrCat("batch of ", ids.size(),
-                                                   " RVEs exceeds the server's max batch of ",
-                                                   options_.max_batch));
+    return absl::InvalidArgumentError(absl::StrCat(
+        "batch of ", ids.size(), " RVEs exceeds the server's max batch of ", options_.max_batch));
   }
   if (std::vector<std::int64_t> rep = Repeated(ids); !rep.empty()) {
     return absl::AlreadyExistsError(
@@ -168,10 +166,9 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
     absl::MutexLock lock(&mu_);
     auto t = templates_.find(template_name);
     if (t == templates_.end()) {
-      return absl::NotFoundError(
-          absl::StrCat("unknown template \"", absl::string_view(template_name.data(),
-                                                               template_name.size()),
-                       "\"; upload it first (ListTemplates shows the known ones)"));
+      return absl::NotFoundError(absl::StrCat(
+          "unknown template \"", absl::string_view(template_name.data(), template_name.size()),
+          "\"; upload it first (ListTemplates shows the known ones)"));
     }
     base = t->second.packing;
   }
@@ -188,9 +185,8 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
       for (std::int64_t id : ids)
         if (run->second.contains(id)) taken.push_back(id);
       if (!taken.empty()) {
-        return absl::AlreadyExistsError(absl::StrCat("run \"", std::string(run_id),
-                                                     "\" already has material points ",
-                                                     ListIds(taken)));
+        return absl::AlreadyExistsError(absl::StrCat(
+            "run \"", std::string(run_id), "\" already has material points ", ListIds(taken)));
       }
     }
     if (absl::Status s = CheckCapacity(n, n * bytes_each); !s.ok()) return s;
@@ -222,8 +218,8 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
   });
   for (std::size_t k = 0; k < ids.size(); ++k) {
     if (!status[k].ok()) {
-      return absl::Status(status[k].code(), absl::StrCat("creating material point ", ids[k],
-                                                         ": ", status[k].message()));
+      return absl::Status(status[k].code(), absl::StrCat("creating material point ", ids[k], ": ",
+                                                         status[k].message()));
     }
   }
 
@@ -265,8 +261,7 @@ absl::StatusOr<std::vector<std::pair<std::int64_t, Registry::EntryPtr>>> Registr
   absl::MutexLock lock(&mu_);
   auto run = runs_.find(run_id);
   if (run == runs_.end()) {
-    return absl::NotFoundError(
-        absl::StrCat("unknown run \"", run_id, "\""));
+    return absl::NotFoundError(absl::StrCat("unknown run \"", run_id, "\""));
   }
   std::vector<std::pair<std::int64_t, EntryPtr>> out;
   if (ids.empty()) {
@@ -289,8 +284,8 @@ absl::StatusOr<std::vector<std::pair<std::int64_t, Registry::EntryPtr>>> Registr
   return out;
 }
 
-absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id,
-                                                        std::int64_t step, ApplyMode mode,
+absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id, std::int64_t step,
+                                                        ApplyMode mode,
                                                         const dem::ApplyOptions& options,
                                                         std::span<const Increment> increments,
                                                         const CancelFn& cancelled) {
@@ -312,8 +307,7 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
   ids.reserve(increments.size());
   for (const Increment& inc : increments) {
     if (absl::Status s = dem::ValidateDeltaF(inc.delta_f); !s.ok()) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("material point ", inc.id, ": ", s.message()));
+      return absl::InvalidArgumentError(absl::StrCat("material point ", inc.id, ": ", s.message()));
     }
     ids.push_back(inc.id);
   }
@@ -336,9 +330,9 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
     if (retry) {
       // A retried COMMIT must be the same increment, bit for bit.
       if (e.last_delta_f != inc.delta_f) {
-        o.status = absl::FailedPreconditionError(absl::StrCat(
-            "material point ", inc.id, " already committed step ", step,
-            " with a different ΔF; its current step is ", e.step));
+        o.status = absl::FailedPreconditionError(
+            absl::StrCat("material point ", inc.id, " already committed step ", step,
+                         " with a different ΔF; its current step is ", e.step));
         return;
       }
       if (e.last_result.has_value() && (!options.want_tangent || e.last_result->has_tangent)) {
@@ -350,9 +344,9 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
       return;
     }
     if (e.step != step - 1) {
-      o.status = absl::FailedPreconditionError(
-          absl::StrCat("material point ", inc.id, " is at step ", e.step, "; step ", step,
-                       " needs it at step ", step - 1));
+      o.status = absl::FailedPreconditionError(absl::StrCat("material point ", inc.id,
+                                                            " is at step ", e.step, "; step ", step,
+                                                            " needs it at step ", step - 1));
       return;
     }
     if (absl::Status c = CheckCancelled(cancelled); !c.ok()) {
@@ -394,8 +388,7 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Get(absl::string_view run_id,
     absl::MutexLock lock(&mu_);
     auto run = runs_.find(run_id);
     if (run == runs_.end()) {
-      return absl::NotFoundError(
-          absl::StrCat("unknown run \"", run_id, "\""));
+      return absl::NotFoundError(absl::StrCat("unknown run \"", run_id, "\""));
     }
     if (ids.empty()) {
       for (const auto& [id, e] : run->second) entries.emplace_back(id, e);
@@ -411,8 +404,8 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Get(absl::string_view run_id,
     RveOutcome& o = out[k];
     o.id = entries[k].first;
     if (entries[k].second == nullptr) {
-      o.status = absl::NotFoundError(absl::StrCat("run \"", std::string(run_id),
-                                                  "\" has no material point ", o.id));
+      o.status = absl::NotFoundError(
+          absl::StrCat("run \"", std::string(run_id), "\" has no material point ", o.id));
       return;
     }
     Entry& e = *entries[k].second;
@@ -499,8 +492,9 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<store::RveRecord> reco
   for (const store::RveRecord& r : records) {
     auto run = runs_.find(r.run_id);
     if (run != runs_.end() && run->second.contains(r.id)) {
-      return absl::AlreadyExistsError(absl::StrCat("run \"", r.run_id, "\" already has material point ",
-                                                   r.id, "; drop it before importing"));
+      return absl::AlreadyExistsError(absl::StrCat("run \"", r.run_id,
+                                                   "\" already has material point ", r.id,
+                                                   "; drop it before importing"));
     }
   }
   if (absl::Status s = CheckCapacity(n, bytes); !s.ok()) return s;
@@ -524,8 +518,7 @@ absl::StatusOr<std::int64_t> Registry::Drop(absl::string_view run_id,
   absl::MutexLock lock(&mu_);
   auto run = runs_.find(run_id);
   if (run == runs_.end()) {
-    return absl::NotFoundError(
-        absl::StrCat("unknown run \"", run_id, "\""));
+    return absl::NotFoundError(absl::StrCat("unknown run \"", run_id, "\""));
   }
   std::vector<std::int64_t> missing;
   for (std::int64_t id : ids)

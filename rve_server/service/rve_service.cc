@@ -1,6 +1,7 @@
 #include "rve_server/service/rve_service.h"
 
 #include <algorithm>
+#include <atomic>
 #include <utility>
 
 #include "absl/strings/match.h"
@@ -18,12 +19,31 @@ std::vector<std::int64_t> Ids(const google::protobuf::RepeatedField<std::int64_t
   return {ids.begin(), ids.end()};
 }
 
-// Deadline or cancellation of the call, as the registry's CancelFn.
+// Deadline or cancellation of the call, as the registry's CancelFn (asked
+// once per RVE, from any worker). The deadline is a clock read; asking gRPC
+// whether the client cancelled polls the call's completion queue (a syscall,
+// ~20 µs here), so that is done at most every kCancelPollInterval.
+constexpr auto kCancelPollInterval = std::chrono::milliseconds(5);
+
 CancelFn Canceller(grpc::ServerContext* ctx) {
-  return [ctx]() -> absl::Status {
-    if (ctx->IsCancelled()) return absl::CancelledError("the call was cancelled");
+  struct State {
+    std::atomic<std::int64_t> next_poll_ns{0};
+    std::atomic<bool> cancelled{false};
+  };
+  auto state = std::make_shared<State>();
+  return [ctx, state]() -> absl::Status {
+    const auto now = std::chrono::steady_clock::now();
     if (std::chrono::system_clock::now() > ctx->deadline())
       return absl::DeadlineExceededError("the call's deadline passed");
+    const std::int64_t now_ns =
+        std::chrono::duration_cast<std::chrono::nanoseconds>(now.time_since_epoch()).count();
+    std::int64_t next = state->next_poll_ns.load(std::memory_order_relaxed);
+    if (now_ns >= next &&
+        state->next_poll_ns.compare_exchange_strong(
+            next, now_ns + std::chrono::nanoseconds(kCancelPollInterval).count())) {
+      if (ctx->IsCancelled()) state->cancelled = true;
+    }
+    if (state->cancelled) return absl::CancelledError("the call was cancelled");
     return absl::OkStatus();
   };
 }
@@ -90,8 +110,7 @@ grpc::Status RveServiceImpl::ListTemplates(grpc::ServerContext* ctx,
   return grpc::Status::OK;
 }
 
-grpc::Status RveServiceImpl::CreateRves(grpc::ServerContext* ctx,
-                                        const v1::CreateRvesRequest* req,
+grpc::Status RveServiceImpl::CreateRves(grpc::ServerContext* ctx, const v1::CreateRvesRequest* req,
                                         v1::CreateRvesResponse* resp) {
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
   InitialStress initial;
@@ -130,9 +149,9 @@ grpc::Status RveServiceImpl::CreateRves(grpc::ServerContext* ctx,
       {{"run", req->run_id()},
        {"template", req->template_name()},
        {"count", absl::StrCat(ids.size())},
-       {"seconds", absl::StrCat(std::chrono::duration<double>(
-                                    std::chrono::steady_clock::now() - t0)
-                                    .count())}});
+       {"seconds",
+        absl::StrCat(
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count())}});
   return grpc::Status::OK;
 }
 
@@ -161,8 +180,8 @@ grpc::Status RveServiceImpl::Apply(grpc::ServerContext* ctx, const v1::ApplyRequ
     if (!f.ok()) return ToGrpc(f.status());
     increments[k] = {inc.id(), *f};
   }
-  absl::StatusOr<std::vector<RveOutcome>> out = registry_.Apply(
-      req->run_id(), req->step(), mode, *options, increments, Canceller(ctx));
+  absl::StatusOr<std::vector<RveOutcome>> out =
+      registry_.Apply(req->run_id(), req->step(), mode, *options, increments, Canceller(ctx));
   if (!out.ok()) return ToGrpc(out.status());
   std::int64_t failed = 0;
   for (const RveOutcome& o : *out) {
@@ -180,8 +199,7 @@ grpc::Status RveServiceImpl::Apply(grpc::ServerContext* ctx, const v1::ApplyRequ
   return grpc::Status::OK;
 }
 
-grpc::Status RveServiceImpl::GetStates(grpc::ServerContext* ctx,
-                                       const v1::GetStatesRequest* req,
+grpc::Status RveServiceImpl::GetStates(grpc::ServerContext* ctx, const v1::GetStatesRequest* req,
                                        v1::GetStatesResponse* resp) {
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
   const std::vector<std::int64_t> ids = Ids(req->ids());
@@ -258,10 +276,9 @@ grpc::Status RveServiceImpl::Import(grpc::ServerContext* ctx,
   }
   if (ctx->IsCancelled()) return grpc::Status(grpc::StatusCode::CANCELLED, "import cancelled");
   if (declared >= 0 && declared != static_cast<std::int64_t>(records.size())) {
-    return grpc::Status(
-        grpc::StatusCode::INVALID_ARGUMENT,
-        absl::StrCat("import stream declared ", declared, " records but carried ",
-                     records.size(), " (truncated stream?); nothing imported"));
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                        absl::StrCat("import stream declared ", declared, " records but carried ",
+                                     records.size(), " (truncated stream?); nothing imported"));
   }
   absl::StatusOr<std::int64_t> n = registry_.Import(std::move(records));
   if (!n.ok()) return ToGrpc(n.status());
@@ -294,8 +311,8 @@ grpc::Status RveServiceImpl::ListRuns(grpc::ServerContext* ctx, const v1::ListRu
   return grpc::Status::OK;
 }
 
-grpc::Status RveServiceImpl::GetServerInfo(grpc::ServerContext* ctx,
-                                           const v1::ServerInfoRequest*, v1::ServerInfo* resp) {
+grpc::Status RveServiceImpl::GetServerInfo(grpc::ServerContext* ctx, const v1::ServerInfoRequest*,
+                                           v1::ServerInfo* resp) {
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
   const RegistryStats s = registry_.Stats();
   const RegistryOptions& o = registry_.options();

@@ -18,9 +18,9 @@ namespace rvehub::service {
 grpc::Status ToGrpc(const absl::Status& s);
 
 struct ServiceOptions {
-  std::string version;            // reported by GetServerInfo
-  std::string auth_token;         // empty: no authentication
-  bool tls = false;               // reported only
+  std::string version;     // reported by GetServerInfo
+  std::string auth_token;  // empty: no authentication
+  bool tls = false;        // reported only
   std::int64_t max_message_bytes = 64 << 20;
 };
 

@@ -8,9 +8,9 @@
 #include <fstream>
 #include <sstream>
 
+#include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/strip.h"
-#include "absl/strings/ascii.h"
 #include "rve_server/service/log.h"
 #include "store/checkpoint.h"
 
@@ -34,20 +34,17 @@ class AuthInterceptor final : public grpc::experimental::Interceptor {
     if (methods->QueryInterceptionHookPoint(InterceptionHookPoints::POST_RECV_INITIAL_METADATA)) {
       denied_ = !Authorized(*methods->GetRecvInitialMetadata(), *token_);
     }
-    if (denied_ &&
-        methods->QueryInterceptionHookPoint(InterceptionHookPoints::PRE_SEND_MESSAGE)) {
+    if (denied_ && methods->QueryInterceptionHookPoint(InterceptionHookPoints::PRE_SEND_MESSAGE)) {
       grpc::ByteBuffer* buffer = methods->GetSerializedSendMessage();
       if (buffer != nullptr) {
         grpc::Slice empty("");
         *buffer = grpc::ByteBuffer(&empty, 1);
       }
     }
-    if (denied_ &&
-        methods->QueryInterceptionHookPoint(InterceptionHookPoints::PRE_SEND_STATUS)) {
-      methods->ModifySendStatus(
-          grpc::Status(grpc::StatusCode::UNAUTHENTICATED,
-                       absl::StrCat(info_->method(),
-                                    " needs \"authorization: Bearer <token>\" metadata")));
+    if (denied_ && methods->QueryInterceptionHookPoint(InterceptionHookPoints::PRE_SEND_STATUS)) {
+      methods->ModifySendStatus(grpc::Status(
+          grpc::StatusCode::UNAUTHENTICATED,
+          absl::StrCat(info_->method(), " needs \"authorization: Bearer <token>\" metadata")));
     }
     methods->Proceed();
   }
@@ -58,8 +55,7 @@ class AuthInterceptor final : public grpc::experimental::Interceptor {
   bool denied_ = false;
 };
 
-class AuthInterceptorFactory final
-    : public grpc::experimental::ServerInterceptorFactoryInterface {
+class AuthInterceptorFactory final : public grpc::experimental::ServerInterceptorFactoryInterface {
  public:
   explicit AuthInterceptorFactory(std::string token) : token_(std::move(token)) {}
   grpc::experimental::Interceptor* CreateServerInterceptor(
@@ -89,7 +85,8 @@ absl::StatusOr<std::string> ReadTokenFile(const std::string& path) {
   absl::StatusOr<std::string> text = ReadTextFile(path);
   if (!text.ok()) return text.status();
   std::string token(absl::StripAsciiWhitespace(*text));
-  if (token.empty()) return absl::InvalidArgumentError(absl::StrCat("token file ", path, " is empty"));
+  if (token.empty())
+    return absl::InvalidArgumentError(absl::StrCat("token file ", path, " is empty"));
   return token;
 }
 
@@ -139,12 +136,11 @@ absl::StatusOr<std::unique_ptr<RveServer>> RveServer::Start(const ServerConfig& 
   }
   s->server_ = builder.BuildAndStart();
   if (s->server_ == nullptr || s->port_ == 0) {
-    return absl::UnavailableError(absl::StrCat("cannot listen on ", config.listen,
-                                               " (address in use or not local?)"));
+    return absl::UnavailableError(
+        absl::StrCat("cannot listen on ", config.listen, " (address in use or not local?)"));
   }
   // Health by service name too, so that probes may ask for ours.
-  s->server_->GetHealthCheckService()->SetServingStatus(v1::RveService::service_full_name(),
-                                                        true);
+  s->server_->GetHealthCheckService()->SetServingStatus(v1::RveService::service_full_name(), true);
   s->server_->GetHealthCheckService()->SetServingStatus(true);
   const RegistryStats stats = s->registry_->Stats();
   Log("info", "listening",
@@ -207,8 +203,8 @@ absl::Status RveServer::SaveCheckpoint(const std::string& dir) {
     return s;
   }
   const std::vector<store::TemplateRecord> templates = registry_->AllTemplates();
-  if (s = store::WriteTemplates((std::filesystem::path(dir) / kTemplatesFile).string(),
-                                templates, info);
+  if (s = store::WriteTemplates((std::filesystem::path(dir) / kTemplatesFile).string(), templates,
+                                info);
       !s.ok()) {
     return s;
   }
@@ -241,16 +237,14 @@ absl::Status RveServer::LoadCheckpoint(const std::string& dir) {
     if (!r->empty()) {
       absl::StatusOr<std::int64_t> n = registry_->Import(*std::move(r));
       if (!n.ok()) {
-        return absl::Status(n.status().code(), absl::StrCat("restoring ", rves_path, ": ",
-                                                            n.status().message()));
+        return absl::Status(n.status().code(),
+                            absl::StrCat("restoring ", rves_path, ": ", n.status().message()));
       }
       num_rves = *n;
     }
   }
   Log("info", "checkpoint loaded",
-      {{"dir", dir},
-       {"rves", absl::StrCat(num_rves)},
-       {"templates", absl::StrCat(num_templates)}});
+      {{"dir", dir}, {"rves", absl::StrCat(num_rves)}, {"templates", absl::StrCat(num_templates)}});
   return absl::OkStatus();
 }
 

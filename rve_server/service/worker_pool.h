@@ -1,7 +1,7 @@
 // A fixed set of worker threads shared by all calls of a server. ParallelFor
 // blocks its caller until every index is done; concurrent callers share the
-// workers (first come, first served). Work items of one call run in any order on any thread, so callers
-// keep results per index (determinism comes from each item being independent).
+// workers (first come, first served). Work items of one call run in any order on any thread, so
+// callers keep results per index (determinism comes from each item being independent).
 #ifndef RVEHUB_RVE_SERVER_SERVICE_WORKER_POOL_H_
 #define RVEHUB_RVE_SERVER_SERVICE_WORKER_POOL_H_
 
