@@ -12,6 +12,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <future>
 #include <string>
 #include <vector>
@@ -243,6 +244,37 @@ TEST(ServerProcess, SigtermDrainsCheckpointsAndRestartContinues) {
   EXPECT_EQ(ExportOne(restarted.stub(), kRves - 1).SerializeAsString(),
             before_stop.SerializeAsString());
   EXPECT_EQ(restarted.Terminate(), 0);
+
+  // A damaged checkpoint stops the next start with a clear error (exit 1)
+  // instead of serving partial or wrong RVEs.
+  {
+    std::fstream f(dir / "rves.h5", std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(0, std::ios::end);
+    const std::streamoff middle = f.tellg() / 2;
+    char c = 0;
+    f.seekg(middle);
+    f.read(&c, 1);
+    c = static_cast<char>(c ^ 0x5a);
+    f.seekp(middle);
+    f.write(&c, 1);
+  }
+  const std::string log = (dir / "server.log").string();
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    dup2(fd, STDERR_FILENO);
+    execl(RVE_SERVER_PATH, RVE_SERVER_PATH, "--listen=127.0.0.1:0", dir_flag.c_str(),
+          static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 1);
+  std::ifstream in(log);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("rves.h5"), std::string::npos) << text;
+  EXPECT_NE(text.find("level=error"), std::string::npos) << text;
   fs::remove_all(dir);
 }
 
