@@ -205,3 +205,18 @@ TEST(RvePhysicsTest, AffineTangentBoundsOedometricStiffness) {
 
 }  // namespace
 }  // namespace rvehub::dem
+
+namespace rvehub::dem {
+namespace {
+
+// The cheap pressure pass Apply uses agrees with the full homogenisation.
+TEST(RvePhysicsTest, MeanPressureMatchesObserve) {
+  Rve rve = testing_util::CreateOrDie(testing_util::Prepared("SET-dense"));
+  ASSERT_TRUE(rve.Apply(Eigen::Vector3d(1.0, 1.0 - 1e-3, 1.0).asDiagonal().toDenseMatrix()).ok());
+  const double full = rve.Observe().MeanPressure();
+  EXPECT_GT(full, 100e3);
+  EXPECT_NEAR(rve.MeanPressure(), full, 1e-12 * full);
+}
+
+}  // namespace
+}  // namespace rvehub::dem

@@ -665,7 +665,7 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
   ApplyRigidRotation(angle);
   const Eigen::Matrix2d start = p_.cell;
   const Eigen::Matrix2d identity = Eigen::Matrix2d::Identity();
-  const double pressure = Observe().MeanPressure();
+  const double pressure = MeanPressure();
   const double inertial_number = options.max_inertial_number > 0
                                      ? std::min(options.max_inertial_number,
                                                 p_.controls.max_inertial_number)
@@ -777,6 +777,14 @@ void Rve::ForEachContact(F&& f) const {
       }
     }
   }
+}
+
+double Rve::MeanPressure() const {
+  // tr(Σ f⊗b) = Σ f·b: the trace of the Love–Weber sum in Observe, without
+  // the fabric, per-particle and tangent work.
+  double trace = 0.0;  // N·m
+  ForEachContact([&](const ContactForce& c) { trace += c.ForceOnI().dot(c.branch); });
+  return -0.5 * trace / (p_.cell.determinant() * p_.material.thickness);
 }
 
 std::vector<ContactForce> Rve::Contacts() const {

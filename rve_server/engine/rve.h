@@ -139,6 +139,9 @@ class Rve {
   RveState Observe(bool want_tangent = false) const;
   // The active contacts of the current configuration, sorted by (i, j).
   std::vector<ContactForce> Contacts() const;
+  // p = −tr σ/2 of the Love–Weber stress (Pa, compression +), at the cost of
+  // one pass over the contacts (Observe does much more).
+  double MeanPressure() const;
   // Current position of particle i in the cell (x = h·s, unwrapped), m.
   Eigen::Vector2d Position(int i) const { return p_.cell * Eigen::Vector2d(p_.sx[i], p_.sy[i]); }
 
