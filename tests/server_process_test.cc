@@ -128,6 +128,24 @@ v1::RveRecord ExportOne(v1::RveService::Stub& stub, std::int64_t id) {
   return out;
 }
 
+// Uploads the SET-dense template "t" (min_steps 10) and creates RVEs
+// 0 .. count − 1 of run "run" from it.
+grpc::Status CreateRun(v1::RveService::Stub& stub, int count) {
+  v1::UploadTemplateRequest up;
+  up.mutable_entry()->set_name("t");
+  dem::Packing p = dem::testing_util::Prepared("SET-dense");
+  p.controls.min_steps = 10;
+  ToProto(p, up.mutable_entry()->mutable_packing());
+  v1::TemplateInfo info;
+  if (grpc::Status s = stub.UploadTemplate(Ctx().get(), up, &info); !s.ok()) return s;
+  v1::CreateRvesRequest create;
+  create.set_run_id("run");
+  create.set_template_name("t");
+  for (int id = 0; id < count; ++id) create.add_ids(id);
+  v1::CreateRvesResponse created;
+  return stub.CreateRves(Ctx().get(), create, &created);
+}
+
 TEST(ServerProcess, HealthAndReflectionRespond) {
   ServerProcess server({"--listen=127.0.0.1:0", "--threads=1"});
   auto health = grpc::health::v1::Health::NewStub(server.channel());
@@ -162,19 +180,7 @@ TEST(ServerProcess, SigtermDrainsCheckpointsAndRestartContinues) {
   v1::RveRecord before_stop;
   {
     ServerProcess server({"--listen=127.0.0.1:0", "--threads=2", dir_flag});
-    v1::UploadTemplateRequest up;
-    up.mutable_entry()->set_name("t");
-    dem::Packing p = dem::testing_util::Prepared("SET-dense");
-    p.controls.min_steps = 10;
-    ToProto(p, up.mutable_entry()->mutable_packing());
-    v1::TemplateInfo info;
-    ASSERT_TRUE(server.stub().UploadTemplate(Ctx().get(), up, &info).ok());
-    v1::CreateRvesRequest create;
-    create.set_run_id("run");
-    create.set_template_name("t");
-    for (int id = 0; id < kRves; ++id) create.add_ids(id);
-    v1::CreateRvesResponse created;
-    ASSERT_TRUE(server.stub().CreateRves(Ctx().get(), create, &created).ok());
+    ASSERT_TRUE(CreateRun(server.stub(), kRves).ok());
     v1::ApplyResponse r;
     ASSERT_TRUE(server.stub().Apply(Ctx().get(), Increments(1, kRves, 1e-4), &r).ok());
     ASSERT_EQ(r.failed(), 0);
@@ -202,19 +208,7 @@ TEST(ServerProcess, SigtermDrainsCheckpointsAndRestartContinues) {
   // Reference: the same three steps on a server that never stopped.
   {
     ServerProcess ref({"--listen=127.0.0.1:0", "--threads=1"});
-    v1::UploadTemplateRequest up;
-    up.mutable_entry()->set_name("t");
-    dem::Packing p = dem::testing_util::Prepared("SET-dense");
-    p.controls.min_steps = 10;
-    ToProto(p, up.mutable_entry()->mutable_packing());
-    v1::TemplateInfo info;
-    ASSERT_TRUE(ref.stub().UploadTemplate(Ctx().get(), up, &info).ok());
-    v1::CreateRvesRequest create;
-    create.set_run_id("run");
-    create.set_template_name("t");
-    for (int id = 0; id < kRves; ++id) create.add_ids(id);
-    v1::CreateRvesResponse created;
-    ASSERT_TRUE(ref.stub().CreateRves(Ctx().get(), create, &created).ok());
+    ASSERT_TRUE(CreateRun(ref.stub(), kRves).ok());
     v1::ApplyResponse r;
     ASSERT_TRUE(ref.stub().Apply(Ctx().get(), Increments(1, kRves, 1e-4), &r).ok());
     ASSERT_TRUE(ref.stub().Apply(Ctx().get(), Increments(2, kRves, 0.04), &r).ok());

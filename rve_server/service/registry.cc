@@ -22,6 +22,10 @@ std::string ListIds(const std::vector<std::int64_t>& ids) {
   return s;
 }
 
+absl::Status UnknownRun(absl::string_view run_id) {
+  return absl::NotFoundError(absl::StrCat("unknown run \"", run_id, "\""));
+}
+
 // Duplicates among ids, sorted.
 std::vector<std::int64_t> Repeated(std::span<const std::int64_t> ids) {
   std::vector<std::int64_t> sorted(ids.begin(), ids.end());
@@ -109,6 +113,21 @@ std::vector<store::TemplateRecord> Registry::AllTemplates() const {
   return out;
 }
 
+absl::Status Registry::CheckRoom(absl::string_view run_id, std::span<const std::int64_t> ids,
+                                 std::int64_t bytes) const {
+  auto run = runs_.find(run_id);
+  if (run != runs_.end()) {
+    std::vector<std::int64_t> taken;
+    for (std::int64_t id : ids)
+      if (run->second.contains(id)) taken.push_back(id);
+    if (!taken.empty()) {
+      return absl::AlreadyExistsError(
+          absl::StrCat("run \"", run_id, "\" already has material points ", ListIds(taken)));
+    }
+  }
+  return CheckCapacity(static_cast<std::int64_t>(ids.size()), bytes);
+}
+
 absl::Status Registry::CheckCapacity(std::int64_t count, std::int64_t bytes) const {
   if (num_rves_ + count > options_.max_rves) {
     return absl::ResourceExhaustedError(absl::StrCat("adding ", count, " RVEs to the ", num_rves_,
@@ -179,17 +198,7 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
   const std::int64_t n = static_cast<std::int64_t>(ids.size());
   {
     absl::MutexLock lock(&mu_);
-    auto run = runs_.find(run_id);
-    if (run != runs_.end()) {
-      std::vector<std::int64_t> taken;
-      for (std::int64_t id : ids)
-        if (run->second.contains(id)) taken.push_back(id);
-      if (!taken.empty()) {
-        return absl::AlreadyExistsError(absl::StrCat(
-            "run \"", std::string(run_id), "\" already has material points ", ListIds(taken)));
-      }
-    }
-    if (absl::Status s = CheckCapacity(n, n * bytes_each); !s.ok()) return s;
+    if (absl::Status s = CheckRoom(run_id, ids, n * bytes_each); !s.ok()) return s;
   }
 
   // Consolidation is the expensive part: one RVE per work item. Every new RVE
@@ -228,18 +237,8 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
     absl::MutexLock lock(&mu_);
     // Another call may have created some of these ids or used the capacity
     // while this one consolidated.
+    if (absl::Status s = CheckRoom(run_id, ids, n * bytes_each); !s.ok()) return s;
     Run& run = runs_[std::string(run_id)];
-    std::vector<std::int64_t> taken;
-    for (std::int64_t id : ids)
-      if (run.contains(id)) taken.push_back(id);
-    absl::Status s = taken.empty() ? CheckCapacity(n, n * bytes_each)
-                                   : absl::AlreadyExistsError(absl::StrCat(
-                                         "run \"", std::string(run_id),
-                                         "\" already has material points ", ListIds(taken)));
-    if (!s.ok()) {
-      if (run.empty()) runs_.erase(runs_.find(run_id));
-      return s;
-    }
     for (std::size_t k = 0; k < ids.size(); ++k) {
       auto entry = std::make_shared<Entry>(std::move(*made[k]));
       entry->memory_bytes = bytes_each;
@@ -261,7 +260,7 @@ absl::StatusOr<std::vector<std::pair<std::int64_t, Registry::EntryPtr>>> Registr
   absl::MutexLock lock(&mu_);
   auto run = runs_.find(run_id);
   if (run == runs_.end()) {
-    return absl::NotFoundError(absl::StrCat("unknown run \"", run_id, "\""));
+    return UnknownRun(run_id);
   }
   std::vector<std::pair<std::int64_t, EntryPtr>> out;
   if (ids.empty()) {
@@ -388,7 +387,7 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Get(absl::string_view run_id,
     absl::MutexLock lock(&mu_);
     auto run = runs_.find(run_id);
     if (run == runs_.end()) {
-      return absl::NotFoundError(absl::StrCat("unknown run \"", run_id, "\""));
+      return UnknownRun(run_id);
     }
     if (ids.empty()) {
       for (const auto& [id, e] : run->second) entries.emplace_back(id, e);
@@ -518,7 +517,7 @@ absl::StatusOr<std::int64_t> Registry::Drop(absl::string_view run_id,
   absl::MutexLock lock(&mu_);
   auto run = runs_.find(run_id);
   if (run == runs_.end()) {
-    return absl::NotFoundError(absl::StrCat("unknown run \"", run_id, "\""));
+    return UnknownRun(run_id);
   }
   std::vector<std::int64_t> missing;
   for (std::int64_t id : ids)

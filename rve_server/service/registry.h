@@ -164,6 +164,9 @@ class Registry {
       absl::string_view run_id, std::span<const std::int64_t> ids) const;
   absl::Status CheckCapacity(std::int64_t count, std::int64_t bytes) const
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // AlreadyExists naming ids the run has, else CheckCapacity for them.
+  absl::Status CheckRoom(absl::string_view run_id, std::span<const std::int64_t> ids,
+                         std::int64_t bytes) const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
 
   const RegistryOptions options_;
   mutable WorkerPool pool_;
