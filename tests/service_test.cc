@@ -237,6 +237,48 @@ TEST_F(ServiceTest, CreationConsolidatesToIsotropicAndK0States) {
               grpc::StatusCode::INVALID_ARGUMENT, "initial pressure");
 }
 
+TEST_F(ServiceTest, CreationConsolidatesEachRveToItsOwnGeostaticPressure) {
+  // p = ρ·g·h at three depths (the client computes it), one per id.
+  const std::vector<double> pressure = {50e3, 100e3, 150e3};
+  v1::CreateRvesRequest req;
+  req.set_run_id("geostatic");
+  req.set_template_name(kTemplate);
+  req.set_want_state(true);
+  for (int k = 0; k < 3; ++k) {
+    req.add_ids(10 + k);
+    req.add_initial_stresses()->set_pressure(pressure[k]);
+  }
+  v1::CreateRvesResponse resp;
+  ASSERT_TRUE(h_.stub().CreateRves(h_.Context().get(), req, &resp).ok());
+  ASSERT_EQ(resp.results_size(), 3);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(resp.results(k).id(), 10 + k);
+    EXPECT_NEAR(resp.results(k).state().mean_pressure(), pressure[k], 0.01 * pressure[k]);
+  }
+
+  // Bad: a count that is neither one nor one per id; a bad entry named by
+  // its id; both forms at once. Nothing is created.
+  v1::CreateRvesRequest two = req;
+  two.set_run_id("bad");
+  two.mutable_initial_stresses()->RemoveLast();
+  ExpectError(h_.stub().CreateRves(h_.Context().get(), two, &resp),
+              grpc::StatusCode::INVALID_ARGUMENT, "one per id (3), not 2");
+  v1::CreateRvesRequest nan = req;
+  nan.set_run_id("bad");
+  nan.mutable_initial_stresses(1)->set_pressure(std::numeric_limits<double>::quiet_NaN());
+  ExpectError(h_.stub().CreateRves(h_.Context().get(), nan, &resp),
+              grpc::StatusCode::INVALID_ARGUMENT, "material point 11: initial pressure");
+  v1::CreateRvesRequest both = req;
+  both.set_run_id("bad");
+  both.mutable_initial_stress()->set_pressure(1e5);
+  ExpectError(h_.stub().CreateRves(h_.Context().get(), both, &resp),
+              grpc::StatusCode::INVALID_ARGUMENT, "not both");
+  v1::ListRunsResponse runs;
+  ASSERT_TRUE(h_.stub().ListRuns(h_.Context().get(), {}, &runs).ok());
+  ASSERT_EQ(runs.runs_size(), 1);
+  EXPECT_EQ(runs.runs(0).run_id(), "geostatic");
+}
+
 TEST_F(ServiceTest, RepeatedCommitReturnsStoredResultWithoutRecomputing) {
   ASSERT_TRUE(h_.Create("r", {7}).ok());
   v1::ApplyResponse first, again;

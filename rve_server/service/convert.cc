@@ -293,6 +293,23 @@ absl::StatusOr<dem::ApplyOptions> FromProto(const v1::ApplyOptions& o) {
   return out;
 }
 
+absl::StatusOr<InitialStress> FromProto(const v1::InitialStress& s) {
+  InitialStress out;
+  switch (s.kind_case()) {
+    case v1::InitialStress::kPressure:
+      out.kind = InitialStress::Kind::kIsotropic;
+      out.pressure = s.pressure();
+      return out;
+    case v1::InitialStress::kK0:
+      out.kind = InitialStress::Kind::kK0;
+      out.vertical_compression = s.k0().vertical_compression();
+      out.k0 = s.k0().k0();
+      return out;
+    default:
+      return absl::InvalidArgumentError("an initial stress names neither pressure nor k0");
+  }
+}
+
 absl::StatusOr<dem::ElementTestSpec> FromProto(const v1::ElementTestRequest& r) {
   dem::ElementTestSpec s;
   switch (r.test()) {

@@ -59,6 +59,28 @@ TemplateSummary Summarise(const store::TemplateRecord& t, const dem::RveState& s
 
 }  // namespace
 
+absl::Status Validate(const InitialStress& initial) {
+  switch (initial.kind) {
+    case InitialStress::Kind::kTemplate:
+      return absl::OkStatus();
+    case InitialStress::Kind::kIsotropic:
+      if (!(std::isfinite(initial.pressure) && initial.pressure > 0)) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "initial pressure ", initial.pressure, " Pa must be finite and > 0 (compression +)"));
+      }
+      return absl::OkStatus();
+    case InitialStress::Kind::kK0:
+      if (!(std::isfinite(initial.vertical_compression) && initial.vertical_compression > 0 &&
+            std::isfinite(initial.k0) && initial.k0 > 0)) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "K0 state needs a finite vertical stress > 0 (compression +) and K0 > 0, got σv = ",
+            initial.vertical_compression, " Pa, K0 = ", initial.k0));
+      }
+      return absl::OkStatus();
+  }
+  return absl::InvalidArgumentError("unknown kind of initial stress");
+}
+
 absl::Status ValidateName(absl::string_view what, absl::string_view name) {
   if (name.empty() || name.size() > kMaxNameLength) {
     return absl::InvalidArgumentError(
@@ -145,8 +167,8 @@ absl::Status Registry::CheckCapacity(std::int64_t count, std::int64_t bytes) con
 
 absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
     absl::string_view run_id, absl::string_view template_name, std::span<const std::int64_t> ids,
-    const InitialStress& initial, const std::optional<dem::Controls>& controls, bool want_state,
-    const CancelFn& cancelled) {
+    std::span<const InitialStress> initial, const std::optional<dem::Controls>& controls,
+    bool want_state, const CancelFn& cancelled) {
   if (absl::Status s = ValidateName("run id", run_id); !s.ok()) return s;
   if (ids.empty()) return absl::InvalidArgumentError("no material-point ids to create");
   if (static_cast<std::int64_t>(ids.size()) > options_.max_batch) {
@@ -157,23 +179,16 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
     return absl::AlreadyExistsError(
         absl::StrCat("material-point ids repeated in the request: ", ListIds(rep)));
   }
-  switch (initial.kind) {
-    case InitialStress::Kind::kTemplate:
-      break;
-    case InitialStress::Kind::kIsotropic:
-      if (!(std::isfinite(initial.pressure) && initial.pressure > 0)) {
-        return absl::InvalidArgumentError(absl::StrCat(
-            "initial pressure ", initial.pressure, " Pa must be finite and > 0 (compression +)"));
-      }
-      break;
-    case InitialStress::Kind::kK0:
-      if (!(std::isfinite(initial.vertical_compression) && initial.vertical_compression > 0 &&
-            std::isfinite(initial.k0) && initial.k0 > 0)) {
-        return absl::InvalidArgumentError(absl::StrCat(
-            "K0 state needs a finite vertical stress > 0 (compression +) and K0 > 0, got σv = ",
-            initial.vertical_compression, " Pa, K0 = ", initial.k0));
-      }
-      break;
+  if (initial.size() > 1 && initial.size() != ids.size()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("initial stresses: give none, one for all or one per id (", ids.size(),
+                     "), not ", initial.size()));
+  }
+  for (std::size_t k = 0; k < initial.size(); ++k) {
+    if (absl::Status s = Validate(initial[k]); !s.ok()) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          initial.size() > 1 ? absl::StrCat("material point ", ids[k], ": ") : "", s.message()));
+    }
   }
   if (controls.has_value()) {
     if (absl::Status s = dem::Validate(*controls); !s.ok()) return s;
@@ -212,11 +227,13 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
     }
     dem::Rve rve = *prototype;
     absl::StatusOr<dem::RveState> s = dem::RveState{};
-    if (initial.kind == InitialStress::Kind::kIsotropic) {
-      s = dem::ConsolidateIsotropic(rve, initial.pressure);
-    } else if (initial.kind == InitialStress::Kind::kK0) {
-      s = dem::ConsolidateToStress(rve, initial.k0 * initial.vertical_compression,
-                                   initial.vertical_compression);
+    const InitialStress none;
+    const InitialStress& target = initial.empty() ? none : initial[initial.size() == 1 ? 0 : k];
+    if (target.kind == InitialStress::Kind::kIsotropic) {
+      s = dem::ConsolidateIsotropic(rve, target.pressure);
+    } else if (target.kind == InitialStress::Kind::kK0) {
+      s = dem::ConsolidateToStress(rve, target.k0 * target.vertical_compression,
+                                   target.vertical_compression);
     }
     if (!s.ok()) {
       status[k] = s.status();

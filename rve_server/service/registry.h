@@ -86,6 +86,9 @@ struct RegistryStats {
 // gave up (then RVEs not yet started are skipped).
 using CancelFn = std::function<absl::Status()>;
 
+// Finite positive stresses (and K0) for the kind; kTemplate is always valid.
+absl::Status Validate(const InitialStress& initial);
+
 // Checks a run id or template name: [A-Za-z0-9._-], 1..128 characters.
 absl::Status ValidateName(absl::string_view what, absl::string_view name);
 
@@ -103,14 +106,15 @@ class Registry {
   std::vector<TemplateSummary> ListTemplates() const;
   std::vector<store::TemplateRecord> AllTemplates() const;
 
-  // Creates RVEs from a template, optionally consolidated to an initial
-  // stress (in parallel) and with other controls. All or nothing:
+  // Creates RVEs from a template, optionally consolidated (in parallel) to
+  // initial stresses — none, one for all, or one per id (geostatic starts:
+  // each point its own depth) — and with other controls. All or nothing:
   // NotFound (template), AlreadyExists (id in the run, or twice in the
   // request), ResourceExhausted (limits), InvalidArgument (malformed).
   absl::StatusOr<std::vector<RveOutcome>> Create(absl::string_view run_id,
                                                  absl::string_view template_name,
                                                  std::span<const std::int64_t> ids,
-                                                 const InitialStress& initial,
+                                                 std::span<const InitialStress> initial,
                                                  const std::optional<dem::Controls>& controls,
                                                  bool want_state, const CancelFn& cancelled = {});
 

@@ -113,23 +113,24 @@ grpc::Status RveServiceImpl::ListTemplates(grpc::ServerContext* ctx,
 grpc::Status RveServiceImpl::CreateRves(grpc::ServerContext* ctx, const v1::CreateRvesRequest* req,
                                         v1::CreateRvesResponse* resp) {
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
-  InitialStress initial;
+  if (req->has_initial_stress() && req->initial_stresses_size() > 0) {
+    return grpc::Status(
+        grpc::StatusCode::INVALID_ARGUMENT,
+        "give initial_stress (one for all) or initial_stresses (one per id), not both");
+  }
+  std::vector<InitialStress> initial;
   if (req->has_initial_stress()) {
-    const v1::InitialStress& is = req->initial_stress();
-    switch (is.kind_case()) {
-      case v1::InitialStress::kPressure:
-        initial.kind = InitialStress::Kind::kIsotropic;
-        initial.pressure = is.pressure();
-        break;
-      case v1::InitialStress::kK0:
-        initial.kind = InitialStress::Kind::kK0;
-        initial.vertical_compression = is.k0().vertical_compression();
-        initial.k0 = is.k0().k0();
-        break;
-      default:
-        return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                            "initial_stress is set but names neither pressure nor k0");
+    absl::StatusOr<InitialStress> one = FromProto(req->initial_stress());
+    if (!one.ok()) return ToGrpc(one.status());
+    initial.push_back(*one);
+  }
+  for (int k = 0; k < req->initial_stresses_size(); ++k) {
+    absl::StatusOr<InitialStress> one = FromProto(req->initial_stresses(k));
+    if (!one.ok()) {
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                          absl::StrCat("initial_stresses[", k, "]: ", one.status().message()));
     }
+    initial.push_back(*one);
   }
   std::optional<dem::Controls> controls;
   if (req->has_controls()) controls = FromProto(req->controls());
