@@ -432,6 +432,18 @@ TEST_F(ServiceTest, BadInputGetsSpecificCodeAndChangesNothing) {
               grpc::StatusCode::INVALID_ARGUMENT, "mode");
   ExpectError(h_.Apply("r", 0, v1::APPLY_MODE_COMMIT, {1}, Compress(1e-4), &resp),
               grpc::StatusCode::INVALID_ARGUMENT, "step 0");
+  {
+    v1::ApplyRequest req;
+    req.set_run_id("r");
+    req.set_step(1);
+    req.set_mode(v1::APPLY_MODE_COMMIT);
+    req.mutable_options()->set_relax_tolerance(-1.0);
+    v1::Increment* inc = req.add_increments();
+    inc->set_id(1);
+    for (double v : Compress(1e-4)) inc->add_delta_f(v);
+    ExpectError(h_.stub().Apply(h_.Context().get(), req, &resp), grpc::StatusCode::INVALID_ARGUMENT,
+                "apply options");
+  }
   // Too large a stretch for one increment: the engine refuses that RVE alone.
   ASSERT_TRUE(h_.Apply("r", 1, v1::APPLY_MODE_COMMIT, {1}, Compress(0.2), &resp).ok());
   EXPECT_EQ(resp.results(0).code(), grpc::StatusCode::INVALID_ARGUMENT);

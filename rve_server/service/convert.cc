@@ -271,25 +271,14 @@ void ToProto(const TemplateSummary& t, v1::TemplateInfo* out) {
   out->set_mean_pressure(t.mean_pressure);
 }
 
-absl::StatusOr<dem::ApplyOptions> FromProto(const v1::ApplyOptions& o) {
+dem::ApplyOptions FromProto(const v1::ApplyOptions& o) {
+  // Zero means "the default"; the registry checks the values.
   dem::ApplyOptions out;
   out.want_tangent = o.want_tangent();
   out.relax = o.relax();
   if (o.max_inertial_number() != 0) out.max_inertial_number = o.max_inertial_number();
   if (o.relax_tolerance() != 0) out.relax_tolerance = o.relax_tolerance();
   if (o.relax_max_steps() != 0) out.relax_max_steps = o.relax_max_steps();
-  if (!(std::isfinite(out.max_inertial_number) && out.max_inertial_number >= 0)) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "options.max_inertial_number = ", o.max_inertial_number(), " must be finite and >= 0"));
-  }
-  if (!(std::isfinite(out.relax_tolerance) && out.relax_tolerance > 0)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("options.relax_tolerance = ", o.relax_tolerance(), " must be finite and > 0"));
-  }
-  if (out.relax_max_steps < 0) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("options.relax_max_steps = ", o.relax_max_steps(), " must be >= 0"));
-  }
   return out;
 }
 

@@ -41,7 +41,7 @@ void ToProto(const RveOutcome& o, v1::RveResult* out);
 
 void ToProto(const TemplateSummary& t, v1::TemplateInfo* out);
 
-absl::StatusOr<dem::ApplyOptions> FromProto(const v1::ApplyOptions& o);
+dem::ApplyOptions FromProto(const v1::ApplyOptions& o);
 // InvalidArgument when neither pressure nor k0 is set.
 absl::StatusOr<InitialStress> FromProto(const v1::InitialStress& s);
 absl::StatusOr<dem::ElementTestSpec> FromProto(const v1::ElementTestRequest& r);

@@ -399,7 +399,6 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Get(absl::string_view run_id,
                                                       std::span<const std::int64_t> ids,
                                                       bool want_tangent) const {
   std::vector<std::pair<std::int64_t, EntryPtr>> entries;
-  std::vector<std::int64_t> missing;
   {
     absl::MutexLock lock(&mu_);
     auto run = runs_.find(run_id);

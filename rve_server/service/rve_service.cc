@@ -171,8 +171,7 @@ grpc::Status RveServiceImpl::Apply(grpc::ServerContext* ctx, const v1::ApplyRequ
       return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                           "mode must be APPLY_MODE_COMMIT or APPLY_MODE_TRIAL");
   }
-  absl::StatusOr<dem::ApplyOptions> options = FromProto(req->options());
-  if (!options.ok()) return ToGrpc(options.status());
+  const dem::ApplyOptions options = FromProto(req->options());
   std::vector<Increment> increments(req->increments_size());
   for (int k = 0; k < req->increments_size(); ++k) {
     const v1::Increment& inc = req->increments(k);
@@ -182,7 +181,7 @@ grpc::Status RveServiceImpl::Apply(grpc::ServerContext* ctx, const v1::ApplyRequ
     increments[k] = {inc.id(), *f};
   }
   absl::StatusOr<std::vector<RveOutcome>> out =
-      registry_.Apply(req->run_id(), req->step(), mode, *options, increments, Canceller(ctx));
+      registry_.Apply(req->run_id(), req->step(), mode, options, increments, Canceller(ctx));
   if (!out.ok()) return ToGrpc(out.status());
   std::int64_t failed = 0;
   for (const RveOutcome& o : *out) {
