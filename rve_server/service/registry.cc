@@ -114,25 +114,32 @@ absl::StatusOr<TemplateSummary> Registry::PutTemplate(store::TemplateRecord reco
         absl::StrCat("template \"", record.name, "\" exists; upload with replace to overwrite it"));
   }
   std::string name = record.name;
-  templates_.insert_or_assign(std::move(name), std::move(record));
+  templates_.insert_or_assign(std::move(name), Template{std::move(record), summary});
   return summary;
 }
 
 std::vector<TemplateSummary> Registry::ListTemplates() const {
-  std::vector<store::TemplateRecord> all = AllTemplates();
+  absl::MutexLock lock(&mu_);
   std::vector<TemplateSummary> out;
-  for (const store::TemplateRecord& t : all) {
-    absl::StatusOr<dem::Rve> rve = dem::Rve::Create(t.packing);  // validated on upload
-    out.push_back(Summarise(t, rve.ok() ? rve->Observe() : dem::RveState{}));
-  }
+  for (const auto& [name, t] : templates_) out.push_back(t.summary);
   return out;
 }
 
 std::vector<store::TemplateRecord> Registry::AllTemplates() const {
   absl::MutexLock lock(&mu_);
   std::vector<store::TemplateRecord> out;
-  for (const auto& [name, t] : templates_) out.push_back(t);
+  for (const auto& [name, t] : templates_) out.push_back(t.record);
   return out;
+}
+
+absl::StatusOr<store::TemplateRecord> Registry::FindTemplate(absl::string_view name) const {
+  absl::MutexLock lock(&mu_);
+  auto t = templates_.find(name);
+  if (t == templates_.end()) {
+    return absl::NotFoundError(absl::StrCat(
+        "unknown template \"", name, "\"; upload it first (ListTemplates shows the known ones)"));
+  }
+  return t->second.record;
 }
 
 absl::Status Registry::CheckRoom(absl::string_view run_id, std::span<const std::int64_t> ids,
@@ -194,18 +201,10 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
     if (absl::Status s = dem::Validate(*controls); !s.ok()) return s;
   }
 
-  dem::Packing base;
+  absl::StatusOr<store::TemplateRecord> found = FindTemplate(template_name);
+  if (!found.ok()) return found.status();
+  dem::Packing base = std::move(found->packing);
   std::int64_t bytes_each = 0;
-  {
-    absl::MutexLock lock(&mu_);
-    auto t = templates_.find(template_name);
-    if (t == templates_.end()) {
-      return absl::NotFoundError(absl::StrCat(
-          "unknown template \"", absl::string_view(template_name.data(), template_name.size()),
-          "\"; upload it first (ListTemplates shows the known ones)"));
-    }
-    base = t->second.packing;
-  }
   if (controls.has_value()) base.controls = *controls;
   absl::StatusOr<dem::Rve> prototype = dem::Rve::Create(base);
   if (!prototype.ok()) return prototype.status();
@@ -584,6 +583,12 @@ std::vector<RunSummary> Registry::ListRuns() const {
     out.push_back(std::move(r));
   }
   return out;
+}
+
+std::int64_t Registry::CountRves(absl::string_view run_id) const {
+  absl::MutexLock lock(&mu_);
+  auto run = runs_.find(run_id);
+  return run == runs_.end() ? 0 : static_cast<std::int64_t>(run->second.size());
 }
 
 RegistryStats Registry::Stats() const {

@@ -105,6 +105,8 @@ class Registry {
   absl::StatusOr<TemplateSummary> PutTemplate(store::TemplateRecord record, bool replace);
   std::vector<TemplateSummary> ListTemplates() const;
   std::vector<store::TemplateRecord> AllTemplates() const;
+  // NotFound naming the template when it is not hosted.
+  absl::StatusOr<store::TemplateRecord> FindTemplate(absl::string_view name) const;
 
   // Creates RVEs from a template, optionally consolidated (in parallel) to
   // initial stresses — none, one for all, or one per id (geostatic starts:
@@ -147,6 +149,8 @@ class Registry {
   absl::StatusOr<std::int64_t> Drop(absl::string_view run_id, std::span<const std::int64_t> ids);
 
   std::vector<RunSummary> ListRuns() const;
+  // RVEs hosted for a run (0 for an unknown run).
+  std::int64_t CountRves(absl::string_view run_id) const;
   RegistryStats Stats() const;
 
  private:
@@ -176,7 +180,11 @@ class Registry {
   mutable WorkerPool pool_;
   mutable absl::Mutex mu_;
   std::map<std::string, Run, std::less<>> runs_ ABSL_GUARDED_BY(mu_);
-  std::map<std::string, store::TemplateRecord, std::less<>> templates_ ABSL_GUARDED_BY(mu_);
+  struct Template {
+    store::TemplateRecord record;
+    TemplateSummary summary;  // computed once, on upload
+  };
+  std::map<std::string, Template, std::less<>> templates_ ABSL_GUARDED_BY(mu_);
   std::int64_t num_rves_ ABSL_GUARDED_BY(mu_) = 0;
   std::int64_t memory_bytes_ ABSL_GUARDED_BY(mu_) = 0;
 };

@@ -220,13 +220,8 @@ grpc::Status RveServiceImpl::Export(grpc::ServerContext* ctx, const v1::ExportRe
   std::int64_t chunk_bytes = 0;  // serialised size of the records in `chunk`
   v1::RveChunk chunk;
   std::int64_t sent = 0;
-  std::int64_t total = 0;
-  if (ids.empty()) {
-    for (const RunSummary& r : registry_.ListRuns())
-      if (r.run_id == req->run_id()) total = r.num_rves;
-  } else {
-    total = static_cast<std::int64_t>(ids.size());
-  }
+  const std::int64_t total =
+      ids.empty() ? registry_.CountRves(req->run_id()) : static_cast<std::int64_t>(ids.size());
   auto flush = [&]() -> absl::Status {
     if (chunk.records_size() == 0) return absl::OkStatus();
     if (sent == 0) chunk.set_total_records(total);
@@ -340,14 +335,8 @@ grpc::Status RveServiceImpl::RunElementTest(grpc::ServerContext* ctx,
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
   absl::StatusOr<dem::ElementTestSpec> spec = FromProto(*req);
   if (!spec.ok()) return ToGrpc(spec.status());
-  std::optional<store::TemplateRecord> tmpl;
-  for (store::TemplateRecord& t : registry_.AllTemplates()) {
-    if (t.name == req->template_name()) tmpl = std::move(t);
-  }
-  if (!tmpl.has_value()) {
-    return grpc::Status(grpc::StatusCode::NOT_FOUND,
-                        absl::StrCat("unknown template \"", req->template_name(), "\""));
-  }
+  absl::StatusOr<store::TemplateRecord> tmpl = registry_.FindTemplate(req->template_name());
+  if (!tmpl.ok()) return ToGrpc(tmpl.status());
   absl::StatusOr<dem::Rve> rve = dem::Rve::Create(tmpl->packing);
   if (!rve.ok()) return ToGrpc(rve.status());
   // A fresh RVE of the template, tested in this call's thread (an element
