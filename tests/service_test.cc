@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "health_probe.grpc.pb.h"
+#include "rve_server/common/text_file.h"
 #include "rve_server/service/convert.h"
 #include "rve_server/service/log.h"
 #include "rve_server/service/server.h"
@@ -609,8 +610,8 @@ TEST(ServiceTls, EncryptedCallsWithTokenWork) {
                           "/cert.pem -days 1 -subj /CN=localhost -addext "
                           "subjectAltName=IP:127.0.0.1 >/dev/null 2>&1";
   ASSERT_EQ(std::system(cmd.c_str()), 0) << "openssl could not make a certificate";
-  absl::StatusOr<std::string> cert = ReadTextFile(dir + "/cert.pem");
-  absl::StatusOr<std::string> key = ReadTextFile(dir + "/key.pem");
+  absl::StatusOr<std::string> cert = rvehub::ReadTextFile(dir + "/cert.pem");
+  absl::StatusOr<std::string> key = rvehub::ReadTextFile(dir + "/key.pem");
   ASSERT_TRUE(cert.ok() && key.ok());
   ServerConfig config;
   config.listen = "127.0.0.1:0";

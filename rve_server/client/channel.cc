@@ -1,35 +1,12 @@
 #include "rve_server/client/channel.h"
 
 #include <algorithm>
-#include <cerrno>
 #include <climits>
-#include <cstring>
-#include <fstream>
-#include <iterator>
 
-#include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
+#include "rve_server/common/text_file.h"
 
 namespace rvehub::client {
-namespace {
-
-absl::StatusOr<std::string> ReadWholeFile(const std::string& path, absl::string_view what) {
-  errno = 0;
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    const int err = errno;
-    const std::string why =
-        absl::StrCat("cannot read ", what, " '", path, "': ", std::strerror(err));
-    if (err == EACCES) return absl::PermissionDeniedError(why);
-    return absl::NotFoundError(why);
-  }
-  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad())
-    return absl::DataLossError(absl::StrCat("error while reading ", what, " '", path, "'"));
-  return text;
-}
-
-}  // namespace
 
 std::shared_ptr<grpc::Channel> MakeChannel(const std::string& target,
                                            const ClientOptions& options) {
@@ -71,15 +48,12 @@ absl::StatusOr<ClientOptions> ClientOptionsFromFiles(const std::string& token_fi
                                                      const std::string& tls_ca_file) {
   ClientOptions options;
   if (!token_file.empty()) {
-    absl::StatusOr<std::string> text = ReadWholeFile(token_file, "token file");
-    if (!text.ok()) return text.status();
-    options.token = std::string(absl::StripAsciiWhitespace(*text));
-    if (options.token.empty()) {
-      return absl::InvalidArgumentError(absl::StrCat("token file '", token_file, "' is empty"));
-    }
+    absl::StatusOr<std::string> token = ReadTokenFile(token_file);
+    if (!token.ok()) return token.status();
+    options.token = *std::move(token);
   }
   if (!tls_ca_file.empty()) {
-    absl::StatusOr<std::string> pem = ReadWholeFile(tls_ca_file, "TLS CA file");
+    absl::StatusOr<std::string> pem = ReadTextFile(tls_ca_file, "TLS CA file");
     if (!pem.ok()) return pem.status();
     if (pem->empty()) {
       return absl::InvalidArgumentError(absl::StrCat("TLS CA file '", tls_ca_file, "' is empty"));

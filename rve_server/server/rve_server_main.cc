@@ -10,6 +10,7 @@
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
+#include "rve_server/common/text_file.h"
 #include "rve_server/service/log.h"
 #include "rve_server/service/server.h"
 
@@ -55,14 +56,15 @@ int main(int argc, char** argv) {
   config.max_message_bytes = absl::GetFlag(FLAGS_max_message_mb) << 20;
   config.checkpoint_dir = absl::GetFlag(FLAGS_checkpoint_dir);
   if (const std::string f = absl::GetFlag(FLAGS_auth_token_file); !f.empty()) {
-    absl::StatusOr<std::string> token = rvehub::service::ReadTokenFile(f);
+    absl::StatusOr<std::string> token = rvehub::ReadTokenFile(f);
     if (!token.ok()) return Fail(token.status());
     config.auth_token = *token;
   }
   if (!absl::GetFlag(FLAGS_tls_cert).empty() || !absl::GetFlag(FLAGS_tls_key).empty()) {
-    absl::StatusOr<std::string> cert = rvehub::service::ReadTextFile(absl::GetFlag(FLAGS_tls_cert));
+    absl::StatusOr<std::string> cert =
+        rvehub::ReadTextFile(absl::GetFlag(FLAGS_tls_cert), "TLS certificate");
     if (!cert.ok()) return Fail(cert.status());
-    absl::StatusOr<std::string> key = rvehub::service::ReadTextFile(absl::GetFlag(FLAGS_tls_key));
+    absl::StatusOr<std::string> key = rvehub::ReadTextFile(absl::GetFlag(FLAGS_tls_key), "TLS key");
     if (!key.ok()) return Fail(key.status());
     config.tls_cert_pem = *cert;
     config.tls_key_pem = *key;

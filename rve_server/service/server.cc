@@ -5,12 +5,8 @@
 #include <grpcpp/support/server_interceptor.h>
 
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 
-#include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
-#include "absl/strings/strip.h"
 #include "rve_server/service/log.h"
 #include "store/checkpoint.h"
 
@@ -72,23 +68,6 @@ std::string NowUtc() {
 }
 
 }  // namespace
-
-absl::StatusOr<std::string> ReadTextFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return absl::NotFoundError(absl::StrCat("cannot read ", path));
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-absl::StatusOr<std::string> ReadTokenFile(const std::string& path) {
-  absl::StatusOr<std::string> text = ReadTextFile(path);
-  if (!text.ok()) return text.status();
-  std::string token(absl::StripAsciiWhitespace(*text));
-  if (token.empty())
-    return absl::InvalidArgumentError(absl::StrCat("token file ", path, " is empty"));
-  return token;
-}
 
 absl::StatusOr<std::unique_ptr<RveServer>> RveServer::Start(const ServerConfig& config) {
   if (config.registry.threads < 1 || config.registry.max_rves < 1 ||

@@ -29,9 +29,6 @@ struct ServerConfig {
   std::string checkpoint_dir;  // set: load on start, save on Stop
 };
 
-// Reads a token file (surrounding whitespace dropped; empty is an error).
-absl::StatusOr<std::string> ReadTokenFile(const std::string& path);
-absl::StatusOr<std::string> ReadTextFile(const std::string& path);
 
 class RveServer {
  public:
