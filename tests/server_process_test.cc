@@ -21,6 +21,7 @@
 #include "reflection_probe.grpc.pb.h"
 #include "rve_server/service/convert.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
+#include "tests/rpc_test_util.h"
 #include "tests/test_util.h"
 
 namespace rvehub::service {
@@ -115,17 +116,7 @@ v1::ApplyRequest Increments(std::int64_t step, int count, double strain) {
 }
 
 v1::RveRecord ExportOne(v1::RveService::Stub& stub, std::int64_t id) {
-  v1::ExportRequest req;
-  req.set_run_id("run");
-  req.add_ids(id);
-  auto ctx = Ctx();
-  auto reader = stub.Export(ctx.get(), req);
-  v1::RveChunk chunk;
-  v1::RveRecord out;
-  while (reader->Read(&chunk))
-    if (chunk.records_size() > 0) out = chunk.records(0);
-  EXPECT_TRUE(reader->Finish().ok());
-  return out;
+  return service::ExportOne(stub, *Ctx(), "run", id);
 }
 
 // Uploads the SET-dense template "t" (min_steps 10) and creates RVEs

@@ -16,6 +16,7 @@
 #include "rve_server/service/log.h"
 #include "rve_server/service/server.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
+#include "tests/rpc_test_util.h"
 #include "tests/test_util.h"
 
 namespace rvehub::service {
@@ -98,19 +99,8 @@ class ServerHarness {
     return stub_->Apply(Context().get(), req, resp);
   }
 
-  // Full state of one RVE through Export.
   v1::RveRecord ExportOne(const std::string& run, std::int64_t id) {
-    v1::ExportRequest req;
-    req.set_run_id(run);
-    req.add_ids(id);
-    auto ctx = Context();
-    std::unique_ptr<grpc::ClientReader<v1::RveChunk>> reader = stub_->Export(ctx.get(), req);
-    v1::RveChunk chunk;
-    v1::RveRecord out;
-    while (reader->Read(&chunk))
-      if (chunk.records_size() > 0) out = chunk.records(0);
-    EXPECT_TRUE(reader->Finish().ok());
-    return out;
+    return service::ExportOne(*stub_, *Context(), run, id);
   }
 
   dem::Packing PackingOf(const std::string& run, std::int64_t id) {
