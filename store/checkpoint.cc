@@ -20,9 +20,11 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/string_view.h"
 #include "rve_server/engine/material.h"
 #include "rve_server/engine/packing.h"
 #include "store/hdf5.h"
+#include "store/record_io.h"
 
 namespace rvehub::store {
 namespace {
@@ -32,18 +34,15 @@ namespace {
     if (absl::Status s_ = (expr); !s_.ok()) return s_; \
   } while (false)
 
-constexpr char kKindRves[] = "rves";
-constexpr char kKindTemplates[] = "templates";
+using internal::HasNul;
+using internal::kKindRves;
+using internal::kKindSimulation;
+using internal::kKindTemplates;
+using internal::StoreMutex;
+
 constexpr char kEngine[] =
     "RVEHub DEM engine: 2-D discs in a periodic cell, plane strain; "
     "dem::Packing state, bit-exact (store/FORMAT.md)";
-
-// One lock for every store call: HDF5 serialises its API anyway, and the
-// lock also keeps two writers in one process off the same temporary file.
-std::mutex& StoreMutex() {
-  static auto* mutex = new std::mutex();
-  return *mutex;
-}
 
 // Field tables: the dataset name next to the member it holds, so that the
 // writer and the reader cannot disagree on a name or forget a field.
@@ -158,8 +157,6 @@ absl::Status CheckPacking(const dem::Packing& p) {
   return absl::OkStatus();
 }
 
-bool HasNul(const std::string& s) { return s.find('\0') != std::string::npos; }
-
 // Row-major 2×2 / 3×3 matrices, appended to `out`.
 void AppendRowMajor(const Eigen::Matrix2d& m, std::vector<double>* out) {
   for (int r = 0; r < 2; ++r) {
@@ -185,8 +182,10 @@ std::span<const T> Span(const std::vector<T>& v) {
   return std::span<const T>(v.data(), v.size());
 }
 
-// Writes the packing part shared by both kinds of file.
-absl::Status WritePackings(h5::File& file, const std::vector<const dem::Packing*>& packings) {
+// Writes the packing part shared by both kinds of record, under `group`.
+absl::Status WritePackings(h5::File& file, const std::string& group,
+                           const std::vector<const dem::Packing*>& packings) {
+  const auto at = [&group](const char* dataset) { return absl::StrCat(group, dataset); };
   const std::size_t n = packings.size();
   std::vector<std::string> names;
   std::vector<std::int32_t> models;
@@ -197,39 +196,39 @@ absl::Status WritePackings(h5::File& file, const std::vector<const dem::Packing*
     models.push_back(p->material.model == dem::ContactModel::kHertzMindlin ? kModelHertzMindlin
                                                                            : kModelLinear);
   }
-  RETURN_IF_ERROR(file.WriteStrings("/material/name", names));
-  RETURN_IF_ERROR(file.Write("/material/model", Span(models)));
+  RETURN_IF_ERROR(file.WriteStrings(at("/material/name"), names));
+  RETURN_IF_ERROR(file.Write(at("/material/model"), Span(models)));
 
   std::vector<double> values;
   values.reserve(n * 4);
   for (const MaterialField& f : kMaterialFields) {
     values.clear();
     for (const dem::Packing* p : packings) values.push_back(p->material.*f.member);
-    RETURN_IF_ERROR(file.Write(f.dataset, Span(values)));
+    RETURN_IF_ERROR(file.Write(at(f.dataset), Span(values)));
   }
   for (const ControlsField& f : kControlsFields) {
     values.clear();
     for (const dem::Packing* p : packings) values.push_back(p->controls.*f.member);
-    RETURN_IF_ERROR(file.Write(f.dataset, Span(values)));
+    RETURN_IF_ERROR(file.Write(at(f.dataset), Span(values)));
   }
   std::vector<std::int64_t> integers;
   integers.reserve(n + 1);
   for (const dem::Packing* p : packings) integers.push_back(p->controls.min_steps);
-  RETURN_IF_ERROR(file.Write("/controls/min_steps", Span(integers)));
+  RETURN_IF_ERROR(file.Write(at("/controls/min_steps"), Span(integers)));
 
   for (const MatrixField& f : kMatrixFields) {
     values.clear();
     for (const dem::Packing* p : packings) AppendRowMajor(p->*f.member, &values);
-    RETURN_IF_ERROR(file.Write(f.dataset, Span(values), 4));
+    RETURN_IF_ERROR(file.Write(at(f.dataset), Span(values), 4));
   }
   for (const ScalarField& f : kScalarFields) {
     values.clear();
     for (const dem::Packing* p : packings) values.push_back(p->*f.member);
-    RETURN_IF_ERROR(file.Write(f.dataset, Span(values)));
+    RETURN_IF_ERROR(file.Write(at(f.dataset), Span(values)));
   }
   integers.clear();
   for (const dem::Packing* p : packings) integers.push_back(p->total_steps);
-  RETURN_IF_ERROR(file.Write("/packing/total_steps", Span(integers)));
+  RETURN_IF_ERROR(file.Write(at("/packing/total_steps"), Span(integers)));
 
   // CSR offsets: record k owns particles [offset[k], offset[k+1]).
   std::size_t num_particles = 0, num_contacts = 0;
@@ -238,13 +237,13 @@ absl::Status WritePackings(h5::File& file, const std::vector<const dem::Packing*
     num_particles += p->radius.size();
     integers.push_back(static_cast<std::int64_t>(num_particles));
   }
-  RETURN_IF_ERROR(file.Write("/packing/particle_offset", Span(integers)));
+  RETURN_IF_ERROR(file.Write(at("/packing/particle_offset"), Span(integers)));
   integers.assign(1, 0);
   for (const dem::Packing* p : packings) {
     num_contacts += p->contacts.size();
     integers.push_back(static_cast<std::int64_t>(num_contacts));
   }
-  RETURN_IF_ERROR(file.Write("/packing/contact_offset", Span(integers)));
+  RETURN_IF_ERROR(file.Write(at("/packing/contact_offset"), Span(integers)));
 
   // Particle and contact arrays: concatenated over records, one field at a
   // time (one large write per dataset; one field's worth of scratch memory).
@@ -255,7 +254,7 @@ absl::Status WritePackings(h5::File& file, const std::vector<const dem::Packing*
       const std::vector<double>& v = p->*f.member;
       values.insert(values.end(), v.begin(), v.end());
     }
-    RETURN_IF_ERROR(file.Write(f.dataset, Span(values)));
+    RETURN_IF_ERROR(file.Write(at(f.dataset), Span(values)));
   }
   std::vector<std::uint32_t> indices;
   indices.reserve(num_contacts);
@@ -265,44 +264,29 @@ absl::Status WritePackings(h5::File& file, const std::vector<const dem::Packing*
     for (const dem::Packing* p : packings) {
       for (const dem::ContactHistory& c : p->contacts) indices.push_back(c.*member);
     }
-    RETURN_IF_ERROR(file.Write(dataset, Span(indices)));
+    RETURN_IF_ERROR(file.Write(at(dataset), Span(indices)));
   }
   for (const ContactField& f : kContactFields) {
     values.clear();
     for (const dem::Packing* p : packings) {
       for (const dem::ContactHistory& c : p->contacts) values.push_back(c.*f.member);
     }
-    RETURN_IF_ERROR(file.Write(f.dataset, Span(values)));
+    RETURN_IF_ERROR(file.Write(at(f.dataset), Span(values)));
   }
   return absl::OkStatus();
 }
 
-// Checks CSR offsets read from `dataset`: start at 0, never decrease.
-absl::Status CheckOffsets(const std::vector<std::int64_t>& offsets, const char* dataset,
-                          const std::string& path) {
-  if (offsets.empty() || offsets[0] != 0) {
-    return absl::DataLossError(
-        absl::StrCat("dataset ", dataset, " of ", path, " must start at 0: file is corrupt"));
-  }
-  for (std::size_t k = 1; k < offsets.size(); ++k) {
-    if (offsets[k] < offsets[k - 1]) {
-      return absl::DataLossError(absl::StrCat("dataset ", dataset, " of ", path,
-                                              " decreases at entry ", k, " (", offsets[k - 1],
-                                              " > ", offsets[k], "): file is corrupt"));
-    }
-  }
-  return absl::OkStatus();
-}
-
-// Reads the packing part shared by both kinds of file; `label(k)` names
-// record k in messages.
+// Reads the packing part shared by both kinds of record, from under
+// `group`; `label(k)` names record k in messages.
 absl::StatusOr<std::vector<dem::Packing>> ReadPackings(
-    const h5::File& file, std::size_t n, const std::function<std::string(std::size_t)>& label) {
+    const h5::File& file, const std::string& group, std::size_t n,
+    const std::function<std::string(std::size_t)>& label) {
+  const auto at = [&group](const char* dataset) { return absl::StrCat(group, dataset); };
   std::vector<dem::Packing> packings(n);
   std::vector<std::string> names;
-  RETURN_IF_ERROR(file.ReadStrings("/material/name", n, &names));
+  RETURN_IF_ERROR(file.ReadStrings(at("/material/name"), n, &names));
   std::vector<std::int32_t> models;
-  RETURN_IF_ERROR(file.Read("/material/model", n, 0, &models));
+  RETURN_IF_ERROR(file.Read(at("/material/model"), n, 0, &models));
   for (std::size_t k = 0; k < n; ++k) {
     packings[k].material.name = std::move(names[k]);
     switch (models[k]) {
@@ -314,45 +298,47 @@ absl::StatusOr<std::vector<dem::Packing>> ReadPackings(
         break;
       default:
         return absl::DataLossError(absl::StrCat(label(k), " of ", file.path(),
-                                                ": unknown contact model ", models[k],
-                                                " in /material/model: file is corrupt"));
+                                                ": unknown contact model ", models[k], " in ",
+                                                at("/material/model"), ": file is corrupt"));
     }
   }
   std::vector<double> values;
   for (const MaterialField& f : kMaterialFields) {
-    RETURN_IF_ERROR(file.Read(f.dataset, n, 0, &values));
+    RETURN_IF_ERROR(file.Read(at(f.dataset), n, 0, &values));
     for (std::size_t k = 0; k < n; ++k) packings[k].material.*f.member = values[k];
   }
   for (const ControlsField& f : kControlsFields) {
-    RETURN_IF_ERROR(file.Read(f.dataset, n, 0, &values));
+    RETURN_IF_ERROR(file.Read(at(f.dataset), n, 0, &values));
     for (std::size_t k = 0; k < n; ++k) packings[k].controls.*f.member = values[k];
   }
   std::vector<std::int64_t> integers;
-  RETURN_IF_ERROR(file.Read("/controls/min_steps", n, 0, &integers));
+  RETURN_IF_ERROR(file.Read(at("/controls/min_steps"), n, 0, &integers));
   for (std::size_t k = 0; k < n; ++k) packings[k].controls.min_steps = integers[k];
   for (const MatrixField& f : kMatrixFields) {
-    RETURN_IF_ERROR(file.Read(f.dataset, n, 4, &values));
+    RETURN_IF_ERROR(file.Read(at(f.dataset), n, 4, &values));
     for (std::size_t k = 0; k < n; ++k) packings[k].*f.member = FromRowMajor<2>(&values[4 * k]);
   }
   for (const ScalarField& f : kScalarFields) {
-    RETURN_IF_ERROR(file.Read(f.dataset, n, 0, &values));
+    RETURN_IF_ERROR(file.Read(at(f.dataset), n, 0, &values));
     for (std::size_t k = 0; k < n; ++k) packings[k].*f.member = values[k];
   }
-  RETURN_IF_ERROR(file.Read("/packing/total_steps", n, 0, &integers));
+  RETURN_IF_ERROR(file.Read(at("/packing/total_steps"), n, 0, &integers));
   for (std::size_t k = 0; k < n; ++k) packings[k].total_steps = integers[k];
 
   std::vector<std::int64_t> particle_offset, contact_offset;
-  RETURN_IF_ERROR(file.Read("/packing/particle_offset", n + 1, 0, &particle_offset));
-  RETURN_IF_ERROR(CheckOffsets(particle_offset, "/packing/particle_offset", file.path()));
-  RETURN_IF_ERROR(file.Read("/packing/contact_offset", n + 1, 0, &contact_offset));
-  RETURN_IF_ERROR(CheckOffsets(contact_offset, "/packing/contact_offset", file.path()));
+  RETURN_IF_ERROR(file.Read(at("/packing/particle_offset"), n + 1, 0, &particle_offset));
+  RETURN_IF_ERROR(
+      internal::CheckOffsets(particle_offset, at("/packing/particle_offset"), file.path()));
+  RETURN_IF_ERROR(file.Read(at("/packing/contact_offset"), n + 1, 0, &contact_offset));
+  RETURN_IF_ERROR(
+      internal::CheckOffsets(contact_offset, at("/packing/contact_offset"), file.path()));
   // The last offset is the length of every particle (contact) dataset;
   // Read checks the datasets' shapes against it.
   const auto num_particles = static_cast<std::size_t>(particle_offset.back());
   const auto num_contacts = static_cast<std::size_t>(contact_offset.back());
 
   for (const ParticleField& f : kParticleFields) {
-    RETURN_IF_ERROR(file.Read(f.dataset, num_particles, 0, &values));
+    RETURN_IF_ERROR(file.Read(at(f.dataset), num_particles, 0, &values));
     for (std::size_t k = 0; k < n; ++k) {
       (packings[k].*f.member)
           .assign(values.begin() + particle_offset[k], values.begin() + particle_offset[k + 1]);
@@ -361,12 +347,12 @@ absl::StatusOr<std::vector<dem::Packing>> ReadPackings(
   // All five contact columns first, then each record's contacts built in
   // one pass (one write per contact instead of five passes over them).
   std::vector<std::uint32_t> i_values, j_values;
-  RETURN_IF_ERROR(file.Read("/contacts/i", num_contacts, 0, &i_values));
-  RETURN_IF_ERROR(file.Read("/contacts/j", num_contacts, 0, &j_values));
+  RETURN_IF_ERROR(file.Read(at("/contacts/i"), num_contacts, 0, &i_values));
+  RETURN_IF_ERROR(file.Read(at("/contacts/j"), num_contacts, 0, &j_values));
   constexpr std::size_t kNumContactFields = std::size(kContactFields);
   std::vector<double> contact_values[kNumContactFields];
   for (std::size_t f = 0; f < kNumContactFields; ++f) {
-    RETURN_IF_ERROR(file.Read(kContactFields[f].dataset, num_contacts, 0, &contact_values[f]));
+    RETURN_IF_ERROR(file.Read(at(kContactFields[f].dataset), num_contacts, 0, &contact_values[f]));
   }
   for (std::size_t k = 0; k < n; ++k) {
     std::vector<dem::ContactHistory>& contacts = packings[k].contacts;
@@ -391,7 +377,34 @@ absl::StatusOr<std::vector<dem::Packing>> ReadPackings(
   return packings;
 }
 
-// Current UTC time in ISO 8601 ("2026-11-22T10:15:00Z").
+std::string RveLabel(std::size_t k, const std::string& run_id, std::int64_t id) {
+  return absl::StrCat("record ", k, " (run '", run_id, "', id ", id, ")");
+}
+
+std::string TemplateLabel(std::size_t k, const std::string& name) {
+  return absl::StrCat("template ", k, " ('", name, "')");
+}
+
+// "read it with ReadRves" and the like, for a file of a known other kind.
+std::string ReaderFor(absl::string_view kind) {
+  if (kind == kKindRves) return "ReadRves";
+  if (kind == kKindTemplates) return "ReadTemplates";
+  if (kind == kKindSimulation) return "ReadSimCheckpoint";
+  if (kind == internal::kKindResults) return "ReadResults";
+  return "";
+}
+
+}  // namespace
+
+namespace internal {
+
+std::mutex& StoreMutex() {
+  static auto* mutex = new std::mutex();
+  return *mutex;
+}
+
+bool HasNul(const std::string& s) { return s.find('\0') != std::string::npos; }
+
 std::string UtcNow() {
   const std::time_t now = std::time(nullptr);
   std::tm tm{};
@@ -403,9 +416,6 @@ std::string UtcNow() {
   return text;
 }
 
-// Best-effort fsync of a file or directory: durability, not correctness, is
-// at stake, so failures are ignored (e.g. file systems without fsync on
-// directories).
 void SyncPath(const std::string& path, int flags) {
   const int fd = ::open(path.c_str(), flags | O_CLOEXEC);
   if (fd < 0) return;
@@ -413,11 +423,134 @@ void SyncPath(const std::string& path, int flags) {
   ::close(fd);
 }
 
-// Builds the file under a temporary name next to `path` (same directory, so
-// the rename is atomic), with the root attributes and whatever `body`
-// writes, then renames it over `path`. On any failure the temporary file is
-// removed and `path` is left as it was.
-absl::Status WriteAtomically(const std::string& path, const char* kind, std::size_t num_records,
+absl::Status CheckOffsets(const std::vector<std::int64_t>& offsets, const std::string& dataset,
+                          const std::string& path) {
+  if (offsets.empty() || offsets[0] != 0) {
+    return absl::DataLossError(
+        absl::StrCat("dataset ", dataset, " of ", path, " must start at 0: file is corrupt"));
+  }
+  for (std::size_t k = 1; k < offsets.size(); ++k) {
+    if (offsets[k] < offsets[k - 1]) {
+      return absl::DataLossError(absl::StrCat("dataset ", dataset, " of ", path,
+                                              " decreases at entry ", k, " (", offsets[k - 1],
+                                              " > ", offsets[k], "): file is corrupt"));
+    }
+  }
+  return absl::OkStatus();
+}
+
+absl::Status CheckRveRecords(const std::string& path, std::span<const RveRecord> rves) {
+  for (std::size_t k = 0; k < rves.size(); ++k) {
+    const RveRecord& r = rves[k];
+    absl::Status s = CheckPacking(r.packing);
+    if (s.ok() && HasNul(r.run_id)) s = absl::InvalidArgumentError("run_id contains a NUL byte");
+    if (!s.ok()) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "cannot write ", path, ": ", RveLabel(k, r.run_id, r.id), ": ", s.message()));
+    }
+  }
+  return absl::OkStatus();
+}
+
+absl::Status CheckTemplateRecords(const std::string& path,
+                                  std::span<const TemplateRecord> templates) {
+  for (std::size_t k = 0; k < templates.size(); ++k) {
+    const TemplateRecord& t = templates[k];
+    absl::Status s = CheckPacking(t.packing);
+    if (s.ok() && (HasNul(t.name) || HasNul(t.description))) {
+      s = absl::InvalidArgumentError("name or description contains a NUL byte");
+    }
+    if (!s.ok()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("cannot write ", path, ": ", TemplateLabel(k, t.name), ": ", s.message()));
+    }
+  }
+  return absl::OkStatus();
+}
+
+absl::Status WriteRveRecords(h5::File& file, const std::string& group,
+                             std::span<const RveRecord> rves) {
+  std::vector<const dem::Packing*> packings;
+  std::vector<std::string> run_ids;
+  std::vector<std::int64_t> ids, steps;
+  std::vector<double> delta_f;
+  packings.reserve(rves.size());
+  run_ids.reserve(rves.size());
+  delta_f.reserve(9 * rves.size());
+  for (const RveRecord& r : rves) {
+    packings.push_back(&r.packing);
+    run_ids.push_back(r.run_id);
+    ids.push_back(r.id);
+    steps.push_back(r.step);
+    AppendRowMajor(r.last_delta_f, &delta_f);
+  }
+  RETURN_IF_ERROR(file.WriteStrings(absl::StrCat(group, "/records/run_id"), run_ids));
+  RETURN_IF_ERROR(file.Write(absl::StrCat(group, "/records/id"), Span(ids)));
+  RETURN_IF_ERROR(file.Write(absl::StrCat(group, "/records/step"), Span(steps)));
+  RETURN_IF_ERROR(file.Write(absl::StrCat(group, "/records/last_delta_f"), Span(delta_f), 9));
+  return WritePackings(file, group, packings);
+}
+
+absl::StatusOr<std::vector<RveRecord>> ReadRveRecords(const h5::File& file,
+                                                      const std::string& group, std::size_t n) {
+  std::vector<std::string> run_ids;
+  std::vector<std::int64_t> ids, steps;
+  std::vector<double> delta_f;
+  RETURN_IF_ERROR(file.ReadStrings(absl::StrCat(group, "/records/run_id"), n, &run_ids));
+  RETURN_IF_ERROR(file.Read(absl::StrCat(group, "/records/id"), n, 0, &ids));
+  RETURN_IF_ERROR(file.Read(absl::StrCat(group, "/records/step"), n, 0, &steps));
+  RETURN_IF_ERROR(file.Read(absl::StrCat(group, "/records/last_delta_f"), n, 9, &delta_f));
+  absl::StatusOr<std::vector<dem::Packing>> packings =
+      ReadPackings(file, group, n, [&](std::size_t k) { return RveLabel(k, run_ids[k], ids[k]); });
+  if (!packings.ok()) return packings.status();
+  std::vector<RveRecord> rves(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    rves[k].run_id = std::move(run_ids[k]);
+    rves[k].id = ids[k];
+    rves[k].step = steps[k];
+    rves[k].last_delta_f = FromRowMajor<3>(&delta_f[9 * k]);
+    rves[k].packing = std::move((*packings)[k]);
+  }
+  return rves;
+}
+
+absl::Status WriteTemplateRecords(h5::File& file, const std::string& group,
+                                  std::span<const TemplateRecord> templates) {
+  std::vector<const dem::Packing*> packings;
+  std::vector<std::string> names, descriptions;
+  packings.reserve(templates.size());
+  names.reserve(templates.size());
+  descriptions.reserve(templates.size());
+  for (const TemplateRecord& t : templates) {
+    packings.push_back(&t.packing);
+    names.push_back(t.name);
+    descriptions.push_back(t.description);
+  }
+  RETURN_IF_ERROR(file.WriteStrings(absl::StrCat(group, "/records/name"), names));
+  RETURN_IF_ERROR(file.WriteStrings(absl::StrCat(group, "/records/description"), descriptions));
+  return WritePackings(file, group, packings);
+}
+
+absl::StatusOr<std::vector<TemplateRecord>> ReadTemplateRecords(const h5::File& file,
+                                                                const std::string& group,
+                                                                std::size_t n) {
+  std::vector<std::string> names, descriptions;
+  RETURN_IF_ERROR(file.ReadStrings(absl::StrCat(group, "/records/name"), n, &names));
+  RETURN_IF_ERROR(file.ReadStrings(absl::StrCat(group, "/records/description"), n, &descriptions));
+  absl::StatusOr<std::vector<dem::Packing>> packings =
+      ReadPackings(file, group, n, [&](std::size_t k) { return TemplateLabel(k, names[k]); });
+  if (!packings.ok()) return packings.status();
+  std::vector<TemplateRecord> templates(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    templates[k].name = std::move(names[k]);
+    templates[k].description = std::move(descriptions[k]);
+    templates[k].packing = std::move((*packings)[k]);
+  }
+  return templates;
+}
+
+absl::Status WriteAtomically(const std::string& path, const char* kind,
+                             std::span<const std::pair<const char*, std::int64_t>> counts,
                              const FileInfo& info,
                              const std::function<absl::Status(h5::File&)>& body) {
   if (HasNul(info.created_by) || HasNul(info.created_at)) {
@@ -442,8 +575,9 @@ absl::Status WriteAtomically(const std::string& path, const char* kind, std::siz
     RETURN_IF_ERROR(file->WriteStringAttribute("created_by", info.created_by));
     RETURN_IF_ERROR(file->WriteStringAttribute(
         "created_at", info.created_at.empty() ? UtcNow() : info.created_at));
-    RETURN_IF_ERROR(
-        file->WriteInt64Attribute("num_records", static_cast<std::int64_t>(num_records)));
+    for (const auto& [name, value] : counts) {
+      RETURN_IF_ERROR(file->WriteInt64Attribute(name, value));
+    }
     RETURN_IF_ERROR(file->WriteStringAttribute("engine", kEngine));
     RETURN_IF_ERROR(body(*file));
     RETURN_IF_ERROR(file->Close());
@@ -465,10 +599,8 @@ absl::Status WriteAtomically(const std::string& path, const char* kind, std::siz
   return absl::OkStatus();
 }
 
-// Opens a store file of `kind` and checks its root attributes; sets the
-// number of records and fills `info`.
-absl::StatusOr<h5::File> OpenStore(const std::string& path, const char* kind, FileInfo* info,
-                                   std::size_t* num_records) {
+absl::StatusOr<h5::File> OpenStore(const std::string& path, const char* kind, FileInfo* info) {
+  h5::SilenceErrorPrinting();
   // open(2) first: its errno distinguishes a missing file from an
   // unreadable one, which HDF5 reports alike.
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
@@ -498,24 +630,11 @@ absl::StatusOr<h5::File> OpenStore(const std::string& path, const char* kind, Fi
         absl::StrCat(path, " has an invalid format_version ", *version, ": file is corrupt"));
   }
   if (*file_kind != kind) {
-    const bool known = *file_kind == kKindRves || *file_kind == kKindTemplates;
-    return absl::InvalidArgumentError(absl::StrCat(
-        path, " holds ", known ? "" : "unknown kind ", "'", *file_kind, "', not '", kind, "'",
-        known
-            ? (*file_kind == kKindRves ? ": read it with ReadRves" : ": read it with ReadTemplates")
-            : ""));
+    const std::string reader = ReaderFor(*file_kind);
+    return absl::InvalidArgumentError(
+        absl::StrCat(path, " holds ", reader.empty() ? "unknown kind " : "", "'", *file_kind,
+                     "', not '", kind, "'", reader.empty() ? "" : ": read it with ", reader));
   }
-  absl::StatusOr<std::int64_t> n = file->ReadIntAttribute("num_records");
-  if (!n.ok()) return n.status();
-  absl::StatusOr<std::uint64_t> size = file->Size();
-  if (!size.ok()) return size.status();
-  // Every record takes well over a byte; the bound keeps a corrupt count
-  // from allocating absurd amounts of memory.
-  if (*n < 0 || static_cast<std::uint64_t>(*n) > *size) {
-    return absl::DataLossError(
-        absl::StrCat(path, " has an invalid num_records ", *n, ": file is corrupt"));
-  }
-  *num_records = static_cast<std::size_t>(*n);
   if (info != nullptr) {
     absl::StatusOr<std::string> created_by = file->ReadStringAttribute("created_by");
     if (!created_by.ok()) return created_by.status();
@@ -528,128 +647,60 @@ absl::StatusOr<h5::File> OpenStore(const std::string& path, const char* kind, Fi
   return file;
 }
 
-std::string RveLabel(std::size_t k, const std::string& run_id, std::int64_t id) {
-  return absl::StrCat("record ", k, " (run '", run_id, "', id ", id, ")");
+absl::StatusOr<std::size_t> ReadCount(const h5::File& file, const char* attribute) {
+  absl::StatusOr<std::int64_t> n = file.ReadIntAttribute(attribute);
+  if (!n.ok()) return n.status();
+  absl::StatusOr<std::uint64_t> size = file.Size();
+  if (!size.ok()) return size.status();
+  // Every record takes well over a byte; the bound keeps a corrupt count
+  // from allocating absurd amounts of memory.
+  if (*n < 0 || static_cast<std::uint64_t>(*n) > *size) {
+    return absl::DataLossError(
+        absl::StrCat(file.path(), " has an invalid ", attribute, " ", *n, ": file is corrupt"));
+  }
+  return static_cast<std::size_t>(*n);
 }
 
-std::string TemplateLabel(std::size_t k, const std::string& name) {
-  return absl::StrCat("template ", k, " ('", name, "')");
-}
-
-}  // namespace
+}  // namespace internal
 
 absl::Status WriteRves(const std::string& path, std::span<const RveRecord> rves,
                        const FileInfo& info) {
-  std::vector<const dem::Packing*> packings;
-  packings.reserve(rves.size());
-  for (std::size_t k = 0; k < rves.size(); ++k) {
-    const RveRecord& r = rves[k];
-    absl::Status s = CheckPacking(r.packing);
-    if (s.ok() && HasNul(r.run_id)) s = absl::InvalidArgumentError("run_id contains a NUL byte");
-    if (!s.ok()) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "cannot write ", path, ": ", RveLabel(k, r.run_id, r.id), ": ", s.message()));
-    }
-    packings.push_back(&r.packing);
-  }
+  RETURN_IF_ERROR(internal::CheckRveRecords(path, rves));
+  const std::pair<const char*, std::int64_t> counts[] = {
+      {"num_records", static_cast<std::int64_t>(rves.size())}};
   std::lock_guard<std::mutex> lock(StoreMutex());
-  return WriteAtomically(path, kKindRves, rves.size(), info, [&](h5::File& file) {
-    std::vector<std::string> run_ids;
-    std::vector<std::int64_t> ids, steps;
-    std::vector<double> delta_f;
-    run_ids.reserve(rves.size());
-    delta_f.reserve(9 * rves.size());
-    for (const RveRecord& r : rves) {
-      run_ids.push_back(r.run_id);
-      ids.push_back(r.id);
-      steps.push_back(r.step);
-      AppendRowMajor(r.last_delta_f, &delta_f);
-    }
-    RETURN_IF_ERROR(file.WriteStrings("/records/run_id", run_ids));
-    RETURN_IF_ERROR(file.Write("/records/id", Span(ids)));
-    RETURN_IF_ERROR(file.Write("/records/step", Span(steps)));
-    RETURN_IF_ERROR(file.Write("/records/last_delta_f", Span(delta_f), 9));
-    return WritePackings(file, packings);
+  return internal::WriteAtomically(path, kKindRves, counts, info, [&](h5::File& file) {
+    return internal::WriteRveRecords(file, "", rves);
   });
 }
 
 absl::StatusOr<std::vector<RveRecord>> ReadRves(const std::string& path, FileInfo* info) {
   std::lock_guard<std::mutex> lock(StoreMutex());
-  h5::SilenceErrorPrinting();
-  std::size_t n = 0;
-  absl::StatusOr<h5::File> file = OpenStore(path, kKindRves, info, &n);
+  absl::StatusOr<h5::File> file = internal::OpenStore(path, kKindRves, info);
   if (!file.ok()) return file.status();
-  std::vector<std::string> run_ids;
-  std::vector<std::int64_t> ids, steps;
-  std::vector<double> delta_f;
-  RETURN_IF_ERROR(file->ReadStrings("/records/run_id", n, &run_ids));
-  RETURN_IF_ERROR(file->Read("/records/id", n, 0, &ids));
-  RETURN_IF_ERROR(file->Read("/records/step", n, 0, &steps));
-  RETURN_IF_ERROR(file->Read("/records/last_delta_f", n, 9, &delta_f));
-  absl::StatusOr<std::vector<dem::Packing>> packings =
-      ReadPackings(*file, n, [&](std::size_t k) { return RveLabel(k, run_ids[k], ids[k]); });
-  if (!packings.ok()) return packings.status();
-  std::vector<RveRecord> rves(n);
-  for (std::size_t k = 0; k < n; ++k) {
-    rves[k].run_id = std::move(run_ids[k]);
-    rves[k].id = ids[k];
-    rves[k].step = steps[k];
-    rves[k].last_delta_f = FromRowMajor<3>(&delta_f[9 * k]);
-    rves[k].packing = std::move((*packings)[k]);
-  }
-  return rves;
+  absl::StatusOr<std::size_t> n = internal::ReadCount(*file, "num_records");
+  if (!n.ok()) return n.status();
+  return internal::ReadRveRecords(*file, "", *n);
 }
 
 absl::Status WriteTemplates(const std::string& path, std::span<const TemplateRecord> templates,
                             const FileInfo& info) {
-  std::vector<const dem::Packing*> packings;
-  packings.reserve(templates.size());
-  for (std::size_t k = 0; k < templates.size(); ++k) {
-    const TemplateRecord& t = templates[k];
-    absl::Status s = CheckPacking(t.packing);
-    if (s.ok() && (HasNul(t.name) || HasNul(t.description))) {
-      s = absl::InvalidArgumentError("name or description contains a NUL byte");
-    }
-    if (!s.ok()) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("cannot write ", path, ": ", TemplateLabel(k, t.name), ": ", s.message()));
-    }
-    packings.push_back(&t.packing);
-  }
+  RETURN_IF_ERROR(internal::CheckTemplateRecords(path, templates));
+  const std::pair<const char*, std::int64_t> counts[] = {
+      {"num_records", static_cast<std::int64_t>(templates.size())}};
   std::lock_guard<std::mutex> lock(StoreMutex());
-  return WriteAtomically(path, kKindTemplates, templates.size(), info, [&](h5::File& file) {
-    std::vector<std::string> names, descriptions;
-    names.reserve(templates.size());
-    descriptions.reserve(templates.size());
-    for (const TemplateRecord& t : templates) {
-      names.push_back(t.name);
-      descriptions.push_back(t.description);
-    }
-    RETURN_IF_ERROR(file.WriteStrings("/records/name", names));
-    RETURN_IF_ERROR(file.WriteStrings("/records/description", descriptions));
-    return WritePackings(file, packings);
+  return internal::WriteAtomically(path, kKindTemplates, counts, info, [&](h5::File& file) {
+    return internal::WriteTemplateRecords(file, "", templates);
   });
 }
 
 absl::StatusOr<std::vector<TemplateRecord>> ReadTemplates(const std::string& path, FileInfo* info) {
   std::lock_guard<std::mutex> lock(StoreMutex());
-  h5::SilenceErrorPrinting();
-  std::size_t n = 0;
-  absl::StatusOr<h5::File> file = OpenStore(path, kKindTemplates, info, &n);
+  absl::StatusOr<h5::File> file = internal::OpenStore(path, kKindTemplates, info);
   if (!file.ok()) return file.status();
-  std::vector<std::string> names, descriptions;
-  RETURN_IF_ERROR(file->ReadStrings("/records/name", n, &names));
-  RETURN_IF_ERROR(file->ReadStrings("/records/description", n, &descriptions));
-  absl::StatusOr<std::vector<dem::Packing>> packings =
-      ReadPackings(*file, n, [&](std::size_t k) { return TemplateLabel(k, names[k]); });
-  if (!packings.ok()) return packings.status();
-  std::vector<TemplateRecord> templates(n);
-  for (std::size_t k = 0; k < n; ++k) {
-    templates[k].name = std::move(names[k]);
-    templates[k].description = std::move(descriptions[k]);
-    templates[k].packing = std::move((*packings)[k]);
-  }
-  return templates;
+  absl::StatusOr<std::size_t> n = internal::ReadCount(*file, "num_records");
+  if (!n.ok()) return n.status();
+  return internal::ReadTemplateRecords(*file, "", *n);
 }
 
 #undef RETURN_IF_ERROR
