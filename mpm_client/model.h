@@ -1,0 +1,173 @@
+// Plain data describing a 2-D MPM problem (plane strain, y up, SI units):
+// the background grid, solver settings, material regions, walls, rigid
+// bodies and surface tractions. The case parser fills it, the solver and the
+// simulation driver read it. Stresses: Cauchy, tension positive (as on the
+// wire); the case format states pressures as compression positive and the
+// parser converts.
+#ifndef RVEHUB_MPM_CLIENT_MODEL_H_
+#define RVEHUB_MPM_CLIENT_MODEL_H_
+
+#include <Eigen/Dense>
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace rvehub::mpm {
+
+inline constexpr double kNever = std::numeric_limits<double>::infinity();
+
+enum class ShapeKind {
+  kLinear,  // bilinear hat functions, support one cell each side
+  kGimp,    // uniform GIMP (particle half-size lp), support h + lp each side
+};
+
+struct GridSpec {
+  Eigen::Vector2d origin = Eigen::Vector2d::Zero();  // m, lower-left corner
+  double cell_size = 0.1;                            // h, m (square cells)
+  int nx = 1;                                        // cells along x
+  int ny = 1;                                        // cells along y
+};
+
+struct SolverSpec {
+  ShapeKind shape = ShapeKind::kLinear;
+  double pic_fraction = 0.1;  // α_PIC in v = α v_PIC + (1 − α) v_FLIP, [0, 1]
+  Eigen::Vector2d gravity = Eigen::Vector2d::Zero();  // m/s², e.g. (0, −9.81)
+  double time_step = 0.0;  // s; 0: from the CFL number and the P-wave speed
+  double cfl = 0.5;        // Δt = cfl·h/c, c = sqrt(M/ρ), when time_step is 0
+  // P-wave modulus M = K + 4G/3 for the CFL time step, Pa; 0: from the RVEs'
+  // contact tangent at the start (largest D_yyyy over the points).
+  double wave_modulus = 0.0;
+  double end_time = 1.0;   // s, simulated
+  double thickness = 1.0;  // out-of-plane thickness of the macro domain, m
+};
+
+// Where the initial stress of a region's RVEs comes from.
+enum class InitialStressKind {
+  kTemplate,            // the template's own state (e.g. isotropic p0)
+  kGeostaticIsotropic,  // p = σv at the point's depth (+ surcharge)
+  kGeostaticK0,         // σyy = σv, σxx = K0·σv
+};
+
+// A rectangle filled with material points on a regular pattern:
+// points_per_cell_side² points per cell, at the cell's Gauss-like sub-centres.
+struct MaterialRegion {
+  std::string name;
+  Eigen::Vector2d lower = Eigen::Vector2d::Zero();  // m, must lie on grid lines
+  Eigen::Vector2d upper = Eigen::Vector2d::Zero();  // m
+  int points_per_cell_side = 2;
+  std::string rve_template;  // name of a TemplateSpec
+  // Bulk density of the dry soil, kg/m³; 0: ρ_s/(1 + e) of the template
+  // (solid density over one plus the 2-D void ratio).
+  double density = 0.0;
+  InitialStressKind initial_stress = InitialStressKind::kTemplate;
+  double k0 = 0.5;              // σxx/σyy for kGeostaticK0, [-]
+  double surface_y = 0.0;       // m, ground surface for the depth of geostatic starts
+  double surcharge = 0.0;       // Pa, compression +, added to σv at every depth
+  double minimum_stress = 0.0;  // Pa, compression +: floor on σv (RVEs need p > 0)
+};
+
+// A packing template the case's RVEs are created from: either a template
+// file (store format, kind "templates") or prepared in code from a named
+// parameter set and a seed (then cached next to the outputs).
+struct TemplateSpec {
+  std::string name;
+  std::string file;           // path, relative to the case file; empty: prepare
+  std::string template_name;  // name inside the file (empty: the only one)
+  std::string parameter_set;  // e.g. "SET-dense" (rve_cli materials)
+  std::uint64_t seed = 1;
+};
+
+// Piecewise-linear velocity history: v(t) interpolated between the points,
+// held at the last value after it, m/s.
+struct VelocityPoint {
+  double time = 0.0;  // s
+  Eigen::Vector2d velocity = Eigen::Vector2d::Zero();
+};
+
+enum class ContactKind {
+  kRough,       // no slip: the node moves with the wall/body
+  kSmooth,      // normal velocity only; tangential free
+  kFrictional,  // Coulomb: tangential velocity reduced by μ·|Δv_n|
+};
+
+// A straight boundary on a grid line (x = position or y = position) acting
+// on the nodes of that line. Fixed = rough; roller and symmetry = smooth.
+// The constraint is bilateral (the normal velocity is set to the wall's).
+struct Wall {
+  std::string name;
+  int axis = 1;           // 0: the line x = position; 1: the line y = position
+  double position = 0.0;  // m, on a grid line
+  ContactKind contact = ContactKind::kSmooth;
+  double friction = 0.0;        // μ for kFrictional, [-]
+  double remove_time = kNever;  // s: the wall is gone from then on (a gate)
+};
+
+// A rigid body with a prescribed velocity history. Grid nodes inside it
+// (closed shape) that carry mass take its velocity (rough), its normal
+// velocity when approaching (smooth), or Coulomb friction.
+struct RigidBody {
+  enum class Shape { kRectangle, kCircle };
+  std::string name;
+  Shape shape = Shape::kRectangle;
+  Eigen::Vector2d center = Eigen::Vector2d::Zero();     // m, at t = 0
+  Eigen::Vector2d half_size = Eigen::Vector2d::Zero();  // m (rectangle)
+  double radius = 0.0;                                  // m (circle)
+  ContactKind contact = ContactKind::kRough;
+  double friction = 0.0;                // μ for kFrictional
+  std::vector<VelocityPoint> velocity;  // empty: at rest
+};
+
+// A traction on the free surface of a region, carried by the material points
+// within one point spacing of the surface: force = traction × surface length
+// per point (current length) × thickness, applied at the point's surface
+// position. Traction in Pa, as a vector (tension +: a 100 kPa pressure on a
+// surface with outward normal +x is (−1e5, 0)). Ramped linearly from zero
+// over ramp_time.
+struct SurfaceTraction {
+  std::string name;
+  std::string region;                                  // a MaterialRegion name
+  int normal_axis = 0;                                 // outward normal along x (0) or y (1)
+  int normal_sign = 1;                                 // +1 or −1
+  Eigen::Vector2d traction = Eigen::Vector2d::Zero();  // Pa
+  double ramp_time = 0.0;                              // s
+  // Only points whose coordinate along the surface lies in [from, to], m.
+  double from = -std::numeric_limits<double>::infinity();
+  double to = std::numeric_limits<double>::infinity();
+};
+
+struct OutputSpec {
+  std::int64_t frame_every = 100;      // MPM steps between results.h5 frames
+  std::int64_t timeseries_every = 10;  // MPM steps between timeseries.csv rows
+  std::int64_t checkpoint_every = 0;   // MPM steps between checkpoints; 0: none
+  std::int64_t progress_every = 100;   // MPM steps between progress lines
+  // Standard plot written as plot.png: "stress-strain" (mean σyy vs εyy),
+  // "load-settlement" (a body's fy vs its displacement), or "none".
+  std::string plot = "stress-strain";
+  std::string plot_body;    // body for load-settlement
+  double plot_width = 1.0;  // m, footing width B for load normalisation q = fy/(B·t)
+};
+
+struct RveSpec {
+  double max_inertial_number = 0.0;  // per-call bound on I; 0: the RVE's own
+  std::int64_t min_steps = 0;        // DEM steps per increment at least; 0: the RVE's own
+};
+
+struct CaseSpec {
+  std::string name;
+  std::string description;
+  double expected_runtime_s = 0.0;  // on a 2-core machine, embedded servers
+  GridSpec grid;
+  SolverSpec solver;
+  std::vector<TemplateSpec> templates;
+  std::vector<MaterialRegion> regions;
+  std::vector<Wall> walls;
+  std::vector<RigidBody> bodies;
+  std::vector<SurfaceTraction> tractions;
+  RveSpec rve;
+  OutputSpec output;
+};
+
+}  // namespace rvehub::mpm
+
+#endif  // RVEHUB_MPM_CLIENT_MODEL_H_

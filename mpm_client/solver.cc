@@ -1,0 +1,797 @@
+#include "mpm_client/solver.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/string_view.h"
+
+namespace rvehub::mpm {
+namespace {
+
+using Eigen::Matrix2d;
+using Eigen::Matrix3d;
+using Eigen::Vector2d;
+
+// Nodes lighter than this fraction of the lightest point are inactive: their
+// velocity would be force/(tiny mass), the small-mass instability.
+constexpr double kInactiveMassFraction = 1e-10;
+// Tolerance, in cells, for "on a grid line" and "inside a body".
+constexpr double kGridTolerance = 1e-9;
+
+std::string Format(const Vector2d& x) { return absl::StrCat("(", x.x(), ", ", x.y(), ")"); }
+
+// The index k of the grid line origin + k·h that `value` lies on, or −1.
+int GridLineIndex(double value, double origin, double h, int n) {
+  const double t = (value - origin) / h;
+  if (!(t >= -kGridTolerance && t <= n + kGridTolerance)) return -1;
+  const double k = std::round(t);
+  return std::abs(t - k) <= kGridTolerance ? static_cast<int>(k) : -1;
+}
+
+// Current GIMP half-sizes: lp0 stretched like the material along each axis,
+// lp_i = lp0_i·|F e_i|, m.
+Vector2d CurrentHalfSize(const Matrix2d& f, const Vector2d& lp0) {
+  return Vector2d(lp0.x() * f.col(0).norm(), lp0.y() * f.col(1).norm());
+}
+
+// A node's new velocity relative to a wall or body (m/s), from its relative
+// velocity `rel` and the unit normal n pointing from the obstacle into the
+// soil. Rough: no relative motion. Smooth: no normal relative motion.
+// Frictional: also, while the soil presses on the obstacle (rel·n < 0), the
+// tangential speed reduced by μ·|Δv_n| (Coulomb: tangential impulse ≤ μ ×
+// compressive normal impulse). Unilateral contacts let separating nodes go;
+// bilateral ones also hold them, without friction (the normal impulse is
+// then tensile).
+Vector2d ContactVelocity(const Vector2d& rel, const Vector2d& n, ContactKind kind, double mu,
+                         bool bilateral) {
+  if (kind == ContactKind::kRough) return Vector2d::Zero();
+  const double vn = rel.dot(n);
+  if (!bilateral && vn >= 0.0) return rel;
+  Vector2d vt = rel - vn * n;
+  if (kind == ContactKind::kFrictional && vn < 0.0) {
+    const double speed = vt.norm();
+    const double slip = speed + mu * vn;
+    vt = slip > 0.0 ? Vector2d(vt * (slip / speed)) : Vector2d::Zero();
+  }
+  return vt;
+}
+
+// Whether x lies in the body (centre c; closed, within tol) and, if so, the
+// outward unit normal of the nearest face (rectangle) or radial (circle).
+bool InsideBody(const RigidBody& body, const Vector2d& c, const Vector2d& x, double tol,
+                Vector2d& normal) {
+  const Vector2d d = x - c;
+  if (body.shape == RigidBody::Shape::kCircle) {
+    const double r = d.norm();
+    if (r > body.radius + tol) return false;
+    normal = r > 0.0 ? Vector2d(d / r) : Vector2d(0.0, 1.0);
+    return true;
+  }
+  const Vector2d e = body.half_size;
+  if (std::abs(d.x()) > e.x() + tol || std::abs(d.y()) > e.y() + tol) return false;
+  // Gaps to the faces +y, −y, +x, −x; the first smallest wins.
+  const double gap[4] = {e.y() - d.y(), e.y() + d.y(), e.x() - d.x(), e.x() + d.x()};
+  const Vector2d face[4] = {{0.0, 1.0}, {0.0, -1.0}, {1.0, 0.0}, {-1.0, 0.0}};
+  int best = 0;
+  for (int k = 1; k < 4; ++k) {
+    if (gap[k] < gap[best]) best = k;
+  }
+  normal = face[best];
+  return true;
+}
+
+Vector2d BodyExtent(const RigidBody& body) {
+  return body.shape == RigidBody::Shape::kCircle ? Vector2d(body.radius, body.radius)
+                                                 : body.half_size;
+}
+
+// Linear ramp factor of a load at time t, [0, 1].
+double RampFactor(double ramp_time, double t) {
+  return ramp_time > 0.0 ? std::min(1.0, t / ramp_time) : 1.0;
+}
+
+absl::Status Invalid(absl::string_view what, absl::string_view why) {
+  return absl::InvalidArgumentError(absl::StrCat(what, ": ", why));
+}
+
+absl::Status ValidateGrid(const GridSpec& grid) {
+  if (grid.nx < 1 || grid.ny < 1) {
+    return Invalid("grid", absl::StrCat("nx = ", grid.nx, ", ny = ", grid.ny, " must be >= 1"));
+  }
+  if (!(grid.cell_size > 0.0) || !std::isfinite(grid.cell_size)) {
+    return Invalid("grid", absl::StrCat("cell_size = ", grid.cell_size, " must be > 0"));
+  }
+  if (!grid.origin.allFinite()) return Invalid("grid", "origin must be finite");
+  return absl::OkStatus();
+}
+
+absl::Status ValidateHistory(absl::string_view name, const std::vector<VelocityPoint>& history) {
+  double last = 0.0;
+  for (const VelocityPoint& v : history) {
+    if (!(v.time >= last) || !std::isfinite(v.time) || !v.velocity.allFinite()) {
+      return Invalid(name, "velocity history times must be finite, >= 0 and non-decreasing");
+    }
+    last = v.time;
+  }
+  return absl::OkStatus();
+}
+
+// Flat-array helpers for ExportState/ImportState.
+template <typename T>
+absl::StatusOr<const std::vector<T>*> Field(const std::map<std::string, std::vector<T>>& map,
+                                            const std::string& key, std::size_t size) {
+  const auto it = map.find(key);
+  if (it == map.end()) return absl::InvalidArgumentError(absl::StrCat("state lacks ", key));
+  if (it->second.size() != size) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("state field ", key, " has ", it->second.size(), " values, expected ", size));
+  }
+  return &it->second;
+}
+
+}  // namespace
+
+void MaterialPoints::Resize(std::size_t n) {
+  position.resize(n, Vector2d::Zero());
+  velocity.resize(n, Vector2d::Zero());
+  mass.resize(n, 0.0);
+  volume.resize(n, 0.0);
+  volume0.resize(n, 0.0);
+  F.resize(n, Matrix2d::Identity());
+  stress.resize(n, Matrix3d::Zero());
+  half_size0.resize(n, Vector2d::Zero());
+  region.resize(n, 0);
+  response.resize(n);
+}
+
+double CflTimeStep(double cfl, double cell_size, double wave_modulus, double density) {
+  return cfl * cell_size / std::sqrt(wave_modulus / density);
+}
+
+Eigen::Vector2d VelocityAt(const std::vector<VelocityPoint>& history, double t) {
+  if (history.empty()) return Vector2d::Zero();
+  if (t <= history.front().time) return history.front().velocity;
+  for (std::size_t k = 0; k + 1 < history.size(); ++k) {
+    const VelocityPoint &a = history[k], &b = history[k + 1];
+    if (t >= a.time && t < b.time) {
+      return a.velocity + (b.velocity - a.velocity) * ((t - a.time) / (b.time - a.time));
+    }
+  }
+  return history.back().velocity;
+}
+
+Eigen::Vector2d DisplacementAt(const std::vector<VelocityPoint>& history, double t) {
+  Vector2d d = Vector2d::Zero();
+  if (history.empty() || t <= 0.0) return d;
+  // Constant before the first point, trapezoids between points, constant after.
+  d += std::min(t, history.front().time) * history.front().velocity;
+  for (std::size_t k = 0; k + 1 < history.size(); ++k) {
+    const VelocityPoint &a = history[k], &b = history[k + 1];
+    if (t <= a.time) break;
+    if (b.time <= a.time) continue;  // a jump: no time passes
+    const double hi = std::min(t, b.time);
+    const Vector2d v_hi =
+        a.velocity + (b.velocity - a.velocity) * ((hi - a.time) / (b.time - a.time));
+    d += (hi - a.time) * 0.5 * (a.velocity + v_hi);
+  }
+  if (t > history.back().time) d += (t - history.back().time) * history.back().velocity;
+  return d;
+}
+
+absl::StatusOr<MaterialPoints> FillRegions(const CaseSpec& spec, const RegionDensity& density) {
+  const GridSpec& grid = spec.grid;
+  if (absl::Status s = ValidateGrid(grid); !s.ok()) return s;
+  const double thickness = spec.solver.thickness;
+  if (!(thickness > 0.0)) {
+    return Invalid("solver", absl::StrCat("thickness = ", thickness, " must be > 0"));
+  }
+  const double h = grid.cell_size;
+  const int n[2] = {grid.nx, grid.ny};
+  MaterialPoints points;
+  std::vector<std::size_t> first(spec.regions.size() + 1, 0);
+  for (std::size_t r = 0; r < spec.regions.size(); ++r) {
+    const MaterialRegion& region = spec.regions[r];
+    const std::string what = absl::StrCat("region ", region.name);
+    int cells[2];
+    for (int d = 0; d < 2; ++d) {
+      const int lo = GridLineIndex(region.lower[d], grid.origin[d], h, n[d]);
+      const int hi = GridLineIndex(region.upper[d], grid.origin[d], h, n[d]);
+      if (lo < 0 || hi < 0) {
+        return Invalid(what, absl::StrCat("corners ", Format(region.lower), " and ",
+                                          Format(region.upper), " must lie on grid lines"));
+      }
+      if (hi <= lo) return Invalid(what, "upper must exceed lower along both axes");
+      cells[d] = hi - lo;
+    }
+    if (region.points_per_cell_side < 1) {
+      return Invalid(what, absl::StrCat("points_per_cell_side = ", region.points_per_cell_side,
+                                        " must be >= 1"));
+    }
+    double rho = region.density;
+    if (rho == 0.0) {
+      if (!density) return Invalid(what, "density 0 needs the template's density");
+      absl::StatusOr<double> d = density(static_cast<int>(r));
+      if (!d.ok()) return d.status();
+      rho = *d;
+    }
+    if (!(rho > 0.0) || !std::isfinite(rho)) {
+      return Invalid(what, absl::StrCat("density = ", rho, " must be > 0"));
+    }
+    const int ppc = region.points_per_cell_side;
+    const double s = h / ppc;  // point spacing, m
+    const double volume = s * s * thickness;
+    const std::size_t start = points.size();
+    const std::size_t count = static_cast<std::size_t>(cells[0]) * ppc * cells[1] * ppc;
+    points.Resize(start + count);
+    std::size_t p = start;
+    for (int j = 0; j < cells[1] * ppc; ++j) {
+      for (int i = 0; i < cells[0] * ppc; ++i, ++p) {
+        points.position[p] = region.lower + s * Vector2d(i + 0.5, j + 0.5);
+        points.mass[p] = rho * volume;
+        points.volume[p] = volume;
+        points.volume0[p] = volume;
+        points.half_size0[p] = Vector2d(0.5 * s, 0.5 * s);
+        points.region[p] = static_cast<std::int32_t>(r);
+      }
+    }
+    first[r + 1] = points.size();
+  }
+  for (const SurfaceTraction& traction : spec.tractions) {
+    const std::string what = absl::StrCat("traction ", traction.name);
+    std::size_t r = 0;
+    while (r < spec.regions.size() && spec.regions[r].name != traction.region) ++r;
+    if (r == spec.regions.size()) return Invalid(what, absl::StrCat("no region ", traction.region));
+    const int a = traction.normal_axis;
+    if (a != 0 && a != 1) return Invalid(what, "normal_axis must be 0 or 1");
+    if (traction.normal_sign != 1 && traction.normal_sign != -1) {
+      return Invalid(what, "normal_sign must be +1 or -1");
+    }
+    if (!(traction.ramp_time >= 0.0) || !traction.traction.allFinite()) {
+      return Invalid(what, "ramp_time must be >= 0 and the traction finite");
+    }
+    const MaterialRegion& region = spec.regions[r];
+    const double s = h / region.points_per_cell_side;
+    const double surface = traction.normal_sign > 0 ? region.upper[a] : region.lower[a];
+    bool any = false;
+    for (std::size_t p = first[r]; p < first[r + 1]; ++p) {
+      const Vector2d& x = points.position[p];
+      if (std::abs(x[a] - surface) >= s || x[1 - a] < traction.from || x[1 - a] > traction.to) {
+        continue;
+      }
+      points.loads.push_back({static_cast<std::int32_t>(p), traction.traction, s, a,
+                              traction.normal_sign, traction.ramp_time});
+      any = true;
+    }
+    if (!any) return Invalid(what, "selects no material points");
+  }
+  return points;
+}
+
+absl::StatusOr<MaterialPoints> FillRegions(const CaseSpec& spec,
+                                           const std::vector<double>& density) {
+  if (density.size() != spec.regions.size()) {
+    return Invalid("FillRegions", absl::StrCat(density.size(), " densities for ",
+                                               spec.regions.size(), " regions"));
+  }
+  return FillRegions(spec, [&](int r) -> absl::StatusOr<double> { return density[r]; });
+}
+
+namespace {
+
+absl::Status ValidatePoints(const MaterialPoints& points, ShapeKind shape) {
+  const std::size_t n = points.size();
+  for (std::size_t size :
+       {points.velocity.size(), points.mass.size(), points.volume.size(), points.volume0.size(),
+        points.F.size(), points.stress.size(), points.half_size0.size(), points.region.size(),
+        points.response.size()}) {
+    if (size != n) return Invalid("material points", "arrays differ in length");
+  }
+  for (std::size_t p = 0; p < n; ++p) {
+    if (!(points.mass[p] > 0.0) || !(points.volume[p] > 0.0) || !(points.volume0[p] > 0.0)) {
+      return Invalid(absl::StrCat("material point ", p), "mass and volumes must be > 0");
+    }
+    if (shape == ShapeKind::kGimp &&
+        !(points.half_size0[p].x() > 0.0 && points.half_size0[p].y() > 0.0)) {
+      return Invalid(absl::StrCat("material point ", p), "GIMP half sizes must be > 0");
+    }
+  }
+  for (const SurfaceLoad& load : points.loads) {
+    if (load.point < 0 || static_cast<std::size_t>(load.point) >= n ||
+        (load.normal_axis != 0 && load.normal_axis != 1) ||
+        (load.normal_sign != 1 && load.normal_sign != -1) || !(load.length0 >= 0.0) ||
+        !(load.ramp_time >= 0.0)) {
+      return Invalid(absl::StrCat("surface load of point ", load.point), "invalid");
+    }
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<Solver>> Solver::Init(const CaseSpec& spec, StressModel* model) {
+  if (model == nullptr) return absl::InvalidArgumentError("Solver needs a stress model");
+  if (absl::Status s = ValidateGrid(spec.grid); !s.ok()) return s;
+  const SolverSpec& sv = spec.solver;
+  if (!(sv.pic_fraction >= 0.0 && sv.pic_fraction <= 1.0)) {
+    return Invalid("solver",
+                   absl::StrCat("pic_fraction = ", sv.pic_fraction, " must be in [0, 1]"));
+  }
+  if (!(sv.thickness > 0.0)) {
+    return Invalid("solver", absl::StrCat("thickness = ", sv.thickness, " must be > 0"));
+  }
+  if (!(sv.time_step >= 0.0) || !sv.gravity.allFinite()) {
+    return Invalid("solver", "time_step must be >= 0 and gravity finite");
+  }
+  std::unique_ptr<Solver> solver(new Solver());
+  solver->grid_ = spec.grid;
+  solver->solver_ = sv;
+  solver->walls_ = spec.walls;
+  solver->bodies_ = spec.bodies;
+  solver->model_ = model;
+  const double h = spec.grid.cell_size;
+  for (const Wall& wall : spec.walls) {
+    const std::string what = absl::StrCat("wall ", wall.name);
+    if (wall.axis != 0 && wall.axis != 1) return Invalid(what, "axis must be 0 or 1");
+    const int line = GridLineIndex(wall.position, spec.grid.origin[wall.axis], h,
+                                   wall.axis == 0 ? spec.grid.nx : spec.grid.ny);
+    if (line < 0) {
+      return Invalid(what, absl::StrCat("position ", wall.position, " is not on a grid line"));
+    }
+    if (!(wall.friction >= 0.0)) return Invalid(what, "friction must be >= 0");
+    std::vector<std::int32_t> nodes;
+    const int along = wall.axis == 0 ? spec.grid.ny : spec.grid.nx;
+    for (int k = 0; k <= along; ++k) {
+      nodes.push_back(wall.axis == 0 ? line + (spec.grid.nx + 1) * k
+                                     : k + (spec.grid.nx + 1) * line);
+    }
+    solver->wall_nodes_.push_back(std::move(nodes));
+    solver->wall_lines_.push_back(line);
+  }
+  for (const RigidBody& body : spec.bodies) {
+    const std::string what = absl::StrCat("body ", body.name);
+    const bool circle = body.shape == RigidBody::Shape::kCircle;
+    if (circle ? !(body.radius > 0.0) : !(body.half_size.x() > 0.0 && body.half_size.y() > 0.0)) {
+      return Invalid(what, "radius or half sizes must be > 0");
+    }
+    if (!(body.friction >= 0.0) || !body.center.allFinite()) {
+      return Invalid(what, "friction must be >= 0 and the centre finite");
+    }
+    if (absl::Status s = ValidateHistory(what, body.velocity); !s.ok()) return s;
+  }
+  solver->reactions_.assign(spec.walls.size() + spec.bodies.size(), Vector2d::Zero());
+  return solver;
+}
+
+absl::StatusOr<std::unique_ptr<Solver>> Solver::Create(const CaseSpec& spec, MaterialPoints initial,
+                                                       StressModel* model, double dt) {
+  absl::StatusOr<std::unique_ptr<Solver>> solver = Init(spec, model);
+  if (!solver.ok()) return solver.status();
+  if (absl::Status s = ValidatePoints(initial, spec.solver.shape); !s.ok()) return s;
+  Solver& sv = **solver;
+  sv.points_ = std::move(initial);
+  sv.Prepare();
+  const std::size_t n = sv.points_.size();
+  if (dt > 0.0) {
+    sv.dt_ = dt;
+  } else if (spec.solver.time_step > 0.0) {
+    sv.dt_ = spec.solver.time_step;
+  } else if (spec.solver.wave_modulus > 0.0 && n > 0) {
+    double rho = 0.0;  // the densest point gives the smallest step
+    for (std::size_t p = 0; p < n; ++p)
+      rho = std::max(rho, sv.points_.mass[p] / sv.points_.volume[p]);
+    sv.dt_ = CflTimeStep(spec.solver.cfl, spec.grid.cell_size, spec.solver.wave_modulus, rho);
+  }
+  return solver;
+}
+
+absl::StatusOr<std::unique_ptr<Solver>> Solver::FromState(
+    const CaseSpec& spec, const std::map<std::string, std::vector<double>>& doubles,
+    const std::map<std::string, std::vector<std::int64_t>>& ints, StressModel* model) {
+  absl::StatusOr<std::unique_ptr<Solver>> solver = Init(spec, model);
+  if (!solver.ok()) return solver.status();
+  if (absl::Status s = (*solver)->ImportState(doubles, ints); !s.ok()) return s;
+  return solver;
+}
+
+void Solver::Prepare() {
+  const std::size_t n = points_.size();
+  double min_mass = std::numeric_limits<double>::infinity();
+  for (double m : points_.mass) min_mass = std::min(min_mass, m);
+  min_node_mass_ = n > 0 ? kInactiveMassFraction * min_mass : 0.0;
+  shape_.resize(n);
+  load_shape_.resize(points_.loads.size());
+  load_force_.resize(points_.loads.size());
+  const int nodes = NodeCount(grid_);
+  node_mass_.resize(nodes);
+  node_velocity_.resize(nodes);
+  node_force_.resize(nodes);
+  node_velocity_new_.resize(nodes);
+  impulse_.resize(walls_.size() + bodies_.size());
+  delta_f_.resize(n);
+  response_.resize(n);
+}
+
+absl::Status Solver::EvaluateShapes() {
+  const MaterialPoints& mp = points_;
+  for (std::size_t p = 0; p < mp.size(); ++p) {
+    const Vector2d lp = solver_.shape == ShapeKind::kGimp
+                            ? CurrentHalfSize(mp.F[p], mp.half_size0[p])
+                            : Vector2d::Zero();
+    if (!EvaluateShape(grid_, solver_.shape, mp.position[p], lp, shape_[p])) {
+      return absl::OutOfRangeError(
+          absl::StrCat("material point ", p, " at ", Format(mp.position[p]), " m left the grid"));
+    }
+  }
+  // Tractions act at the points' surface positions x_p + n·l with the current
+  // half-size l along n, over the current surface length, linear weights
+  // there (the GIMP limit lp → 0).
+  for (std::size_t k = 0; k < mp.loads.size(); ++k) {
+    const SurfaceLoad& load = mp.loads[k];
+    const int a = load.normal_axis;
+    const Matrix2d& f = mp.F[load.point];
+    const Vector2d lp = CurrentHalfSize(f, mp.half_size0[load.point]);
+    Vector2d x = mp.position[load.point];
+    x[a] += load.normal_sign * lp[a];
+    if (!EvaluateShape(grid_, ShapeKind::kLinear, x, Vector2d::Zero(), load_shape_[k])) {
+      return absl::OutOfRangeError(absl::StrCat("surface of material point ", load.point, " at ",
+                                                Format(x), " m left the grid"));
+    }
+    const double length = load.length0 * f.col(1 - a).norm();
+    load_force_[k] =
+        load.traction * (RampFactor(load.ramp_time, time_) * length * solver_.thickness);
+  }
+  return absl::OkStatus();
+}
+
+void Solver::Constrain(std::vector<Eigen::Vector2d>& velocity, double body_time, double weight) {
+  for (std::size_t w = 0; w < walls_.size(); ++w) {
+    const Wall& wall = walls_[w];
+    if (wall.remove_time <= time_) continue;
+    const Vector2d axis = wall.axis == 0 ? Vector2d(1.0, 0.0) : Vector2d(0.0, 1.0);
+    // The neighbour nodes across the wall line tell on which side the soil
+    // lies; with soil on both sides, any approach presses on the wall.
+    const int stride = wall.axis == 0 ? 1 : grid_.nx + 1;
+    const int last_line = wall.axis == 0 ? grid_.nx : grid_.ny;
+    for (std::int32_t node : wall_nodes_[w]) {
+      if (node_mass_[node] <= min_node_mass_) continue;
+      const double m_plus = wall_lines_[w] < last_line ? node_mass_[node + stride] : 0.0;
+      const double m_minus = wall_lines_[w] > 0 ? node_mass_[node - stride] : 0.0;
+      const double side = m_plus > m_minus   ? 1.0
+                          : m_plus < m_minus ? -1.0
+                                             : (velocity[node].dot(axis) <= 0.0 ? 1.0 : -1.0);
+      const Vector2d v =
+          ContactVelocity(velocity[node], side * axis, wall.contact, wall.friction, true);
+      impulse_[w] += (weight * node_mass_[node]) * (v - velocity[node]);
+      velocity[node] = v;
+    }
+  }
+  const double h = grid_.cell_size;
+  const double tol = kGridTolerance * h;
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    const RigidBody& body = bodies_[b];
+    const Vector2d center = body.center + DisplacementAt(body.velocity, time_);
+    const Vector2d vb = VelocityAt(body.velocity, body_time);
+    const Vector2d extent = BodyExtent(body);
+    // Node index range of the body's bounding box, clamped to the grid.
+    int lo[2], hi[2];
+    const int n[2] = {grid_.nx, grid_.ny};
+    for (int d = 0; d < 2; ++d) {
+      const double t_lo = (center[d] - extent[d] - tol - grid_.origin[d]) / h;
+      const double t_hi = (center[d] + extent[d] + tol - grid_.origin[d]) / h;
+      lo[d] = static_cast<int>(std::clamp(std::ceil(t_lo), 0.0, n[d] + 1.0));
+      hi[d] = static_cast<int>(std::clamp(std::floor(t_hi), -1.0, static_cast<double>(n[d])));
+    }
+    for (int j = lo[1]; j <= hi[1]; ++j) {
+      for (int i = lo[0]; i <= hi[0]; ++i) {
+        const int node = i + (grid_.nx + 1) * j;
+        if (node_mass_[node] <= min_node_mass_) continue;
+        Vector2d normal;
+        if (!InsideBody(body, center, NodePosition(grid_, node), tol, normal)) continue;
+        const Vector2d v = vb + ContactVelocity(velocity[node] - vb, normal, body.contact,
+                                                body.friction, body.contact == ContactKind::kRough);
+        impulse_[walls_.size() + b] += (weight * node_mass_[node]) * (v - velocity[node]);
+        velocity[node] = v;
+      }
+    }
+  }
+}
+
+absl::Status Solver::Step() {
+  if (!(dt_ > 0.0) || !std::isfinite(dt_)) {
+    return absl::FailedPreconditionError(absl::StrCat("time step dt = ", dt_, " must be > 0"));
+  }
+  if (shape_.size() != points_.size() || load_shape_.size() != points_.loads.size()) {
+    return absl::FailedPreconditionError("the number of material points or loads changed");
+  }
+  if (absl::Status s = EvaluateShapes(); !s.ok()) return s;
+  MaterialPoints& mp = points_;
+  const std::size_t n = mp.size();
+  const int nodes = NodeCount(grid_);
+  const double alpha = solver_.pic_fraction;
+
+  // (a) P2G: nodal mass and momentum, then v^n = p/m on active nodes.
+  std::fill(node_mass_.begin(), node_mass_.end(), 0.0);
+  std::fill(node_velocity_.begin(), node_velocity_.end(), Vector2d::Zero());
+  for (std::size_t p = 0; p < n; ++p) {
+    const ShapeValues& s = shape_[p];
+    const Vector2d momentum = mp.mass[p] * mp.velocity[p];
+    for (int k = 0; k < s.count; ++k) {
+      node_mass_[s.node[k]] += s.weight[k] * mp.mass[p];
+      node_velocity_[s.node[k]] += s.weight[k] * momentum;
+    }
+  }
+  for (int i = 0; i < nodes; ++i) {
+    node_velocity_[i] = node_mass_[i] > min_node_mass_ ? Vector2d(node_velocity_[i] / node_mass_[i])
+                                                       : Vector2d::Zero();
+  }
+  // The G2P below passes a fraction α of this first correction on to the
+  // points (PIC keeps it, FLIP adds only increments), so that fraction
+  // belongs to the reactions: then Δ(Σ m v) = (external − Σ reactions)·Δt.
+  std::fill(impulse_.begin(), impulse_.end(), Vector2d::Zero());
+  Constrain(node_velocity_, time_, alpha);
+
+  // (b) ΔF = I + Δt·L, L = Σ v_I ⊗ ∇S_Ip; one batched stress update.
+  for (std::size_t p = 0; p < n; ++p) {
+    const ShapeValues& s = shape_[p];
+    Matrix2d l = Matrix2d::Zero();
+    for (int k = 0; k < s.count; ++k) l += node_velocity_[s.node[k]] * s.gradient[k].transpose();
+    const Matrix2d df = Matrix2d::Identity() + dt_ * l;
+    if (!(df.determinant() > 0.0)) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "material point ", p, " at ", Format(mp.position[p]), " m would invert: det ",
+          "ΔF = ", df.determinant(), " (time step too large?)"));
+    }
+    delta_f_[p].setIdentity();
+    delta_f_[p].topLeftCorner<2, 2>() = df;
+  }
+  if (absl::Status s = model_->Update(step_ + 1, delta_f_, response_); !s.ok()) return s;
+  for (std::size_t p = 0; p < n; ++p) {
+    Matrix2d& f = mp.F[p];
+    f = (delta_f_[p].topLeftCorner<2, 2>() * f).eval();
+    mp.volume[p] = mp.volume0[p] * f.determinant();
+    mp.response[p] = response_[p];
+    mp.stress[p] = response_[p].stress;
+  }
+
+  // (c) Nodal forces: internal −Σ σ_p·∇S_Ip V_p (in-plane part), gravity
+  // Σ m_p g S_Ip = m_I g, tractions; then v^{n+1} = v^n + Δt f/m.
+  for (int i = 0; i < nodes; ++i) node_force_[i] = node_mass_[i] * solver_.gravity;
+  for (std::size_t p = 0; p < n; ++p) {
+    const ShapeValues& s = shape_[p];
+    const Matrix2d sigma_v = mp.stress[p].topLeftCorner<2, 2>() * mp.volume[p];
+    for (int k = 0; k < s.count; ++k) node_force_[s.node[k]] -= sigma_v * s.gradient[k];
+  }
+  // A traction goes to the nodes around the surface position that carry
+  // mass, weights renormalised over them: once the surface has moved into a
+  // cell the soil's points do not reach, the share of its empty nodes would
+  // otherwise be lost (a confined element that dilates would lose σxx).
+  for (std::size_t k = 0; k < mp.loads.size(); ++k) {
+    const ShapeValues& s = load_shape_[k];
+    double active = 0.0;
+    for (int q = 0; q < s.count; ++q) {
+      if (node_mass_[s.node[q]] > min_node_mass_) active += s.weight[q];
+    }
+    if (!(active > 0.0)) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("surface load of material point ", mp.loads[k].point,
+                       " has no node with mass around its surface position (points too sparse?)"));
+    }
+    for (int q = 0; q < s.count; ++q) {
+      if (node_mass_[s.node[q]] > min_node_mass_) {
+        node_force_[s.node[q]] += (s.weight[q] / active) * load_force_[k];
+      }
+    }
+  }
+  for (int i = 0; i < nodes; ++i) {
+    node_velocity_new_[i] =
+        node_mass_[i] > min_node_mass_
+            ? Vector2d(node_velocity_[i] + (dt_ / node_mass_[i]) * node_force_[i])
+            : Vector2d::Zero();
+  }
+  Constrain(node_velocity_new_, time_ + dt_, 1.0);
+
+  // (d) G2P: v_p ← α v_PIC + (1 − α) v_FLIP (eq. 19), x_p ← x_p + Δt v_PIC (eq. 16).
+  for (std::size_t p = 0; p < n; ++p) {
+    const ShapeValues& s = shape_[p];
+    Vector2d v_pic = Vector2d::Zero(), dv = Vector2d::Zero();
+    for (int k = 0; k < s.count; ++k) {
+      v_pic += s.weight[k] * node_velocity_new_[s.node[k]];
+      dv += s.weight[k] * (node_velocity_new_[s.node[k]] - node_velocity_[s.node[k]]);
+    }
+    mp.position[p] += dt_ * v_pic;
+    mp.velocity[p] = alpha * v_pic + (1.0 - alpha) * (mp.velocity[p] + dv);
+  }
+  for (std::size_t k = 0; k < reactions_.size(); ++k) reactions_[k] = impulse_[k] / -dt_;
+  time_ += dt_;
+  ++step_;
+  return absl::OkStatus();
+}
+
+Eigen::Vector2d Solver::BodyDisplacement(int body) const {
+  if (body < 0 || static_cast<std::size_t>(body) >= bodies_.size()) return Vector2d::Zero();
+  return DisplacementAt(bodies_[body].velocity, time_);
+}
+
+double Solver::KineticEnergy() const {
+  double e = 0.0;
+  for (std::size_t p = 0; p < points_.size(); ++p) {
+    e += 0.5 * points_.mass[p] * points_.velocity[p].squaredNorm();
+  }
+  return e;
+}
+
+// State keys. doubles: time, dt (1 each); per point: position, velocity,
+// half_size0 (x, y), mass, volume, volume0, deformation_gradient (4, row
+// major), stress, response_stress (9, row major), void_ratio,
+// fabric_anisotropy, mean_rotation, coordination, permeability; per load:
+// load_traction (2), load_length0, load_ramp_time; reactions (2 per wall and
+// body). ints: step (1); region per point; load_point, load_normal_axis,
+// load_normal_sign per load.
+void Solver::ExportState(std::map<std::string, std::vector<double>>& doubles,
+                         std::map<std::string, std::vector<std::int64_t>>& ints) const {
+  const MaterialPoints& mp = points_;
+  const std::size_t n = mp.size(), nl = mp.loads.size();
+  auto put = [&](const std::string& key, std::size_t width, auto&& get) {
+    std::vector<double>& out = doubles[key];
+    out.clear();
+    out.reserve(n * width);
+    for (std::size_t p = 0; p < n; ++p) get(p, out);
+  };
+  auto vec2 = [](const Vector2d& v, std::vector<double>& out) {
+    out.push_back(v.x());
+    out.push_back(v.y());
+  };
+  auto mat = [](const auto& m, std::vector<double>& out) {
+    for (int r = 0; r < m.rows(); ++r) {
+      for (int c = 0; c < m.cols(); ++c) out.push_back(m(r, c));
+    }
+  };
+  doubles["time"] = {time_};
+  doubles["dt"] = {dt_};
+  put("position", 2, [&](std::size_t p, auto& o) { vec2(mp.position[p], o); });
+  put("velocity", 2, [&](std::size_t p, auto& o) { vec2(mp.velocity[p], o); });
+  put("half_size0", 2, [&](std::size_t p, auto& o) { vec2(mp.half_size0[p], o); });
+  put("mass", 1, [&](std::size_t p, auto& o) { o.push_back(mp.mass[p]); });
+  put("volume", 1, [&](std::size_t p, auto& o) { o.push_back(mp.volume[p]); });
+  put("volume0", 1, [&](std::size_t p, auto& o) { o.push_back(mp.volume0[p]); });
+  put("deformation_gradient", 4, [&](std::size_t p, auto& o) { mat(mp.F[p], o); });
+  put("stress", 9, [&](std::size_t p, auto& o) { mat(mp.stress[p], o); });
+  put("response_stress", 9, [&](std::size_t p, auto& o) { mat(mp.response[p].stress, o); });
+  put("void_ratio", 1, [&](std::size_t p, auto& o) { o.push_back(mp.response[p].void_ratio); });
+  put("fabric_anisotropy", 1,
+      [&](std::size_t p, auto& o) { o.push_back(mp.response[p].fabric_anisotropy); });
+  put("mean_rotation", 1,
+      [&](std::size_t p, auto& o) { o.push_back(mp.response[p].mean_rotation); });
+  put("coordination", 1, [&](std::size_t p, auto& o) { o.push_back(mp.response[p].coordination); });
+  put("permeability", 1, [&](std::size_t p, auto& o) { o.push_back(mp.response[p].permeability); });
+  std::vector<double>& traction = doubles["load_traction"];
+  std::vector<double>& length0 = doubles["load_length0"];
+  std::vector<double>& ramp = doubles["load_ramp_time"];
+  std::vector<std::int64_t>& point = ints["load_point"];
+  std::vector<std::int64_t>& axis = ints["load_normal_axis"];
+  std::vector<std::int64_t>& sign = ints["load_normal_sign"];
+  traction.clear(), length0.clear(), ramp.clear(), point.clear(), axis.clear(), sign.clear();
+  for (std::size_t k = 0; k < nl; ++k) {
+    const SurfaceLoad& load = mp.loads[k];
+    vec2(load.traction, traction);
+    length0.push_back(load.length0);
+    ramp.push_back(load.ramp_time);
+    point.push_back(load.point);
+    axis.push_back(load.normal_axis);
+    sign.push_back(load.normal_sign);
+  }
+  std::vector<double>& reactions = doubles["reactions"];
+  reactions.clear();
+  for (const Vector2d& r : reactions_) vec2(r, reactions);
+  ints["step"] = {step_};
+  ints["region"].assign(mp.region.begin(), mp.region.end());
+}
+
+absl::Status Solver::ImportState(const std::map<std::string, std::vector<double>>& doubles,
+                                 const std::map<std::string, std::vector<std::int64_t>>& ints) {
+  const auto mass_it = doubles.find("mass");
+  const auto load_it = ints.find("load_point");
+  if (mass_it == doubles.end() || load_it == ints.end()) {
+    return absl::InvalidArgumentError("state lacks mass or load_point");
+  }
+  const std::size_t n = mass_it->second.size(), nl = load_it->second.size();
+  // Fetch every field first so that a bad state changes nothing.
+  std::map<std::string, const std::vector<double>*> d;
+  const std::pair<const char*, std::size_t> double_fields[] = {
+      {"time", 1},
+      {"dt", 1},
+      {"position", 2 * n},
+      {"velocity", 2 * n},
+      {"half_size0", 2 * n},
+      {"mass", n},
+      {"volume", n},
+      {"volume0", n},
+      {"deformation_gradient", 4 * n},
+      {"stress", 9 * n},
+      {"response_stress", 9 * n},
+      {"void_ratio", n},
+      {"fabric_anisotropy", n},
+      {"mean_rotation", n},
+      {"coordination", n},
+      {"permeability", n},
+      {"load_traction", 2 * nl},
+      {"load_length0", nl},
+      {"load_ramp_time", nl},
+      {"reactions", 2 * reactions_.size()}};
+  for (const auto& [key, size] : double_fields) {
+    absl::StatusOr<const std::vector<double>*> f = Field(doubles, key, size);
+    if (!f.ok()) return f.status();
+    d[key] = *f;
+  }
+  std::map<std::string, const std::vector<std::int64_t>*> i;
+  const std::pair<const char*, std::size_t> int_fields[] = {{"step", 1},
+                                                            {"region", n},
+                                                            {"load_point", nl},
+                                                            {"load_normal_axis", nl},
+                                                            {"load_normal_sign", nl}};
+  for (const auto& [key, size] : int_fields) {
+    absl::StatusOr<const std::vector<std::int64_t>*> f = Field(ints, key, size);
+    if (!f.ok()) return f.status();
+    i[key] = *f;
+  }
+  MaterialPoints mp;
+  mp.Resize(n);
+  auto vec2 = [](const std::vector<double>& v, std::size_t p) {
+    return Vector2d(v[2 * p], v[2 * p + 1]);
+  };
+  auto mat = [](auto& m, const std::vector<double>& v, std::size_t p) {
+    const std::size_t size = m.rows() * m.cols();
+    for (int r = 0; r < m.rows(); ++r) {
+      for (int c = 0; c < m.cols(); ++c) m(r, c) = v[size * p + m.cols() * r + c];
+    }
+  };
+  for (std::size_t p = 0; p < n; ++p) {
+    mp.position[p] = vec2(*d["position"], p);
+    mp.velocity[p] = vec2(*d["velocity"], p);
+    mp.half_size0[p] = vec2(*d["half_size0"], p);
+    mp.mass[p] = (*d["mass"])[p];
+    mp.volume[p] = (*d["volume"])[p];
+    mp.volume0[p] = (*d["volume0"])[p];
+    mat(mp.F[p], *d["deformation_gradient"], p);
+    mat(mp.stress[p], *d["stress"], p);
+    PointResponse& r = mp.response[p];
+    mat(r.stress, *d["response_stress"], p);
+    r.void_ratio = (*d["void_ratio"])[p];
+    r.fabric_anisotropy = (*d["fabric_anisotropy"])[p];
+    r.mean_rotation = (*d["mean_rotation"])[p];
+    r.coordination = (*d["coordination"])[p];
+    r.permeability = (*d["permeability"])[p];
+    mp.region[p] = static_cast<std::int32_t>((*i["region"])[p]);
+  }
+  mp.loads.resize(nl);
+  for (std::size_t k = 0; k < nl; ++k) {
+    SurfaceLoad& load = mp.loads[k];
+    const std::int64_t point = (*i["load_point"])[k];
+    if (point < 0 || static_cast<std::size_t>(point) >= n) {
+      return absl::InvalidArgumentError(absl::StrCat("state load ", k, " names point ", point));
+    }
+    load.point = static_cast<std::int32_t>(point);
+    load.traction = vec2(*d["load_traction"], k);
+    load.length0 = (*d["load_length0"])[k];
+    load.ramp_time = (*d["load_ramp_time"])[k];
+    load.normal_axis = static_cast<int>((*i["load_normal_axis"])[k]);
+    load.normal_sign = static_cast<int>((*i["load_normal_sign"])[k]);
+    if ((load.normal_axis != 0 && load.normal_axis != 1) ||
+        (load.normal_sign != 1 && load.normal_sign != -1)) {
+      return absl::InvalidArgumentError(absl::StrCat("state load ", k, " has a bad normal"));
+    }
+  }
+  if (absl::Status s = ValidatePoints(mp, solver_.shape); !s.ok()) return s;
+  points_ = std::move(mp);
+  for (std::size_t k = 0; k < reactions_.size(); ++k) reactions_[k] = vec2(*d["reactions"], k);
+  time_ = (*d["time"])[0];
+  dt_ = (*d["dt"])[0];
+  step_ = (*i["step"])[0];
+  Prepare();
+  return absl::OkStatus();
+}
+
+}  // namespace rvehub::mpm

@@ -1,0 +1,189 @@
+// The explicit MPM solver: material points on a fixed background grid,
+// update-stress-first (USF) steps as in Liang & Zhao §2.3, with walls, rigid
+// bodies, gravity and surface tractions. It knows nothing of RVEs: stresses
+// come from a StressModel. Plane strain, y up, SI units, Cauchy stress with
+// tension positive. Single-threaded and deterministic: the same input gives
+// bit-identical output.
+#ifndef RVEHUB_MPM_CLIENT_SOLVER_H_
+#define RVEHUB_MPM_CLIENT_SOLVER_H_
+
+#include <Eigen/Dense>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "mpm_client/model.h"
+#include "mpm_client/shape.h"
+
+namespace rvehub::mpm {
+
+// What the constitutive side returns per point.
+struct PointResponse {
+  Eigen::Matrix3d stress = Eigen::Matrix3d::Zero();  // Cauchy, Pa, tension +
+  double void_ratio = 0.0;                           // [-]
+  double fabric_anisotropy = 0.0;                    // [-]
+  double mean_rotation = 0.0;                        // rad
+  double coordination = 0.0;                         // [-]
+  double permeability = 0.0;                         // m/s
+};
+
+// The RVEs behind the material points (or a test material).
+class StressModel {
+ public:
+  virtual ~StressModel() = default;
+  // Applies each point's incremental deformation gradient ΔF (3×3 plane
+  // strain, ΔF_zz = 1) for MPM step `step` (1-based) and fills out[p]
+  // (delta_f.size() == out.size() == number of points).
+  virtual absl::Status Update(std::int64_t step, std::span<const Eigen::Matrix3d> delta_f,
+                              std::span<PointResponse> out) = 0;
+};
+
+// A surface traction carried by one material point (see SurfaceTraction).
+struct SurfaceLoad {
+  std::int32_t point = 0;                              // index into MaterialPoints
+  Eigen::Vector2d traction = Eigen::Vector2d::Zero();  // Pa, tension +, after the ramp
+  double length0 = 0.0;                                // m, surface length at the start
+  int normal_axis = 0;                                 // outward normal along x (0) or y (1)
+  int normal_sign = 1;                                 // +1 or −1
+  double ramp_time = 0.0;                              // s, linear ramp from zero
+};
+
+// Material points as structure of arrays (all arrays have size()).
+struct MaterialPoints {
+  std::vector<Eigen::Vector2d> position;    // m
+  std::vector<Eigen::Vector2d> velocity;    // m/s
+  std::vector<double> mass;                 // kg (for the domain thickness)
+  std::vector<double> volume;               // m³, current (area × thickness)
+  std::vector<double> volume0;              // m³, at the start
+  std::vector<Eigen::Matrix2d> F;           // total deformation gradient, in-plane
+  std::vector<Eigen::Matrix3d> stress;      // Pa, tension +
+  std::vector<Eigen::Vector2d> half_size0;  // m, GIMP lp at the start
+  std::vector<std::int32_t> region;         // index into CaseSpec::regions
+  std::vector<PointResponse> response;      // last response of the model
+  std::vector<SurfaceLoad> loads;           // any number per point
+
+  std::size_t size() const { return position.size(); }
+  // Resizes every per-point array (new points: zero, F = I).
+  void Resize(std::size_t n);
+};
+
+// Bulk density of a region, kg/m³, for regions whose spec density is 0.
+using RegionDensity = std::function<absl::StatusOr<double>(int region)>;
+
+// Fills the case's regions with points_per_cell_side² points per cell at the
+// sub-cell centres, region by region, rows from the bottom, left to right:
+// volume = (h/ppc)²·thickness, half sizes h/(2 ppc), mass = density·volume,
+// F = I, velocity and stress zero (the driver sets the stress from the RVEs).
+// Surface tractions go to the outermost layer of points of their region
+// (within one point spacing of the surface, inside [from, to]), each carrying
+// one point spacing of surface.
+absl::StatusOr<MaterialPoints> FillRegions(const CaseSpec& spec, const RegionDensity& density = {});
+// The same with one density per region (used where the spec says 0).
+absl::StatusOr<MaterialPoints> FillRegions(const CaseSpec& spec,
+                                           const std::vector<double>& density);
+
+// Δt = cfl·h/c with c = sqrt(M/ρ), the P-wave speed: s.
+double CflTimeStep(double cfl, double cell_size, double wave_modulus, double density);
+
+// Piecewise-linear velocity history (held at the first value before the
+// first point and at the last after it), m/s, and its integral from 0 to t, m.
+Eigen::Vector2d VelocityAt(const std::vector<VelocityPoint>& history, double t);
+Eigen::Vector2d DisplacementAt(const std::vector<VelocityPoint>& history, double t);
+
+class Solver {
+ public:
+  // Validates the spec (grid, walls on grid lines, bodies, PIC fraction) and
+  // the points. The time step is dt when positive, else spec.solver.time_step
+  // when positive, else the CFL step from spec.solver.wave_modulus when that
+  // is positive (with the densest point), else 0 and the caller must set_dt
+  // before Step. `model` must outlive the solver.
+  static absl::StatusOr<std::unique_ptr<Solver>> Create(const CaseSpec& spec,
+                                                        MaterialPoints initial, StressModel* model,
+                                                        double dt = 0.0);
+  // A solver for `spec` with the state of ExportState (a checkpoint).
+  static absl::StatusOr<std::unique_ptr<Solver>> FromState(
+      const CaseSpec& spec, const std::map<std::string, std::vector<double>>& doubles,
+      const std::map<std::string, std::vector<std::int64_t>>& ints, StressModel* model);
+
+  // One explicit USF step of size dt. On error (a point outside the grid, an
+  // inverted point, the model's error) the points are unchanged, but the
+  // model may have advanced.
+  absl::Status Step();
+
+  double time() const { return time_; }        // s
+  std::int64_t step() const { return step_; }  // steps done
+  double dt() const { return dt_; }            // s
+  void set_dt(double dt) { dt_ = dt; }
+  const MaterialPoints& points() const { return points_; }
+  // For the driver to set the initial stresses, responses or velocities;
+  // the number of points and loads must stay (Step refuses otherwise).
+  MaterialPoints& mutable_points() { return points_; }
+
+  // The force each wall, then each rigid body (in CaseSpec order) received
+  // from the soil in the last step, N (total for the domain thickness):
+  // −Σ m_I Δv_I/Δt over its nodes, Δv_I the constraint's change of the nodal
+  // velocity after the forces, plus α_PIC times its change of the mapped
+  // velocities at the step's start (the part the points keep). Then
+  // Δ(Σ m_p v_p) = (gravity + tractions − Σ reactions)·Δt exactly.
+  const std::vector<Eigen::Vector2d>& Reactions() const { return reactions_; }
+  Eigen::Vector2d BodyDisplacement(int body) const;  // m, centre now − centre at t = 0
+  double KineticEnergy() const;                      // J, Σ ½ m v²
+
+  // The whole state as named flat arrays (bit-exact), and back into a solver
+  // created from the same spec. Keys: see solver.cc.
+  void ExportState(std::map<std::string, std::vector<double>>& doubles,
+                   std::map<std::string, std::vector<std::int64_t>>& ints) const;
+  absl::Status ImportState(const std::map<std::string, std::vector<double>>& doubles,
+                           const std::map<std::string, std::vector<std::int64_t>>& ints);
+
+ private:
+  Solver() = default;
+  // A solver for the spec without points (validates the spec).
+  static absl::StatusOr<std::unique_ptr<Solver>> Init(const CaseSpec& spec, StressModel* model);
+  // Sizes the scratch arrays for the points and finds the inactive-node mass.
+  void Prepare();
+  // Shape values of every point and load (at the step's start), and the
+  // loads' forces; OutOfRange for a point off the grid.
+  absl::Status EvaluateShapes();
+  // Applies the walls' and bodies' constraints at time t to the nodal
+  // velocities, with the bodies moving at their velocity at body_time;
+  // adds weight × (momentum change) of each to impulse_.
+  void Constrain(std::vector<Eigen::Vector2d>& velocity, double body_time, double weight);
+
+  GridSpec grid_;
+  SolverSpec solver_;
+  std::vector<Wall> walls_;
+  std::vector<RigidBody> bodies_;
+  std::vector<std::vector<std::int32_t>> wall_nodes_;  // nodes on each wall's line
+  std::vector<int> wall_lines_;                        // grid line index of each wall
+  StressModel* model_ = nullptr;
+
+  MaterialPoints points_;
+  double time_ = 0.0;
+  double dt_ = 0.0;
+  std::int64_t step_ = 0;
+  std::vector<Eigen::Vector2d> reactions_;  // N, last step
+  double min_node_mass_ = 0.0;              // kg: lighter nodes are inactive
+
+  // Scratch reused by every step (no allocation in the step loop).
+  std::vector<ShapeValues> shape_;           // per point
+  std::vector<ShapeValues> load_shape_;      // per load, at its surface position
+  std::vector<Eigen::Vector2d> load_force_;  // per load, N
+  std::vector<double> node_mass_;
+  std::vector<Eigen::Vector2d> node_velocity_;  // v^n (after constraints)
+  std::vector<Eigen::Vector2d> node_force_;
+  std::vector<Eigen::Vector2d> node_velocity_new_;  // v^{n+1}
+  std::vector<Eigen::Vector2d> impulse_;            // per wall/body, N·s
+  std::vector<Eigen::Matrix3d> delta_f_;
+  std::vector<PointResponse> response_;
+};
+
+}  // namespace rvehub::mpm
+
+#endif  // RVEHUB_MPM_CLIENT_SOLVER_H_

@@ -1,0 +1,658 @@
+// The explicit MPM solver core: shape functions, conservation in free
+// flight, the 1-D wave speed, walls and rigid bodies, tractions and
+// checkpoint round trips.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "mpm_client/elastic.h"
+#include "mpm_client/model.h"
+#include "mpm_client/shape.h"
+#include "mpm_client/solver.h"
+
+namespace rvehub::mpm {
+namespace {
+
+using Eigen::Matrix2d;
+using Eigen::Matrix3d;
+using Eigen::Vector2d;
+
+// A material that never carries stress.
+class ZeroStressModel : public StressModel {
+ public:
+  absl::Status Update(std::int64_t, std::span<const Matrix3d>,
+                      std::span<PointResponse> out) override {
+    for (PointResponse& r : out) r = PointResponse();
+    return absl::OkStatus();
+  }
+};
+
+// One region [lower, upper] of density rho on a grid at the origin.
+CaseSpec BlockCase(double h, int nx, int ny, Vector2d lower, Vector2d upper, int ppc,
+                   double rho = 2000.0) {
+  CaseSpec spec;
+  spec.grid.cell_size = h;
+  spec.grid.nx = nx;
+  spec.grid.ny = ny;
+  MaterialRegion region;
+  region.name = "soil";
+  region.lower = lower;
+  region.upper = upper;
+  region.points_per_cell_side = ppc;
+  region.density = rho;
+  spec.regions.push_back(region);
+  return spec;
+}
+
+Wall MakeWall(int axis, double position, ContactKind contact, double mu = 0.0) {
+  Wall w;
+  w.name = absl::StrCat("wall", axis, "_", position);
+  w.axis = axis;
+  w.position = position;
+  w.contact = contact;
+  w.friction = mu;
+  return w;
+}
+
+std::unique_ptr<Solver> MakeSolver(const CaseSpec& spec, StressModel* model,
+                                   const std::vector<Vector2d>& velocity = {}) {
+  absl::StatusOr<MaterialPoints> points = FillRegions(spec);
+  EXPECT_TRUE(points.ok()) << points.status();
+  for (std::size_t p = 0; p < points->size() && !velocity.empty(); ++p) {
+    points->velocity[p] = velocity[0];
+  }
+  absl::StatusOr<std::unique_ptr<Solver>> solver = Solver::Create(spec, *std::move(points), model);
+  EXPECT_TRUE(solver.ok()) << solver.status();
+  return *std::move(solver);
+}
+
+void RunSteps(Solver& solver, int steps) {
+  for (int i = 0; i < steps; ++i) {
+    const absl::Status s = solver.Step();
+    ASSERT_TRUE(s.ok()) << "step " << solver.step() << ": " << s;
+  }
+}
+
+Vector2d Momentum(const MaterialPoints& mp) {
+  Vector2d sum = Vector2d::Zero();
+  for (std::size_t p = 0; p < mp.size(); ++p) sum += mp.mass[p] * mp.velocity[p];
+  return sum;
+}
+
+double TotalMass(const MaterialPoints& mp) {
+  double m = 0.0;
+  for (double x : mp.mass) m += x;
+  return m;
+}
+
+// Geostatic stress of a block of height top under gravity g (K0 from ν).
+std::vector<Matrix3d> Geostatic(const MaterialPoints& mp, double rho, double g, double top,
+                                double nu) {
+  std::vector<Matrix3d> s(mp.size(), Matrix3d::Zero());
+  for (std::size_t p = 0; p < mp.size(); ++p) {
+    const double sv = -rho * g * (top - mp.position[p].y());
+    s[p](1, 1) = sv;
+    s[p](0, 0) = s[p](2, 2) = nu / (1.0 - nu) * sv;
+  }
+  return s;
+}
+
+// --- shape functions
+
+GridSpec TestGrid() {
+  GridSpec g;
+  g.origin = Vector2d(0.3, -0.2);
+  g.cell_size = 0.1;
+  g.nx = 10;
+  g.ny = 8;
+  return g;
+}
+
+// The uniform GIMP weight in the closed form of Bardenhagen & Kober (2004),
+// r = x_p − x_I, lp ≤ h/2.
+double GimpClosedForm(double r, double h, double lp) {
+  const double a = std::abs(r);
+  if (a >= h + lp) return 0.0;
+  if (a > h - lp) return (h + lp - a) * (h + lp - a) / (4.0 * h * lp);
+  if (a > lp) return 1.0 - a / h;
+  return 1.0 - (r * r + lp * lp) / (2.0 * h * lp);
+}
+
+TEST(ShapeTest, PartitionOfUnityAndConsistency) {
+  const GridSpec grid = TestGrid();
+  const double h = grid.cell_size;
+  std::mt19937_64 rng(42);
+  std::uniform_real_distribution<double> ux(grid.origin.x() + h,
+                                            grid.origin.x() + (grid.nx - 1) * h);
+  std::uniform_real_distribution<double> uy(grid.origin.y() + h,
+                                            grid.origin.y() + (grid.ny - 1) * h);
+  std::uniform_real_distribution<double> ul(0.05 * h, h);
+  for (ShapeKind kind : {ShapeKind::kLinear, ShapeKind::kGimp}) {
+    for (int trial = 0; trial < 2000; ++trial) {
+      const Vector2d x(ux(rng), uy(rng));
+      const Vector2d lp(ul(rng), ul(rng));
+      ShapeValues s;
+      ASSERT_TRUE(EvaluateShape(grid, kind, x, lp, s));
+      ASSERT_LE(s.count, kMaxShapeNodes);
+      double sum = 0.0;
+      Vector2d grad = Vector2d::Zero(), centroid = Vector2d::Zero();
+      Matrix2d xg = Matrix2d::Zero();
+      for (int k = 0; k < s.count; ++k) {
+        EXPECT_GE(s.weight[k], -1e-15);
+        sum += s.weight[k];
+        grad += s.gradient[k];
+        centroid += s.weight[k] * NodePosition(grid, s.node[k]);
+        xg += NodePosition(grid, s.node[k]) * s.gradient[k].transpose();
+      }
+      EXPECT_NEAR(sum, 1.0, 1e-14);
+      EXPECT_LT(grad.norm(), 1e-11);
+      EXPECT_LT((xg - Matrix2d::Identity()).norm(), 1e-12) << xg;
+      EXPECT_LT((centroid - x).norm(), 1e-14);  // interior: Σ S x_I = x
+    }
+  }
+}
+
+TEST(ShapeTest, GimpClippedAtTheGridBorderStillSumsToOne) {
+  const GridSpec grid = TestGrid();
+  const double h = grid.cell_size;
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 0.6 * h);
+  for (int trial = 0; trial < 500; ++trial) {
+    // Near the lower-left and upper-right corners, domains sticking out.
+    const Vector2d near_lo = grid.origin + Vector2d(u(rng), u(rng));
+    const Vector2d near_hi =
+        grid.origin + h * Vector2d(grid.nx, grid.ny) - Vector2d(u(rng), u(rng));
+    for (const Vector2d& x : {near_lo, near_hi}) {
+      ShapeValues s;
+      ASSERT_TRUE(EvaluateShape(grid, ShapeKind::kGimp, x, Vector2d(0.5 * h, 0.5 * h), s));
+      double sum = 0.0;
+      Vector2d grad = Vector2d::Zero();
+      Matrix2d xg = Matrix2d::Zero();
+      for (int k = 0; k < s.count; ++k) {
+        ASSERT_GE(s.node[k], 0);
+        ASSERT_LT(s.node[k], NodeCount(grid));
+        sum += s.weight[k];
+        grad += s.gradient[k];
+        xg += NodePosition(grid, s.node[k]) * s.gradient[k].transpose();
+      }
+      EXPECT_NEAR(sum, 1.0, 1e-14);
+      EXPECT_LT(grad.norm(), 1e-11);
+      EXPECT_LT((xg - Matrix2d::Identity()).norm(), 1e-12);
+    }
+  }
+}
+
+TEST(ShapeTest, GimpMatchesTheClosedFormAndLinearIsTheHat) {
+  const GridSpec grid = TestGrid();
+  const double h = grid.cell_size;
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> ux(grid.origin.x() + h,
+                                            grid.origin.x() + (grid.nx - 1) * h);
+  std::uniform_real_distribution<double> uy(grid.origin.y() + h,
+                                            grid.origin.y() + (grid.ny - 1) * h);
+  std::uniform_real_distribution<double> ul(0.01 * h, 0.5 * h);
+  for (int trial = 0; trial < 1000; ++trial) {
+    const Vector2d x(ux(rng), uy(rng));
+    const Vector2d lp(ul(rng), ul(rng));
+    ShapeValues s, lin;
+    ASSERT_TRUE(EvaluateShape(grid, ShapeKind::kGimp, x, lp, s));
+    ASSERT_TRUE(EvaluateShape(grid, ShapeKind::kLinear, x, lp, lin));
+    EXPECT_LE(s.count, 9);  // lp ≤ h/2: at most 3×3 nodes
+    EXPECT_EQ(lin.count, 4);
+    for (int k = 0; k < s.count; ++k) {
+      const Vector2d r = x - NodePosition(grid, s.node[k]);
+      const double expected = GimpClosedForm(r.x(), h, lp.x()) * GimpClosedForm(r.y(), h, lp.y());
+      EXPECT_NEAR(s.weight[k], expected, 1e-13);
+    }
+    for (int k = 0; k < lin.count; ++k) {
+      const Vector2d r = x - NodePosition(grid, lin.node[k]);
+      EXPECT_NEAR(lin.weight[k], (1.0 - std::abs(r.x()) / h) * (1.0 - std::abs(r.y()) / h), 1e-14);
+    }
+  }
+}
+
+TEST(ShapeTest, GimpWeightsAndGradientsAreContinuousAcrossCellBoundaries) {
+  const GridSpec grid = TestGrid();
+  const double h = grid.cell_size;
+  const double lp = 0.25 * h;
+  const double y = grid.origin.y() + 3.37 * h;
+  // Breakpoints along x: the grid line and x_I ± lp, x_I ± (h − lp).
+  const double line = grid.origin.x() + 4.0 * h;
+  for (double at : {line, line + lp, line - lp, line + h - lp, line - h + lp}) {
+    const double eps = 1e-9 * h;
+    ShapeValues left, right;
+    ASSERT_TRUE(
+        EvaluateShape(grid, ShapeKind::kGimp, Vector2d(at - eps, y), Vector2d(lp, lp), left));
+    ASSERT_TRUE(
+        EvaluateShape(grid, ShapeKind::kGimp, Vector2d(at + eps, y), Vector2d(lp, lp), right));
+    std::map<int, std::pair<double, Vector2d>> l, r;
+    for (int k = 0; k < left.count; ++k) l[left.node[k]] = {left.weight[k], left.gradient[k]};
+    for (int k = 0; k < right.count; ++k) r[right.node[k]] = {right.weight[k], right.gradient[k]};
+    for (int node = 0; node < NodeCount(grid); ++node) {
+      const auto a = l.count(node) ? l[node] : std::make_pair(0.0, Vector2d(Vector2d::Zero()));
+      const auto b = r.count(node) ? r[node] : std::make_pair(0.0, Vector2d(Vector2d::Zero()));
+      EXPECT_NEAR(a.first, b.first, 1e-8) << "node " << node << " at x = " << at;
+      EXPECT_LT((a.second - b.second).norm(), 1e-6) << "node " << node << " at x = " << at;
+    }
+  }
+}
+
+TEST(ShapeTest, OutsideTheGridIsRejected) {
+  const GridSpec grid = TestGrid();
+  ShapeValues s;
+  EXPECT_FALSE(EvaluateShape(grid, ShapeKind::kLinear, Vector2d(0.29, 0.0), Vector2d::Zero(), s));
+  EXPECT_FALSE(EvaluateShape(grid, ShapeKind::kGimp, Vector2d(0.5, 0.61), Vector2d(0.01, 0.01), s));
+  EXPECT_FALSE(EvaluateShape(grid, ShapeKind::kGimp, Vector2d(NAN, 0.0), Vector2d(0.01, 0.01), s));
+  // The closed rectangle counts as inside.
+  EXPECT_TRUE(EvaluateShape(grid, ShapeKind::kLinear, Vector2d(1.3, 0.6), Vector2d::Zero(), s));
+}
+
+// --- filling and histories
+
+TEST(FillRegionsTest, PointsMassesAndTractions) {
+  CaseSpec spec = BlockCase(0.1, 10, 10, Vector2d(0.2, 0.0), Vector2d(0.6, 0.3), 2);
+  spec.solver.thickness = 0.5;
+  SurfaceTraction t;
+  t.name = "top";
+  t.region = "soil";
+  t.normal_axis = 1;
+  t.normal_sign = 1;
+  t.traction = Vector2d(0.0, -1e3);
+  t.from = 0.3;
+  t.to = 0.5;
+  spec.tractions.push_back(t);
+  absl::StatusOr<MaterialPoints> mp = FillRegions(spec);
+  ASSERT_TRUE(mp.ok()) << mp.status();
+  ASSERT_EQ(mp->size(), 4u * 3u * 4u);
+  EXPECT_NEAR(TotalMass(*mp), 2000.0 * 0.4 * 0.3 * 0.5, 1e-9);
+  EXPECT_DOUBLE_EQ(mp->position[0].x(), 0.225);
+  EXPECT_DOUBLE_EQ(mp->half_size0[0].x(), 0.025);
+  // Top layer (y = 0.275), x in [0.3, 0.5]: 0.325, 0.375, 0.425, 0.475.
+  ASSERT_EQ(mp->loads.size(), 4u);
+  for (const SurfaceLoad& load : mp->loads) {
+    EXPECT_DOUBLE_EQ(mp->position[load.point].y(), 0.275);
+    EXPECT_DOUBLE_EQ(load.length0, 0.05);
+  }
+  // Density 0 needs the callback; off-grid corners are rejected.
+  spec.regions[0].density = 0.0;
+  EXPECT_FALSE(FillRegions(spec).ok());
+  absl::StatusOr<MaterialPoints> cb =
+      FillRegions(spec, [](int) -> absl::StatusOr<double> { return 1500.0; });
+  ASSERT_TRUE(cb.ok());
+  EXPECT_NEAR(TotalMass(*cb), 1500.0 * 0.4 * 0.3 * 0.5, 1e-9);
+  spec.regions[0].upper.x() = 0.63;
+  EXPECT_EQ(FillRegions(spec, std::vector<double>{1500.0}).status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+TEST(VelocityHistoryTest, InterpolatesAndIntegrates) {
+  const std::vector<VelocityPoint> h = {{1.0, Vector2d(0.0, -1.0)}, {3.0, Vector2d(2.0, -1.0)}};
+  EXPECT_EQ(VelocityAt(h, 0.5), Vector2d(0.0, -1.0));
+  EXPECT_EQ(VelocityAt(h, 2.0), Vector2d(1.0, -1.0));
+  EXPECT_EQ(VelocityAt(h, 5.0), Vector2d(2.0, -1.0));
+  // ∫0^4: x: 0 + (1/2)·2·2 + 2·1 = 4; y: −4.
+  EXPECT_LT((DisplacementAt(h, 4.0) - Vector2d(4.0, -4.0)).norm(), 1e-14);
+  EXPECT_LT((DisplacementAt(h, 2.0) - Vector2d(0.5, -2.0)).norm(), 1e-14);
+  EXPECT_EQ(DisplacementAt({}, 3.0), Vector2d::Zero());
+  // A velocity jump at t = 1 (two points at the same time).
+  const std::vector<VelocityPoint> jump = {
+      {0.0, Vector2d(0.0, 0.0)}, {1.0, Vector2d(2.0, 0.0)}, {1.0, Vector2d(0.0, 1.0)}};
+  EXPECT_EQ(VelocityAt(jump, 1.5), Vector2d(0.0, 1.0));
+  EXPECT_LT((DisplacementAt(jump, 1.5) - Vector2d(1.0, 0.5)).norm(), 1e-14);
+  const std::vector<VelocityPoint> mid_jump = {{0.0, Vector2d(1.0, 0.0)},
+                                               {1.0, Vector2d(1.0, 0.0)},
+                                               {1.0, Vector2d(3.0, 0.0)},
+                                               {2.0, Vector2d(3.0, 0.0)}};
+  EXPECT_LT((DisplacementAt(mid_jump, 1.5) - Vector2d(2.5, 0.0)).norm(), 1e-14);
+}
+
+// --- free flight
+
+TEST(FreeFlightTest, GravityMomentumGrowsAsMgt) {
+  for (ShapeKind kind : {ShapeKind::kLinear, ShapeKind::kGimp}) {
+    CaseSpec spec = BlockCase(0.1, 20, 20, Vector2d(0.5, 0.5), Vector2d(1.5, 1.2), 2);
+    spec.solver.shape = kind;
+    spec.solver.gravity = Vector2d(0.0, -9.81);
+    spec.solver.pic_fraction = 0.5;
+    spec.solver.time_step = 1e-3;
+    ZeroStressModel model;
+    const Vector2d v0(0.3, 2.0);
+    std::unique_ptr<Solver> solver = MakeSolver(spec, &model, {v0});
+    const double mass = TotalMass(solver->points());
+    RunSteps(*solver, 200);
+    EXPECT_EQ(TotalMass(solver->points()), mass);
+    const Vector2d expected = mass * (v0 + solver->time() * spec.solver.gravity);
+    EXPECT_LT((Momentum(solver->points()) - expected).norm(), 1e-12 * expected.norm());
+  }
+}
+
+TEST(FreeFlightTest, RigidTranslationConservesMomentumAndEnergyExactly) {
+  for (ShapeKind kind : {ShapeKind::kLinear, ShapeKind::kGimp}) {
+    CaseSpec spec = BlockCase(0.1, 20, 20, Vector2d(0.5, 0.5), Vector2d(1.5, 1.2), 3);
+    spec.solver.shape = kind;
+    spec.solver.pic_fraction = 0.0;
+    spec.solver.time_step = 1e-3;
+    ZeroStressModel model;
+    std::unique_ptr<Solver> solver = MakeSolver(spec, &model, {Vector2d(1.3, -0.7)});
+    const Vector2d p0 = Momentum(solver->points());
+    const double e0 = solver->KineticEnergy();
+    RunSteps(*solver, 300);
+    EXPECT_EQ(Momentum(solver->points()), p0);
+    EXPECT_EQ(solver->KineticEnergy(), e0);
+    // The block moved rigidly: 0.39 m to the right.
+    EXPECT_NEAR(solver->points().position[0].x(), 0.5 + 0.1 / 6 + 1.3 * 0.3, 1e-12);
+  }
+}
+
+// --- 1-D wave speed
+
+// A bar along x between roller walls (ε_yy = 0: 1-D strain) moves at −v0
+// into a smooth wall at x = 0; the stopping front runs at c = sqrt(M/ρ).
+// Returns the front speed between x = 0.5 m and 1.5 m from the half-amplitude
+// crossings of the points' velocity.
+double MeasuredWaveSpeed(ShapeKind kind, double youngs, double nu, double rho) {
+  const double h = 0.01, v0 = 0.1;
+  CaseSpec spec = BlockCase(h, 220, 1, Vector2d(0.0, 0.0), Vector2d(2.0, h), 2, rho);
+  spec.solver.shape = kind;
+  spec.solver.pic_fraction = 0.0;
+  const double c = std::sqrt(PWaveModulus(youngs, nu) / rho);
+  spec.solver.time_step = 0.1 * h / c;
+  spec.walls = {MakeWall(1, 0.0, ContactKind::kSmooth), MakeWall(1, h, ContactKind::kSmooth),
+                MakeWall(0, 0.0, ContactKind::kSmooth)};
+  LinearElasticModel model(youngs, nu);
+  std::unique_ptr<Solver> solver = MakeSolver(spec, &model, {Vector2d(-v0, 0.0)});
+  // Probes: the lower points of the columns at x = 0.5025 and 1.5025 m.
+  const int probe[2] = {100, 300};
+  EXPECT_NEAR(solver->points().position[probe[0]].x(), 0.5025, 1e-12);
+  EXPECT_NEAR(solver->points().position[probe[1]].x(), 1.5025, 1e-12);
+  double arrival[2] = {-1.0, -1.0};
+  double prev[2] = {-v0, -v0};
+  while (arrival[1] < 0.0 && solver->time() < 2.0 * 2.0 / c) {
+    const double t0 = solver->time();
+    const absl::Status s = solver->Step();
+    EXPECT_TRUE(s.ok()) << s;
+    if (!s.ok()) return 0.0;
+    for (int k = 0; k < 2; ++k) {
+      const double v = solver->points().velocity[probe[k]].x();
+      if (arrival[k] < 0.0 && v > -0.5 * v0) {
+        // Linear interpolation of the crossing within the step.
+        arrival[k] = t0 + solver->dt() * (-0.5 * v0 - prev[k]) / (v - prev[k]);
+      }
+      prev[k] = v;
+    }
+  }
+  EXPECT_GT(arrival[1], 0.0);
+  return (solver->points().position[probe[1]].x() - solver->points().position[probe[0]].x()) /
+         (arrival[1] - arrival[0]);
+}
+
+TEST(WaveSpeedTest, OneDimensionalPWaveSpeed) {
+  const double youngs = 10e6, nu = 0.3, rho = 2000.0;
+  const double c = std::sqrt(PWaveModulus(youngs, nu) / rho);
+  for (ShapeKind kind : {ShapeKind::kLinear, ShapeKind::kGimp}) {
+    const double measured = MeasuredWaveSpeed(kind, youngs, nu, rho);
+    const double error = measured / c - 1.0;
+    std::printf("wave speed (%s): measured %.4f m/s, c = %.4f m/s, error %+.3f %%\n",
+                kind == ShapeKind::kLinear ? "linear" : "GIMP", measured, c, 100.0 * error);
+    EXPECT_LT(std::abs(error), 0.02);
+  }
+}
+
+// --- walls and bodies
+
+TEST(WallTest, BlockAtRestOnFixedBaseCarriesItsWeight) {
+  const double rho = 2000.0, g = 9.81, youngs = 2e6, nu = 0.3;
+  CaseSpec spec = BlockCase(0.05, 16, 12, Vector2d(0.2, 0.0), Vector2d(0.6, 0.4), 2, rho);
+  spec.solver.gravity = Vector2d(0.0, -g);
+  spec.solver.pic_fraction = 1.0;
+  spec.solver.time_step = 0.2 * 0.05 / std::sqrt(PWaveModulus(youngs, nu) / rho);
+  spec.walls = {MakeWall(1, 0.0, ContactKind::kRough)};
+  LinearElasticModel model(youngs, nu);
+  std::unique_ptr<Solver> solver = MakeSolver(spec, &model);
+  const double weight = TotalMass(solver->points()) * g;
+  RunSteps(*solver, 1500);
+  const Vector2d r = solver->Reactions()[0];
+  std::printf("base reaction %.4f N, weight %.4f N (%+.3f %%), kinetic energy %.3g J\n", -r.y(),
+              weight, 100.0 * (-r.y() / weight - 1.0), solver->KineticEnergy());
+  EXPECT_NEAR(-r.y(), weight, 0.01 * weight);  // the soil pushes the base down
+  EXPECT_NEAR(r.x(), 0.0, 1e-3 * weight);
+}
+
+TEST(BodyTest, RoughBodyPushedIntoABlockIsResisted) {
+  const double rho = 2000.0, youngs = 2e6, nu = 0.3;
+  CaseSpec spec = BlockCase(0.05, 16, 12, Vector2d(0.2, 0.0), Vector2d(0.6, 0.4), 2, rho);
+  spec.solver.pic_fraction = 0.2;
+  spec.solver.time_step = 0.2 * 0.05 / std::sqrt(PWaveModulus(youngs, nu) / rho);
+  spec.walls = {MakeWall(1, 0.0, ContactKind::kRough)};
+  RigidBody footing;
+  footing.name = "footing";
+  footing.center = Vector2d(0.4, 0.45);
+  footing.half_size = Vector2d(0.1, 0.05);
+  footing.contact = ContactKind::kRough;
+  footing.velocity = {{0.0, Vector2d(0.0, -0.05)}};
+  spec.bodies = {footing};
+  LinearElasticModel model(youngs, nu);
+  std::unique_ptr<Solver> solver = MakeSolver(spec, &model);
+  double impulse = 0.0;
+  for (int i = 0; i < 400; ++i) {
+    ASSERT_TRUE(solver->Step().ok());
+    impulse += solver->Reactions()[1].y() * solver->dt();
+  }
+  const Vector2d d = solver->BodyDisplacement(0);
+  EXPECT_NEAR(d.y(), -0.05 * solver->time(), 1e-15);
+  const double mean = impulse / solver->time();
+  const double last = solver->Reactions()[1].y();
+  std::printf("footing: settlement %.3g m, mean reaction %.4g N, last %.4g N\n", -d.y(), mean,
+              last);
+  // The soil pushes the footing up, against its motion, and harder with depth.
+  EXPECT_GT(mean, 0.0);
+  EXPECT_GT(last, mean);
+  // Below it, the base carries the load down.
+  EXPECT_LT(solver->Reactions()[0].y(), 0.0);
+}
+
+TEST(WallTest, BlockSlidingOnFrictionalBaseDeceleratesAtMuG) {
+  const double rho = 2000.0, g = 9.81, youngs = 5e6, nu = 0.3, mu = 0.3, h = 0.05;
+  const double top = 0.2;
+  CaseSpec spec = BlockCase(h, 30, 8, Vector2d(0.2, 0.0), Vector2d(0.6, top), 2, rho);
+  spec.solver.gravity = Vector2d(0.0, -g);
+  // Some PIC damping: with little, friction-induced rocking grows and the
+  // bilateral base then holds the lifting heel, loading the toe more.
+  spec.solver.pic_fraction = 0.2;
+  spec.solver.time_step = 0.2 * h / std::sqrt(PWaveModulus(youngs, nu) / rho);
+  spec.walls = {MakeWall(1, 0.0, ContactKind::kFrictional, mu)};
+  LinearElasticModel model(youngs, nu);
+  std::unique_ptr<Solver> solver = MakeSolver(spec, &model, {Vector2d(1.0, 0.0)});
+  model.SetStress(Geostatic(solver->points(), rho, g, top, nu));
+  const double mass = TotalMass(solver->points());
+  auto mean_velocity = [&] { return Momentum(solver->points()).x() / mass; };
+  const double t1 = 0.05, t2 = 0.25;
+  RunSteps(*solver, static_cast<int>(std::round(t1 / solver->dt())));
+  const double v1 = mean_velocity(), time1 = solver->time();
+  RunSteps(*solver, static_cast<int>(std::round((t2 - t1) / solver->dt())));
+  const double v2 = mean_velocity(), time2 = solver->time();
+  const double decel = (v1 - v2) / (time2 - time1);
+  std::printf("sliding block: deceleration %.4f m/s2, mu g = %.4f (%+.2f %%)\n", decel, mu * g,
+              100.0 * (decel / (mu * g) - 1.0));
+  EXPECT_NEAR(decel, mu * g, 0.03 * mu * g);
+  EXPECT_GT(v2, 0.0);  // still sliding
+}
+
+TEST(WallTest, ReactionsCloseTheMomentumBalance) {
+  // Δ(Σ m v) = (M g − Σ reactions)·Δt every step, whatever the contacts.
+  const double rho = 2000.0, g = 9.81, youngs = 2e6, nu = 0.3, h = 0.05;
+  CaseSpec spec = BlockCase(h, 16, 12, Vector2d(0.2, 0.0), Vector2d(0.6, 0.4), 2, rho);
+  spec.solver.gravity = Vector2d(0.0, -g);
+  spec.solver.pic_fraction = 0.3;
+  spec.solver.time_step = 0.2 * h / std::sqrt(PWaveModulus(youngs, nu) / rho);
+  spec.walls = {MakeWall(1, 0.0, ContactKind::kFrictional, 0.5),
+                MakeWall(0, 0.2, ContactKind::kSmooth), MakeWall(0, 0.6, ContactKind::kRough)};
+  RigidBody pipe;
+  pipe.name = "pipe";
+  pipe.shape = RigidBody::Shape::kCircle;
+  pipe.center = Vector2d(0.4, 0.45);
+  pipe.radius = 0.06;
+  pipe.contact = ContactKind::kFrictional;
+  pipe.friction = 0.3;
+  pipe.velocity = {{0.0, Vector2d(0.05, -0.2)}};
+  spec.bodies = {pipe};
+  LinearElasticModel model(youngs, nu);
+  std::unique_ptr<Solver> solver = MakeSolver(spec, &model, {Vector2d(0.1, 0.0)});
+  const double mass = TotalMass(solver->points());
+  double worst = 0.0, body = 0.0;
+  for (int i = 0; i < 300; ++i) {
+    const Vector2d before = Momentum(solver->points());
+    ASSERT_TRUE(solver->Step().ok());
+    Vector2d external = mass * spec.solver.gravity;
+    for (const Vector2d& r : solver->Reactions()) external -= r;
+    const Vector2d change = Momentum(solver->points()) - before;
+    worst = std::max(worst, (change - external * solver->dt()).norm() / (mass * g * solver->dt()));
+    body += solver->Reactions()[3].y();
+  }
+  EXPECT_LT(worst, 1e-10);
+  EXPECT_GT(body, 0.0);  // the soil resists the pipe going down
+}
+
+// --- tractions
+
+TEST(TractionTest, ConfinedBlockTakesTheAppliedPressure) {
+  for (ShapeKind kind : {ShapeKind::kLinear, ShapeKind::kGimp}) {
+    const double rho = 2000.0, youngs = 2e6, nu = 0.3, p = 1e3, h = 0.05;
+    CaseSpec spec = BlockCase(h, 12, 10, Vector2d(0.0, 0.0), Vector2d(0.4, 0.4), 2, rho);
+    spec.solver.shape = kind;
+    spec.solver.pic_fraction = 1.0;
+    spec.solver.time_step = 0.2 * h / std::sqrt(PWaveModulus(youngs, nu) / rho);
+    spec.walls = {MakeWall(1, 0.0, ContactKind::kSmooth), MakeWall(0, 0.0, ContactKind::kSmooth)};
+    SurfaceTraction t;
+    t.name = "right";
+    t.region = "soil";
+    t.normal_axis = 0;
+    t.normal_sign = 1;
+    t.traction = Vector2d(-p, 0.0);
+    t.ramp_time = 0.02;
+    spec.tractions = {t};
+    LinearElasticModel model(youngs, nu);
+    std::unique_ptr<Solver> solver = MakeSolver(spec, &model);
+    ASSERT_EQ(solver->points().loads.size(), 16u);
+    RunSteps(*solver, 1500);
+    double worst = 0.0;
+    for (const Matrix3d& s : solver->points().stress) {
+      worst = std::max(worst, std::abs(s(0, 0) / -p - 1.0));
+    }
+    std::printf("traction (%s): worst |sxx/(-p) - 1| = %.3g, left wall %.4g N (p·A = %.4g N)\n",
+                kind == ShapeKind::kLinear ? "linear" : "GIMP", worst, solver->Reactions()[1].x(),
+                -p * 0.4);
+    EXPECT_LT(worst, 0.01);
+    // The left wall takes the load: the soil pushes it towards −x.
+    EXPECT_NEAR(solver->Reactions()[1].x(), -p * 0.4 * spec.solver.thickness, 0.01 * p * 0.4);
+  }
+}
+
+// --- errors
+
+TEST(SolverErrorsTest, InvalidSpecsAndPointsLeavingTheGrid) {
+  CaseSpec spec = BlockCase(0.1, 4, 4, Vector2d(0.1, 0.1), Vector2d(0.3, 0.3), 1);
+  ZeroStressModel model;
+  absl::StatusOr<MaterialPoints> mp = FillRegions(spec);
+  ASSERT_TRUE(mp.ok());
+  CaseSpec bad = spec;
+  bad.walls = {MakeWall(0, 0.15, ContactKind::kSmooth)};
+  EXPECT_EQ(Solver::Create(bad, *mp, &model).status().code(), absl::StatusCode::kInvalidArgument);
+  bad = spec;
+  bad.solver.pic_fraction = 1.5;
+  EXPECT_EQ(Solver::Create(bad, *mp, &model).status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_FALSE(Solver::Create(spec, *mp, nullptr).ok());
+
+  // No time step yet.
+  std::unique_ptr<Solver> solver = *Solver::Create(spec, *mp, &model);
+  EXPECT_EQ(solver->Step().code(), absl::StatusCode::kFailedPrecondition);
+  // A point flying off the grid is named.
+  solver->set_dt(0.01);
+  solver->mutable_points().velocity[3] = Vector2d(0.0, 20.0);
+  absl::Status s;
+  for (int i = 0; i < 100 && s.ok(); ++i) s = solver->Step();
+  EXPECT_EQ(s.code(), absl::StatusCode::kOutOfRange);
+  EXPECT_NE(s.message().find("material point"), std::string::npos) << s;
+}
+
+// --- checkpoints
+
+void ExpectBitIdentical(const Solver& a, const Solver& b) {
+  std::map<std::string, std::vector<double>> da, db;
+  std::map<std::string, std::vector<std::int64_t>> ia, ib;
+  a.ExportState(da, ia);
+  b.ExportState(db, ib);
+  ASSERT_EQ(da.size(), db.size());
+  for (const auto& [key, values] : da) {
+    const std::vector<double>& other = db.at(key);
+    ASSERT_EQ(values.size(), other.size()) << key;
+    EXPECT_EQ(std::memcmp(values.data(), other.data(), values.size() * sizeof(double)), 0) << key;
+  }
+  EXPECT_EQ(ia, ib);
+}
+
+TEST(CheckpointTest, ExportImportContinuesBitIdentically) {
+  const double rho = 2000.0, g = 9.81, youngs = 2e6, nu = 0.3, h = 0.05;
+  CaseSpec spec = BlockCase(h, 16, 12, Vector2d(0.2, 0.0), Vector2d(0.6, 0.4), 2, rho);
+  spec.solver.shape = ShapeKind::kGimp;
+  spec.solver.gravity = Vector2d(0.0, -g);
+  spec.solver.pic_fraction = 0.1;
+  spec.solver.wave_modulus = PWaveModulus(youngs, nu);
+  spec.solver.cfl = 0.3;
+  spec.walls = {MakeWall(1, 0.0, ContactKind::kFrictional, 0.4),
+                MakeWall(0, 0.2, ContactKind::kSmooth)};
+  RigidBody pipe;
+  pipe.name = "pipe";
+  pipe.shape = RigidBody::Shape::kCircle;
+  pipe.center = Vector2d(0.45, 0.47);
+  pipe.radius = 0.07;
+  pipe.contact = ContactKind::kFrictional;
+  pipe.friction = 0.3;
+  pipe.velocity = {{0.0, Vector2d(0.0, 0.0)}, {0.01, Vector2d(0.02, -0.1)}};
+  spec.bodies = {pipe};
+  SurfaceTraction t;
+  t.name = "surcharge";
+  t.region = "soil";
+  t.normal_axis = 1;
+  t.traction = Vector2d(0.0, -2e3);
+  t.ramp_time = 0.005;
+  t.to = 0.35;
+  spec.tractions = {t};
+  LinearElasticModel model(youngs, nu);
+  std::unique_ptr<Solver> a = MakeSolver(spec, &model, {Vector2d(0.05, 0.0)});
+  EXPECT_NEAR(a->dt(), 0.3 * h / std::sqrt(PWaveModulus(youngs, nu) / rho), 1e-18);
+  RunSteps(*a, 10);
+  std::map<std::string, std::vector<double>> doubles;
+  std::map<std::string, std::vector<std::int64_t>> ints;
+  a->ExportState(doubles, ints);
+  LinearElasticModel model_b = model;  // the material's own state travels separately
+  absl::StatusOr<std::unique_ptr<Solver>> b = Solver::FromState(spec, doubles, ints, &model_b);
+  ASSERT_TRUE(b.ok()) << b.status();
+  ExpectBitIdentical(*a, **b);
+  for (int i = 0; i < 20; ++i) {
+    ASSERT_TRUE(a->Step().ok());
+    ASSERT_TRUE((*b)->Step().ok());
+  }
+  EXPECT_EQ(a->step(), 30);
+  ExpectBitIdentical(*a, **b);
+  EXPECT_EQ(a->Reactions(), (*b)->Reactions());
+
+  // A state with a field missing or of the wrong length changes nothing.
+  std::map<std::string, std::vector<double>> broken = doubles;
+  broken.erase("velocity");
+  EXPECT_EQ((*b)->ImportState(broken, ints).code(), absl::StatusCode::kInvalidArgument);
+  broken = doubles;
+  broken["stress"].pop_back();
+  EXPECT_EQ((*b)->ImportState(broken, ints).code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ((*b)->step(), 30);
+}
+
+}  // namespace
+}  // namespace rvehub::mpm
