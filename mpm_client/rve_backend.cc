@@ -1,0 +1,498 @@
+#include "mpm_client/rve_backend.h"
+
+#include <grpcpp/grpcpp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <climits>
+#include <limits>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "rve_server/service/convert.h"
+#include "rvehub/v1/rve_service.grpc.pb.h"
+
+namespace rvehub::mpm {
+namespace {
+
+using service::RveOutcome;
+
+// Headroom below the message limit for framing, as the server keeps for its
+// export chunks, bytes.
+constexpr std::int64_t kChunkOverheadBytes = 64 << 10;
+
+absl::Status Prefixed(absl::string_view prefix, const absl::Status& s) {
+  if (s.ok()) return s;
+  return absl::Status(s.code(), absl::StrCat(prefix, ": ", s.message()));
+}
+
+// ---------------------------------------------------------------------------
+// Embedded: the registry's own calls.
+
+class EmbeddedEndpoint final : public RveEndpoint {
+ public:
+  explicit EmbeddedEndpoint(std::shared_ptr<service::Registry> registry)
+      : registry_(std::move(registry)) {}
+
+  std::string name() const override { return "embedded"; }
+  std::string label() const override { return "embedded RVE registry"; }
+
+  absl::Status PutTemplate(const store::TemplateRecord& record) override {
+    return Error(registry_->PutTemplate(record, /*replace=*/true).status());
+  }
+
+  absl::StatusOr<std::vector<RveOutcome>> Create(
+      absl::string_view run, absl::string_view template_name, std::span<const std::int64_t> ids,
+      std::span<const service::InitialStress> initial,
+      const std::optional<dem::Controls>& controls) override {
+    absl::StatusOr<std::vector<RveOutcome>> out =
+        registry_->Create(run, template_name, ids, initial, controls, /*want_state=*/true);
+    if (!out.ok()) return Error(out.status());
+    return out;
+  }
+
+  absl::StatusOr<std::vector<RveOutcome>> Apply(absl::string_view run, std::int64_t step,
+                                                std::span<const service::Increment> increments,
+                                                const dem::ApplyOptions& options,
+                                                absl::Duration deadline) override {
+    service::CancelFn cancelled;
+    if (deadline != absl::InfiniteDuration()) {
+      const absl::Time end = absl::Now() + deadline;
+      cancelled = [end]() -> absl::Status {
+        if (absl::Now() > end) return absl::DeadlineExceededError("the call's deadline passed");
+        return absl::OkStatus();
+      };
+    }
+    absl::StatusOr<std::vector<RveOutcome>> out =
+        registry_->Apply(run, step, service::ApplyMode::kCommit, options, increments, cancelled);
+    if (!out.ok()) return Error(out.status());
+    return out;
+  }
+
+  absl::StatusOr<std::vector<RveOutcome>> Get(absl::string_view run,
+                                              std::span<const std::int64_t> ids,
+                                              bool want_tangent) override {
+    absl::StatusOr<std::vector<RveOutcome>> out = registry_->Get(run, ids, want_tangent);
+    if (!out.ok()) return Error(out.status());
+    return out;
+  }
+
+  absl::Status Export(absl::string_view run, std::span<const std::int64_t> ids,
+                      const RecordSink& sink) override {
+    return Error(registry_->Export(run, ids, sink));
+  }
+
+  absl::Status Import(std::vector<store::RveRecord> records) override {
+    return Error(registry_->Import(std::move(records)).status());
+  }
+
+  absl::Status Drop(absl::string_view run) override {
+    return Error(registry_->Drop(run, {}).status());
+  }
+
+ private:
+  absl::Status Error(const absl::Status& s) const { return Prefixed(label(), s); }
+
+  std::shared_ptr<service::Registry> registry_;
+};
+
+// ---------------------------------------------------------------------------
+// Remote: wire conversions the service layer has only one way.
+
+void ToProto(const service::InitialStress& s, v1::InitialStress* out) {
+  switch (s.kind) {
+    case service::InitialStress::Kind::kTemplate:
+      break;  // the server has no "template" kind: callers leave it out
+    case service::InitialStress::Kind::kIsotropic:
+      out->set_pressure(s.pressure);
+      break;
+    case service::InitialStress::Kind::kK0:
+      out->mutable_k0()->set_vertical_compression(s.vertical_compression);
+      out->mutable_k0()->set_k0(s.k0);
+      break;
+  }
+}
+
+// Zero fields mean "the default" on the server; the values are sent as they
+// are, so a default is sent as itself.
+void ToProto(const dem::ApplyOptions& o, v1::ApplyOptions* out) {
+  out->set_want_tangent(o.want_tangent);
+  out->set_max_inertial_number(o.max_inertial_number);
+  out->set_relax(o.relax);
+  out->set_relax_tolerance(o.relax_tolerance);
+  out->set_relax_max_steps(o.relax_max_steps);
+}
+
+absl::Status StateFromProto(const v1::RveState& s, dem::RveState* out, Eigen::Matrix3d* f) {
+  const std::pair<const google::protobuf::RepeatedField<double>*, Eigen::Matrix3d*> tensors[] = {
+      {&s.stress(), &out->stress},
+      {&s.fabric(), &out->fabric},
+      {&s.fabric_anisotropy_tensor(), &out->fabric_anisotropy_tensor},
+      {&s.deformation_gradient(), f}};
+  for (const auto& [field, m] : tensors) {
+    absl::StatusOr<Eigen::Matrix3d> v = service::Matrix3FromProto(*field, "state tensor");
+    if (!v.ok()) return v.status();
+    *m = *v;
+  }
+  out->fabric_anisotropy = s.fabric_anisotropy();
+  out->fabric_defined = s.fabric_defined();
+  out->void_ratio = s.void_ratio();
+  out->porosity = s.porosity();
+  out->coordination = s.coordination();
+  out->mechanical_coordination = s.mechanical_coordination();
+  out->permeability = s.permeability();
+  out->mean_rotation = s.mean_rotation();
+  out->kinetic_energy = s.kinetic_energy();
+  out->unbalanced_force_ratio = s.unbalanced_force_ratio();
+  out->num_contacts = s.num_contacts();
+  out->volume = s.volume();
+  out->steps = s.steps();
+  out->time_step = s.time_step();
+  out->mass_scale = s.mass_scale();
+  out->has_tangent = s.tangent_size() == 81;
+  if (out->has_tangent) {
+    for (int r = 0; r < 9; ++r)
+      for (int c = 0; c < 9; ++c) out->tangent(r, c) = s.tangent(9 * r + c);
+  } else if (s.tangent_size() != 0) {
+    return absl::DataLossError(absl::StrCat("tangent has ", s.tangent_size(), " values, not 81"));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<RveOutcome> OutcomeFromProto(const v1::RveResult& r) {
+  RveOutcome o;
+  o.id = r.id();
+  o.step = r.step();
+  if (r.code() != 0) {
+    o.status = absl::Status(static_cast<absl::StatusCode>(r.code()), r.message());
+    return o;
+  }
+  if (absl::Status s = StateFromProto(r.state(), &o.state, &o.deformation_gradient); !s.ok()) {
+    return absl::DataLossError(
+        absl::StrCat("reply for material point ", r.id(), " is malformed: ", s.message()));
+  }
+  return o;
+}
+
+// Outcomes of a reply, which must answer `expected` ids in order.
+absl::Status AppendOutcomes(const google::protobuf::RepeatedPtrField<v1::RveResult>& results,
+                            std::span<const std::int64_t> expected, std::vector<RveOutcome>* out) {
+  if (!expected.empty() && static_cast<std::size_t>(results.size()) != expected.size()) {
+    return absl::DataLossError(
+        absl::StrCat("reply has ", results.size(), " results for ", expected.size(), " RVEs"));
+  }
+  for (int k = 0; k < results.size(); ++k) {
+    absl::StatusOr<RveOutcome> o = OutcomeFromProto(results[k]);
+    if (!o.ok()) return o.status();
+    if (!expected.empty() && o->id != expected[k]) {
+      return absl::DataLossError(absl::StrCat("reply result ", k, " is for material point ", o->id,
+                                              ", not ", expected[k]));
+    }
+    out->push_back(*std::move(o));
+  }
+  return absl::OkStatus();
+}
+
+// A gRPC deadline for a duration: none for an infinite one, else ≥ 1 ms.
+std::chrono::milliseconds DeadlineOf(absl::Duration d) {
+  if (d >= absl::Hours(24 * 365)) return std::chrono::milliseconds(0);
+  return std::chrono::milliseconds(std::max<std::int64_t>(1, absl::ToInt64Milliseconds(d)));
+}
+
+class RemoteEndpoint final : public RveEndpoint {
+ public:
+  RemoteEndpoint(std::string address, client::ClientOptions options, RemoteOptions remote)
+      : address_(std::move(address)),
+        options_(std::move(options)),
+        remote_(remote),
+        stub_(v1::RveService::NewStub(client::MakeChannel(address_, options_))) {}
+
+  // Asks the server for its limits; the reason when it does not answer.
+  absl::Status Connect() {
+    grpc::ClientContext ctx;
+    client::Prepare(ctx, options_, DeadlineOf(remote_.connect_timeout));
+    v1::ServerInfo info;
+    const absl::Status s =
+        client::FromGrpc(stub_->GetServerInfo(&ctx, v1::ServerInfoRequest(), &info));
+    if (absl::IsUnavailable(s) || absl::IsDeadlineExceeded(s)) {
+      return absl::UnavailableError(absl::StrCat(label(), " is unreachable: ", s.message(), " (",
+                                                 absl::StatusCodeToString(s.code()), ")"));
+    }
+    // Other refusals (a wrong token, say) keep their code: retrying is no cure.
+    if (!s.ok()) return Error(s);
+    if (info.api_version() != "rvehub.v1") {
+      return absl::FailedPreconditionError(absl::StrCat(
+          label(), ": speaks API \"", info.api_version(), "\", this client rvehub.v1"));
+    }
+    max_batch_ = std::max<std::int64_t>(1, remote_.max_batch);
+    if (info.max_batch() > 0) max_batch_ = std::min(max_batch_, info.max_batch());
+    std::int64_t limit = std::numeric_limits<std::int32_t>::max();
+    if (info.max_message_bytes() > 0) limit = std::min(limit, info.max_message_bytes());
+    if (options_.max_message_bytes > 0) limit = std::min(limit, options_.max_message_bytes);
+    chunk_budget_bytes_ = std::max(limit - kChunkOverheadBytes, limit / 2);
+    return absl::OkStatus();
+  }
+
+  std::string name() const override { return address_; }
+  std::string label() const override { return absl::StrCat("RVE server ", address_); }
+
+  absl::Status PutTemplate(const store::TemplateRecord& record) override {
+    v1::UploadTemplateRequest req;
+    req.mutable_entry()->set_name(record.name);
+    req.mutable_entry()->set_description(record.description);
+    service::ToProto(record.packing, req.mutable_entry()->mutable_packing());
+    req.set_replace(true);
+    v1::TemplateInfo info;
+    grpc::ClientContext ctx;
+    Ready(ctx, remote_.call_timeout);
+    return Error(client::FromGrpc(stub_->UploadTemplate(&ctx, req, &info)));
+  }
+
+  absl::StatusOr<std::vector<RveOutcome>> Create(
+      absl::string_view run, absl::string_view template_name, std::span<const std::int64_t> ids,
+      std::span<const service::InitialStress> initial,
+      const std::optional<dem::Controls>& controls) override {
+    if (initial.size() > 1 && initial.size() != ids.size()) {
+      return Error(absl::InvalidArgumentError(
+          absl::StrCat("initial stresses: give none, one for all or one per id (", ids.size(),
+                       "), not ", initial.size())));
+    }
+    // Per-point "template" states alone are no initial stress at all.
+    if (initial.size() > 1 &&
+        std::all_of(initial.begin(), initial.end(), [](const service::InitialStress& s) {
+          return s.kind == service::InitialStress::Kind::kTemplate;
+        })) {
+      initial = {};
+    }
+    std::vector<RveOutcome> out;
+    out.reserve(ids.size());
+    const std::size_t n = ids.size();
+    // An empty request is still sent (the server's answer to it is the
+    // call's, as for the embedded registry).
+    std::size_t begin = 0;
+    do {
+      const std::size_t end = std::min(n, begin + Batch());
+      v1::CreateRvesRequest req;
+      req.set_run_id(std::string(run));
+      req.set_template_name(std::string(template_name));
+      for (std::size_t k = begin; k < end; ++k) req.add_ids(ids[k]);
+      // The server knows no "template" kind: such entries are left out.
+      if (initial.size() == 1 && initial[0].kind != service::InitialStress::Kind::kTemplate) {
+        ToProto(initial[0], req.mutable_initial_stress());
+      } else if (initial.size() > 1) {
+        for (std::size_t k = begin; k < end; ++k) {
+          if (initial[k].kind == service::InitialStress::Kind::kTemplate) {
+            return Error(absl::InvalidArgumentError(absl::StrCat(
+                "material point ", ids[k],
+                ": per-point initial stresses must all be isotropic or K0 on a server")));
+          }
+          ToProto(initial[k], req.add_initial_stresses());
+        }
+      }
+      if (controls.has_value()) service::ToProto(*controls, req.mutable_controls());
+      req.set_want_state(true);
+      v1::CreateRvesResponse resp;
+      grpc::ClientContext ctx;
+      Ready(ctx, remote_.create_timeout);
+      absl::Status s = client::FromGrpc(stub_->CreateRves(&ctx, req, &resp));
+      if (s.ok()) s = AppendOutcomes(resp.results(), ids.subspan(begin, end - begin), &out);
+      if (!s.ok()) {
+        // Creation is all or nothing on the server per message: drop the
+        // earlier messages' RVEs too (best effort) so it is for the call.
+        if (begin > 0) (void)DropIds(run, ids.subspan(0, begin));
+        return Error(s);
+      }
+      begin = end;
+    } while (begin < n);
+    return out;
+  }
+
+  absl::StatusOr<std::vector<RveOutcome>> Apply(absl::string_view run, std::int64_t step,
+                                                std::span<const service::Increment> increments,
+                                                const dem::ApplyOptions& options,
+                                                absl::Duration deadline) override {
+    const absl::Time end_time =
+        deadline == absl::InfiniteDuration() ? absl::InfiniteFuture() : absl::Now() + deadline;
+    std::vector<RveOutcome> out;
+    out.reserve(increments.size());
+    const std::size_t n = increments.size();
+    // An empty request is still sent (the server's answer to it is the
+    // call's, as for the embedded registry).
+    std::size_t begin = 0;
+    do {
+      const std::size_t end = std::min(n, begin + Batch());
+      v1::ApplyRequest req;
+      req.set_run_id(std::string(run));
+      req.set_step(step);
+      req.set_mode(v1::APPLY_MODE_COMMIT);
+      ToProto(options, req.mutable_options());
+      std::vector<std::int64_t> ids;
+      ids.reserve(end - begin);
+      for (std::size_t k = begin; k < end; ++k) {
+        v1::Increment* inc = req.add_increments();
+        inc->set_id(increments[k].id);
+        service::ToProto(increments[k].delta_f, inc->mutable_delta_f());
+        ids.push_back(increments[k].id);
+      }
+      v1::ApplyResponse resp;
+      grpc::ClientContext ctx;
+      // Messages of one call share its deadline.
+      Ready(ctx,
+            end_time == absl::InfiniteFuture() ? absl::InfiniteDuration() : end_time - absl::Now());
+      absl::Status s = client::FromGrpc(stub_->Apply(&ctx, req, &resp));
+      if (s.ok()) s = AppendOutcomes(resp.results(), ids, &out);
+      if (!s.ok()) return Error(s);
+      begin = end;
+    } while (begin < n);
+    return out;
+  }
+
+  absl::StatusOr<std::vector<RveOutcome>> Get(absl::string_view run,
+                                              std::span<const std::int64_t> ids,
+                                              bool want_tangent) override {
+    std::vector<RveOutcome> out;
+    out.reserve(ids.size());
+    const std::size_t n = ids.size();
+    // An empty request is still sent (the server's answer to it is the
+    // call's, as for the embedded registry).
+    std::size_t begin = 0;
+    do {
+      const std::size_t end = std::min(n, begin + Batch());
+      v1::GetStatesRequest req;
+      req.set_run_id(std::string(run));
+      for (std::size_t k = begin; k < end; ++k) req.add_ids(ids[k]);
+      req.set_want_tangent(want_tangent);
+      v1::GetStatesResponse resp;
+      grpc::ClientContext ctx;
+      Ready(ctx, remote_.call_timeout);
+      absl::Status s = client::FromGrpc(stub_->GetStates(&ctx, req, &resp));
+      if (s.ok()) s = AppendOutcomes(resp.results(), ids.subspan(begin, end - begin), &out);
+      if (!s.ok()) return Error(s);
+      begin = end;
+    } while (begin < n);
+    return out;
+  }
+
+  absl::Status Export(absl::string_view run, std::span<const std::int64_t> ids,
+                      const RecordSink& sink) override {
+    v1::ExportRequest req;
+    req.set_run_id(std::string(run));
+    for (std::int64_t id : ids) req.add_ids(id);
+    grpc::ClientContext ctx;
+    Ready(ctx, remote_.call_timeout);
+    std::unique_ptr<grpc::ClientReader<v1::RveChunk>> reader = stub_->Export(&ctx, req);
+    v1::RveChunk chunk;
+    std::int64_t declared = -1, received = 0;
+    absl::Status failed;
+    while (failed.ok() && reader->Read(&chunk)) {
+      if (declared < 0) declared = chunk.total_records();
+      for (const v1::RveRecord& r : chunk.records()) {
+        absl::StatusOr<store::RveRecord> record = service::FromProto(r);
+        if (!record.ok()) {
+          failed = absl::DataLossError(absl::StrCat("exported record of material point ", r.id(),
+                                                    " is malformed: ", record.status().message()));
+          break;
+        }
+        failed = sink(*std::move(record));
+        if (!failed.ok()) break;
+        ++received;
+      }
+    }
+    if (!failed.ok()) {
+      ctx.TryCancel();
+      (void)reader->Finish();  // the stream is abandoned; its status adds nothing
+      return Error(failed);
+    }
+    if (absl::Status s = client::FromGrpc(reader->Finish()); !s.ok()) return Error(s);
+    if (declared > 0 && declared != received) {
+      return Error(absl::DataLossError(absl::StrCat("export of run \"", run, "\" declared ",
+                                                    declared, " records but carried ", received)));
+    }
+    return absl::OkStatus();
+  }
+
+  absl::Status Import(std::vector<store::RveRecord> records) override {
+    grpc::ClientContext ctx;
+    Ready(ctx, remote_.call_timeout);
+    v1::ImportResponse resp;
+    std::unique_ptr<grpc::ClientWriter<v1::RveChunk>> writer = stub_->Import(&ctx, &resp);
+    v1::RveChunk chunk;
+    chunk.set_total_records(static_cast<std::int64_t>(records.size()));
+    std::int64_t chunk_bytes = 16;
+    bool stream_ok = true;
+    absl::Status failed;
+    for (store::RveRecord& r : records) {
+      v1::RveRecord record;
+      service::ToProto(r, &record);
+      r = store::RveRecord();  // the copy in `record` is all that is needed now
+      // The record's bytes in the chunk: field tag and length prefix included.
+      const std::int64_t size = static_cast<std::int64_t>(record.ByteSizeLong()) + 16;
+      if (size > chunk_budget_bytes_) {
+        failed = absl::ResourceExhaustedError(
+            absl::StrCat("material point ", record.id(), " takes ", size,
+                         " bytes, over the message budget of ", chunk_budget_bytes_, " bytes"));
+        break;
+      }
+      if (chunk.records_size() > 0 && chunk_bytes + size > chunk_budget_bytes_) {
+        stream_ok = writer->Write(chunk);
+        if (!stream_ok) break;
+        chunk.Clear();
+        chunk_bytes = 16;
+      }
+      *chunk.add_records() = std::move(record);
+      chunk_bytes += size;
+    }
+    if (!failed.ok()) {
+      ctx.TryCancel();  // the server then drops what it got (all or nothing)
+      (void)writer->Finish();
+      return Error(failed);
+    }
+    if (stream_ok && chunk.records_size() > 0) stream_ok = writer->Write(chunk);
+    if (stream_ok) writer->WritesDone();
+    // A broken stream's reason comes with Finish.
+    return Error(client::FromGrpc(writer->Finish()));
+  }
+
+  absl::Status Drop(absl::string_view run) override { return DropIds(run, {}); }
+
+ private:
+  std::size_t Batch() const { return static_cast<std::size_t>(max_batch_); }
+
+  void Ready(grpc::ClientContext& ctx, absl::Duration timeout) const {
+    client::Prepare(ctx, options_, DeadlineOf(timeout));
+  }
+
+  absl::Status Error(const absl::Status& s) const { return Prefixed(label(), s); }
+
+  absl::Status DropIds(absl::string_view run, std::span<const std::int64_t> ids) {
+    v1::DropRequest req;
+    req.set_run_id(std::string(run));
+    for (std::int64_t id : ids) req.add_ids(id);
+    v1::DropResponse resp;
+    grpc::ClientContext ctx;
+    Ready(ctx, remote_.call_timeout);
+    return Error(client::FromGrpc(stub_->Drop(&ctx, req, &resp)));
+  }
+
+  const std::string address_;
+  const client::ClientOptions options_;
+  const RemoteOptions remote_;
+  std::unique_ptr<v1::RveService::Stub> stub_;
+  std::int64_t max_batch_ = 1;           // RVEs per message, set by Connect
+  std::int64_t chunk_budget_bytes_ = 0;  // bytes of records per import chunk
+};
+
+}  // namespace
+
+std::unique_ptr<RveEndpoint> MakeEmbeddedEndpoint(std::shared_ptr<service::Registry> registry) {
+  return std::make_unique<EmbeddedEndpoint>(std::move(registry));
+}
+
+absl::StatusOr<std::unique_ptr<RveEndpoint>> MakeRemoteEndpoint(
+    const std::string& address, const client::ClientOptions& options, const RemoteOptions& remote) {
+  auto endpoint = std::make_unique<RemoteEndpoint>(address, options, remote);
+  if (absl::Status s = endpoint->Connect(); !s.ok()) return s;
+  return endpoint;
+}
+
+}  // namespace rvehub::mpm

@@ -1,0 +1,344 @@
+#include "mpm_client/rve_pool.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <numeric>
+#include <thread>
+#include <utility>
+
+#include "absl/strings/match.h"
+#include "absl/strings/str_cat.h"
+
+namespace rvehub::mpm {
+namespace {
+
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+absl::Status NoRves() {
+  return absl::FailedPreconditionError(
+      "the pool has no material points yet: Create or ImportAll first");
+}
+
+absl::Status NoEndpoints() {
+  return absl::FailedPreconditionError("the pool has no RVE endpoints");
+}
+
+}  // namespace
+
+bool IsTransient(const absl::Status& status) {
+  switch (status.code()) {
+    case absl::StatusCode::kUnavailable:
+    case absl::StatusCode::kDeadlineExceeded:
+    case absl::StatusCode::kAborted:
+    case absl::StatusCode::kInternal:
+      return true;
+    default:
+      return false;
+  }
+}
+
+RvePool::RvePool(std::vector<std::unique_ptr<RveEndpoint>> endpoints, std::string run_id,
+                 PoolOptions options)
+    : endpoints_(std::move(endpoints)),
+      run_id_(std::move(run_id)),
+      options_(options),
+      points_(endpoints_.size()),
+      last_apply_seconds_(endpoints_.size(), 0.0) {}
+
+absl::Status RvePool::ForEachEndpoint(const std::function<absl::Status(int)>& fn) {
+  std::vector<absl::Status> status(endpoints_.size());
+  if (endpoints_.size() == 1) {
+    status[0] = fn(0);
+  } else {
+    // A thread per endpoint for the call: an endpoint's call mostly waits
+    // (on the network or on the registry's own workers).
+    std::vector<std::thread> threads;
+    threads.reserve(endpoints_.size());
+    for (int k = 0; k < num_endpoints(); ++k)
+      threads.emplace_back([&fn, &status, k] { status[k] = fn(k); });
+    for (std::thread& t : threads) t.join();
+  }
+  for (const absl::Status& s : status)
+    if (!s.ok()) return s;
+  return absl::OkStatus();
+}
+
+void RvePool::Assign(std::span<const double> cost) {
+  if (endpoints_.empty()) return;
+  const std::size_t n = cost.size();
+  std::vector<double> c(n);
+  for (std::size_t p = 0; p < n; ++p) c[p] = std::isfinite(cost[p]) && cost[p] > 0 ? cost[p] : 0.0;
+  std::vector<std::int64_t> order(n);
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(),
+            [&](std::int64_t a, std::int64_t b) { return c[a] != c[b] ? c[a] > c[b] : a < b; });
+  std::vector<double> load(endpoints_.size(), 0.0);
+  std::vector<int> assignment(n);
+  for (std::int64_t p : order) {
+    int best = 0;
+    for (int k = 1; k < num_endpoints(); ++k)
+      if (load[k] < load[best]) best = k;
+    assignment[p] = best;
+    load[best] += c[p];
+  }
+  // In range by construction.
+  (void)SetAssignment(std::move(assignment));
+}
+
+absl::Status RvePool::SetAssignment(std::vector<int> endpoint_of_point) {
+  std::vector<std::vector<std::int64_t>> points(endpoints_.size());
+  for (std::size_t p = 0; p < endpoint_of_point.size(); ++p) {
+    const int k = endpoint_of_point[p];
+    if (k < 0 || k >= num_endpoints()) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "material point ", p, " is assigned to endpoint ", k, " of ", num_endpoints()));
+    }
+    points[k].push_back(static_cast<std::int64_t>(p));
+  }
+  assignment_ = std::move(endpoint_of_point);
+  points_ = std::move(points);
+  return absl::OkStatus();
+}
+
+absl::Status RvePool::CallError(int k, const absl::Status& s, absl::string_view what) const {
+  const std::string label = endpoints_[k]->label();
+  if (absl::StartsWith(s.message(), label))
+    return absl::Status(s.code(), absl::StrCat(what, ": ", s.message()));
+  return absl::Status(s.code(), absl::StrCat(what, ": ", label, ": ", s.message()));
+}
+
+absl::Status RvePool::PointError(int k, const service::RveOutcome& o,
+                                 absl::string_view what) const {
+  return absl::Status(o.status.code(),
+                      absl::StrCat(what, ": ", endpoints_[k]->label(), ": material point ", o.id,
+                                   ": ", o.status.message()));
+}
+
+absl::Status RvePool::Collect(int k, std::span<const std::int64_t> ids,
+                              std::vector<service::RveOutcome>& outcomes, absl::string_view what,
+                              std::vector<dem::RveState>& out) const {
+  if (outcomes.size() != ids.size()) {
+    return absl::DataLossError(absl::StrCat(what, ": ", endpoints_[k]->label(), " answered ",
+                                            outcomes.size(), " RVEs of ", ids.size()));
+  }
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    const service::RveOutcome& o = outcomes[i];
+    if (!o.status.ok()) return PointError(k, o, what);
+    if (o.id != ids[i]) {
+      return absl::DataLossError(absl::StrCat(what, ": ", endpoints_[k]->label(),
+                                              " answered material point ", o.id, " for ", ids[i]));
+    }
+  }
+  for (std::size_t i = 0; i < ids.size(); ++i) out[ids[i]] = std::move(outcomes[i].state);
+  return absl::OkStatus();
+}
+
+absl::Status RvePool::UploadTemplates(std::span<const store::TemplateRecord> templates) {
+  return ForEachEndpoint([&](int k) -> absl::Status {
+    for (const store::TemplateRecord& t : templates) {
+      if (absl::Status s = endpoints_[k]->PutTemplate(t); !s.ok())
+        return CallError(k, s, absl::StrCat("uploading template \"", t.name, "\""));
+    }
+    return absl::OkStatus();
+  });
+}
+
+absl::StatusOr<std::vector<dem::RveState>> RvePool::Create(
+    std::span<const std::string> template_per_point,
+    std::span<const service::InitialStress> initial_per_point,
+    const std::optional<dem::Controls>& controls) {
+  if (endpoints_.empty()) return NoEndpoints();
+  if (assignment_.empty()) Assign(std::vector<double>(template_per_point.size(), 1.0));
+  const std::size_t n = assignment_.size();
+  if (template_per_point.size() != 1 && template_per_point.size() != n) {
+    return absl::InvalidArgumentError(absl::StrCat("give one template for all or one per point (",
+                                                   n, "), not ", template_per_point.size()));
+  }
+  if (initial_per_point.size() > 1 && initial_per_point.size() != n) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("give no initial stress, one for all or one per point (", n, "), not ",
+                     initial_per_point.size()));
+  }
+  std::vector<dem::RveState> out(n);
+  absl::Status s = ForEachEndpoint([&](int k) -> absl::Status {
+    // One call per template, in name order.
+    std::map<std::string, std::vector<std::int64_t>> by_template;
+    for (std::int64_t p : points_[k])
+      by_template[template_per_point.size() == 1 ? template_per_point[0] : template_per_point[p]]
+          .push_back(p);
+    for (const auto& [name, ids] : by_template) {
+      std::vector<service::InitialStress> initial;
+      if (initial_per_point.size() == 1) {
+        initial.push_back(initial_per_point[0]);
+      } else if (!initial_per_point.empty()) {
+        for (std::int64_t p : ids) initial.push_back(initial_per_point[p]);
+      }
+      const std::string what = absl::StrCat("creating RVEs of template \"", name, "\"");
+      absl::StatusOr<std::vector<service::RveOutcome>> r =
+          endpoints_[k]->Create(run_id_, name, ids, initial, controls);
+      if (!r.ok()) return CallError(k, r.status(), what);
+      if (absl::Status c = Collect(k, ids, *r, what, out); !c.ok()) return c;
+    }
+    return absl::OkStatus();
+  });
+  if (!s.ok()) return s;
+  return out;
+}
+
+absl::Status RvePool::ApplyOn(int k, std::int64_t step, std::span<const Eigen::Matrix3d> delta_f,
+                              std::vector<dem::RveState>& out, std::int64_t& evaluated) {
+  const std::vector<std::int64_t>& ids = points_[k];
+  if (ids.empty()) return absl::OkStatus();
+  std::vector<service::Increment> increments(ids.size());
+  for (std::size_t i = 0; i < ids.size(); ++i) increments[i] = {ids[i], delta_f[ids[i]]};
+  const std::string what = absl::StrCat("step ", step);
+  const int attempts = std::max(1, options_.max_attempts);
+  absl::Duration backoff = options_.backoff;
+  for (int attempt = 1;; ++attempt) {
+    absl::StatusOr<std::vector<service::RveOutcome>> r = endpoints_[k]->Apply(
+        run_id_, step, increments, options_.apply_options, options_.apply_deadline);
+    absl::Status failed;
+    if (r.ok()) {
+      // A per-RVE failure of its own (a refused ΔF, a wrong step) is final;
+      // RVEs skipped because the deadline passed are completed by a retry.
+      const service::RveOutcome* transient = nullptr;
+      for (const service::RveOutcome& o : *r) {
+        if (o.status.ok()) continue;
+        if (!IsTransient(o.status)) return PointError(k, o, what);
+        if (transient == nullptr) transient = &o;
+      }
+      if (transient == nullptr) {
+        absl::Status c = Collect(k, ids, *r, what, out);
+        if (c.ok()) evaluated = static_cast<std::int64_t>(ids.size());
+        return c;
+      }
+      failed = PointError(k, *transient, what);
+    } else {
+      if (!IsTransient(r.status())) return CallError(k, r.status(), what);
+      failed = CallError(k, r.status(), what);
+    }
+    if (attempt >= attempts) {
+      return absl::Status(failed.code(),
+                          absl::StrCat(failed.message(), " (gave up after ", attempts,
+                                       attempts == 1 ? " attempt)" : " attempts)"));
+    }
+    absl::SleepFor(backoff);
+    backoff *= 2;
+  }
+}
+
+absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(
+    std::int64_t step, std::span<const Eigen::Matrix3d> delta_f) {
+  if (assignment_.empty()) return NoRves();
+  const std::size_t n = assignment_.size();
+  if (delta_f.size() != n) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("step ", step, ": ", delta_f.size(), " ΔF for ", n, " material points"));
+  }
+  const auto start = std::chrono::steady_clock::now();
+  std::vector<dem::RveState> out(n);
+  std::vector<std::int64_t> evaluated(endpoints_.size(), 0);
+  std::fill(last_apply_seconds_.begin(), last_apply_seconds_.end(), 0.0);
+  absl::Status s = ForEachEndpoint([&](int k) {
+    const auto endpoint_start = std::chrono::steady_clock::now();
+    absl::Status a = ApplyOn(k, step, delta_f, out, evaluated[k]);
+    last_apply_seconds_[k] = SecondsSince(endpoint_start);
+    return a;
+  });
+  for (std::int64_t e : evaluated) evaluations_ += e;
+  total_apply_seconds_ += SecondsSince(start);
+  if (!s.ok()) return s;
+  return out;
+}
+
+absl::StatusOr<std::vector<dem::RveState>> RvePool::Get(bool want_tangent) {
+  if (assignment_.empty()) return NoRves();
+  std::vector<dem::RveState> out(assignment_.size());
+  absl::Status s = ForEachEndpoint([&](int k) -> absl::Status {
+    const std::vector<std::int64_t>& ids = points_[k];
+    if (ids.empty()) return absl::OkStatus();
+    absl::StatusOr<std::vector<service::RveOutcome>> r =
+        endpoints_[k]->Get(run_id_, ids, want_tangent);
+    if (!r.ok()) return CallError(k, r.status(), "getting states");
+    return Collect(k, ids, *r, "getting states", out);
+  });
+  if (!s.ok()) return s;
+  return out;
+}
+
+absl::StatusOr<std::vector<store::RveRecord>> RvePool::ExportAll() {
+  if (assignment_.empty()) return NoRves();
+  std::vector<std::vector<store::RveRecord>> parts(endpoints_.size());
+  absl::Status s = ForEachEndpoint([&](int k) -> absl::Status {
+    const std::vector<std::int64_t>& ids = points_[k];
+    if (ids.empty()) return absl::OkStatus();  // empty ids would export the whole run
+    parts[k].reserve(ids.size());
+    absl::Status e = endpoints_[k]->Export(run_id_, ids, [&](store::RveRecord&& r) {
+      parts[k].push_back(std::move(r));
+      return absl::OkStatus();
+    });
+    if (!e.ok()) return CallError(k, e, "exporting RVEs");
+    if (parts[k].size() != ids.size()) {
+      return absl::DataLossError(absl::StrCat("exporting RVEs: ", endpoints_[k]->label(), " sent ",
+                                              parts[k].size(), " of ", ids.size()));
+    }
+    return absl::OkStatus();
+  });
+  if (!s.ok()) return s;
+  std::vector<store::RveRecord> out;
+  out.reserve(assignment_.size());
+  for (std::vector<store::RveRecord>& part : parts)
+    for (store::RveRecord& r : part) out.push_back(std::move(r));
+  std::sort(out.begin(), out.end(),
+            [](const store::RveRecord& a, const store::RveRecord& b) { return a.id < b.id; });
+  return out;
+}
+
+absl::Status RvePool::ImportAll(std::vector<store::RveRecord> records) {
+  if (endpoints_.empty()) return NoEndpoints();
+  if (assignment_.empty()) Assign(std::vector<double>(records.size(), 1.0));
+  const std::size_t n = assignment_.size();
+  if (records.size() != n) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("import of ", records.size(), " RVEs for ", n, " material points"));
+  }
+  std::vector<bool> seen(n, false);
+  for (const store::RveRecord& r : records) {
+    if (r.id < 0 || static_cast<std::size_t>(r.id) >= n) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("import: material point ", r.id, " is outside 0..", n - 1));
+    }
+    if (seen[r.id]) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("import: material point ", r.id, " appears twice"));
+    }
+    seen[r.id] = true;
+  }
+  std::sort(records.begin(), records.end(),
+            [](const store::RveRecord& a, const store::RveRecord& b) { return a.id < b.id; });
+  std::vector<std::vector<store::RveRecord>> parts(endpoints_.size());
+  for (store::RveRecord& r : records) {
+    r.run_id = run_id_;
+    parts[assignment_[r.id]].push_back(std::move(r));
+  }
+  return ForEachEndpoint([&](int k) -> absl::Status {
+    if (parts[k].empty()) return absl::OkStatus();
+    if (absl::Status s = endpoints_[k]->Import(std::move(parts[k])); !s.ok())
+      return CallError(k, s, "importing RVEs");
+    return absl::OkStatus();
+  });
+}
+
+absl::Status RvePool::DropAll() {
+  return ForEachEndpoint([&](int k) -> absl::Status {
+    absl::Status s = endpoints_[k]->Drop(run_id_);
+    if (s.ok() || absl::IsNotFound(s)) return absl::OkStatus();
+    return CallError(k, s, "dropping the run");
+  });
+}
+
+}  // namespace rvehub::mpm

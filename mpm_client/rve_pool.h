@@ -1,0 +1,143 @@
+// The RVEs of one MPM run spread over RVE endpoints: material point k has RVE
+// id k and lives on one endpoint. The solver sees only this class: one call
+// per step, one batched COMMIT per endpoint with all endpoints in flight at
+// once, retries of lost replies, results in point order.
+//
+// Results are bit-identical whatever the endpoints and their number: each RVE
+// is advanced on its own by a deterministic engine, and states cross the wire
+// exactly. Not thread-safe: one solver thread calls it.
+#ifndef RVEHUB_MPM_CLIENT_RVE_POOL_H_
+#define RVEHUB_MPM_CLIENT_RVE_POOL_H_
+
+#include <Eigen/Dense>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/time/time.h"
+#include "mpm_client/rve_backend.h"
+#include "rve_server/engine/packing.h"
+#include "rve_server/engine/rve.h"
+#include "rve_server/service/registry.h"
+#include "store/record.h"
+
+namespace rvehub::mpm {
+
+struct PoolOptions {
+  absl::Duration apply_deadline = absl::Minutes(10);  // per attempt of one endpoint's batch
+  int max_attempts = 4;  // tries of a batch that fails transiently, at least 1
+  absl::Duration backoff = absl::Milliseconds(200);  // before the 2nd try; doubled after each
+  dem::ApplyOptions apply_options;                   // sent with every Apply
+};
+
+// Worth retrying the same COMMIT: the server may be restarting, the reply
+// was lost, or the deadline passed. The server itself never answers Internal
+// (registry errors are all other codes), so Internal is gRPC reporting a
+// broken stream.
+bool IsTransient(const absl::Status& status);
+
+class RvePool {
+ public:
+  RvePool(std::vector<std::unique_ptr<RveEndpoint>> endpoints, std::string run_id,
+          PoolOptions options = {});
+  RvePool(const RvePool&) = delete;
+  RvePool& operator=(const RvePool&) = delete;
+
+  int num_endpoints() const { return static_cast<int>(endpoints_.size()); }
+  RveEndpoint& endpoint(int k) { return *endpoints_[k]; }
+  const std::string& run_id() const { return run_id_; }
+  const PoolOptions& options() const { return options_; }
+  // E.g. to ask for tangents from some step on.
+  void set_apply_options(const dem::ApplyOptions& apply) { options_.apply_options = apply; }
+
+  // Material points 0..n−1 onto endpoints, balancing the summed cost (any
+  // unit, e.g. expected DEM steps): greedy longest processing time — points
+  // by cost descending (ties: lower index first), each to the endpoint with
+  // the least cost so far (ties: lower endpoint index). A cost that is not
+  // finite and >= 0 counts as 0. Without endpoints, nothing is assigned.
+  void Assign(std::span<const double> cost);
+  // An explicit assignment (point → endpoint index), e.g. on resume;
+  // InvalidArgument (nothing changed) for an index out of range.
+  absl::Status SetAssignment(std::vector<int> endpoint_of_point);
+  const std::vector<int>& assignment() const { return assignment_; }
+  std::int64_t num_points() const { return static_cast<std::int64_t>(assignment_.size()); }
+  // The points on endpoint k, ascending (the order they are sent in).
+  std::span<const std::int64_t> points_of(int k) const { return points_[k]; }
+
+  // Every template to every endpoint (endpoints concurrently), replacing
+  // those of the same names.
+  absl::Status UploadTemplates(std::span<const store::TemplateRecord> templates);
+
+  // Creates the run's RVEs: template per point (or one for all) and initial
+  // stress per point (empty: the template's state; one for all; or one per
+  // point, e.g. geostatic). Without an assignment, assigns equal costs
+  // first. States after creation, in point order.
+  absl::StatusOr<std::vector<dem::RveState>> Create(
+      std::span<const std::string> template_per_point,
+      std::span<const service::InitialStress> initial_per_point = {},
+      const std::optional<dem::Controls>& controls = std::nullopt);
+
+  // COMMITs step `step` (≥ 1) with ΔF per point ([-], plane strain): one
+  // batch per endpoint, all in flight at once; a batch failing transiently is
+  // sent again as it was (the server answers RVEs already committed from
+  // memory). The first error by endpoint index, once all have finished; a
+  // per-RVE error names the endpoint, the point and why. States in point
+  // order.
+  absl::StatusOr<std::vector<dem::RveState>> Apply(std::int64_t step,
+                                                   std::span<const Eigen::Matrix3d> delta_f);
+
+  // Current states in point order.
+  absl::StatusOr<std::vector<dem::RveState>> Get(bool want_tangent);
+
+  // Full states of every point, sorted by id.
+  absl::StatusOr<std::vector<store::RveRecord>> ExportAll();
+  // One record per point (ids 0..n−1), placed by the current assignment
+  // (without one: equal costs over the records) and renamed into this run.
+  absl::Status ImportAll(std::vector<store::RveRecord> records);
+  // Drops the run on every endpoint (one hosting none is fine).
+  absl::Status DropAll();
+
+  // Successful RVE increments since construction.
+  std::int64_t evaluations() const { return evaluations_; }
+  // Wall time of each endpoint's batch in the last Apply (retries included), s.
+  const std::vector<double>& last_apply_seconds() const { return last_apply_seconds_; }
+  // Wall time spent inside Apply overall, s.
+  double total_apply_seconds() const { return total_apply_seconds_; }
+
+ private:
+  // Runs fn(k) for every endpoint k, concurrently when there are several;
+  // the first error by endpoint index.
+  absl::Status ForEachEndpoint(const std::function<absl::Status(int)>& fn);
+  // One endpoint's batch of a step, with retries; states into `out`.
+  absl::Status ApplyOn(int k, std::int64_t step, std::span<const Eigen::Matrix3d> delta_f,
+                       std::vector<dem::RveState>& out, std::int64_t& evaluated);
+  // A whole-call error of endpoint k, with what was being done and the
+  // endpoint named (endpoints name themselves; a wrapper might not).
+  absl::Status CallError(int k, const absl::Status& s, absl::string_view what) const;
+  // The error for a failed outcome on endpoint k, naming the point.
+  absl::Status PointError(int k, const service::RveOutcome& o, absl::string_view what) const;
+  // States into `out` (point order) from the outcomes for `ids` on endpoint
+  // k; the first failed outcome (in `ids` order) is the error.
+  absl::Status Collect(int k, std::span<const std::int64_t> ids,
+                       std::vector<service::RveOutcome>& outcomes, absl::string_view what,
+                       std::vector<dem::RveState>& out) const;
+
+  std::vector<std::unique_ptr<RveEndpoint>> endpoints_;
+  const std::string run_id_;
+  PoolOptions options_;
+  std::vector<int> assignment_;                    // point → endpoint
+  std::vector<std::vector<std::int64_t>> points_;  // endpoint → points, ascending
+  std::int64_t evaluations_ = 0;
+  std::vector<double> last_apply_seconds_;
+  double total_apply_seconds_ = 0.0;
+};
+
+}  // namespace rvehub::mpm
+
+#endif  // RVEHUB_MPM_CLIENT_RVE_POOL_H_

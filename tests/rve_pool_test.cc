@@ -1,0 +1,491 @@
+// The MPM client's RVE backend: embedded and remote endpoints, and the pool
+// over them — bit-identical results whatever the endpoints, cost balancing,
+// retries of lost replies, errors naming the endpoint and point, and
+// export/import onto another set of endpoints.
+#include "mpm_client/rve_pool.h"
+
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <memory>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "mpm_client/rve_backend.h"
+#include "rve_server/service/log.h"
+#include "rve_server/service/server.h"
+#include "tests/test_util.h"
+
+namespace rvehub::mpm {
+namespace {
+
+using dem::testing_util::ExpectIdenticalPackings;
+using dem::testing_util::ExpectIdenticalStates;
+using dem::testing_util::Prepared;
+using dem::testing_util::SameBits;
+
+// Expects `message` to contain `words`.
+void ExpectContains(absl::string_view message, absl::string_view words) {
+  EXPECT_NE(message.find(words), absl::string_view::npos)
+      << "\"" << message << "\" lacks \"" << words << "\"";
+}
+
+// An idle gRPC client channel reads its socket only from its backup poller
+// (every 5 s by default), which would make each server stop here take 5 s.
+const bool kFastClientPolling = [] {
+  setenv("GRPC_CLIENT_CHANNEL_BACKUP_POLL_INTERVAL_MS", "50", 1);
+  return true;
+}();
+
+constexpr int kPoints = 6;
+constexpr char kRun[] = "mpm-run";
+
+// SET-dense (400 discs) with few DEM steps per increment, under two names
+// (the second with other controls) so that one endpoint needs a Create per
+// template.
+std::vector<store::TemplateRecord> Templates() {
+  dem::Packing p = Prepared("SET-dense");
+  p.controls.min_steps = 10;
+  std::vector<store::TemplateRecord> t = {{"set-dense", "SET-dense seed 1, min_steps 10", p}};
+  p.controls.min_steps = 12;
+  t.push_back({"set-dense-12", "SET-dense seed 1, min_steps 12", p});
+  return t;
+}
+
+std::vector<std::string> TemplatePerPoint() {
+  std::vector<std::string> names;
+  for (int p = 0; p < kPoints; ++p) names.push_back(p % 3 == 0 ? "set-dense-12" : "set-dense");
+  return names;
+}
+
+// ΔF of point p at a step: axial compression 1e-4, a little shear and, every
+// other step, a small rigid rotation. Plane strain, [-].
+Eigen::Matrix3d DeltaF(int p, std::int64_t step) {
+  Eigen::Matrix3d v = Eigen::Matrix3d::Identity();
+  v(1, 1) = 1 - 1e-4;
+  v(0, 1) = 2e-5 * (p % 3);
+  const double theta = 5e-5 * static_cast<double>((p + step) % 2);  // rad
+  Eigen::Matrix3d r = Eigen::Matrix3d::Identity();
+  r(0, 0) = std::cos(theta);
+  r(0, 1) = -std::sin(theta);
+  r(1, 0) = std::sin(theta);
+  r(1, 1) = std::cos(theta);
+  return r * v;
+}
+
+std::vector<Eigen::Matrix3d> DeltaFs(std::int64_t step) {
+  std::vector<Eigen::Matrix3d> f;
+  for (int p = 0; p < kPoints; ++p) f.push_back(DeltaF(p, step));
+  return f;
+}
+
+std::shared_ptr<service::Registry> NewRegistry() {
+  service::RegistryOptions o;
+  o.threads = 1;
+  return std::make_shared<service::Registry>(o);
+}
+
+// RVE servers on loopback ports.
+class Servers {
+ public:
+  explicit Servers(int n) {
+    service::SetLogEnabled(false);
+    for (int k = 0; k < n; ++k) {
+      service::ServerConfig config;
+      config.listen = "127.0.0.1:0";
+      config.registry.threads = 1;
+      absl::StatusOr<std::unique_ptr<service::RveServer>> s = service::RveServer::Start(config);
+      EXPECT_TRUE(s.ok()) << s.status();
+      if (s.ok()) servers_.push_back(*std::move(s));
+    }
+  }
+  ~Servers() {
+    for (auto& s : servers_) EXPECT_TRUE(s->Stop(std::chrono::milliseconds(500)).ok());
+  }
+  int size() const { return static_cast<int>(servers_.size()); }
+  std::string address(int k) const { return servers_[k]->address(); }
+
+ private:
+  std::vector<std::unique_ptr<service::RveServer>> servers_;
+};
+
+std::unique_ptr<RveEndpoint> Remote(const std::string& address, const RemoteOptions& remote = {}) {
+  absl::StatusOr<std::unique_ptr<RveEndpoint>> e = MakeRemoteEndpoint(address, {}, remote);
+  EXPECT_TRUE(e.ok()) << e.status();
+  return e.ok() ? *std::move(e) : nullptr;
+}
+
+std::vector<std::unique_ptr<RveEndpoint>> RemoteEndpoints(const Servers& servers,
+                                                          const RemoteOptions& remote = {}) {
+  std::vector<std::unique_ptr<RveEndpoint>> e;
+  for (int k = 0; k < servers.size(); ++k) e.push_back(Remote(servers.address(k), remote));
+  return e;
+}
+
+std::vector<std::unique_ptr<RveEndpoint>> EmbeddedEndpoints(int n) {
+  std::vector<std::unique_ptr<RveEndpoint>> e;
+  for (int k = 0; k < n; ++k) e.push_back(MakeEmbeddedEndpoint(NewRegistry()));
+  return e;
+}
+
+PoolOptions QuickRetries() {
+  PoolOptions o;
+  o.backoff = absl::Milliseconds(1);
+  return o;
+}
+
+// Uploads the templates and creates the points (equal costs).
+void Start(RvePool& pool) {
+  const std::vector<store::TemplateRecord> templates = Templates();
+  ASSERT_TRUE(pool.UploadTemplates(templates).ok());
+  const std::vector<std::string> names = TemplatePerPoint();
+  absl::StatusOr<std::vector<dem::RveState>> created = pool.Create(names);
+  ASSERT_TRUE(created.ok()) << created.status();
+  ASSERT_EQ(created->size(), static_cast<std::size_t>(kPoints));
+}
+
+std::vector<dem::RveState> ApplyOrDie(RvePool& pool, std::int64_t step) {
+  absl::StatusOr<std::vector<dem::RveState>> s = pool.Apply(step, DeltaFs(step));
+  EXPECT_TRUE(s.ok()) << s.status();
+  return s.ok() ? *std::move(s) : std::vector<dem::RveState>{};
+}
+
+void ExpectSameStates(const std::vector<dem::RveState>& a, const std::vector<dem::RveState>& b,
+                      const std::string& where) {
+  ASSERT_EQ(a.size(), b.size()) << where;
+  for (std::size_t p = 0; p < a.size(); ++p)
+    ExpectIdenticalStates(a[p], b[p], absl::StrCat(where, ", point ", p));
+}
+
+void ExpectSameRecords(const std::vector<store::RveRecord>& a,
+                       const std::vector<store::RveRecord>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    EXPECT_EQ(a[k].id, static_cast<std::int64_t>(k));
+    EXPECT_EQ(a[k].id, b[k].id);
+    EXPECT_EQ(a[k].step, b[k].step);
+    EXPECT_TRUE(SameBits(a[k].last_delta_f, b[k].last_delta_f)) << "record " << k;
+    ExpectIdenticalPackings(a[k].packing, b[k].packing, absl::StrCat("record ", k));
+  }
+}
+
+// A port on 127.0.0.1 nobody listens on (bound, read, closed).
+int ClosedPort() {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  addr.sin_port = 0;
+  EXPECT_EQ(bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)), 0);
+  socklen_t len = sizeof(addr);
+  EXPECT_EQ(getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len), 0);
+  close(fd);
+  return ntohs(addr.sin_port);
+}
+
+// Wraps an endpoint and fails Apply calls on purpose.
+class FaultyEndpoint final : public RveEndpoint {
+ public:
+  enum class Fault {
+    kLoseFirstReply,  // the first Apply commits, then its reply is "lost"
+    kAlwaysUnavailable,
+    kRefuse,  // InvalidArgument, as for a malformed request
+  };
+  FaultyEndpoint(std::unique_ptr<RveEndpoint> inner, Fault fault)
+      : inner_(std::move(inner)), fault_(fault) {}
+
+  int apply_calls() const { return apply_calls_; }
+
+  std::string name() const override { return "faulty"; }
+  std::string label() const override { return "faulty endpoint"; }
+  absl::Status PutTemplate(const store::TemplateRecord& r) override {
+    return inner_->PutTemplate(r);
+  }
+  absl::StatusOr<std::vector<service::RveOutcome>> Create(
+      absl::string_view run, absl::string_view t, std::span<const std::int64_t> ids,
+      std::span<const service::InitialStress> initial,
+      const std::optional<dem::Controls>& controls) override {
+    return inner_->Create(run, t, ids, initial, controls);
+  }
+  absl::StatusOr<std::vector<service::RveOutcome>> Apply(
+      absl::string_view run, std::int64_t step, std::span<const service::Increment> increments,
+      const dem::ApplyOptions& options, absl::Duration deadline) override {
+    const int call = ++apply_calls_;
+    switch (fault_) {
+      case Fault::kLoseFirstReply: {
+        absl::StatusOr<std::vector<service::RveOutcome>> r =
+            inner_->Apply(run, step, increments, options, deadline);
+        if (call == 1) return absl::UnavailableError("connection reset by peer");
+        return r;
+      }
+      case Fault::kAlwaysUnavailable:
+        return absl::UnavailableError("connection refused");
+      case Fault::kRefuse:
+        return absl::InvalidArgumentError("malformed request");
+    }
+    return absl::InternalError("unreachable");
+  }
+  absl::StatusOr<std::vector<service::RveOutcome>> Get(absl::string_view run,
+                                                       std::span<const std::int64_t> ids,
+                                                       bool want_tangent) override {
+    return inner_->Get(run, ids, want_tangent);
+  }
+  absl::Status Export(absl::string_view run, std::span<const std::int64_t> ids,
+                      const RecordSink& sink) override {
+    return inner_->Export(run, ids, sink);
+  }
+  absl::Status Import(std::vector<store::RveRecord> records) override {
+    return inner_->Import(std::move(records));
+  }
+  absl::Status Drop(absl::string_view run) override { return inner_->Drop(run); }
+
+ private:
+  std::unique_ptr<RveEndpoint> inner_;
+  const Fault fault_;
+  std::atomic<int> apply_calls_{0};
+};
+
+TEST(RvePoolTest, EmbeddedAndRemotePoolsAgreeBitForBit) {
+  Servers servers(2);
+  ASSERT_EQ(servers.size(), 2);
+  RvePool embedded(EmbeddedEndpoints(1), kRun);
+  RvePool remote(RemoteEndpoints(servers), kRun);
+  EXPECT_EQ(remote.endpoint(1).name(), servers.address(1));
+  EXPECT_EQ(embedded.endpoint(0).name(), "embedded");
+  Start(embedded);
+  Start(remote);
+  // Equal costs alternate: points 0, 2, 4 on the first server, 1, 3, 5 on
+  // the second (each with both templates).
+  EXPECT_EQ(remote.assignment(), (std::vector<int>{0, 1, 0, 1, 0, 1}));
+
+  for (std::int64_t step = 1; step <= 5; ++step) {
+    if (step == 5) {  // tangents cross the wire too
+      dem::ApplyOptions o;
+      o.want_tangent = true;
+      embedded.set_apply_options(o);
+      remote.set_apply_options(o);
+    }
+    const std::vector<dem::RveState> a = ApplyOrDie(embedded, step);
+    const std::vector<dem::RveState> b = ApplyOrDie(remote, step);
+    ASSERT_EQ(a.size(), static_cast<std::size_t>(kPoints));
+    ExpectSameStates(a, b, absl::StrCat("step ", step));
+    // Compressed: more compressive σyy (tension +) than the 100 kPa start.
+    EXPECT_LT(a[1].stress(1, 1), -100e3);
+    if (step == 5) {
+      EXPECT_TRUE(b[2].has_tangent);
+    }
+  }
+  EXPECT_EQ(embedded.evaluations(), 5 * kPoints);
+  EXPECT_EQ(remote.evaluations(), 5 * kPoints);
+  ASSERT_EQ(remote.last_apply_seconds().size(), 2u);
+  EXPECT_GT(remote.last_apply_seconds()[1], 0.0);
+  EXPECT_GE(remote.total_apply_seconds(), remote.last_apply_seconds()[1]);
+
+  absl::StatusOr<std::vector<dem::RveState>> ga = embedded.Get(/*want_tangent=*/true);
+  absl::StatusOr<std::vector<dem::RveState>> gb = remote.Get(/*want_tangent=*/true);
+  ASSERT_TRUE(ga.ok()) << ga.status();
+  ASSERT_TRUE(gb.ok()) << gb.status();
+  ExpectSameStates(*ga, *gb, "Get");
+
+  absl::StatusOr<std::vector<store::RveRecord>> ea = embedded.ExportAll();
+  absl::StatusOr<std::vector<store::RveRecord>> eb = remote.ExportAll();
+  ASSERT_TRUE(ea.ok()) << ea.status();
+  ASSERT_TRUE(eb.ok()) << eb.status();
+  ExpectSameRecords(*ea, *eb);
+  EXPECT_EQ((*eb)[3].step, 5);
+
+  ASSERT_TRUE(remote.DropAll().ok());
+  absl::StatusOr<std::vector<dem::RveState>> gone = remote.Get(false);
+  EXPECT_TRUE(absl::IsNotFound(gone.status())) << gone.status();
+  EXPECT_TRUE(remote.DropAll().ok());  // nothing left to drop is fine
+}
+
+TEST(RvePoolTest, GeostaticStartsInSmallMessagesAgreeBitForBit) {
+  Servers servers(2);
+  ASSERT_EQ(servers.size(), 2);
+  RemoteOptions small;
+  small.max_batch = 2;  // 3 points per server: two messages per call
+  RvePool embedded(EmbeddedEndpoints(1), kRun);
+  RvePool remote(RemoteEndpoints(servers, small), kRun);
+  // One initial stress per point: isotropic or K0 with depth.
+  std::vector<service::InitialStress> initial(kPoints);
+  for (int p = 0; p < kPoints; ++p) {
+    if (p % 2 == 0) {
+      initial[p].kind = service::InitialStress::Kind::kIsotropic;
+      initial[p].pressure = 100e3 * (1 + 0.02 * p);
+    } else {
+      initial[p].kind = service::InitialStress::Kind::kK0;
+      initial[p].vertical_compression = 100e3 * (1 + 0.02 * p);
+      initial[p].k0 = 0.9;
+    }
+  }
+  std::vector<store::TemplateRecord> templates = Templates();
+  const std::vector<std::string> names = TemplatePerPoint();
+  for (RvePool* pool : {&embedded, &remote}) ASSERT_TRUE(pool->UploadTemplates(templates).ok());
+  absl::StatusOr<std::vector<dem::RveState>> a = embedded.Create(names, initial);
+  absl::StatusOr<std::vector<dem::RveState>> b = remote.Create(names, initial);
+  ASSERT_TRUE(a.ok()) << a.status();
+  ASSERT_TRUE(b.ok()) << b.status();
+  ExpectSameStates(*a, *b, "created");
+  EXPECT_NEAR((*a)[4].MeanPressure(), 108e3, 108e3 * 0.05);
+  ExpectSameStates(ApplyOrDie(embedded, 1), ApplyOrDie(remote, 1), "step 1");
+  absl::StatusOr<std::vector<dem::RveState>> ga = embedded.Get(false);
+  absl::StatusOr<std::vector<dem::RveState>> gb = remote.Get(false);
+  ASSERT_TRUE(ga.ok() && gb.ok());
+  ExpectSameStates(*ga, *gb, "Get");
+}
+
+TEST(RvePoolTest, AssignmentIsGreedyLongestProcessingTime) {
+  RvePool two(EmbeddedEndpoints(2), kRun);
+  const std::vector<double> cost = {5, 4, 3, 3, 3};
+  two.Assign(cost);
+  // 5 → 0; 4 → 1; 3 (point 2) → 1 (load 4 < 5); 3 (point 3) → 0 (5 < 7);
+  // 3 (point 4) → 1 (7 < 8). Loads 8 and 10.
+  EXPECT_EQ(two.assignment(), (std::vector<int>{0, 1, 1, 0, 1}));
+  EXPECT_EQ(std::vector<std::int64_t>(two.points_of(1).begin(), two.points_of(1).end()),
+            (std::vector<std::int64_t>{1, 2, 4}));
+
+  // Ties by point index, then by endpoint index.
+  RvePool three(EmbeddedEndpoints(3), kRun);
+  three.Assign(std::vector<double>{1, 2, 2, 1, 1, 0.5});
+  // Order: 1, 2 (cost 2), 0, 3, 4 (cost 1), 5 → endpoints 0, 1, 2, 2, 0, 1.
+  EXPECT_EQ(three.assignment(), (std::vector<int>{2, 0, 1, 2, 0, 1}));
+
+  EXPECT_TRUE(absl::IsInvalidArgument(two.SetAssignment({0, 2})));
+  EXPECT_EQ(two.assignment(), (std::vector<int>{0, 1, 1, 0, 1}));  // unchanged
+  // Costs that are not finite and >= 0 count as 0: point 2 → 0, then points
+  // 0 and 1 both to endpoint 1 (its load stays 0).
+  two.Assign(std::vector<double>{-1, NAN, 2});
+  EXPECT_EQ(two.assignment(), (std::vector<int>{1, 1, 0}));
+  ASSERT_TRUE(two.SetAssignment({1, 1, 0}).ok());
+  EXPECT_EQ(two.num_points(), 3);
+}
+
+TEST(RvePoolTest, RetriesALostReplyButNotABadRequest) {
+  RvePool plain(EmbeddedEndpoints(1), kRun);
+  std::vector<std::unique_ptr<RveEndpoint>> faulty_endpoints;
+  auto faulty = std::make_unique<FaultyEndpoint>(MakeEmbeddedEndpoint(NewRegistry()),
+                                                 FaultyEndpoint::Fault::kLoseFirstReply);
+  FaultyEndpoint* lossy = faulty.get();
+  faulty_endpoints.push_back(std::move(faulty));
+  RvePool retried(std::move(faulty_endpoints), kRun, QuickRetries());
+  Start(plain);
+  Start(retried);
+  for (std::int64_t step = 1; step <= 2; ++step)
+    ExpectSameStates(ApplyOrDie(plain, step), ApplyOrDie(retried, step), "after a lost reply");
+  EXPECT_EQ(lossy->apply_calls(), 3);  // step 1 twice, step 2 once
+  EXPECT_EQ(retried.evaluations(), 2 * kPoints);
+
+  // A refused request is final; a server that stays away is given up on.
+  for (auto [fault, code, calls] :
+       {std::tuple{FaultyEndpoint::Fault::kRefuse, absl::StatusCode::kInvalidArgument, 1},
+        std::tuple{FaultyEndpoint::Fault::kAlwaysUnavailable, absl::StatusCode::kUnavailable, 4}}) {
+    std::vector<std::unique_ptr<RveEndpoint>> e;
+    auto f = std::make_unique<FaultyEndpoint>(MakeEmbeddedEndpoint(NewRegistry()), fault);
+    FaultyEndpoint* raw = f.get();
+    e.push_back(std::move(f));
+    RvePool pool(std::move(e), kRun, QuickRetries());
+    Start(pool);
+    absl::StatusOr<std::vector<dem::RveState>> s = pool.Apply(1, DeltaFs(1));
+    EXPECT_EQ(s.status().code(), code) << s.status();
+    ExpectContains(s.status().message(), "faulty endpoint");
+    EXPECT_EQ(raw->apply_calls(), calls);
+  }
+}
+
+TEST(RvePoolTest, RvesSkippedAtTheDeadlineAreRetried) {
+  PoolOptions o = QuickRetries();
+  o.apply_deadline = -absl::Milliseconds(1);  // already passed: no RVE is reached
+  o.max_attempts = 2;
+  RvePool pool(EmbeddedEndpoints(1), kRun, o);
+  Start(pool);
+  absl::StatusOr<std::vector<dem::RveState>> s = pool.Apply(1, DeltaFs(1));
+  EXPECT_TRUE(absl::IsDeadlineExceeded(s.status())) << s.status();
+  ExpectContains(s.status().message(), "embedded RVE registry: material point 0");
+  ExpectContains(s.status().message(), "gave up after 2 attempts");
+  EXPECT_EQ(pool.evaluations(), 0);
+}
+
+TEST(RvePoolTest, UnreachableServerIsUnavailableNamingTheAddress) {
+  const std::string address = absl::StrCat("127.0.0.1:", ClosedPort());
+  RemoteOptions remote;
+  remote.connect_timeout = absl::Seconds(2);
+  absl::StatusOr<std::unique_ptr<RveEndpoint>> e = MakeRemoteEndpoint(address, {}, remote);
+  ASSERT_FALSE(e.ok());
+  EXPECT_TRUE(absl::IsUnavailable(e.status())) << e.status();
+  ExpectContains(e.status().message(), absl::StrCat("RVE server ", address, " is unreachable"));
+}
+
+TEST(RvePoolTest, ErrorsNameTheEndpointAndThePoint) {
+  Servers servers(2);
+  ASSERT_EQ(servers.size(), 2);
+  RvePool remote(RemoteEndpoints(servers), kRun);
+  Start(remote);
+  // Point 3 (on the second server) stretched beyond the controls' 0.05: the
+  // engine refuses that RVE alone.
+  std::vector<Eigen::Matrix3d> f = DeltaFs(1);
+  f[3](0, 0) = 1.1;
+  absl::StatusOr<std::vector<dem::RveState>> s = remote.Apply(1, f);
+  EXPECT_TRUE(absl::IsInvalidArgument(s.status())) << s.status();
+  const std::string message(s.status().message());
+  ExpectContains(message, absl::StrCat("RVE server ", servers.address(1)));
+  ExpectContains(message, "material point 3");
+  ExpectContains(message, "step 1");
+
+  // det ΔF ≤ 0 for point 2 (first server): the whole call is refused.
+  f = DeltaFs(1);
+  f[2](1, 1) = -1;
+  s = remote.Apply(1, f);
+  EXPECT_TRUE(absl::IsInvalidArgument(s.status())) << s.status();
+  ExpectContains(s.status().message(),
+                 (absl::StrCat("RVE server ", servers.address(0), ": material point 2")));
+
+  // Too few ΔF, and a pool with no points.
+  EXPECT_TRUE(absl::IsInvalidArgument(
+      remote.Apply(2, std::vector<Eigen::Matrix3d>(2, Eigen::Matrix3d::Identity())).status()));
+  RvePool empty(EmbeddedEndpoints(1), kRun);
+  EXPECT_TRUE(absl::IsFailedPrecondition(empty.Apply(1, {}).status()));
+}
+
+TEST(RvePoolTest, ExportImportOntoOtherEndpointsContinuesBitIdentically) {
+  Servers servers(1);
+  ASSERT_EQ(servers.size(), 1);
+  RvePool original(EmbeddedEndpoints(2), kRun);
+  Start(original);
+  for (std::int64_t step = 1; step <= 3; ++step) ApplyOrDie(original, step);
+  absl::StatusOr<std::vector<store::RveRecord>> saved = original.ExportAll();
+  ASSERT_TRUE(saved.ok()) << saved.status();
+  ASSERT_EQ(saved->size(), static_cast<std::size_t>(kPoints));
+
+  // Three endpoints, one remote, uneven costs, another run id.
+  std::vector<std::unique_ptr<RveEndpoint>> endpoints = EmbeddedEndpoints(2);
+  endpoints.push_back(Remote(servers.address(0)));
+  RvePool resumed(std::move(endpoints), "resumed-run");
+  resumed.Assign(std::vector<double>{1, 2, 3, 4, 5, 6});
+  ASSERT_TRUE(resumed.ImportAll(*saved).ok());
+  for (std::int64_t step = 4; step <= 5; ++step) {
+    ExpectSameStates(ApplyOrDie(original, step), ApplyOrDie(resumed, step),
+                     absl::StrCat("step ", step, " after import"));
+  }
+  absl::StatusOr<std::vector<store::RveRecord>> a = original.ExportAll();
+  absl::StatusOr<std::vector<store::RveRecord>> b = resumed.ExportAll();
+  ASSERT_TRUE(a.ok()) << a.status();
+  ASSERT_TRUE(b.ok()) << b.status();
+  ExpectSameRecords(*a, *b);
+  EXPECT_EQ((*b)[0].run_id, "resumed-run");
+
+  // Importing the same points again: they exist.
+  EXPECT_TRUE(absl::IsAlreadyExists(resumed.ImportAll(*saved)));
+}
+
+}  // namespace
+}  // namespace rvehub::mpm
