@@ -1,0 +1,1147 @@
+#include "mpm_client/case.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <initializer_list>
+#include <limits>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <string>
+#include <system_error>
+#include <utility>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
+#include "rve_server/common/text_file.h"
+#include "rve_server/engine/material.h"
+
+namespace rvehub::mpm {
+namespace {
+
+#define RETURN_IF_ERROR(expr)                          \
+  do {                                                 \
+    if (absl::Status s_ = (expr); !s_.ok()) return s_; \
+  } while (false)
+
+using Json = nlohmann::json;
+using OrderedJson = nlohmann::ordered_json;
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+// Coordinates within this fraction of a cell of a grid line are on it (and
+// snapped onto it): decimal inputs such as 0.3 with h = 0.1 are not exact.
+constexpr double kGridTolerance = 1e-6;
+
+// ---------------------------------------------------------------- messages
+
+// RFC 6901 escaping of one reference token.
+std::string Escape(absl::string_view token) {
+  std::string out;
+  for (char c : token) {
+    if (c == '~') {
+      out += "~0";
+    } else if (c == '/') {
+      out += "~1";
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+
+std::string Child(absl::string_view ptr, absl::string_view key) {
+  return absl::StrCat(ptr, "/", Escape(key));
+}
+std::string Child(absl::string_view ptr, size_t index) { return absl::StrCat(ptr, "/", index); }
+
+template <typename... Args>
+absl::Status Bad(absl::string_view ptr, const Args&... what) {
+  return absl::InvalidArgumentError(
+      absl::StrCat(ptr.empty() ? absl::string_view("(document)") : ptr, ": ", what...));
+}
+
+// Enough digits to tell 0.3 from 0.30001, fewer than a full round trip.
+std::string Num(double x) { return absl::StrFormat("%.10g", x); }
+
+std::string Quote(absl::string_view s) { return absl::StrCat("\"", s, "\""); }
+
+// "string \"abc\"", "array [1,2]", "null": for "got ..." in type errors.
+std::string Got(const Json& v) {
+  if (v.is_null()) return "null";
+  std::string text = v.dump(-1, ' ', false, Json::error_handler_t::replace);
+  if (text.size() > 60) text = text.substr(0, 57) + "...";
+  return absl::StrCat(v.type_name(), " ", text);
+}
+
+// Edit distance, for "did you mean" on unknown keys.
+size_t Distance(absl::string_view a, absl::string_view b) {
+  std::vector<size_t> row(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    size_t diagonal = row[0];
+    row[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = up;
+    }
+  }
+  return row[b.size()];
+}
+
+// ---------------------------------------------------------------- readers
+
+// A JSON object at `ptr` whose keys are all in an allowed list.
+class Object {
+ public:
+  static absl::StatusOr<Object> Open(const Json& j, std::string ptr,
+                                     std::initializer_list<absl::string_view> keys) {
+    if (!j.is_object()) return Bad(ptr, "must be an object, got ", Got(j));
+    for (const auto& [key, value] : j.items()) {
+      if (std::find(keys.begin(), keys.end(), key) != keys.end()) continue;
+      std::string hint;
+      size_t best = 3;  // suggest only near misses of longer keys
+      for (absl::string_view k : keys) {
+        if (const size_t d = Distance(key, k); d < best && k.size() > 3) {
+          best = d;
+          hint = absl::StrCat("did you mean \"", k, "\"? ");
+        }
+      }
+      return Bad(Child(ptr, key), "unknown key (", hint, "keys here: ", absl::StrJoin(keys, ", "),
+                 ")");
+    }
+    return Object(j, std::move(ptr));
+  }
+
+  const std::string& ptr() const { return ptr_; }
+  std::string At(absl::string_view key) const { return Child(ptr_, key); }
+  // The value of `key`, null when absent.
+  const Json* Get(absl::string_view key) const {
+    auto it = j_->find(std::string(key));
+    return it == j_->end() ? nullptr : &*it;
+  }
+  bool Has(absl::string_view key) const { return Get(key) != nullptr; }
+  absl::Status Missing(absl::string_view key) const {
+    return Bad(At(key), "required key is missing");
+  }
+
+ private:
+  Object(const Json& j, std::string ptr) : j_(&j), ptr_(std::move(ptr)) {}
+  const Json* j_;
+  std::string ptr_;
+};
+
+enum class Need { kOptional, kRequired };
+
+// An allowed interval of a real number, open or closed at either end.
+struct Range {
+  double lo = -kInf;
+  double hi = kInf;
+  bool lo_open = false;
+  bool hi_open = false;
+
+  bool Contains(double x) const {
+    return (lo_open ? x > lo : x >= lo) && (hi_open ? x < hi : x <= hi);
+  }
+  std::string Rule() const {
+    if (lo == -kInf && hi == kInf) return "must be a finite number";
+    if (hi == kInf) return absl::StrCat("must be ", lo_open ? "> " : ">= ", Num(lo));
+    if (lo == -kInf) return absl::StrCat("must be ", hi_open ? "< " : "<= ", Num(hi));
+    return absl::StrCat("must be in ", lo_open ? "(" : "[", Num(lo), ", ", Num(hi),
+                        hi_open ? ")" : "]");
+  }
+};
+constexpr Range kAny{};
+constexpr Range kPositive{0.0, kInf, true, false};
+constexpr Range kNonNegative{0.0, kInf, false, false};
+constexpr Range kUnit{0.0, 1.0, false, false};
+
+absl::Status ReadNumber(const Json& v, absl::string_view ptr, const Range& range, double* out) {
+  if (!v.is_number()) return Bad(ptr, "must be a number, got ", Got(v));
+  const double x = v.get<double>();
+  if (!std::isfinite(x) || !range.Contains(x)) return Bad(ptr, range.Rule(), ", got ", Num(x));
+  *out = x;
+  return absl::OkStatus();
+}
+
+// Integral JSON numbers, including floats such as 1e3.
+absl::Status ReadInteger(const Json& v, absl::string_view ptr, std::int64_t lo, std::int64_t hi,
+                         std::int64_t* out) {
+  const std::string rule = hi == std::numeric_limits<std::int64_t>::max()
+                               ? absl::StrCat("must be an integer >= ", lo)
+                               : absl::StrCat("must be an integer in ", lo, "..", hi);
+  if (!v.is_number()) return Bad(ptr, rule, ", got ", Got(v));
+  std::int64_t n = 0;
+  if (v.is_number_unsigned()) {
+    if (v.get<std::uint64_t>() > static_cast<std::uint64_t>(hi)) {
+      return Bad(ptr, rule, ", got ", v.get<std::uint64_t>());
+    }
+    n = static_cast<std::int64_t>(v.get<std::uint64_t>());
+  } else if (v.is_number_integer()) {
+    n = v.get<std::int64_t>();
+  } else {
+    const double x = v.get<double>();
+    if (!(x == std::floor(x) && x >= static_cast<double>(lo) && x <= static_cast<double>(hi))) {
+      return Bad(ptr, rule, ", got ", Num(x));
+    }
+    n = static_cast<std::int64_t>(x);
+  }
+  if (n < lo || n > hi) return Bad(ptr, rule, ", got ", n);
+  *out = n;
+  return absl::OkStatus();
+}
+
+absl::Status ReadInt(const Json& v, absl::string_view ptr, int lo, int hi, int* out) {
+  std::int64_t n = 0;
+  RETURN_IF_ERROR(ReadInteger(v, ptr, lo, hi, &n));
+  *out = static_cast<int>(n);
+  return absl::OkStatus();
+}
+
+absl::Status ReadSeed(const Json& v, absl::string_view ptr, std::uint64_t* out) {
+  if (v.is_number_unsigned()) {
+    *out = v.get<std::uint64_t>();
+    return absl::OkStatus();
+  }
+  if (v.is_number_float()) {  // e.g. 1e3
+    const double x = v.get<double>();
+    if (x >= 0 && x < 0x1p64 && x == std::floor(x)) {
+      *out = static_cast<std::uint64_t>(x);
+      return absl::OkStatus();
+    }
+  }
+  return Bad(ptr, "must be an integer in 0..", std::numeric_limits<std::uint64_t>::max(), ", got ",
+             Got(v));
+}
+
+absl::Status ReadString(const Json& v, absl::string_view ptr, bool non_empty, std::string* out) {
+  if (!v.is_string()) return Bad(ptr, "must be a string, got ", Got(v));
+  if (non_empty && v.get_ref<const std::string&>().empty()) {
+    return Bad(ptr, "must be a non-empty string");
+  }
+  *out = v.get<std::string>();
+  return absl::OkStatus();
+}
+
+// Names of templates, regions, walls, bodies and tractions end up in file
+// and column names, so they are restricted to a portable alphabet.
+absl::Status ReadName(const Json& v, absl::string_view ptr, std::string* out) {
+  RETURN_IF_ERROR(ReadString(v, ptr, true, out));
+  for (char c : *out) {
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.')) {
+      return Bad(ptr, "names use letters, digits, '_', '-' and '.' only, got ", Quote(*out));
+    }
+  }
+  return absl::OkStatus();
+}
+
+template <typename T>
+using Table = std::initializer_list<std::pair<absl::string_view, T>>;
+
+template <typename T>
+std::string Choices(Table<T> table) {
+  std::vector<absl::string_view> names;
+  for (const auto& [name, value] : table) names.push_back(name);
+  return absl::StrJoin(names, ", ");
+}
+
+template <typename T>
+absl::Status ReadEnum(const Json& v, absl::string_view ptr, absl::string_view what, Table<T> table,
+                      T* out) {
+  if (!v.is_string()) {
+    return Bad(ptr, "must be a string (", Choices(table), "), got ", Got(v));
+  }
+  const std::string& s = v.get_ref<const std::string&>();
+  for (const auto& [name, value] : table) {
+    if (name == s) {
+      *out = value;
+      return absl::OkStatus();
+    }
+  }
+  return Bad(ptr, "unknown ", what, " ", Quote(s), " (", Choices(table), ")");
+}
+
+absl::Status ReadVec2(const Json& v, absl::string_view ptr, const Range& range,
+                      Eigen::Vector2d* out) {
+  if (!v.is_array() || v.size() != 2) {
+    return Bad(ptr, "must be an array of 2 numbers [x, y], got ", Got(v));
+  }
+  Eigen::Vector2d x;
+  for (int i = 0; i < 2; ++i) RETURN_IF_ERROR(ReadNumber(v[i], Child(ptr, i), range, &x[i]));
+  *out = x;
+  return absl::OkStatus();
+}
+
+// Optional or required keys of an object, left untouched when absent.
+absl::Status GetNumber(const Object& o, absl::string_view key, Need need, const Range& range,
+                       double* out) {
+  const Json* v = o.Get(key);
+  if (v == nullptr) return need == Need::kRequired ? o.Missing(key) : absl::OkStatus();
+  return ReadNumber(*v, o.At(key), range, out);
+}
+
+absl::Status GetInteger(const Object& o, absl::string_view key, std::int64_t lo, std::int64_t hi,
+                        std::int64_t* out) {
+  const Json* v = o.Get(key);
+  return v == nullptr ? absl::OkStatus() : ReadInteger(*v, o.At(key), lo, hi, out);
+}
+
+absl::Status GetString(const Object& o, absl::string_view key, Need need, bool non_empty,
+                       std::string* out) {
+  const Json* v = o.Get(key);
+  if (v == nullptr) return need == Need::kRequired ? o.Missing(key) : absl::OkStatus();
+  return ReadString(*v, o.At(key), non_empty, out);
+}
+
+absl::Status GetName(const Object& o, std::string* out) {
+  const Json* v = o.Get("name");
+  if (v == nullptr) return o.Missing("name");
+  return ReadName(*v, o.At("name"), out);
+}
+
+template <typename T>
+absl::Status GetEnum(const Object& o, absl::string_view key, Need need, absl::string_view what,
+                     Table<T> table, T* out) {
+  const Json* v = o.Get(key);
+  if (v == nullptr) return need == Need::kRequired ? o.Missing(key) : absl::OkStatus();
+  return ReadEnum(*v, o.At(key), what, table, out);
+}
+
+absl::Status GetVec2(const Object& o, absl::string_view key, Need need, const Range& range,
+                     Eigen::Vector2d* out) {
+  const Json* v = o.Get(key);
+  if (v == nullptr) return need == Need::kRequired ? o.Missing(key) : absl::OkStatus();
+  return ReadVec2(*v, o.At(key), range, out);
+}
+
+// The elements of an optional (or required non-empty) array of objects.
+absl::Status GetArray(const Object& o, absl::string_view key, Need need,
+                      std::vector<const Json*>* out) {
+  const Json* v = o.Get(key);
+  if (v == nullptr) return need == Need::kRequired ? o.Missing(key) : absl::OkStatus();
+  if (!v->is_array()) return Bad(o.At(key), "must be an array, got ", Got(*v));
+  if (need == Need::kRequired && v->empty()) return Bad(o.At(key), "must not be empty");
+  for (const Json& e : *v) out->push_back(&e);
+  return absl::OkStatus();
+}
+
+absl::Status Forbid(const Object& o, absl::string_view key, absl::string_view why) {
+  return o.Has(key) ? Bad(o.At(key), why) : absl::OkStatus();
+}
+
+// Names must be unique within a list; `ptr` is the list's pointer.
+absl::Status CheckUnique(const std::vector<std::string>& names, absl::string_view ptr,
+                         absl::string_view what) {
+  std::map<std::string, size_t> first;
+  for (size_t i = 0; i < names.size(); ++i) {
+    auto [it, inserted] = first.emplace(names[i], i);
+    if (!inserted) {
+      return Bad(Child(Child(ptr, i), "name"), "duplicate ", what, " name ", Quote(names[i]),
+                 " (also ", Child(ptr, it->second), ")");
+    }
+  }
+  return absl::OkStatus();
+}
+
+template <typename T>
+std::vector<std::string> NamesOf(const std::vector<T>& items) {
+  std::vector<std::string> names;
+  for (const T& item : items) names.push_back(item.name);
+  return names;
+}
+
+// ---------------------------------------------------------------- sections
+
+constexpr absl::string_view kAxisName[2] = {"x", "y"};
+
+// Grid lines along each axis: x_i = origin + i·h, i in 0..n.
+class GridLines {
+ public:
+  explicit GridLines(const GridSpec& grid) : grid_(grid) {}
+
+  // The index of the grid line at coordinate `x` along `axis`; the snapped
+  // coordinate goes to `snapped`.
+  absl::Status Snap(double x, int axis, absl::string_view ptr, int* index, double* snapped) const {
+    const double origin = grid_.origin[axis];
+    const int n = axis == 0 ? grid_.nx : grid_.ny;
+    const double k = (x - origin) / grid_.cell_size;
+    const double i = std::round(k);
+    if (std::abs(k - i) > kGridTolerance) {
+      return Bad(ptr, kAxisName[axis], " = ", Num(x), " m is not on a grid line (origin ",
+                 Num(origin), " m, cell size ", Num(grid_.cell_size), " m)");
+    }
+    if (i < 0 || i > n) {
+      return Bad(ptr, kAxisName[axis], " = ", Num(x), " m is outside the grid, ", kAxisName[axis],
+                 " in [", Num(origin), ", ", Num(origin + n * grid_.cell_size), "] m");
+    }
+    *index = static_cast<int>(i);
+    *snapped = origin + *index * grid_.cell_size;
+    return absl::OkStatus();
+  }
+
+ private:
+  GridSpec grid_;
+};
+
+absl::Status ParseGrid(const Json& j, const std::string& ptr, GridSpec* grid) {
+  absl::StatusOr<Object> o = Object::Open(j, ptr, {"origin", "cell_size", "cells"});
+  if (!o.ok()) return o.status();
+  RETURN_IF_ERROR(GetVec2(*o, "origin", Need::kOptional, kAny, &grid->origin));
+  RETURN_IF_ERROR(GetNumber(*o, "cell_size", Need::kRequired, kPositive, &grid->cell_size));
+  const Json* cells = o->Get("cells");
+  if (cells == nullptr) return o->Missing("cells");
+  if (!cells->is_array() || cells->size() != 2) {
+    return Bad(o->At("cells"), "must be an array of 2 integers [nx, ny], got ", Got(*cells));
+  }
+  // Bounded so that node and cell counts fit an int.
+  constexpr int kMaxCells = 100000;
+  constexpr std::int64_t kMaxTotalCells = 100000000;
+  RETURN_IF_ERROR(ReadInt((*cells)[0], Child(o->At("cells"), 0), 1, kMaxCells, &grid->nx));
+  RETURN_IF_ERROR(ReadInt((*cells)[1], Child(o->At("cells"), 1), 1, kMaxCells, &grid->ny));
+  if (static_cast<std::int64_t>(grid->nx) * grid->ny > kMaxTotalCells) {
+    return Bad(o->At("cells"), "at most ", kMaxTotalCells, " cells, got ", grid->nx, " × ",
+               grid->ny);
+  }
+  return absl::OkStatus();
+}
+
+constexpr Table<ShapeKind> kShapes = {{"linear", ShapeKind::kLinear}, {"gimp", ShapeKind::kGimp}};
+
+absl::Status ParseSolver(const Json& j, const std::string& ptr, SolverSpec* solver) {
+  absl::StatusOr<Object> o = Object::Open(j, ptr,
+                                          {"shape", "pic_fraction", "gravity", "time_step", "cfl",
+                                           "wave_modulus", "end_time", "thickness"});
+  if (!o.ok()) return o.status();
+  RETURN_IF_ERROR(GetEnum(*o, "shape", Need::kOptional, "shape function", kShapes, &solver->shape));
+  RETURN_IF_ERROR(GetNumber(*o, "pic_fraction", Need::kOptional, kUnit, &solver->pic_fraction));
+  RETURN_IF_ERROR(GetVec2(*o, "gravity", Need::kOptional, kAny, &solver->gravity));
+  RETURN_IF_ERROR(GetNumber(*o, "time_step", Need::kOptional, kNonNegative, &solver->time_step));
+  RETURN_IF_ERROR(
+      GetNumber(*o, "cfl", Need::kOptional, Range{0.0, 1.0, true, false}, &solver->cfl));
+  RETURN_IF_ERROR(
+      GetNumber(*o, "wave_modulus", Need::kOptional, kNonNegative, &solver->wave_modulus));
+  RETURN_IF_ERROR(GetNumber(*o, "end_time", Need::kRequired, kPositive, &solver->end_time));
+  RETURN_IF_ERROR(GetNumber(*o, "thickness", Need::kOptional, kPositive, &solver->thickness));
+  return absl::OkStatus();
+}
+
+absl::Status ParseTemplate(const Json& j, const std::string& ptr, const std::string& base_dir,
+                           TemplateSpec* t) {
+  absl::StatusOr<Object> o =
+      Object::Open(j, ptr, {"name", "parameter_set", "seed", "file", "template_name"});
+  if (!o.ok()) return o.status();
+  RETURN_IF_ERROR(GetName(*o, &t->name));
+  if (o->Has("file") == o->Has("parameter_set")) {
+    return Bad(ptr, "give exactly one of \"file\" (a template file) or \"parameter_set\" (prepare ",
+               "from a named parameter set)");
+  }
+  if (o->Has("parameter_set")) {
+    RETURN_IF_ERROR(Forbid(*o, "template_name", "only for templates read from a file"));
+    RETURN_IF_ERROR(GetString(*o, "parameter_set", Need::kRequired, true, &t->parameter_set));
+    if (!dem::FindParameterSet(t->parameter_set).ok()) {
+      return Bad(o->At("parameter_set"), "unknown parameter set ", Quote(t->parameter_set),
+                 " (known: ", absl::StrJoin(dem::ParameterSetNames(), ", "), ")");
+    }
+    if (const Json* seed = o->Get("seed"))
+      RETURN_IF_ERROR(ReadSeed(*seed, o->At("seed"), &t->seed));
+    return absl::OkStatus();
+  }
+  RETURN_IF_ERROR(Forbid(*o, "seed",
+                         "only for templates prepared from a parameter set (a file holds its own "
+                         "packing)"));
+  std::string file;
+  RETURN_IF_ERROR(GetString(*o, "file", Need::kRequired, true, &file));
+  RETURN_IF_ERROR(GetString(*o, "template_name", Need::kOptional, true, &t->template_name));
+  std::filesystem::path path(file);
+  if (path.is_relative()) path = std::filesystem::path(base_dir) / path;
+  std::error_code error;
+  std::filesystem::path absolute = std::filesystem::absolute(path, error);
+  if (!error) path = absolute;
+  path = path.lexically_normal();
+  if (!std::filesystem::is_regular_file(path, error)) {
+    return Bad(o->At("file"), "no such file ", Quote(path.string()));
+  }
+  t->file = path.string();
+  return absl::OkStatus();
+}
+
+// A region's extent in grid cells, for the overlap and free-surface checks.
+struct CellBox {
+  int lo[2] = {0, 0};
+  int hi[2] = {0, 0};
+};
+
+constexpr Table<InitialStressKind> kInitialStresses = {
+    {"template", InitialStressKind::kTemplate},
+    {"geostatic_isotropic", InitialStressKind::kGeostaticIsotropic},
+    {"geostatic_k0", InitialStressKind::kGeostaticK0}};
+
+absl::Status ParseInitialStress(const Json& j, const std::string& ptr, const SolverSpec& solver,
+                                MaterialRegion* r) {
+  absl::StatusOr<Object> o =
+      Object::Open(j, ptr, {"kind", "k0", "surface_y", "surcharge", "minimum"});
+  if (!o.ok()) return o.status();
+  RETURN_IF_ERROR(GetEnum(*o, "kind", Need::kRequired, "initial stress kind", kInitialStresses,
+                          &r->initial_stress));
+  if (r->initial_stress != InitialStressKind::kGeostaticK0) {
+    RETURN_IF_ERROR(Forbid(*o, "k0", "only for kind \"geostatic_k0\""));
+  }
+  if (r->initial_stress == InitialStressKind::kTemplate) {
+    for (absl::string_view key : {"surface_y", "surcharge", "minimum"}) {
+      RETURN_IF_ERROR(Forbid(*o, key, "only for the geostatic kinds"));
+    }
+  }
+  RETURN_IF_ERROR(GetNumber(*o, "k0", Need::kOptional, kPositive, &r->k0));
+  RETURN_IF_ERROR(GetNumber(*o, "surface_y", Need::kOptional, kAny, &r->surface_y));
+  RETURN_IF_ERROR(GetNumber(*o, "surcharge", Need::kOptional, kNonNegative, &r->surcharge));
+  RETURN_IF_ERROR(GetNumber(*o, "minimum", Need::kOptional, kNonNegative, &r->minimum_stress));
+  // RVEs need p > 0: without gravity σv is the surcharge (or the minimum).
+  if (r->initial_stress != InitialStressKind::kTemplate && solver.gravity.isZero(0.0) &&
+      r->surcharge == 0.0 && r->minimum_stress == 0.0) {
+    return Bad(o->At("kind"), "a geostatic start without gravity needs a surcharge or a minimum ",
+               "> 0 (RVEs need p > 0)");
+  }
+  return absl::OkStatus();
+}
+
+absl::Status ParseRegion(const Json& j, const std::string& ptr, const GridLines& lines,
+                         const SolverSpec& solver, const std::vector<TemplateSpec>& templates,
+                         MaterialRegion* r, CellBox* box) {
+  absl::StatusOr<Object> o = Object::Open(
+      j, ptr,
+      {"name", "lower", "upper", "points_per_cell_side", "template", "density", "initial_stress"});
+  if (!o.ok()) return o.status();
+  RETURN_IF_ERROR(GetName(*o, &r->name));
+  RETURN_IF_ERROR(GetVec2(*o, "lower", Need::kRequired, kAny, &r->lower));
+  RETURN_IF_ERROR(GetVec2(*o, "upper", Need::kRequired, kAny, &r->upper));
+  for (int axis = 0; axis < 2; ++axis) {
+    RETURN_IF_ERROR(lines.Snap(r->lower[axis], axis, Child(o->At("lower"), axis), &box->lo[axis],
+                               &r->lower[axis]));
+    RETURN_IF_ERROR(lines.Snap(r->upper[axis], axis, Child(o->At("upper"), axis), &box->hi[axis],
+                               &r->upper[axis]));
+    if (box->hi[axis] <= box->lo[axis]) {
+      return Bad(Child(o->At("upper"), axis), "upper ", kAxisName[axis], " = ", Num(r->upper[axis]),
+                 " m must be above lower ", kAxisName[axis], " = ", Num(r->lower[axis]),
+                 " m (a region spans at least one cell)");
+    }
+  }
+  if (const Json* v = o->Get("points_per_cell_side")) {
+    RETURN_IF_ERROR(ReadInt(*v, o->At("points_per_cell_side"), 1, 8, &r->points_per_cell_side));
+  }
+  RETURN_IF_ERROR(GetString(*o, "template", Need::kRequired, true, &r->rve_template));
+  if (std::none_of(templates.begin(), templates.end(),
+                   [&](const TemplateSpec& t) { return t.name == r->rve_template; })) {
+    return Bad(o->At("template"), "no template named ", Quote(r->rve_template),
+               " (templates: ", absl::StrJoin(NamesOf(templates), ", "), ")");
+  }
+  RETURN_IF_ERROR(GetNumber(*o, "density", Need::kOptional, kNonNegative, &r->density));
+  r->surface_y = r->upper.y();  // the region's top unless stated
+  if (const Json* v = o->Get("initial_stress")) {
+    RETURN_IF_ERROR(ParseInitialStress(*v, o->At("initial_stress"), solver, r));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status CheckOverlaps(const std::vector<MaterialRegion>& regions,
+                           const std::vector<CellBox>& boxes, absl::string_view ptr) {
+  for (size_t b = 0; b < boxes.size(); ++b) {
+    for (size_t a = 0; a < b; ++a) {
+      const CellBox& p = boxes[a];
+      const CellBox& q = boxes[b];
+      if (p.lo[0] < q.hi[0] && q.lo[0] < p.hi[0] && p.lo[1] < q.hi[1] && q.lo[1] < p.hi[1]) {
+        return Bad(Child(ptr, b), "region ", Quote(regions[b].name), " overlaps region ",
+                   Quote(regions[a].name), " (", Child(ptr, a), ")");
+      }
+    }
+  }
+  return absl::OkStatus();
+}
+
+constexpr Table<ContactKind> kWallKinds = {
+    {"fixed", ContactKind::kRough},     {"rough", ContactKind::kRough},
+    {"roller", ContactKind::kSmooth},   {"smooth", ContactKind::kSmooth},
+    {"symmetry", ContactKind::kSmooth}, {"frictional", ContactKind::kFrictional}};
+constexpr Table<ContactKind> kBodyContacts = {{"rough", ContactKind::kRough},
+                                              {"smooth", ContactKind::kSmooth},
+                                              {"frictional", ContactKind::kFrictional}};
+
+absl::string_view ContactKindName(ContactKind kind) {
+  switch (kind) {
+    case ContactKind::kRough:
+      return "rough";
+    case ContactKind::kSmooth:
+      return "smooth";
+    case ContactKind::kFrictional:
+      return "frictional";
+  }
+  return "rough";
+}
+
+// μ: required and > 0 for frictional contact, absent otherwise.
+absl::Status GetFriction(const Object& o, ContactKind kind, absl::string_view kind_key,
+                         double* friction) {
+  if (kind != ContactKind::kFrictional) {
+    return Forbid(o, "friction", absl::StrCat("only for ", kind_key, " \"frictional\""));
+  }
+  return GetNumber(o, "friction", Need::kRequired, kPositive, friction);
+}
+
+absl::Status ParseWall(const Json& j, const std::string& ptr, const GridLines& lines, Wall* w) {
+  absl::StatusOr<Object> o =
+      Object::Open(j, ptr, {"name", "kind", "line", "position", "friction", "remove_time"});
+  if (!o.ok()) return o.status();
+  RETURN_IF_ERROR(GetName(*o, &w->name));
+  RETURN_IF_ERROR(GetEnum(*o, "kind", Need::kRequired, "wall kind", kWallKinds, &w->contact));
+  RETURN_IF_ERROR(
+      GetEnum(*o, "line", Need::kRequired, "wall line", Table<int>{{"x", 0}, {"y", 1}}, &w->axis));
+  RETURN_IF_ERROR(GetNumber(*o, "position", Need::kRequired, kAny, &w->position));
+  int index = 0;
+  RETURN_IF_ERROR(lines.Snap(w->position, w->axis, o->At("position"), &index, &w->position));
+  RETURN_IF_ERROR(GetFriction(*o, w->contact, "kind", &w->friction));
+  RETURN_IF_ERROR(GetNumber(*o, "remove_time", Need::kOptional, kNonNegative, &w->remove_time));
+  return absl::OkStatus();
+}
+
+absl::Status ParseVelocity(const Json& j, const std::string& ptr,
+                           std::vector<VelocityPoint>* history) {
+  if (!j.is_array()) {
+    return Bad(ptr, "must be an array of [t, vx, vy] (s, m/s, m/s), got ", Got(j));
+  }
+  for (size_t i = 0; i < j.size(); ++i) {
+    const std::string at = Child(ptr, i);
+    if (!j[i].is_array() || j[i].size() != 3) {
+      return Bad(at, "must be an array of 3 numbers [t, vx, vy] (s, m/s, m/s), got ", Got(j[i]));
+    }
+    VelocityPoint p;
+    RETURN_IF_ERROR(ReadNumber(j[i][0], Child(at, 0), kNonNegative, &p.time));
+    RETURN_IF_ERROR(ReadNumber(j[i][1], Child(at, 1), kAny, &p.velocity.x()));
+    RETURN_IF_ERROR(ReadNumber(j[i][2], Child(at, 2), kAny, &p.velocity.y()));
+    if (!history->empty() && p.time <= history->back().time) {
+      return Bad(Child(at, 0), "times must increase strictly, got ", Num(p.time), " s after ",
+                 Num(history->back().time), " s");
+    }
+    history->push_back(p);
+  }
+  return absl::OkStatus();
+}
+
+absl::Status ParseBody(const Json& j, const std::string& ptr, RigidBody* b) {
+  absl::StatusOr<Object> o = Object::Open(
+      j, ptr,
+      {"name", "shape", "center", "half_size", "radius", "contact", "friction", "velocity"});
+  if (!o.ok()) return o.status();
+  RETURN_IF_ERROR(GetName(*o, &b->name));
+  RETURN_IF_ERROR(GetEnum(*o, "shape", Need::kRequired, "body shape",
+                          Table<RigidBody::Shape>{{"rectangle", RigidBody::Shape::kRectangle},
+                                                  {"circle", RigidBody::Shape::kCircle}},
+                          &b->shape));
+  RETURN_IF_ERROR(GetVec2(*o, "center", Need::kRequired, kAny, &b->center));
+  if (b->shape == RigidBody::Shape::kRectangle) {
+    RETURN_IF_ERROR(Forbid(*o, "radius", "only for shape \"circle\""));
+    RETURN_IF_ERROR(GetVec2(*o, "half_size", Need::kRequired, kPositive, &b->half_size));
+  } else {
+    RETURN_IF_ERROR(Forbid(*o, "half_size", "only for shape \"rectangle\""));
+    RETURN_IF_ERROR(GetNumber(*o, "radius", Need::kRequired, kPositive, &b->radius));
+  }
+  RETURN_IF_ERROR(
+      GetEnum(*o, "contact", Need::kOptional, "body contact", kBodyContacts, &b->contact));
+  RETURN_IF_ERROR(GetFriction(*o, b->contact, "contact", &b->friction));
+  if (const Json* v = o->Get("velocity")) {
+    RETURN_IF_ERROR(ParseVelocity(*v, o->At("velocity"), &b->velocity));
+  }
+  return absl::OkStatus();
+}
+
+struct Surface {
+  int axis;
+  int sign;
+};
+constexpr Table<Surface> kSurfaces = {
+    {"+x", {0, 1}}, {"-x", {0, -1}}, {"+y", {1, 1}}, {"-y", {1, -1}}};
+
+std::string SurfaceName(int axis, int sign) {
+  return absl::StrCat(sign > 0 ? "+" : "-", kAxisName[axis]);
+}
+
+absl::Status ParseTraction(const Json& j, const std::string& ptr,
+                           const std::vector<MaterialRegion>& regions,
+                           const std::vector<CellBox>& boxes, const std::string& regions_ptr,
+                           SurfaceTraction* t) {
+  absl::StatusOr<Object> o = Object::Open(
+      j, ptr, {"name", "region", "surface", "pressure", "traction", "ramp_time", "from", "to"});
+  if (!o.ok()) return o.status();
+  RETURN_IF_ERROR(GetName(*o, &t->name));
+  RETURN_IF_ERROR(GetString(*o, "region", Need::kRequired, true, &t->region));
+  auto region = std::find_if(regions.begin(), regions.end(),
+                             [&](const MaterialRegion& r) { return r.name == t->region; });
+  if (region == regions.end()) {
+    return Bad(o->At("region"), "no region named ", Quote(t->region),
+               " (regions: ", absl::StrJoin(NamesOf(regions), ", "), ")");
+  }
+  Surface surface{0, 1};
+  RETURN_IF_ERROR(GetEnum(*o, "surface", Need::kRequired, "surface", kSurfaces, &surface));
+  t->normal_axis = surface.axis;
+  t->normal_sign = surface.sign;
+  if (o->Has("pressure") == o->Has("traction")) {
+    return Bad(ptr, "give exactly one of \"pressure\" (Pa, compression +) or \"traction\" ",
+               "([tx, ty], Pa, tension +)");
+  }
+  if (o->Has("pressure")) {
+    double pressure = 0.0;
+    RETURN_IF_ERROR(GetNumber(*o, "pressure", Need::kRequired, kAny, &pressure));
+    // A pressure pushes against the outward normal n: t = −p·n.
+    t->traction = Eigen::Vector2d::Zero();
+    t->traction[surface.axis] = -pressure * surface.sign;
+  } else {
+    RETURN_IF_ERROR(GetVec2(*o, "traction", Need::kRequired, kAny, &t->traction));
+  }
+  RETURN_IF_ERROR(GetNumber(*o, "ramp_time", Need::kOptional, kNonNegative, &t->ramp_time));
+  RETURN_IF_ERROR(GetNumber(*o, "from", Need::kOptional, kAny, &t->from));
+  RETURN_IF_ERROR(GetNumber(*o, "to", Need::kOptional, kAny, &t->to));
+  if (!(t->from < t->to)) {
+    return Bad(o->At("to"), "must be > from = ", Num(t->from), " m, got ", Num(t->to));
+  }
+
+  // The loaded part of the face, [lo, hi] along the other axis, must exist
+  // and be free: not shared with a neighbouring region.
+  const size_t index = region - regions.begin();
+  const int along = 1 - surface.axis;
+  const double face_lo = std::max(region->lower[along], t->from);
+  const double face_hi = std::min(region->upper[along], t->to);
+  const std::string face = absl::StrCat("the ", SurfaceName(surface.axis, surface.sign),
+                                        " face of region ", Quote(region->name));
+  if (!(face_lo < face_hi)) {
+    return Bad(o->At(o->Has("from") ? "from" : "to"), "[from, to] = [", Num(t->from), ", ",
+               Num(t->to), "] m misses ", face, ", ", kAxisName[along], " in [",
+               Num(region->lower[along]), ", ", Num(region->upper[along]), "] m");
+  }
+  const CellBox& box = boxes[index];
+  const int line = surface.sign > 0 ? box.hi[surface.axis] : box.lo[surface.axis];
+  for (size_t k = 0; k < regions.size(); ++k) {
+    const CellBox& other = boxes[k];
+    const int other_line = surface.sign > 0 ? other.lo[surface.axis] : other.hi[surface.axis];
+    if (k == index || other_line != line) continue;
+    const double lo = std::max(face_lo, regions[k].lower[along]);
+    const double hi = std::min(face_hi, regions[k].upper[along]);
+    if (lo < hi) {
+      return Bad(o->At("surface"), face, " touches region ", Quote(regions[k].name), " (",
+                 Child(regions_ptr, k), ") for ", kAxisName[along], " in [", Num(lo), ", ", Num(hi),
+                 "] m: not a free surface (narrow the load with from/to)");
+    }
+  }
+  return absl::OkStatus();
+}
+
+absl::Status ParseRve(const Json& j, const std::string& ptr, RveSpec* rve) {
+  absl::StatusOr<Object> o = Object::Open(j, ptr, {"max_inertial_number", "min_steps"});
+  if (!o.ok()) return o.status();
+  RETURN_IF_ERROR(GetNumber(*o, "max_inertial_number", Need::kOptional, kNonNegative,
+                            &rve->max_inertial_number));
+  RETURN_IF_ERROR(
+      GetInteger(*o, "min_steps", 0, std::numeric_limits<std::int64_t>::max(), &rve->min_steps));
+  return absl::OkStatus();
+}
+
+absl::Status ParseOutput(const Json& j, const std::string& ptr,
+                         const std::vector<RigidBody>& bodies, OutputSpec* out) {
+  absl::StatusOr<Object> o = Object::Open(j, ptr,
+                                          {"frame_every", "timeseries_every", "checkpoint_every",
+                                           "progress_every", "plot", "plot_body", "plot_width"});
+  if (!o.ok()) return o.status();
+  constexpr std::int64_t kMax = std::numeric_limits<std::int64_t>::max();
+  RETURN_IF_ERROR(GetInteger(*o, "frame_every", 1, kMax, &out->frame_every));
+  RETURN_IF_ERROR(GetInteger(*o, "timeseries_every", 1, kMax, &out->timeseries_every));
+  RETURN_IF_ERROR(GetInteger(*o, "checkpoint_every", 0, kMax, &out->checkpoint_every));
+  RETURN_IF_ERROR(GetInteger(*o, "progress_every", 1, kMax, &out->progress_every));
+  std::string plot = out->plot;
+  RETURN_IF_ERROR(GetEnum(*o, "plot", Need::kOptional, "plot",
+                          Table<std::string>{{"stress-strain", "stress-strain"},
+                                             {"load-settlement", "load-settlement"},
+                                             {"none", "none"}},
+                          &plot));
+  out->plot = plot;
+  if (out->plot != "load-settlement") {
+    RETURN_IF_ERROR(Forbid(*o, "plot_body", "only for plot \"load-settlement\""));
+    RETURN_IF_ERROR(Forbid(*o, "plot_width", "only for plot \"load-settlement\""));
+    return absl::OkStatus();
+  }
+  RETURN_IF_ERROR(GetString(*o, "plot_body", Need::kRequired, true, &out->plot_body));
+  if (std::none_of(bodies.begin(), bodies.end(),
+                   [&](const RigidBody& b) { return b.name == out->plot_body; })) {
+    return Bad(o->At("plot_body"), "no body named ", Quote(out->plot_body),
+               " (bodies: ", absl::StrJoin(NamesOf(bodies), ", "), ")");
+  }
+  RETURN_IF_ERROR(GetNumber(*o, "plot_width", Need::kOptional, kPositive, &out->plot_width));
+  return absl::OkStatus();
+}
+
+// Parses a list section: each element with `parse`, then unique names.
+template <typename T, typename F>
+absl::Status ParseList(const Object& root, absl::string_view key, Need need, absl::string_view what,
+                       std::vector<T>* items, F parse) {
+  std::vector<const Json*> elements;
+  RETURN_IF_ERROR(GetArray(root, key, need, &elements));
+  const std::string ptr = root.At(key);
+  items->resize(elements.size());
+  for (size_t i = 0; i < elements.size(); ++i) {
+    RETURN_IF_ERROR(parse(*elements[i], Child(ptr, i), i, &(*items)[i]));
+  }
+  return CheckUnique(NamesOf(*items), ptr, what);
+}
+
+// Tracks the path during parsing to report duplicate keys, which
+// nlohmann::json would otherwise resolve silently to the last value.
+class DuplicateKeys {
+ public:
+  bool operator()(int /*depth*/, Json::parse_event_t event, Json& parsed) {
+    switch (event) {
+      case Json::parse_event_t::object_start:
+        frames_.emplace_back().object = true;
+        break;
+      case Json::parse_event_t::array_start:
+        frames_.emplace_back();
+        break;
+      case Json::parse_event_t::key:
+        frames_.back().key = parsed.get<std::string>();
+        if (!frames_.back().keys.insert(frames_.back().key).second && first_.empty()) {
+          first_ = Pointer();
+        }
+        break;
+      case Json::parse_event_t::value:
+        if (!frames_.empty() && !frames_.back().object) ++frames_.back().index;
+        break;
+      case Json::parse_event_t::object_end:
+      case Json::parse_event_t::array_end:
+        frames_.pop_back();
+        if (!frames_.empty() && !frames_.back().object) ++frames_.back().index;
+        break;
+    }
+    return true;
+  }
+  // The pointer of the first duplicate key, empty when none.
+  const std::string& first() const { return first_; }
+
+ private:
+  struct Frame {
+    bool object = false;
+    std::set<std::string> keys;
+    std::string key;
+    size_t index = 0;
+  };
+  std::string Pointer() const {
+    std::string ptr;
+    for (const Frame& f : frames_) ptr = f.object ? Child(ptr, f.key) : Child(ptr, f.index);
+    return ptr;
+  }
+  std::vector<Frame> frames_;
+  std::string first_;
+};
+
+// "line L, column C" of the character at `index` (0-based) in `text`.
+std::string Position(absl::string_view text, size_t index) {
+  index = std::min(index, text.size());
+  const size_t newline = text.rfind('\n', index == 0 ? 0 : index - 1);
+  const size_t line_start =
+      newline == absl::string_view::npos || newline >= index ? 0 : newline + 1;
+  const size_t line = 1 + std::count(text.begin(), text.begin() + index, '\n');
+  return absl::StrCat("line ", line, ", column ", index - line_start + 1);
+}
+
+// "line L, column C: <message>" from a parser exception.
+absl::Status SyntaxError(const Json::exception& e, absl::string_view text) {
+  absl::string_view what = e.what();
+  if (const auto* parse = dynamic_cast<const Json::parse_error*>(&e)) {
+    // nlohmann stops one character past the culprit, often past a newline
+    // (its own "line 3, column 0"): point at the last non-blank character.
+    size_t index = std::min<size_t>(parse->byte, text.size());
+    if (index > 0) --index;
+    while (index > 0 && index < text.size() &&
+           std::isspace(static_cast<unsigned char>(text[index]))) {
+      --index;
+    }
+    if (size_t at = what.find(", column "); at != absl::string_view::npos) {
+      if (size_t colon = what.find(": ", at); colon != absl::string_view::npos) {
+        what = what.substr(colon + 2);
+      }
+    }
+    return absl::InvalidArgumentError(absl::StrCat(Position(text, index), ": ", what));
+  }
+  // Other exceptions (e.g. "number overflow parsing '1e400'") carry no
+  // position: find the quoted token in the text.
+  if (size_t bracket = what.find("] "); bracket != absl::string_view::npos) {
+    what = what.substr(bracket + 2);
+  }
+  const size_t open = what.find('\'');
+  const size_t close = what.rfind('\'');
+  if (open != absl::string_view::npos && close > open + 1) {
+    const size_t index = text.find(what.substr(open + 1, close - open - 1));
+    if (index != absl::string_view::npos) {
+      return absl::InvalidArgumentError(absl::StrCat(Position(text, index), ": ", what));
+    }
+  }
+  return absl::InvalidArgumentError(what);
+}
+
+// ---------------------------------------------------------------- writing
+
+OrderedJson Vec(const Eigen::Vector2d& v) { return OrderedJson::array({v.x(), v.y()}); }
+
+std::string Dump(const OrderedJson& j) {
+  return j.dump(-1, ' ', false, OrderedJson::error_handler_t::replace);
+}
+
+// Two-space indented JSON like dump(2), but arrays of scalars ([x, y],
+// [t, vx, vy]) stay on one line, so the output reads like a hand-written case.
+void Write(const OrderedJson& j, int indent, std::string* out) {
+  const std::string inner(indent + 2, ' ');
+  if (j.is_object() && !j.empty()) {
+    absl::StrAppend(out, "{\n");
+    size_t i = 0;
+    for (const auto& [key, value] : j.items()) {
+      absl::StrAppend(out, inner, Dump(key), ": ");
+      Write(value, indent + 2, out);
+      absl::StrAppend(out, ++i < j.size() ? ",\n" : "\n");
+    }
+    absl::StrAppend(out, std::string(indent, ' '), "}");
+  } else if (j.is_array() && !j.empty() &&
+             std::any_of(j.begin(), j.end(), [](const OrderedJson& e) {
+               return e.is_structured() && !(e.is_array() && e.empty());
+             })) {
+    absl::StrAppend(out, "[\n");
+    for (size_t i = 0; i < j.size(); ++i) {
+      absl::StrAppend(out, inner);
+      Write(j[i], indent + 2, out);
+      absl::StrAppend(out, i + 1 < j.size() ? ",\n" : "\n");
+    }
+    absl::StrAppend(out, std::string(indent, ' '), "]");
+  } else if (j.is_array()) {
+    std::vector<std::string> items;
+    for (const OrderedJson& e : j) items.push_back(Dump(e));
+    absl::StrAppend(out, "[", absl::StrJoin(items, ", "), "]");
+  } else {
+    absl::StrAppend(out, Dump(j));
+  }
+}
+
+}  // namespace
+
+absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::string& base_dir) {
+  Json doc;
+  DuplicateKeys duplicates;
+  try {
+    doc = Json::parse(json_text.begin(), json_text.end(), std::ref(duplicates));
+  } catch (const Json::exception& e) {
+    return SyntaxError(e, json_text);
+  }
+  if (!duplicates.first().empty()) {
+    return Bad(duplicates.first(), "duplicate key (an object holds each key once)");
+  }
+
+  absl::StatusOr<Object> root =
+      Object::Open(doc, "",
+                   {"name", "description", "expected_runtime_s", "grid", "solver", "templates",
+                    "regions", "walls", "bodies", "tractions", "rve", "output"});
+  if (!root.ok()) return root.status();
+  CaseSpec spec;
+  RETURN_IF_ERROR(GetString(*root, "name", Need::kOptional, false, &spec.name));
+  RETURN_IF_ERROR(GetString(*root, "description", Need::kOptional, false, &spec.description));
+  RETURN_IF_ERROR(GetNumber(*root, "expected_runtime_s", Need::kOptional, kNonNegative,
+                            &spec.expected_runtime_s));
+
+  const Json* grid = root->Get("grid");
+  if (grid == nullptr) return root->Missing("grid");
+  RETURN_IF_ERROR(ParseGrid(*grid, root->At("grid"), &spec.grid));
+  const GridLines lines(spec.grid);
+
+  const Json* solver = root->Get("solver");
+  if (solver == nullptr) return root->Missing("solver");
+  RETURN_IF_ERROR(ParseSolver(*solver, root->At("solver"), &spec.solver));
+
+  RETURN_IF_ERROR(ParseList(*root, "templates", Need::kRequired, "template", &spec.templates,
+                            [&](const Json& j, const std::string& ptr, size_t, TemplateSpec* t) {
+                              return ParseTemplate(j, ptr, base_dir, t);
+                            }));
+
+  std::vector<CellBox> boxes;
+  RETURN_IF_ERROR(ParseList(*root, "regions", Need::kRequired, "region", &spec.regions,
+                            [&](const Json& j, const std::string& ptr, size_t, MaterialRegion* r) {
+                              boxes.emplace_back();
+                              return ParseRegion(j, ptr, lines, spec.solver, spec.templates, r,
+                                                 &boxes.back());
+                            }));
+  RETURN_IF_ERROR(CheckOverlaps(spec.regions, boxes, root->At("regions")));
+
+  RETURN_IF_ERROR(ParseList(*root, "walls", Need::kOptional, "wall", &spec.walls,
+                            [&](const Json& j, const std::string& ptr, size_t, Wall* w) {
+                              return ParseWall(j, ptr, lines, w);
+                            }));
+  RETURN_IF_ERROR(ParseList(*root, "bodies", Need::kOptional, "body", &spec.bodies,
+                            [&](const Json& j, const std::string& ptr, size_t, RigidBody* b) {
+                              return ParseBody(j, ptr, b);
+                            }));
+  RETURN_IF_ERROR(ParseList(*root, "tractions", Need::kOptional, "traction", &spec.tractions,
+                            [&](const Json& j, const std::string& ptr, size_t, SurfaceTraction* t) {
+                              return ParseTraction(j, ptr, spec.regions, boxes, root->At("regions"),
+                                                   t);
+                            }));
+
+  if (const Json* rve = root->Get("rve")) {
+    RETURN_IF_ERROR(ParseRve(*rve, root->At("rve"), &spec.rve));
+  }
+  if (const Json* output = root->Get("output")) {
+    RETURN_IF_ERROR(ParseOutput(*output, root->At("output"), spec.bodies, &spec.output));
+  }
+  return spec;
+}
+
+absl::StatusOr<CaseSpec> LoadCase(const std::string& path) {
+  std::error_code error;
+  if (std::filesystem::is_directory(path, error)) {
+    return absl::InvalidArgumentError(absl::StrCat("case file '", path, "' is a directory"));
+  }
+  absl::StatusOr<std::string> text = ReadTextFile(path, "case file");
+  if (!text.ok()) return text.status();
+  const std::filesystem::path file(path);
+  const std::string dir = file.has_parent_path() ? file.parent_path().string() : ".";
+  absl::StatusOr<CaseSpec> spec = ParseCase(*text, dir);
+  if (!spec.ok()) {
+    return absl::Status(spec.status().code(), absl::StrCat(path, ": ", spec.status().message()));
+  }
+  if (spec->name.empty()) spec->name = file.stem().string();
+  return spec;
+}
+
+std::string ToJson(const CaseSpec& spec) {
+  OrderedJson doc;
+  doc["name"] = spec.name;
+  doc["description"] = spec.description;
+  doc["expected_runtime_s"] = spec.expected_runtime_s;
+
+  const GridSpec& g = spec.grid;
+  doc["grid"] = {{"origin", Vec(g.origin)},
+                 {"cell_size", g.cell_size},
+                 {"cells", OrderedJson::array({g.nx, g.ny})}};
+
+  const SolverSpec& s = spec.solver;
+  doc["solver"] = {{"shape", s.shape == ShapeKind::kGimp ? "gimp" : "linear"},
+                   {"pic_fraction", s.pic_fraction},
+                   {"gravity", Vec(s.gravity)},
+                   {"time_step", s.time_step},
+                   {"cfl", s.cfl},
+                   {"wave_modulus", s.wave_modulus},
+                   {"end_time", s.end_time},
+                   {"thickness", s.thickness}};
+
+  OrderedJson& templates = doc["templates"] = OrderedJson::array();
+  for (const TemplateSpec& t : spec.templates) {
+    OrderedJson j = {{"name", t.name}};
+    if (!t.file.empty()) {
+      j["file"] = t.file;
+      if (!t.template_name.empty()) j["template_name"] = t.template_name;
+    } else {
+      j["parameter_set"] = t.parameter_set;
+      j["seed"] = t.seed;
+    }
+    templates.push_back(std::move(j));
+  }
+
+  OrderedJson& regions = doc["regions"] = OrderedJson::array();
+  for (const MaterialRegion& r : spec.regions) {
+    OrderedJson stress;
+    switch (r.initial_stress) {
+      case InitialStressKind::kTemplate:
+        stress["kind"] = "template";
+        break;
+      case InitialStressKind::kGeostaticIsotropic:
+        stress["kind"] = "geostatic_isotropic";
+        break;
+      case InitialStressKind::kGeostaticK0:
+        stress["kind"] = "geostatic_k0";
+        stress["k0"] = r.k0;
+        break;
+    }
+    if (r.initial_stress != InitialStressKind::kTemplate) {
+      stress["surface_y"] = r.surface_y;
+      stress["surcharge"] = r.surcharge;
+      stress["minimum"] = r.minimum_stress;
+    }
+    OrderedJson j = {{"name", r.name},
+                     {"lower", Vec(r.lower)},
+                     {"upper", Vec(r.upper)},
+                     {"points_per_cell_side", r.points_per_cell_side},
+                     {"template", r.rve_template},
+                     {"density", r.density},
+                     {"initial_stress", std::move(stress)}};
+    regions.push_back(std::move(j));
+  }
+
+  OrderedJson& walls = doc["walls"] = OrderedJson::array();
+  for (const Wall& w : spec.walls) {
+    OrderedJson j = {{"name", w.name},
+                     {"kind", ContactKindName(w.contact)},
+                     {"line", kAxisName[w.axis == 0 ? 0 : 1]},
+                     {"position", w.position}};
+    if (w.contact == ContactKind::kFrictional) j["friction"] = w.friction;
+    if (std::isfinite(w.remove_time)) j["remove_time"] = w.remove_time;
+    walls.push_back(std::move(j));
+  }
+
+  OrderedJson& bodies = doc["bodies"] = OrderedJson::array();
+  for (const RigidBody& b : spec.bodies) {
+    OrderedJson j = {{"name", b.name}};
+    if (b.shape == RigidBody::Shape::kCircle) {
+      j["shape"] = "circle";
+      j["center"] = Vec(b.center);
+      j["radius"] = b.radius;
+    } else {
+      j["shape"] = "rectangle";
+      j["center"] = Vec(b.center);
+      j["half_size"] = Vec(b.half_size);
+    }
+    j["contact"] = ContactKindName(b.contact);
+    if (b.contact == ContactKind::kFrictional) j["friction"] = b.friction;
+    OrderedJson& velocity = j["velocity"] = OrderedJson::array();
+    for (const VelocityPoint& p : b.velocity) {
+      velocity.push_back(OrderedJson::array({p.time, p.velocity.x(), p.velocity.y()}));
+    }
+    bodies.push_back(std::move(j));
+  }
+
+  OrderedJson& tractions = doc["tractions"] = OrderedJson::array();
+  for (const SurfaceTraction& t : spec.tractions) {
+    OrderedJson j = {{"name", t.name},
+                     {"region", t.region},
+                     {"surface", SurfaceName(t.normal_axis == 0 ? 0 : 1, t.normal_sign)},
+                     {"traction", Vec(t.traction)},
+                     {"ramp_time", t.ramp_time}};
+    if (std::isfinite(t.from)) j["from"] = t.from;
+    if (std::isfinite(t.to)) j["to"] = t.to;
+    tractions.push_back(std::move(j));
+  }
+
+  doc["rve"] = {{"max_inertial_number", spec.rve.max_inertial_number},
+                {"min_steps", spec.rve.min_steps}};
+
+  const OutputSpec& o = spec.output;
+  OrderedJson output = {{"frame_every", o.frame_every},
+                        {"timeseries_every", o.timeseries_every},
+                        {"checkpoint_every", o.checkpoint_every},
+                        {"progress_every", o.progress_every},
+                        {"plot", o.plot}};
+  if (o.plot == "load-settlement") {
+    output["plot_body"] = o.plot_body;
+    output["plot_width"] = o.plot_width;
+  }
+  doc["output"] = std::move(output);
+  std::string out;
+  Write(doc, 0, &out);
+  return out;
+}
+
+}  // namespace rvehub::mpm

@@ -1,0 +1,586 @@
+// Case files (mpm_client/case.h): a full case parses into the expected
+// CaseSpec (with the compression-positive → tension-positive conversion),
+// ToJson round-trips, defaults match model.h, and each kind of bad input is
+// an InvalidArgument naming the JSON pointer of the bad field.
+#include "mpm_client/case.h"
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/strings/match.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/string_view.h"
+#include "gtest/gtest.h"
+
+namespace rvehub::mpm {
+namespace {
+
+namespace fs = std::filesystem;
+using Json = nlohmann::json;
+
+// gmock is not linked: plain predicates for status messages.
+::testing::AssertionResult MessageStartsWith(const absl::Status& status, absl::string_view prefix) {
+  if (absl::StartsWith(status.message(), prefix)) return ::testing::AssertionSuccess();
+  return ::testing::AssertionFailure()
+         << "message does not start with '" << prefix << "': " << status;
+}
+::testing::AssertionResult MessageHas(const absl::Status& status, absl::string_view part) {
+  if (absl::StrContains(status.message(), part)) return ::testing::AssertionSuccess();
+  return ::testing::AssertionFailure() << "'" << part << "' not in: " << status;
+}
+
+// Every section, with non-default values wherever a default exists. The grid
+// is 2 m × 2 m (4 × 4 cells of 0.5 m); "soil" fills [0, 1]², "top" sits on it.
+constexpr char kFullCase[] = R"json({
+  "name": "full",
+  "description": "every section",
+  "expected_runtime_s": 12.5,
+  "grid": {"origin": [0, 0], "cell_size": 0.5, "cells": [4, 4]},
+  "solver": {"shape": "gimp", "pic_fraction": 0.05, "gravity": [0, -9.81], "time_step": 1e-4,
+             "cfl": 0.4, "wave_modulus": 2.5e7, "end_time": 1.5, "thickness": 0.1},
+  "templates": [
+    {"name": "dense", "parameter_set": "SET-dense", "seed": 7},
+    {"name": "stored", "file": "packings/x.h5", "template_name": "loose-1"}
+  ],
+  "regions": [
+    {"name": "soil", "lower": [0, 0], "upper": [1, 1], "points_per_cell_side": 3,
+     "template": "dense", "density": 1800,
+     "initial_stress": {"kind": "geostatic_k0", "k0": 0.45, "surface_y": 1.5,
+                        "surcharge": 20e3, "minimum": 1000}},
+    {"name": "top", "lower": [0, 1], "upper": [1, 1.5], "template": "stored",
+     "initial_stress": {"kind": "geostatic_isotropic"}}
+  ],
+  "walls": [
+    {"name": "base", "kind": "fixed", "line": "y", "position": 0},
+    {"name": "left", "kind": "roller", "line": "x", "position": 0, "remove_time": 0.1},
+    {"name": "right", "kind": "frictional", "line": "x", "position": 2, "friction": 0.4}
+  ],
+  "bodies": [
+    {"name": "footing", "shape": "rectangle", "center": [0.5, 1.75], "half_size": [0.25, 0.25],
+     "velocity": [[0, 0, 0], [0.1, 0, -0.1]]},
+    {"name": "ball", "shape": "circle", "center": [1.5, 1.5], "radius": 0.2,
+     "contact": "frictional", "friction": 0.3}
+  ],
+  "tractions": [
+    {"name": "confining", "region": "soil", "surface": "+x", "pressure": 100e3,
+     "ramp_time": 0.01},
+    {"name": "load", "region": "top", "surface": "+y", "traction": [0, -2e4], "from": 0,
+     "to": 0.5},
+    {"name": "side", "region": "top", "surface": "-x", "pressure": 5e3}
+  ],
+  "rve": {"max_inertial_number": 1e-3, "min_steps": 50},
+  "output": {"frame_every": 50, "timeseries_every": 5, "checkpoint_every": 1000,
+             "progress_every": 10, "plot": "load-settlement", "plot_body": "footing",
+             "plot_width": 0.5}
+})json";
+
+// The smallest valid case: everything else takes model.h's defaults.
+// In a BadEdit: remove the key instead of setting it.
+const Json kRemove(Json::value_t::discarded);
+
+constexpr char kMinimalCase[] = R"json({
+  "grid": {"cell_size": 0.5, "cells": [2, 2]},
+  "solver": {"end_time": 1},
+  "templates": [{"name": "t", "parameter_set": "SET-dense"}],
+  "regions": [{"name": "r", "lower": [0, 0], "upper": [1, 0.5], "template": "t"}]
+})json";
+
+class CaseTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / absl::StrCat("case_test_", getpid());
+    fs::create_directories(dir_ / "packings");
+    std::ofstream(dir_ / "packings" / "x.h5") << "not read by the parser";
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  absl::StatusOr<CaseSpec> Parse(absl::string_view text) { return ParseCase(text, dir_.string()); }
+
+  // The full case with the value at `pointer` replaced (or removed when
+  // `value` is empty), parsed.
+  absl::StatusOr<CaseSpec> ParseEdited(const std::string& pointer, const Json& value) {
+    Json doc = Json::parse(kFullCase);
+    const Json::json_pointer p(pointer);
+    if (value.is_discarded()) {
+      doc[p.parent_pointer()].erase(p.back());
+    } else {
+      doc[p] = value;
+    }
+    return Parse(doc.dump(2));
+  }
+
+  fs::path dir_;
+};
+
+TEST_F(CaseTest, FullCaseParsesIntoExpectedSpec) {
+  absl::StatusOr<CaseSpec> spec = Parse(kFullCase);
+  ASSERT_TRUE(spec.ok()) << spec.status();
+  EXPECT_EQ(spec->name, "full");
+  EXPECT_EQ(spec->description, "every section");
+  EXPECT_EQ(spec->expected_runtime_s, 12.5);
+
+  EXPECT_EQ(spec->grid.origin, Eigen::Vector2d(0, 0));
+  EXPECT_EQ(spec->grid.cell_size, 0.5);
+  EXPECT_EQ(spec->grid.nx, 4);
+  EXPECT_EQ(spec->grid.ny, 4);
+
+  const SolverSpec& s = spec->solver;
+  EXPECT_EQ(s.shape, ShapeKind::kGimp);
+  EXPECT_EQ(s.pic_fraction, 0.05);
+  EXPECT_EQ(s.gravity, Eigen::Vector2d(0, -9.81));
+  EXPECT_EQ(s.time_step, 1e-4);
+  EXPECT_EQ(s.cfl, 0.4);
+  EXPECT_EQ(s.wave_modulus, 2.5e7);
+  EXPECT_EQ(s.end_time, 1.5);
+  EXPECT_EQ(s.thickness, 0.1);
+
+  ASSERT_EQ(spec->templates.size(), 2u);
+  EXPECT_EQ(spec->templates[0].name, "dense");
+  EXPECT_EQ(spec->templates[0].parameter_set, "SET-dense");
+  EXPECT_EQ(spec->templates[0].seed, 7u);
+  EXPECT_EQ(spec->templates[0].file, "");
+  EXPECT_EQ(spec->templates[1].name, "stored");
+  EXPECT_EQ(spec->templates[1].parameter_set, "");
+  // Resolved against base_dir, absolute.
+  EXPECT_EQ(spec->templates[1].file, (fs::absolute(dir_) / "packings" / "x.h5").string());
+  EXPECT_EQ(spec->templates[1].template_name, "loose-1");
+
+  ASSERT_EQ(spec->regions.size(), 2u);
+  const MaterialRegion& soil = spec->regions[0];
+  EXPECT_EQ(soil.name, "soil");
+  EXPECT_EQ(soil.lower, Eigen::Vector2d(0, 0));
+  EXPECT_EQ(soil.upper, Eigen::Vector2d(1, 1));
+  EXPECT_EQ(soil.points_per_cell_side, 3);
+  EXPECT_EQ(soil.rve_template, "dense");
+  EXPECT_EQ(soil.density, 1800);
+  EXPECT_EQ(soil.initial_stress, InitialStressKind::kGeostaticK0);
+  EXPECT_EQ(soil.k0, 0.45);
+  EXPECT_EQ(soil.surface_y, 1.5);
+  EXPECT_EQ(soil.surcharge, 20e3);  // compression +, as model.h keeps it
+  EXPECT_EQ(soil.minimum_stress, 1000);
+  const MaterialRegion& top = spec->regions[1];
+  EXPECT_EQ(top.points_per_cell_side, 2);
+  EXPECT_EQ(top.density, 0.0);
+  EXPECT_EQ(top.initial_stress, InitialStressKind::kGeostaticIsotropic);
+  EXPECT_EQ(top.surface_y, 1.5);  // defaults to the region's top
+
+  ASSERT_EQ(spec->walls.size(), 3u);
+  EXPECT_EQ(spec->walls[0].name, "base");
+  EXPECT_EQ(spec->walls[0].axis, 1);
+  EXPECT_EQ(spec->walls[0].position, 0.0);
+  EXPECT_EQ(spec->walls[0].contact, ContactKind::kRough);
+  EXPECT_EQ(spec->walls[0].remove_time, kNever);
+  EXPECT_EQ(spec->walls[1].axis, 0);
+  EXPECT_EQ(spec->walls[1].contact, ContactKind::kSmooth);
+  EXPECT_EQ(spec->walls[1].remove_time, 0.1);
+  EXPECT_EQ(spec->walls[2].position, 2.0);
+  EXPECT_EQ(spec->walls[2].contact, ContactKind::kFrictional);
+  EXPECT_EQ(spec->walls[2].friction, 0.4);
+
+  ASSERT_EQ(spec->bodies.size(), 2u);
+  const RigidBody& footing = spec->bodies[0];
+  EXPECT_EQ(footing.shape, RigidBody::Shape::kRectangle);
+  EXPECT_EQ(footing.center, Eigen::Vector2d(0.5, 1.75));
+  EXPECT_EQ(footing.half_size, Eigen::Vector2d(0.25, 0.25));
+  EXPECT_EQ(footing.contact, ContactKind::kRough);
+  ASSERT_EQ(footing.velocity.size(), 2u);
+  EXPECT_EQ(footing.velocity[1].time, 0.1);
+  EXPECT_EQ(footing.velocity[1].velocity, Eigen::Vector2d(0, -0.1));
+  const RigidBody& ball = spec->bodies[1];
+  EXPECT_EQ(ball.shape, RigidBody::Shape::kCircle);
+  EXPECT_EQ(ball.radius, 0.2);
+  EXPECT_EQ(ball.contact, ContactKind::kFrictional);
+  EXPECT_EQ(ball.friction, 0.3);
+  EXPECT_TRUE(ball.velocity.empty());
+
+  ASSERT_EQ(spec->tractions.size(), 3u);
+  const SurfaceTraction& confining = spec->tractions[0];
+  EXPECT_EQ(confining.region, "soil");
+  EXPECT_EQ(confining.normal_axis, 0);
+  EXPECT_EQ(confining.normal_sign, 1);
+  // 100 kPa pressure on +x pushes along −x: tension-positive (−1e5, 0) Pa.
+  EXPECT_EQ(confining.traction, Eigen::Vector2d(-1e5, 0));
+  EXPECT_EQ(confining.ramp_time, 0.01);
+  EXPECT_EQ(confining.from, -std::numeric_limits<double>::infinity());
+  EXPECT_EQ(confining.to, std::numeric_limits<double>::infinity());
+  const SurfaceTraction& load = spec->tractions[1];
+  EXPECT_EQ(load.normal_axis, 1);
+  EXPECT_EQ(load.normal_sign, 1);
+  EXPECT_EQ(load.traction, Eigen::Vector2d(0, -2e4));
+  EXPECT_EQ(load.from, 0.0);
+  EXPECT_EQ(load.to, 0.5);
+  // On −x the outward normal is (−1, 0): the pressure pushes along +x.
+  EXPECT_EQ(spec->tractions[2].normal_sign, -1);
+  EXPECT_EQ(spec->tractions[2].traction, Eigen::Vector2d(5e3, 0));
+
+  EXPECT_EQ(spec->rve.max_inertial_number, 1e-3);
+  EXPECT_EQ(spec->rve.min_steps, 50);
+
+  EXPECT_EQ(spec->output.frame_every, 50);
+  EXPECT_EQ(spec->output.timeseries_every, 5);
+  EXPECT_EQ(spec->output.checkpoint_every, 1000);
+  EXPECT_EQ(spec->output.progress_every, 10);
+  EXPECT_EQ(spec->output.plot, "load-settlement");
+  EXPECT_EQ(spec->output.plot_body, "footing");
+  EXPECT_EQ(spec->output.plot_width, 0.5);
+}
+
+TEST_F(CaseTest, MinimalCaseTakesModelDefaults) {
+  absl::StatusOr<CaseSpec> spec = Parse(kMinimalCase);
+  ASSERT_TRUE(spec.ok()) << spec.status();
+  const CaseSpec defaults;
+  EXPECT_EQ(spec->name, "");
+  EXPECT_EQ(spec->grid.origin, defaults.grid.origin);
+  EXPECT_EQ(spec->solver.shape, defaults.solver.shape);
+  EXPECT_EQ(spec->solver.pic_fraction, defaults.solver.pic_fraction);
+  EXPECT_EQ(spec->solver.gravity, defaults.solver.gravity);
+  EXPECT_EQ(spec->solver.time_step, defaults.solver.time_step);
+  EXPECT_EQ(spec->solver.cfl, defaults.solver.cfl);
+  EXPECT_EQ(spec->solver.thickness, defaults.solver.thickness);
+  EXPECT_EQ(spec->templates[0].seed, 1u);
+  const MaterialRegion region_defaults;
+  EXPECT_EQ(spec->regions[0].points_per_cell_side, region_defaults.points_per_cell_side);
+  EXPECT_EQ(spec->regions[0].initial_stress, InitialStressKind::kTemplate);
+  EXPECT_EQ(spec->regions[0].surface_y, 0.5);
+  EXPECT_TRUE(spec->walls.empty());
+  EXPECT_TRUE(spec->bodies.empty());
+  EXPECT_TRUE(spec->tractions.empty());
+  EXPECT_EQ(spec->rve.min_steps, defaults.rve.min_steps);
+  EXPECT_EQ(spec->output.frame_every, defaults.output.frame_every);
+  EXPECT_EQ(spec->output.checkpoint_every, defaults.output.checkpoint_every);
+  EXPECT_EQ(spec->output.plot, "stress-strain");
+}
+
+TEST_F(CaseTest, CoordinatesSnapOntoGridLines) {
+  // 0.3 is not 3 × 0.1 in binary; the parser puts the corner on the line.
+  Json doc = Json::parse(kMinimalCase);
+  doc["grid"]["cell_size"] = 0.1;
+  doc["grid"]["cells"] = {10, 10};
+  doc["regions"][0]["lower"] = {0.3, 0.0};
+  doc["regions"][0]["upper"] = {0.7, 0.6000000001};
+  doc["walls"] = {{{"name", "w"}, {"kind", "smooth"}, {"line", "x"}, {"position", 0.3}}};
+  absl::StatusOr<CaseSpec> spec = Parse(doc.dump());
+  ASSERT_TRUE(spec.ok()) << spec.status();
+  EXPECT_EQ(spec->regions[0].lower.x(), 3 * 0.1);
+  EXPECT_EQ(spec->regions[0].upper.x(), 7 * 0.1);
+  EXPECT_EQ(spec->regions[0].upper.y(), 6 * 0.1);
+  EXPECT_EQ(spec->walls[0].position, 3 * 0.1);
+}
+
+void ExpectSameSpec(const CaseSpec& a, const CaseSpec& b) {
+  EXPECT_EQ(a.name, b.name);
+  EXPECT_EQ(a.description, b.description);
+  EXPECT_EQ(a.expected_runtime_s, b.expected_runtime_s);
+  EXPECT_EQ(a.grid.origin, b.grid.origin);
+  EXPECT_EQ(a.grid.cell_size, b.grid.cell_size);
+  EXPECT_EQ(a.grid.nx, b.grid.nx);
+  EXPECT_EQ(a.grid.ny, b.grid.ny);
+  EXPECT_EQ(a.solver.shape, b.solver.shape);
+  EXPECT_EQ(a.solver.pic_fraction, b.solver.pic_fraction);
+  EXPECT_EQ(a.solver.gravity, b.solver.gravity);
+  EXPECT_EQ(a.solver.time_step, b.solver.time_step);
+  EXPECT_EQ(a.solver.cfl, b.solver.cfl);
+  EXPECT_EQ(a.solver.wave_modulus, b.solver.wave_modulus);
+  EXPECT_EQ(a.solver.end_time, b.solver.end_time);
+  EXPECT_EQ(a.solver.thickness, b.solver.thickness);
+  ASSERT_EQ(a.templates.size(), b.templates.size());
+  for (size_t i = 0; i < a.templates.size(); ++i) {
+    SCOPED_TRACE(absl::StrCat("template ", i));
+    EXPECT_EQ(a.templates[i].name, b.templates[i].name);
+    EXPECT_EQ(a.templates[i].file, b.templates[i].file);
+    EXPECT_EQ(a.templates[i].template_name, b.templates[i].template_name);
+    EXPECT_EQ(a.templates[i].parameter_set, b.templates[i].parameter_set);
+    EXPECT_EQ(a.templates[i].seed, b.templates[i].seed);
+  }
+  ASSERT_EQ(a.regions.size(), b.regions.size());
+  for (size_t i = 0; i < a.regions.size(); ++i) {
+    SCOPED_TRACE(absl::StrCat("region ", i));
+    const MaterialRegion& p = a.regions[i];
+    const MaterialRegion& q = b.regions[i];
+    EXPECT_EQ(p.name, q.name);
+    EXPECT_EQ(p.lower, q.lower);
+    EXPECT_EQ(p.upper, q.upper);
+    EXPECT_EQ(p.points_per_cell_side, q.points_per_cell_side);
+    EXPECT_EQ(p.rve_template, q.rve_template);
+    EXPECT_EQ(p.density, q.density);
+    EXPECT_EQ(p.initial_stress, q.initial_stress);
+    EXPECT_EQ(p.k0, q.k0);
+    EXPECT_EQ(p.surface_y, q.surface_y);
+    EXPECT_EQ(p.surcharge, q.surcharge);
+    EXPECT_EQ(p.minimum_stress, q.minimum_stress);
+  }
+  ASSERT_EQ(a.walls.size(), b.walls.size());
+  for (size_t i = 0; i < a.walls.size(); ++i) {
+    SCOPED_TRACE(absl::StrCat("wall ", i));
+    EXPECT_EQ(a.walls[i].name, b.walls[i].name);
+    EXPECT_EQ(a.walls[i].axis, b.walls[i].axis);
+    EXPECT_EQ(a.walls[i].position, b.walls[i].position);
+    EXPECT_EQ(a.walls[i].contact, b.walls[i].contact);
+    EXPECT_EQ(a.walls[i].friction, b.walls[i].friction);
+    EXPECT_EQ(a.walls[i].remove_time, b.walls[i].remove_time);
+  }
+  ASSERT_EQ(a.bodies.size(), b.bodies.size());
+  for (size_t i = 0; i < a.bodies.size(); ++i) {
+    SCOPED_TRACE(absl::StrCat("body ", i));
+    const RigidBody& p = a.bodies[i];
+    const RigidBody& q = b.bodies[i];
+    EXPECT_EQ(p.name, q.name);
+    EXPECT_EQ(p.shape, q.shape);
+    EXPECT_EQ(p.center, q.center);
+    EXPECT_EQ(p.half_size, q.half_size);
+    EXPECT_EQ(p.radius, q.radius);
+    EXPECT_EQ(p.contact, q.contact);
+    EXPECT_EQ(p.friction, q.friction);
+    ASSERT_EQ(p.velocity.size(), q.velocity.size());
+    for (size_t k = 0; k < p.velocity.size(); ++k) {
+      EXPECT_EQ(p.velocity[k].time, q.velocity[k].time);
+      EXPECT_EQ(p.velocity[k].velocity, q.velocity[k].velocity);
+    }
+  }
+  ASSERT_EQ(a.tractions.size(), b.tractions.size());
+  for (size_t i = 0; i < a.tractions.size(); ++i) {
+    SCOPED_TRACE(absl::StrCat("traction ", i));
+    const SurfaceTraction& p = a.tractions[i];
+    const SurfaceTraction& q = b.tractions[i];
+    EXPECT_EQ(p.name, q.name);
+    EXPECT_EQ(p.region, q.region);
+    EXPECT_EQ(p.normal_axis, q.normal_axis);
+    EXPECT_EQ(p.normal_sign, q.normal_sign);
+    EXPECT_EQ(p.traction, q.traction);
+    EXPECT_EQ(p.ramp_time, q.ramp_time);
+    EXPECT_EQ(p.from, q.from);
+    EXPECT_EQ(p.to, q.to);
+  }
+  EXPECT_EQ(a.rve.max_inertial_number, b.rve.max_inertial_number);
+  EXPECT_EQ(a.rve.min_steps, b.rve.min_steps);
+  EXPECT_EQ(a.output.frame_every, b.output.frame_every);
+  EXPECT_EQ(a.output.timeseries_every, b.output.timeseries_every);
+  EXPECT_EQ(a.output.checkpoint_every, b.output.checkpoint_every);
+  EXPECT_EQ(a.output.progress_every, b.output.progress_every);
+  EXPECT_EQ(a.output.plot, b.output.plot);
+  EXPECT_EQ(a.output.plot_body, b.output.plot_body);
+  EXPECT_EQ(a.output.plot_width, b.output.plot_width);
+}
+
+TEST_F(CaseTest, ToJsonRoundTrips) {
+  for (const char* text : {kFullCase, kMinimalCase}) {
+    absl::StatusOr<CaseSpec> spec = Parse(text);
+    ASSERT_TRUE(spec.ok()) << spec.status();
+    const std::string json = ToJson(*spec);
+    // Template paths are absolute: any base_dir reads the same spec.
+    absl::StatusOr<CaseSpec> again = ParseCase(json, "/nonexistent");
+    ASSERT_TRUE(again.ok()) << again.status() << "\n" << json;
+    ExpectSameSpec(*spec, *again);
+    EXPECT_EQ(ToJson(*again), json);  // canonical: a fixed point
+  }
+}
+
+TEST_F(CaseTest, ToJsonKeepsAwkwardDoubles) {
+  Json doc = Json::parse(kFullCase);
+  doc["solver"]["pic_fraction"] = 0.1 + 0.2;  // 0.30000000000000004
+  doc["solver"]["time_step"] = 5e-324;        // smallest subnormal
+  doc["bodies"][0]["velocity"][1] = {1.0 / 3.0, -0.0, -1e-17};
+  absl::StatusOr<CaseSpec> spec = Parse(doc.dump());
+  ASSERT_TRUE(spec.ok()) << spec.status();
+  absl::StatusOr<CaseSpec> again = ParseCase(ToJson(*spec), "");
+  ASSERT_TRUE(again.ok()) << again.status();
+  ExpectSameSpec(*spec, *again);
+}
+
+struct BadEdit {
+  std::string pointer;  // where to edit the full case
+  Json value;           // kRemove: remove the key
+  std::string message;  // the expected start of the error message
+};
+
+TEST_F(CaseTest, BadFieldsNameTheirPointer) {
+  const std::vector<BadEdit> edits = {
+      // Unknown keys (typos), with a suggestion.
+      {"/solver/pic_fracton", 0.1,
+       "/solver/pic_fracton: unknown key (did you mean \"pic_fraction\"?"},
+      {"/colour", "red", "/colour: unknown key (keys here: name, description"},
+      // Wrong types.
+      {"/grid/cell_size", "0.5", "/grid/cell_size: must be a number, got string \"0.5\""},
+      {"/grid/origin", {1, 2, 3}, "/grid/origin: must be an array of 2 numbers [x, y]"},
+      {"/grid/cells/1", 4.5, "/grid/cells/1: must be an integer in 1..100000, got 4.5"},
+      {"/regions", Json::object(), "/regions: must be an array"},
+      {"/walls/0", 3, "/walls/0: must be an object, got number 3"},
+      {"/name", 3, "/name: must be a string, got number 3"},
+      // Missing required keys.
+      {"/solver/end_time", kRemove, "/solver/end_time: required key is missing"},
+      {"/grid", kRemove, "/grid: required key is missing"},
+      {"/templates", kRemove, "/templates: required key is missing"},
+      {"/templates", Json::array(), "/templates: must not be empty"},
+      {"/regions/0/template", kRemove, "/regions/0/template: required key is missing"},
+      {"/walls/2/friction", kRemove, "/walls/2/friction: required key is missing"},
+      // Out of range.
+      {"/solver/pic_fraction", 1.5, "/solver/pic_fraction: must be in [0, 1], got 1.5"},
+      {"/solver/cfl", 0, "/solver/cfl: must be in (0, 1], got 0"},
+      {"/solver/end_time", 0, "/solver/end_time: must be > 0, got 0"},
+      {"/solver/time_step", -1e-3, "/solver/time_step: must be >= 0, got -0.001"},
+      {"/solver/thickness", 0, "/solver/thickness: must be > 0, got 0"},
+      {"/grid/cell_size", -0.5, "/grid/cell_size: must be > 0, got -0.5"},
+      {"/regions/0/points_per_cell_side", 0,
+       "/regions/0/points_per_cell_side: must be an integer in 1..8, got 0"},
+      {"/regions/0/initial_stress/k0", 0, "/regions/0/initial_stress/k0: must be > 0, got 0"},
+      {"/walls/2/friction", 0, "/walls/2/friction: must be > 0, got 0"},
+      {"/bodies/0/half_size/1", -1, "/bodies/0/half_size/1: must be > 0, got -1"},
+      {"/output/frame_every", 0, "/output/frame_every: must be an integer >= 1, got 0"},
+      {"/output/checkpoint_every", -1, "/output/checkpoint_every: must be an integer >= 0, got -1"},
+      {"/templates/0/seed", -1, "/templates/0/seed: must be an integer in 0..18446744073709551615"},
+      // Enumerations.
+      {"/walls/2/kind", "sticky",
+       "/walls/2/kind: unknown wall kind \"sticky\" (fixed, rough, roller, smooth, symmetry, "
+       "frictional)"},
+      {"/solver/shape", "cubic", "/solver/shape: unknown shape function \"cubic\" (linear, gimp)"},
+      {"/tractions/0/surface", "x", "/tractions/0/surface: unknown surface \"x\" (+x, -x, +y, -y)"},
+      // Dangling references.
+      {"/regions/1/template", "dense2",
+       "/regions/1/template: no template named \"dense2\" (templates: dense, stored)"},
+      {"/tractions/0/region", "rock", "/tractions/0/region: no region named \"rock\""},
+      {"/output/plot_body", "pile", "/output/plot_body: no body named \"pile\" (bodies: footing"},
+      {"/output/plot_body", kRemove, "/output/plot_body: required key is missing"},
+      // Parameter sets and template files.
+      {"/templates/0/parameter_set", "SET-foo",
+       "/templates/0/parameter_set: unknown parameter set \"SET-foo\" (known: SET-dense, "
+       "SPFEM-biaxial, "},
+      {"/templates/0/file", "packings/x.h5", "/templates/0: give exactly one of \"file\""},
+      {"/templates/1/file", "packings/missing.h5", "/templates/1/file: no such file \"/"},
+      {"/templates/1/seed", 3, "/templates/1/seed: only for templates prepared"},
+      // Geometry: off the grid, outside it, empty, overlapping.
+      {"/regions/0/lower/0", 0.25,
+       "/regions/0/lower/0: x = 0.25 m is not on a grid line (origin 0 m, cell size 0.5 m)"},
+      {"/regions/1/upper/1", 2.5, "/regions/1/upper/1: y = 2.5 m is outside the grid, y in [0, 2]"},
+      {"/regions/1/upper/1", 1, "/regions/1/upper/1: upper y = 1 m must be above lower y = 1 m"},
+      {"/regions/1/lower/1", 0.5,
+       "/regions/1: region \"top\" overlaps region \"soil\" (/regions/0)"},
+      {"/walls/0/position", 0.3, "/walls/0/position: y = 0.3 m is not on a grid line"},
+      {"/walls/1/position", -0.5, "/walls/1/position: x = -0.5 m is outside the grid"},
+      // Duplicate names.
+      {"/walls/1/name", "base", "/walls/1/name: duplicate wall name \"base\" (also /walls/0)"},
+      {"/templates/1/name", "dense", "/templates/1/name: duplicate template name \"dense\""},
+      {"/regions/1/name", "soil", "/regions/1/name: duplicate region name \"soil\""},
+      {"/bodies/1/name", "footing", "/bodies/1/name: duplicate body name \"footing\""},
+      {"/tractions/2/name", "load", "/tractions/2/name: duplicate traction name \"load\""},
+      {"/regions/0/name", "my soil", "/regions/0/name: names use letters, digits"},
+      // Velocity histories.
+      {"/bodies/0/velocity/1/0", 0,
+       "/bodies/0/velocity/1/0: times must increase strictly, got 0 s after 0 s"},
+      {"/bodies/0/velocity/1", {0.2, 0}, "/bodies/0/velocity/1: must be an array of 3 numbers"},
+      // Keys that do not apply.
+      {"/regions/1/initial_stress/k0", 0.5,
+       "/regions/1/initial_stress/k0: only for kind \"geostatic_k0\""},
+      {"/walls/0/friction", 0.4, "/walls/0/friction: only for kind \"frictional\""},
+      {"/solver/gravity",
+       {0, 0},
+       "/regions/1/initial_stress/kind: a geostatic start without gravity needs a surcharge"},
+      {"/bodies/0/radius", 0.4, "/bodies/0/radius: only for shape \"circle\""},
+      {"/output/plot", "none", "/output/plot_body: only for plot \"load-settlement\""},
+      // Tractions: one of pressure / traction, on a free part of a face.
+      {"/tractions/0/traction", {1, 0}, "/tractions/0: give exactly one of \"pressure\""},
+      {"/tractions/0/surface", "+y",
+       "/tractions/0/surface: the +y face of region \"soil\" touches region \"top\" (/regions/1) "
+       "for x in [0, 1] m"},
+      {"/tractions/1/from", 2, "/tractions/1/to: must be > from = 2 m, got 0.5"},
+  };
+  for (const BadEdit& edit : edits) {
+    SCOPED_TRACE(edit.pointer);
+    absl::StatusOr<CaseSpec> spec = ParseEdited(edit.pointer, edit.value);
+    ASSERT_FALSE(spec.ok()) << "accepted: " << edit.pointer;
+    EXPECT_EQ(spec.status().code(), absl::StatusCode::kInvalidArgument) << spec.status();
+    EXPECT_TRUE(MessageStartsWith(spec.status(), edit.message));
+  }
+  EXPECT_GE(edits.size(), 15u);
+}
+
+TEST_F(CaseTest, TractionWindowMustMeetTheFace) {
+  Json doc = Json::parse(kFullCase);
+  doc["tractions"][1]["from"] = 1.5;
+  doc["tractions"][1]["to"] = 2.0;
+  absl::StatusOr<CaseSpec> spec = Parse(doc.dump());
+  ASSERT_FALSE(spec.ok());
+  EXPECT_EQ(spec.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_TRUE(MessageStartsWith(spec.status(),
+                                "/tractions/1/from: [from, to] = [1.5, 2] m misses the +y face of "
+                                "region \"top\", x in [0, 1] m"));
+}
+
+// Errors found before the document is walked.
+TEST_F(CaseTest, BadDocuments) {
+  struct Bad {
+    std::string text;
+    std::string message;
+  };
+  const std::vector<Bad> bad = {
+      {"{\n  \"grid\": tru\n}",
+       "line 2, column 13: syntax error while parsing value - invalid literal"},
+      {"{\"grid\": {}, }", "line 1, column 14: syntax error"},
+      {"", "line 1, column 1: syntax error"},
+      {"{\n\n  \"solver\": {\"end_time\": 1e400}}", "line 3, column 26: number overflow"},
+      {"[1, 2]", "(document): must be an object, got array [1,2]"},
+      {R"({"grid": {"cell_size": 0.5, "cells": [2, 2], "cell_size": 1}})",
+       "/grid/cell_size: duplicate key"},
+      {R"({"regions": [{"name": "a"}, {"name": "b", "name": "c"}]})",
+       "/regions/1/name: duplicate key"},
+  };
+  for (const Bad& b : bad) {
+    SCOPED_TRACE(b.text);
+    absl::StatusOr<CaseSpec> spec = Parse(b.text);
+    ASSERT_FALSE(spec.ok());
+    EXPECT_EQ(spec.status().code(), absl::StatusCode::kInvalidArgument) << spec.status();
+    EXPECT_TRUE(MessageStartsWith(spec.status(), b.message));
+  }
+}
+
+TEST_F(CaseTest, LoadCaseReadsTheFileRelativeToItsDirectory) {
+  Json doc = Json::parse(kFullCase);
+  doc.erase("name");
+  const fs::path path = dir_ / "strip-footing.json";
+  std::ofstream(path) << doc.dump(2);
+  absl::StatusOr<CaseSpec> spec = LoadCase(path.string());
+  ASSERT_TRUE(spec.ok()) << spec.status();
+  EXPECT_EQ(spec->name, "strip-footing");  // the file's stem
+  EXPECT_EQ(spec->templates[1].file, (fs::absolute(dir_) / "packings" / "x.h5").string());
+
+  doc["solver"]["cfl"] = 2;
+  std::ofstream(path) << doc.dump(2);
+  spec = LoadCase(path.string());
+  ASSERT_FALSE(spec.ok());
+  EXPECT_EQ(spec.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_TRUE(MessageStartsWith(spec.status(), absl::StrCat(path.string(), ": /solver/cfl: ")));
+}
+
+// Every case shipped in cases/ parses and round-trips.
+TEST(ShippedCases, ParseAndRoundTrip) {
+  const fs::path dir = fs::path(RVEHUB_SOURCE_DIR) / "cases";
+  int count = 0;
+  for (const fs::directory_entry& entry : fs::directory_iterator(dir)) {
+    if (entry.path().extension() != ".json") continue;
+    SCOPED_TRACE(entry.path().string());
+    ++count;
+    absl::StatusOr<CaseSpec> spec = LoadCase(entry.path().string());
+    ASSERT_TRUE(spec.ok()) << spec.status();
+    absl::StatusOr<CaseSpec> again = ParseCase(ToJson(*spec), dir.string());
+    ASSERT_TRUE(again.ok()) << again.status();
+    ExpectSameSpec(*spec, *again);
+  }
+  EXPECT_GT(count, 0);
+}
+
+TEST_F(CaseTest, LoadCaseOnAMissingFileIsNotFound) {
+  const std::string path = (dir_ / "no-such-case.json").string();
+  absl::StatusOr<CaseSpec> spec = LoadCase(path);
+  ASSERT_FALSE(spec.ok());
+  EXPECT_EQ(spec.status().code(), absl::StatusCode::kNotFound);
+  EXPECT_TRUE(MessageHas(spec.status(), path));
+}
+
+}  // namespace
+}  // namespace rvehub::mpm
