@@ -1,0 +1,57 @@
+// Plain-text outputs of a simulation: timeseries.csv (one row per recorded
+// step, one column per quantity) and the standard PNG plot drawn from it.
+#ifndef RVEHUB_MPM_CLIENT_OUTPUT_H_
+#define RVEHUB_MPM_CLIENT_OUTPUT_H_
+
+#include <cstdint>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "mpm_client/model.h"
+
+namespace rvehub::mpm {
+
+// Appends rows to a CSV file whose first two columns are time and step.
+// Every row is flushed, so the file is complete up to the last step written
+// even if the run is killed.
+class TimeseriesWriter {
+ public:
+  // Creates (truncates) `path` and writes the header.
+  static absl::StatusOr<std::unique_ptr<TimeseriesWriter>> Create(
+      const std::string& path, const std::vector<std::string>& columns);
+  // Keeps the rows of an existing file up to and including `step` (a resumed
+  // run writes the later ones again); the header must equal `columns`.
+  static absl::StatusOr<std::unique_ptr<TimeseriesWriter>> Resume(
+      const std::string& path, const std::vector<std::string>& columns, std::int64_t step);
+  ~TimeseriesWriter();
+
+  // One value per column (17 significant digits: doubles round-trip).
+  absl::Status Append(std::span<const double> values);
+
+ private:
+  TimeseriesWriter(std::FILE* f, std::string path, std::size_t columns)
+      : file_(f), path_(std::move(path)), columns_(columns) {}
+  std::FILE* file_;
+  std::string path_;
+  std::size_t columns_;
+};
+
+// The columns of a CSV file written by TimeseriesWriter, by header name.
+absl::StatusOr<std::map<std::string, std::vector<double>>> ReadCsvColumns(const std::string& path);
+
+// The case's standard plot (OutputSpec::plot) from its timeseries.csv:
+// "stress-strain": mean σyy and εv against mean εyy (biaxial, element);
+// "load-settlement": q = fy/(plot_width·t) of plot_body against its
+// settlement. Nothing is written for "none".
+absl::Status WriteCasePlot(const CaseSpec& spec, const std::string& csv_path,
+                           const std::string& png_path);
+
+}  // namespace rvehub::mpm
+
+#endif  // RVEHUB_MPM_CLIENT_OUTPUT_H_

@@ -1,0 +1,480 @@
+#include "mpm_client/simulation.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <system_error>
+#include <thread>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/time/clock.h"
+#include "absl/time/time.h"
+#include "mpm_client/case.h"
+#include "mpm_client/output.h"
+#include "mpm_client/rve_backend.h"
+#include "mpm_client/templates.h"
+#include "rve_server/service/registry.h"
+#include "store/results.h"
+
+namespace rvehub::mpm {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+
+// The StressModel the solver sees: one batched COMMIT per server per step.
+class RveStressModel : public StressModel {
+ public:
+  RveStressModel(RvePool* pool, double* seconds) : pool_(pool), seconds_(seconds) {}
+  absl::Status Update(std::int64_t step, std::span<const Eigen::Matrix3d> delta_f,
+                      std::span<PointResponse> out) override {
+    const Clock::time_point t0 = Clock::now();
+    absl::StatusOr<std::vector<dem::RveState>> states = pool_->Apply(step, delta_f);
+    *seconds_ += Seconds(Clock::now() - t0);
+    if (!states.ok()) return states.status();
+    for (std::size_t p = 0; p < out.size(); ++p) out[p] = ToResponse((*states)[p]);
+    return absl::OkStatus();
+  }
+
+  static PointResponse ToResponse(const dem::RveState& s) {
+    PointResponse r;
+    r.stress = s.stress;
+    r.void_ratio = s.void_ratio;
+    r.fabric_anisotropy = s.fabric_anisotropy;
+    r.mean_rotation = s.mean_rotation;
+    r.coordination = s.coordination;
+    r.permeability = s.permeability;
+    return r;
+  }
+
+ private:
+  RvePool* pool_;
+  double* seconds_;
+};
+
+// A run id unique among the runs a shared server hosts: case name, time and
+// process id. It names the RVEs on the servers only; results never depend on it.
+std::string MakeRunId(const std::string& case_name) {
+  std::string name;
+  for (char c : case_name) {
+    name +=
+        (std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '-' || c == '_') ? c : '_';
+  }
+  if (name.size() > 64) name.resize(64);
+  return absl::StrCat(name.empty() ? "run" : name, "-",
+                      absl::FormatTime("%Y%m%dT%H%M%S", absl::Now(), absl::UTCTimeZone()), "-",
+                      getpid());
+}
+
+// In-plane small-strain measure of a total F, compression +:
+// ε = I − sym(F) (so εyy = 1 − F_yy, the element tests' axial strain).
+Eigen::Matrix2d Strain(const Eigen::Matrix2d& f) {
+  return Eigen::Matrix2d::Identity() - 0.5 * (f + f.transpose());
+}
+
+}  // namespace
+
+struct Simulation::Outputs {
+  std::unique_ptr<store::ResultsWriter> results;
+  std::unique_ptr<TimeseriesWriter> timeseries;
+  std::int64_t last_frame_step = -1;
+  std::int64_t last_row_step = -1;
+};
+
+Simulation::~Simulation() {
+  if (pool_ != nullptr) {
+    // Free the servers' memory; a failure here only leaks RVEs on a server
+    // that is going away anyway.
+    (void)pool_->DropAll();
+  }
+}
+
+void Simulation::Log(const std::string& line) const {
+  if (options_.log) {
+    options_.log(line);
+  } else {
+    std::fprintf(stderr, "%s\n", line.c_str());
+  }
+}
+
+absl::Status Simulation::Connect() {
+  std::vector<std::unique_ptr<RveEndpoint>> endpoints;
+  if (options_.servers.empty()) {
+    service::RegistryOptions ro;
+    ro.threads = options_.threads > 0
+                     ? options_.threads
+                     : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+    endpoints.push_back(MakeEmbeddedEndpoint(std::make_shared<service::Registry>(ro)));
+  } else {
+    for (const std::string& address : options_.servers) {
+      absl::StatusOr<std::unique_ptr<RveEndpoint>> e = MakeRemoteEndpoint(address, options_.client);
+      if (!e.ok()) return e.status();
+      endpoints.push_back(*std::move(e));
+    }
+  }
+  PoolOptions po;
+  po.apply_deadline = absl::Seconds(options_.apply_timeout_s);
+  po.apply_options.max_inertial_number = spec_.rve.max_inertial_number;
+  pool_ = std::make_unique<RvePool>(std::move(endpoints), run_id_, po);
+  return absl::OkStatus();
+}
+
+std::vector<std::string> Simulation::Columns() const {
+  std::vector<std::string> c = {"time", "step"};
+  for (const Wall& w : spec_.walls) {
+    c.push_back(w.name + "_fx");
+    c.push_back(w.name + "_fy");
+  }
+  for (const RigidBody& b : spec_.bodies) {
+    c.push_back(b.name + "_fx");
+    c.push_back(b.name + "_fy");
+    c.push_back(b.name + "_dx");
+    c.push_back(b.name + "_dy");
+  }
+  for (const char* name :
+       {"mean_sxx", "mean_syy", "mean_sxy", "mean_exx", "mean_eyy", "mean_exy", "mean_p", "mean_q",
+        "mean_void_ratio", "kinetic_energy", "wall_per_step_s"}) {
+    c.push_back(name);
+  }
+  return c;
+}
+
+absl::Status Simulation::OpenOutputs(bool resume) {
+  std::error_code ec;
+  std::filesystem::create_directories(options_.out_dir, ec);
+  if (ec) {
+    return absl::UnavailableError(
+        absl::StrCat("cannot create the output directory ", options_.out_dir, ": ", ec.message()));
+  }
+  out_ = std::make_unique<Outputs>();
+  const std::string dir = options_.out_dir;
+  const std::string h5 = dir + "/results.h5", xdmf = dir + "/results.xdmf";
+  const std::string csv = dir + "/timeseries.csv";
+  absl::StatusOr<std::unique_ptr<store::ResultsWriter>> results =
+      resume && std::filesystem::exists(h5)
+          ? store::ResultsWriter::Open(h5, xdmf, "mpm_client", solver_->step())
+          : store::ResultsWriter::Create(h5, xdmf, "mpm_client");
+  if (!results.ok()) return results.status();
+  out_->results = *std::move(results);
+  absl::StatusOr<std::unique_ptr<TimeseriesWriter>> ts =
+      resume && std::filesystem::exists(csv)
+          ? TimeseriesWriter::Resume(csv, Columns(), solver_->step())
+          : TimeseriesWriter::Create(csv, Columns());
+  if (!ts.ok()) return ts.status();
+  out_->timeseries = *std::move(ts);
+  if (resume) {
+    out_->last_frame_step = out_->last_row_step = solver_->step();
+    return absl::OkStatus();
+  }
+  if (absl::Status s = WriteFrame(); !s.ok()) return s;
+  return WriteRow(0.0);
+}
+
+absl::Status Simulation::WriteFrame() {
+  const MaterialPoints& mp = solver_->points();
+  const std::size_t n = mp.size();
+  store::ResultFrame f;
+  f.step = solver_->step();
+  f.time = solver_->time();
+  f.position.reserve(2 * n);
+  store::ResultField velocity{"velocity", 2, {}}, stress{"stress", 9, {}}, p{"p", 1, {}},
+      q{"q", 1, {}}, eq{"eps_q", 1, {}}, ev{"eps_v", 1, {}}, e{"void_ratio", 1, {}},
+      fa{"fabric_anisotropy", 1, {}}, rot{"rotation", 1, {}}, z{"coordination", 1, {}},
+      id{"rve_id", 1, {}};
+  for (std::size_t i = 0; i < n; ++i) {
+    f.position.push_back(mp.position[i].x());
+    f.position.push_back(mp.position[i].y());
+    velocity.values.push_back(mp.velocity[i].x());
+    velocity.values.push_back(mp.velocity[i].y());
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) stress.values.push_back(mp.stress[i](r, c));
+    }
+    const Eigen::Matrix3d& s = mp.stress[i];
+    p.values.push_back(-0.5 * (s(0, 0) + s(1, 1)));
+    const double d = s(0, 0) - s(1, 1);
+    q.values.push_back(std::sqrt(0.25 * d * d + s(0, 1) * s(0, 1)));
+    // εv = tr ε, εq = sqrt(2 e:e) with e = ε − (εv/2) I (2-D, shared/reference).
+    const Eigen::Matrix2d strain = Strain(mp.F[i]);
+    const double vol = strain.trace();
+    const Eigen::Matrix2d dev = strain - 0.5 * vol * Eigen::Matrix2d::Identity();
+    ev.values.push_back(vol);
+    eq.values.push_back(std::sqrt(2.0 * dev.cwiseProduct(dev).sum()));
+    e.values.push_back(mp.response[i].void_ratio);
+    fa.values.push_back(mp.response[i].fabric_anisotropy);
+    rot.values.push_back(mp.response[i].mean_rotation);
+    z.values.push_back(mp.response[i].coordination);
+    id.values.push_back(static_cast<double>(i));
+  }
+  f.fields = {std::move(velocity), std::move(stress), std::move(p), std::move(q),
+              std::move(eq),       std::move(ev),     std::move(e), std::move(fa),
+              std::move(rot),      std::move(z),      std::move(id)};
+  if (absl::Status s = out_->results->Append(f); !s.ok()) return s;
+  out_->last_frame_step = solver_->step();
+  return absl::OkStatus();
+}
+
+absl::Status Simulation::WriteRow(double wall_per_step) {
+  const MaterialPoints& mp = solver_->points();
+  std::vector<double> row = {solver_->time(), static_cast<double>(solver_->step())};
+  const std::vector<Eigen::Vector2d> reactions = solver_->Reactions();
+  for (std::size_t i = 0; i < spec_.walls.size(); ++i) {
+    row.push_back(reactions[i].x());
+    row.push_back(reactions[i].y());
+  }
+  for (std::size_t b = 0; b < spec_.bodies.size(); ++b) {
+    const Eigen::Vector2d& r = reactions[spec_.walls.size() + b];
+    const Eigen::Vector2d d = solver_->BodyDisplacement(static_cast<int>(b));
+    row.insert(row.end(), {r.x(), r.y(), d.x(), d.y()});
+  }
+  // Volume averages (current volumes), compression +.
+  double volume = 0, e = 0;
+  Eigen::Matrix3d sigma = Eigen::Matrix3d::Zero();
+  Eigen::Matrix2d strain = Eigen::Matrix2d::Zero();
+  for (std::size_t i = 0; i < mp.size(); ++i) {
+    const double v = mp.volume[i];
+    volume += v;
+    sigma += v * mp.stress[i];
+    strain += v * Strain(mp.F[i]);
+    e += v * mp.response[i].void_ratio;
+  }
+  if (volume > 0) {
+    sigma /= volume;
+    strain /= volume;
+    e /= volume;
+  }
+  const double d = sigma(0, 0) - sigma(1, 1);
+  row.insert(row.end(), {-sigma(0, 0), -sigma(1, 1), -sigma(0, 1), strain(0, 0), strain(1, 1),
+                         strain(0, 1), -0.5 * (sigma(0, 0) + sigma(1, 1)),
+                         std::sqrt(0.25 * d * d + sigma(0, 1) * sigma(0, 1)), e,
+                         solver_->KineticEnergy(), wall_per_step});
+  if (absl::Status s = out_->timeseries->Append(row); !s.ok()) return s;
+  out_->last_row_step = solver_->step();
+  return absl::OkStatus();
+}
+
+absl::StatusOr<store::SimCheckpoint> Simulation::Snapshot() {
+  store::SimCheckpoint c;
+  c.case_json = case_json_;
+  c.run_id = run_id_;
+  c.step = solver_->step();
+  c.time = solver_->time();
+  solver_->ExportState(c.doubles, c.ints);
+  absl::StatusOr<std::vector<store::RveRecord>> rves = pool_->ExportAll();
+  if (!rves.ok()) return rves.status();
+  c.rves = *std::move(rves);
+  c.templates = templates_;
+  return c;
+}
+
+absl::Status Simulation::WriteCheckpoint() {
+  absl::StatusOr<store::SimCheckpoint> c = Snapshot();
+  if (!c.ok()) return c.status();
+  store::FileInfo info;
+  info.created_by = "mpm_client";
+  return store::WriteSimCheckpoint(options_.out_dir + "/checkpoint.h5", *c, info);
+}
+
+absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& spec,
+                                                              const RunOptions& options) {
+  std::unique_ptr<Simulation> sim(new Simulation());
+  sim->spec_ = spec;
+  sim->case_json_ = ToJson(spec);
+  sim->options_ = options;
+  sim->run_id_ = MakeRunId(spec.name);
+  const std::string cache = options.template_cache_dir.empty() ? options.out_dir + "/templates"
+                                                               : options.template_cache_dir;
+  absl::StatusOr<std::vector<store::TemplateRecord>> templates =
+      ResolveTemplates(spec.templates, cache, [&](const std::string& l) { sim->Log(l); });
+  if (!templates.ok()) return templates.status();
+  sim->templates_ = *std::move(templates);
+  if (absl::Status s = sim->Connect(); !s.ok()) return s;
+  if (absl::Status s = sim->pool_->UploadTemplates(sim->templates_); !s.ok()) return s;
+
+  // Material points; the density of a region defaults to its template's.
+  std::map<std::string, const store::TemplateRecord*> by_name;
+  for (const store::TemplateRecord& t : sim->templates_) by_name[t.name] = &t;
+  std::vector<double> density;
+  for (const MaterialRegion& r : spec.regions) {
+    density.push_back(r.density > 0 ? r.density : BulkDensity(by_name.at(r.rve_template)->packing));
+  }
+  absl::StatusOr<MaterialPoints> points = FillRegions(spec, density);
+  if (!points.ok()) return points.status();
+  const std::size_t n = points->size();
+
+  // RVEs: one per point, consolidated to the geostatic stress of its depth
+  // when the region asks for it (σv = ρ·|g|·depth + surcharge).
+  const double g = spec.solver.gravity.norm();
+  std::vector<std::string> template_of(n);
+  std::vector<service::InitialStress> initial(n);
+  std::vector<double> cost(n);
+  for (std::size_t p = 0; p < n; ++p) {
+    const MaterialRegion& r = spec.regions[points->region[p]];
+    template_of[p] = r.rve_template;
+    cost[p] = static_cast<double>(by_name.at(r.rve_template)->packing.radius.size());
+    const double depth = std::max(0.0, r.surface_y - points->position[p].y());
+    const double sv =
+        std::max(r.minimum_stress, density[points->region[p]] * g * depth + r.surcharge);
+    service::InitialStress& s = initial[p];
+    switch (r.initial_stress) {
+      case InitialStressKind::kTemplate:
+        break;
+      case InitialStressKind::kGeostaticIsotropic:
+        s.kind = service::InitialStress::Kind::kIsotropic;
+        s.pressure = sv;
+        break;
+      case InitialStressKind::kGeostaticK0:
+        s.kind = service::InitialStress::Kind::kK0;
+        s.vertical_compression = sv;
+        s.k0 = r.k0;
+        break;
+    }
+  }
+  sim->pool_->Assign(cost);
+  std::optional<dem::Controls> controls;
+  if (spec.rve.min_steps > 0) {
+    // One set of controls for all templates: those of the first, with the
+    // case's DEM steps per increment (templates of a case share controls).
+    controls = sim->templates_.front().packing.controls;
+    controls->min_steps = spec.rve.min_steps;
+  }
+  sim->Log(absl::StrFormat("creating %d RVEs on %d server(s)...", n, sim->pool_->num_endpoints()));
+  absl::StatusOr<std::vector<dem::RveState>> states =
+      sim->pool_->Create(template_of, initial, controls);
+  if (!states.ok()) return states.status();
+  for (std::size_t p = 0; p < n; ++p) {
+    points->stress[p] = (*states)[p].stress;
+    points->response[p] = RveStressModel::ToResponse((*states)[p]);
+  }
+
+  // Time step: fixed, or Δt = cfl·h/c with c = sqrt(M/ρ) from the stiffest
+  // RVE's contact tangent (an upper bound of its P-wave modulus).
+  double dt = spec.solver.time_step;
+  if (dt <= 0) {
+    double modulus = spec.solver.wave_modulus;
+    if (modulus <= 0) {
+      absl::StatusOr<std::vector<dem::RveState>> tangent = sim->pool_->Get(/*want_tangent=*/true);
+      if (!tangent.ok()) return tangent.status();
+      for (const dem::RveState& s : *tangent) {
+        modulus = std::max({modulus, s.tangent(0, 0), s.tangent(4, 4)});
+      }
+    }
+    double rho = *std::min_element(density.begin(), density.end());
+    if (!(modulus > 0) || !(rho > 0)) {
+      return absl::FailedPreconditionError(
+          "cannot derive the time step: the RVEs have no stiffness (set solver.time_step)");
+    }
+    dt = spec.solver.cfl * spec.grid.cell_size / std::sqrt(modulus / rho);
+    sim->Log(absl::StrFormat("time step %.4g s (CFL %.2f, M = %.4g MPa, rho = %.1f kg/m3)", dt,
+                             spec.solver.cfl, modulus * 1e-6, rho));
+  }
+  sim->model_ = std::make_unique<RveStressModel>(sim->pool_.get(), &sim->rve_seconds_);
+  absl::StatusOr<std::unique_ptr<Solver>> solver =
+      Solver::Create(spec, *std::move(points), sim->model_.get(), dt);
+  if (!solver.ok()) return solver.status();
+  sim->solver_ = *std::move(solver);
+  if (absl::Status s = sim->OpenOutputs(/*resume=*/false); !s.ok()) return s;
+  return sim;
+}
+
+absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string& checkpoint_path,
+                                                               const RunOptions& options) {
+  absl::StatusOr<store::SimCheckpoint> c = store::ReadSimCheckpoint(checkpoint_path);
+  if (!c.ok()) return c.status();
+  absl::StatusOr<CaseSpec> spec = ParseCase(c->case_json, ".");
+  if (!spec.ok()) {
+    return absl::DataLossError(
+        absl::StrCat(checkpoint_path, ": its case does not parse: ", spec.status().message()));
+  }
+  std::unique_ptr<Simulation> sim(new Simulation());
+  sim->spec_ = *std::move(spec);
+  sim->case_json_ = c->case_json;
+  sim->options_ = options;
+  sim->run_id_ = MakeRunId(sim->spec_.name);
+  sim->templates_ = std::move(c->templates);
+  if (absl::Status s = sim->Connect(); !s.ok()) return s;
+  if (absl::Status s = sim->pool_->UploadTemplates(sim->templates_); !s.ok()) return s;
+  std::vector<double> cost;
+  for (store::RveRecord& r : c->rves) {
+    r.run_id = sim->run_id_;
+    cost.push_back(static_cast<double>(r.packing.radius.size()));
+  }
+  sim->pool_->Assign(cost);
+  if (absl::Status s = sim->pool_->ImportAll(std::move(c->rves)); !s.ok()) return s;
+  sim->model_ = std::make_unique<RveStressModel>(sim->pool_.get(), &sim->rve_seconds_);
+  absl::StatusOr<std::unique_ptr<Solver>> solver =
+      Solver::FromState(sim->spec_, c->doubles, c->ints, sim->model_.get());
+  if (!solver.ok()) return solver.status();
+  sim->solver_ = *std::move(solver);
+  sim->Log(absl::StrFormat("resumed %s at step %d, t = %.6g s", checkpoint_path,
+                           sim->solver_->step(), sim->solver_->time()));
+  if (absl::Status s = sim->OpenOutputs(/*resume=*/true); !s.ok()) return s;
+  return sim;
+}
+
+absl::StatusOr<RunSummary> Simulation::Run() {
+  RunSummary sum;
+  const OutputSpec& o = spec_.output;
+  const double end = spec_.solver.end_time;
+  const std::int64_t total_steps = static_cast<std::int64_t>(std::ceil(end / solver_->dt() - 1e-9));
+  const Clock::time_point start = Clock::now();
+  const double rve_start = rve_seconds_;
+  const std::int64_t evals_start = pool_->evaluations();
+  Clock::time_point row_clock = start;
+  std::int64_t row_step = solver_->step();
+  auto output_time = Clock::duration::zero();
+  while (solver_->step() < total_steps) {
+    if (options_.stop_after_steps > 0 && sum.steps >= options_.stop_after_steps) break;
+    if (absl::Status s = solver_->Step(); !s.ok()) {
+      return absl::Status(s.code(), absl::StrCat("step ", solver_->step() + 1, ": ", s.message()));
+    }
+    ++sum.steps;
+    const std::int64_t step = solver_->step();
+    const bool last = step >= total_steps;
+    const Clock::time_point t_out = Clock::now();
+    if (step % o.timeseries_every == 0 || last) {
+      const double per_step = Seconds(t_out - row_clock) / static_cast<double>(step - row_step);
+      if (absl::Status s = WriteRow(per_step); !s.ok()) return s;
+      row_clock = t_out;
+      row_step = step;
+    }
+    if (step % o.frame_every == 0 || last) {
+      if (absl::Status s = WriteFrame(); !s.ok()) return s;
+    }
+    const bool stopping = options_.stop_after_steps > 0 && sum.steps >= options_.stop_after_steps;
+    if (o.checkpoint_every > 0 && (step % o.checkpoint_every == 0 || last || stopping)) {
+      if (absl::Status s = WriteCheckpoint(); !s.ok()) return s;
+    }
+    output_time += Clock::now() - t_out;
+    if (options_.progress && (step % o.progress_every == 0 || last)) {
+      const double wall = Seconds(Clock::now() - start);
+      const double rate = wall > 0 ? (pool_->evaluations() - evals_start) / wall : 0.0;
+      const double eta =
+          wall / static_cast<double>(sum.steps) * static_cast<double>(total_steps - step);
+      Log(absl::StrFormat("step %d/%d  t = %.4g s  wall %.1f s  ETA %.0f s  %.0f RVE evals/s", step,
+                          total_steps, solver_->time(), wall, eta, rate));
+    }
+  }
+  sum.wall_s = Seconds(Clock::now() - start);
+  sum.rve_s = rve_seconds_ - rve_start;
+  sum.output_s = Seconds(output_time);
+  sum.rve_evaluations = pool_->evaluations() - evals_start;
+  sum.final_step = solver_->step();
+  sum.final_time = solver_->time();
+  sum.finished = solver_->step() >= total_steps;
+  if (absl::Status s = out_->results->Close(); !s.ok()) return s;
+  if (sum.finished) {
+    const std::string png = options_.out_dir + "/plot.png";
+    if (absl::Status s = WriteCasePlot(spec_, options_.out_dir + "/timeseries.csv", png); !s.ok()) {
+      return s;
+    }
+  }
+  return sum;
+}
+
+}  // namespace rvehub::mpm

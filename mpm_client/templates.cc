@@ -1,0 +1,104 @@
+#include "mpm_client/templates.h"
+
+#include <cmath>
+#include <filesystem>
+#include <system_error>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "rve_server/engine/material.h"
+#include "rve_server/engine/prepare.h"
+#include "rve_server/engine/rve.h"
+#include "store/checkpoint.h"
+
+namespace rvehub::mpm {
+namespace {
+
+// The record of a template file: the one named `name`, or its only one.
+absl::StatusOr<store::TemplateRecord> FromFile(const TemplateSpec& spec) {
+  absl::StatusOr<std::vector<store::TemplateRecord>> records = store::ReadTemplates(spec.file);
+  if (!records.ok()) {
+    return absl::Status(records.status().code(),
+                        absl::StrCat("template '", spec.name, "': ", records.status().message()));
+  }
+  if (spec.template_name.empty()) {
+    if (records->size() != 1) {
+      return absl::InvalidArgumentError(absl::StrCat("template '", spec.name, "': ", spec.file,
+                                                     " holds ", records->size(),
+                                                     " templates; name one with template_name"));
+    }
+    return std::move(records->front());
+  }
+  for (store::TemplateRecord& r : *records) {
+    if (r.name == spec.template_name) return std::move(r);
+  }
+  return absl::NotFoundError(absl::StrCat("template '", spec.name, "': ", spec.file,
+                                          " has no template named '", spec.template_name, "'"));
+}
+
+absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
+                                               const std::string& cache_dir,
+                                               const std::function<void(const std::string&)>& log) {
+  const std::string stem = absl::StrCat(spec.parameter_set, "-seed", spec.seed);
+  const std::string path = (std::filesystem::path(cache_dir) / (stem + ".h5")).string();
+  if (std::filesystem::exists(path)) {
+    absl::StatusOr<std::vector<store::TemplateRecord>> cached = store::ReadTemplates(path);
+    if (cached.ok() && cached->size() == 1) return std::move(cached->front());
+    // A damaged cache entry is prepared again (and overwritten) below.
+    if (log) log(absl::StrCat("template cache ", path, " unusable, preparing again"));
+  }
+  absl::StatusOr<dem::ParameterSet> set = dem::FindParameterSet(spec.parameter_set);
+  if (!set.ok()) return set.status();
+  set->preparation.seed = spec.seed;
+  if (log) {
+    log(absl::StrFormat("preparing template %s (%s, seed %d, %d discs)...", spec.name,
+                        spec.parameter_set, spec.seed, set->preparation.num_particles));
+  }
+  dem::PreparationReport report;
+  absl::StatusOr<dem::Packing> packing = dem::PreparePacking(*set, {}, &report);
+  if (!packing.ok()) {
+    return absl::Status(packing.status().code(), absl::StrCat("preparing template '", spec.name,
+                                                              "': ", packing.status().message()));
+  }
+  store::TemplateRecord record;
+  record.name = stem;
+  record.description =
+      absl::StrFormat("material %s, seed %d, e0 = %.4f, p0 = %.1f Pa", spec.parameter_set,
+                      spec.seed, report.void_ratio, report.pressure);
+  record.packing = *std::move(packing);
+  std::error_code ec;
+  std::filesystem::create_directories(cache_dir, ec);
+  store::FileInfo info;
+  info.created_by = "mpm_client";
+  // The cache only saves time: a failure to write it is not an error.
+  if (absl::Status s =
+          store::WriteTemplates(path, std::span<const store::TemplateRecord>(&record, 1), info);
+      !s.ok() && log) {
+    log(absl::StrCat("could not cache the template: ", s.message()));
+  }
+  return record;
+}
+
+}  // namespace
+
+absl::StatusOr<std::vector<store::TemplateRecord>> ResolveTemplates(
+    const std::vector<TemplateSpec>& specs, const std::string& cache_dir,
+    const std::function<void(const std::string&)>& log) {
+  std::vector<store::TemplateRecord> out;
+  out.reserve(specs.size());
+  for (const TemplateSpec& spec : specs) {
+    absl::StatusOr<store::TemplateRecord> r =
+        spec.file.empty() ? Prepared(spec, cache_dir, log) : FromFile(spec);
+    if (!r.ok()) return r.status();
+    r->name = spec.name;
+    out.push_back(*std::move(r));
+  }
+  return out;
+}
+
+double BulkDensity(const dem::Packing& packing) {
+  const double cell_area = std::abs(packing.cell.determinant());  // m²
+  return packing.material.density * dem::SolidArea(packing.radius) / cell_area;
+}
+
+}  // namespace rvehub::mpm

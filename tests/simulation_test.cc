@@ -1,0 +1,262 @@
+// The multiscale simulation end to end: the single element test against the
+// DEM element test on the same RVE (liang-zhao-mpm-dem §3.1), checkpoint and
+// resume, and remote servers against the embedded one.
+#include "mpm_client/simulation.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+#include "mpm_client/case.h"
+#include "mpm_client/output.h"
+#include "mpm_client/templates.h"
+#include "rve_server/engine/element_test.h"
+#include "rve_server/service/server.h"
+#include "store/results.h"
+#include "tests/test_util.h"
+
+namespace rvehub::mpm {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string CasePath(const std::string& name) {
+  return std::string(RVEHUB_SOURCE_DIR) + "/cases/" + name + ".json";
+}
+
+// Prepared templates are shared by all tests of this binary.
+std::string TemplateCache() {
+  return (fs::temp_directory_path() / "rvehub_simulation_test_templates").string();
+}
+
+std::string FreshDir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("rvehub_simulation_test_" + name);
+  fs::remove_all(dir);
+  return dir.string();
+}
+
+RunOptions Options(const std::string& out) {
+  RunOptions o;
+  o.out_dir = out;
+  o.template_cache_dir = TemplateCache();
+  o.threads = 2;
+  o.progress = false;
+  o.log = [](const std::string&) {};
+  return o;
+}
+
+CaseSpec LoadOrDie(const std::string& name) {
+  absl::StatusOr<CaseSpec> spec = LoadCase(CasePath(name));
+  EXPECT_TRUE(spec.ok()) << spec.status();
+  return spec.ok() ? *spec : CaseSpec{};
+}
+
+std::unique_ptr<Simulation> StartOrDie(const CaseSpec& spec, const RunOptions& o) {
+  absl::StatusOr<std::unique_ptr<Simulation>> sim = Simulation::Start(spec, o);
+  EXPECT_TRUE(sim.ok()) << sim.status();
+  return sim.ok() ? *std::move(sim) : nullptr;
+}
+
+void ExpectSameSnapshots(const store::SimCheckpoint& a, const store::SimCheckpoint& b) {
+  EXPECT_EQ(a.step, b.step);
+  EXPECT_TRUE(dem::testing_util::SameBits(a.time, b.time));
+  ASSERT_EQ(a.doubles.size(), b.doubles.size());
+  for (const auto& [name, values] : a.doubles) {
+    ASSERT_TRUE(b.doubles.contains(name)) << name;
+    dem::testing_util::ExpectSameBits(values, b.doubles.at(name), name.c_str());
+  }
+  EXPECT_EQ(a.ints, b.ints);
+  ASSERT_EQ(a.rves.size(), b.rves.size());
+  for (std::size_t i = 0; i < a.rves.size(); ++i) {
+    EXPECT_EQ(a.rves[i].id, b.rves[i].id);
+    EXPECT_EQ(a.rves[i].step, b.rves[i].step);
+    dem::testing_util::ExpectIdenticalPackings(a.rves[i].packing, b.rves[i].packing,
+                                               "rve " + std::to_string(a.rves[i].id));
+  }
+}
+
+// §3.1: four material points with identical RVEs under the element's
+// boundary conditions reproduce the DEM element test on one RVE. Tolerance:
+// σyy within 3 % at every recorded strain up to the element test's peak.
+TEST(SimulationTest, SingleElementMatchesElementTestUpToPeak) {
+  CaseSpec spec = LoadOrDie("single-element-biaxial");
+  ASSERT_EQ(spec.bodies.size(), 1u);
+  const double v = std::abs(spec.bodies[0].velocity.back().velocity.y());  // m/s
+  const double height = spec.regions[0].upper.y() - spec.regions[0].lower.y();
+  const double ramp = spec.bodies[0].velocity.back().time;
+  const double max_strain = 0.04;
+  spec.solver.end_time = ramp / 2 + max_strain * height / v;
+  spec.output.checkpoint_every = 0;
+  spec.output.timeseries_every = 1;
+  const std::string out = FreshDir("single_element");
+  std::unique_ptr<Simulation> sim = StartOrDie(spec, Options(out));
+  ASSERT_NE(sim, nullptr);
+  absl::StatusOr<RunSummary> sum = sim->Run();
+  ASSERT_TRUE(sum.ok()) << sum.status();
+  ASSERT_TRUE(sum->finished);
+
+  // The DEM element test on the same template.
+  absl::StatusOr<std::vector<store::TemplateRecord>> t =
+      ResolveTemplates(spec.templates, TemplateCache());
+  ASSERT_TRUE(t.ok()) << t.status();
+  absl::StatusOr<dem::Rve> rve = dem::Rve::Create(t->front().packing);
+  ASSERT_TRUE(rve.ok()) << rve.status();
+  dem::ElementTestSpec et;
+  et.kind = dem::ElementTestKind::kDrainedBiaxial;
+  et.confining = 100e3;
+  et.max_strain = max_strain;
+  et.rows = 400;
+  absl::StatusOr<std::vector<dem::ElementTestRow>> rows = dem::RunElementTest(*rve, et);
+  ASSERT_TRUE(rows.ok()) << rows.status();
+  const auto peak = std::max_element(rows->begin(), rows->end(),
+                                     [](const auto& a, const auto& b) { return a.syy < b.syy; });
+  const double peak_strain = peak->axial_strain;
+  ASSERT_GT(peak_strain, 0.005);
+  ASSERT_LT(peak_strain, max_strain * 0.95) << "the element test peaked at its last row";
+  auto element_syy = [&](double strain) {
+    for (std::size_t i = 1; i < rows->size(); ++i) {
+      if ((*rows)[i].axial_strain >= strain) {
+        const auto& a = (*rows)[i - 1];
+        const auto& b = (*rows)[i];
+        const double w = (strain - a.axial_strain) / (b.axial_strain - a.axial_strain);
+        return a.syy + w * (b.syy - a.syy);
+      }
+    }
+    return rows->back().syy;
+  };
+
+  absl::StatusOr<std::map<std::string, std::vector<double>>> ts =
+      ReadCsvColumns(out + "/timeseries.csv");
+  ASSERT_TRUE(ts.ok()) << ts.status();
+  const std::vector<double>& eyy = ts->at("mean_eyy");
+  const std::vector<double>& syy = ts->at("mean_syy");
+  double worst = 0, worst_at = 0, mpm_peak = 0;
+  int compared = 0;
+  for (std::size_t i = 0; i < eyy.size(); ++i) {
+    mpm_peak = std::max(mpm_peak, syy[i]);
+    if (eyy[i] < 1e-3 || eyy[i] > peak_strain) continue;
+    const double ref = element_syy(eyy[i]);
+    const double err = std::abs(syy[i] - ref) / ref;
+    if (err > worst) {
+      worst = err;
+      worst_at = eyy[i];
+    }
+    ++compared;
+  }
+  std::printf(
+      "element test peak %.1f kPa at %.2f %%; MPM peak %.1f kPa; worst difference %.2f %% "
+      "at %.2f %% over %d rows\n",
+      peak->syy * 1e-3, 100 * peak_strain, mpm_peak * 1e-3, 100 * worst, 100 * worst_at, compared);
+  EXPECT_GT(compared, 20);
+  EXPECT_LE(worst, 0.03) << "at axial strain " << worst_at;
+  EXPECT_TRUE(fs::exists(out + "/plot.png"));
+  EXPECT_TRUE(fs::exists(out + "/results.xdmf"));
+}
+
+// A short single-element run: `steps` steps of the case.
+CaseSpec ShortCase(int steps, double* dt_out = nullptr) {
+  CaseSpec spec = LoadOrDie("single-element-biaxial");
+  spec.solver.time_step = 2e-3;
+  spec.solver.end_time = steps * spec.solver.time_step;
+  spec.output.frame_every = 10;
+  spec.output.timeseries_every = 5;
+  spec.output.checkpoint_every = 0;
+  if (dt_out) *dt_out = spec.solver.time_step;
+  return spec;
+}
+
+TEST(SimulationTest, ResumeFromCheckpointIsBitIdentical) {
+  const CaseSpec spec = ShortCase(40);
+  // Uninterrupted.
+  std::unique_ptr<Simulation> a = StartOrDie(spec, Options(FreshDir("resume_a")));
+  ASSERT_NE(a, nullptr);
+  ASSERT_TRUE(a->Run().ok());
+  absl::StatusOr<store::SimCheckpoint> end_a = a->Snapshot();
+  ASSERT_TRUE(end_a.ok()) << end_a.status();
+
+  // Interrupted after 25 steps (checkpoint written there), then resumed.
+  CaseSpec with_checkpoints = spec;
+  with_checkpoints.output.checkpoint_every = 10;
+  const std::string out_b = FreshDir("resume_b");
+  RunOptions ob = Options(out_b);
+  ob.stop_after_steps = 25;
+  {
+    std::unique_ptr<Simulation> b = StartOrDie(with_checkpoints, ob);
+    ASSERT_NE(b, nullptr);
+    absl::StatusOr<RunSummary> s = b->Run();
+    ASSERT_TRUE(s.ok()) << s.status();
+    EXPECT_FALSE(s->finished);
+    EXPECT_EQ(s->final_step, 25);
+  }
+  ob.stop_after_steps = 0;
+  absl::StatusOr<std::unique_ptr<Simulation>> c = Simulation::Resume(out_b + "/checkpoint.h5", ob);
+  ASSERT_TRUE(c.ok()) << c.status();
+  EXPECT_EQ((*c)->solver().step(), 25);
+  absl::StatusOr<RunSummary> s = (*c)->Run();
+  ASSERT_TRUE(s.ok()) << s.status();
+  EXPECT_TRUE(s->finished);
+  absl::StatusOr<store::SimCheckpoint> end_c = (*c)->Snapshot();
+  ASSERT_TRUE(end_c.ok()) << end_c.status();
+  ExpectSameSnapshots(*end_a, *end_c);
+
+  // The resumed run's outputs hold every frame and row once, in order.
+  absl::StatusOr<std::vector<store::ResultFrame>> frames =
+      store::ReadResults(out_b + "/results.h5");
+  ASSERT_TRUE(frames.ok()) << frames.status();
+  std::vector<std::int64_t> steps;
+  for (const auto& f : *frames) steps.push_back(f.step);
+  EXPECT_EQ(steps, (std::vector<std::int64_t>{0, 10, 20, 30, 40}));
+  absl::StatusOr<std::map<std::string, std::vector<double>>> ts =
+      ReadCsvColumns(out_b + "/timeseries.csv");
+  ASSERT_TRUE(ts.ok()) << ts.status();
+  EXPECT_EQ(ts->at("step"), (std::vector<double>{0, 5, 10, 15, 20, 25, 30, 35, 40}));
+}
+
+TEST(SimulationTest, TwoServersOnLoopbackGiveTheSameResultAsOneEmbedded) {
+  setenv("GRPC_CLIENT_CHANNEL_BACKUP_POLL_INTERVAL_MS", "50", 1);
+  const CaseSpec spec = ShortCase(20);
+  std::unique_ptr<Simulation> embedded = StartOrDie(spec, Options(FreshDir("one")));
+  ASSERT_NE(embedded, nullptr);
+  ASSERT_TRUE(embedded->Run().ok());
+  absl::StatusOr<store::SimCheckpoint> one = embedded->Snapshot();
+  ASSERT_TRUE(one.ok()) << one.status();
+
+  std::vector<std::unique_ptr<service::RveServer>> servers;
+  RunOptions o = Options(FreshDir("two"));
+  for (int i = 0; i < 2; ++i) {
+    service::ServerConfig config;
+    config.listen = "127.0.0.1:0";
+    config.registry.threads = 1;
+    absl::StatusOr<std::unique_ptr<service::RveServer>> s = service::RveServer::Start(config);
+    ASSERT_TRUE(s.ok()) << s.status();
+    o.servers.push_back((*s)->address());
+    servers.push_back(*std::move(s));
+  }
+  {
+    std::unique_ptr<Simulation> remote = StartOrDie(spec, o);
+    ASSERT_NE(remote, nullptr);
+    ASSERT_TRUE(remote->Run().ok());
+    // Both servers did work.
+    for (auto& s : servers) EXPECT_GT(s->registry().Stats().num_rves, 0);
+    absl::StatusOr<store::SimCheckpoint> two = remote->Snapshot();
+    ASSERT_TRUE(two.ok()) << two.status();
+    ExpectSameSnapshots(*one, *two);
+  }
+  for (auto& s : servers) EXPECT_TRUE(s->Stop(std::chrono::seconds(1)).ok());
+}
+
+TEST(SimulationTest, UnreachableServerIsNamed) {
+  const CaseSpec spec = ShortCase(2);
+  RunOptions o = Options(FreshDir("unreachable"));
+  o.servers = {"127.0.0.1:1"};
+  absl::StatusOr<std::unique_ptr<Simulation>> sim = Simulation::Start(spec, o);
+  ASSERT_FALSE(sim.ok());
+  EXPECT_EQ(sim.status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_NE(sim.status().message().find("127.0.0.1:1"), std::string::npos) << sim.status();
+}
+
+}  // namespace
+}  // namespace rvehub::mpm
