@@ -1,17 +1,18 @@
 #!/usr/bin/env bash
-# Builds RVEHub and runs the default case: a drained biaxial element test on
-# the SET-dense material. Writes a CSV and a PNG plot to out/.
+# Builds RVEHub and runs the default job: the single element biaxial case
+# (liang-zhao-mpm-dem §3.1) with the MPM client on an embedded RVE server —
+# four material points, each with its own SET-dense DEM packing, confined at
+# 100 kPa and compressed to 15 % axial strain. Writes out/single-element-biaxial/
+# (results.h5 + results.xdmf for ParaView, timeseries.csv, plot.png, checkpoint.h5).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 bash deploy/install_deps.sh
 bash deploy/build.sh
 
-mkdir -p out
-"${BUILD_DIR:-build}"/rve_server/cli/rve_cli element-test \
-  --test=drained-biaxial --material=SET-dense --seed=1 \
-  --confining=100000 --strain=0.10 \
-  --out=out/biaxial_set_dense.csv --plot=out/biaxial_set_dense.png
+out=out/single-element-biaxial
+"${BUILD_DIR:-build}"/mpm_client/mpm_client run cases/single-element-biaxial.json \
+  --out="${out}" --template-cache=out/templates
 
-echo "Results: $(pwd)/out/biaxial_set_dense.csv"
-echo "Plot:    $(pwd)/out/biaxial_set_dense.png"
+echo "Results: $(pwd)/${out}/timeseries.csv, $(pwd)/${out}/results.xdmf (ParaView)"
+echo "Plot:    $(pwd)/${out}/plot.png"

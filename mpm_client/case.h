@@ -28,7 +28,7 @@ absl::StatusOr<CaseSpec> LoadCase(const std::string& path);
 
 // Canonical JSON of a spec (every field that applies: e.g. no "seed" for a
 // template read from a file, no "remove_time" for a permanent wall), for
-// checkpoints and `mpm_client run --print-case`. ParseCase(ToJson(s)) gives
+// checkpoints and `mpm_client check`. ParseCase(ToJson(s)) gives
 // back s for any spec ParseCase produced. Tractions are written as vectors.
 std::string ToJson(const CaseSpec& spec);
 

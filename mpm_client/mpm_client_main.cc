@@ -1,12 +1,13 @@
 // mpm_client: runs a multiscale MPM×DEM case on RVE servers (an embedded one
 // by default) and resumes it from a checkpoint.
 //
-//   mpm_client run cases/single-element-biaxial/case.json --out=out/se
+//   mpm_client run cases/single-element-biaxial.json --out=out/se
 //   mpm_client run CASE --out=DIR --servers=host1:50051,host2:50051
 //   mpm_client resume out/se/checkpoint.h5
 //   mpm_client check CASE
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <map>
 #include <set>
 #include <string>
@@ -62,12 +63,15 @@ absl::StatusOr<Args> Parse(int argc, char** argv) {
   const std::set<std::string> known = {"out",    "servers", "threads",        "token-file",
                                        "tls-ca", "timeout", "template-cache", "stop-after",
                                        "quiet"};
+  // --help wins over anything else on the line (as in rve_cli).
   for (int i = 1; i < argc; ++i) {
-    std::string arg = argv[i];
-    if (arg == "--help" || arg == "-h") {
+    if (std::string arg = argv[i]; arg == "--help" || arg == "-h") {
       a.command = "help";
       return a;
     }
+  }
+  for (int i = 1; i < argc; ++i) {
+    std::string arg = argv[i];
     if (arg.starts_with("--")) {
       std::string key = arg.substr(2), value;
       if (std::size_t eq = key.find('='); eq != std::string::npos) {
@@ -76,6 +80,9 @@ absl::StatusOr<Args> Parse(int argc, char** argv) {
       } else if (key != "quiet") {
         return absl::InvalidArgumentError(
             absl::StrCat("--", key, " needs a value (--", key, "=...)"));
+      }
+      if (key == "quiet" && arg.find('=') != std::string::npos) {
+        return absl::InvalidArgumentError("--quiet takes no value");
       }
       if (!known.contains(key)) {
         return absl::InvalidArgumentError(absl::StrCat("unknown option --", key, " (see --help)"));
@@ -97,16 +104,27 @@ absl::StatusOr<Args> Parse(int argc, char** argv) {
     return absl::InvalidArgumentError(
         absl::StrCat(a.command, " needs a ", a.command == "resume" ? "checkpoint" : "case file"));
   }
+  if (a.command == "check" && !a.flags.empty()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("check takes no options (got --", a.flags.begin()->first, ")"));
+  }
   return a;
 }
 
+const std::string* Flag(const Args& a, const char* key) {
+  auto it = a.flags.find(key);
+  return it == a.flags.end() ? nullptr : &it->second;
+}
+
+// The run options from the flags; usage errors only (files are read by
+// LoadClientOptions).
 absl::StatusOr<RunOptions> Options(const Args& a) {
   RunOptions o;
-  auto flag = [&](const char* k) -> const std::string* {
-    auto it = a.flags.find(k);
-    return it == a.flags.end() ? nullptr : &it->second;
-  };
-  if (const std::string* v = flag("out")) o.out_dir = *v;
+  auto flag = [&](const char* k) { return Flag(a, k); };
+  if (const std::string* v = flag("out")) {
+    if (v->empty()) return absl::InvalidArgumentError("--out=DIR needs a directory");
+    o.out_dir = *v;
+  }
   if (const std::string* v = flag("servers")) {
     for (absl::string_view s : absl::StrSplit(*v, ',', absl::SkipWhitespace())) {
       o.servers.emplace_back(s);
@@ -131,13 +149,14 @@ absl::StatusOr<RunOptions> Options(const Args& a) {
   }
   if (const std::string* v = flag("template-cache")) o.template_cache_dir = *v;
   o.progress = flag("quiet") == nullptr;
-  const std::string* token = flag("token-file");
-  const std::string* ca = flag("tls-ca");
-  absl::StatusOr<client::ClientOptions> c =
-      client::ClientOptionsFromFiles(token ? *token : "", ca ? *ca : "");
-  if (!c.ok()) return c.status();
-  o.client = *c;
   return o;
+}
+
+// The token and CA certificate for the servers, read from their files.
+absl::StatusOr<client::ClientOptions> LoadClientOptions(const Args& a) {
+  const std::string* token = Flag(a, "token-file");
+  const std::string* ca = Flag(a, "tls-ca");
+  return client::ClientOptionsFromFiles(token ? *token : "", ca ? *ca : "");
 }
 
 int Fail(const absl::Status& s, int code) {
@@ -160,17 +179,23 @@ int Main(int argc, char** argv) {
   }
   absl::StatusOr<RunOptions> options = Options(*args);
   if (!options.ok()) return Fail(options.status(), 2);
+  if (args->command == "run" && !args->flags.contains("out")) {
+    return Fail(absl::InvalidArgumentError("--out=DIR is required"), 2);
+  }
+  // An unreadable token or CA file is a failure, not a usage error.
+  absl::StatusOr<client::ClientOptions> client_options = LoadClientOptions(*args);
+  if (!client_options.ok()) return Fail(client_options.status(), 1);
+  options->client = *std::move(client_options);
   absl::StatusOr<std::unique_ptr<Simulation>> sim;
   if (args->command == "run") {
-    if (!args->flags.contains("out"))
-      return Fail(absl::InvalidArgumentError("--out=DIR is required"), 2);
     absl::StatusOr<CaseSpec> spec = LoadCase(args->target);
     if (!spec.ok()) return Fail(spec.status(), 1);
     sim = Simulation::Start(*spec, *options);
   } else {
     if (!args->flags.contains("out")) {
-      const std::size_t slash = args->target.find_last_of('/');
-      options->out_dir = slash == std::string::npos ? "." : args->target.substr(0, slash);
+      // The checkpoint's directory ("/" for /checkpoint.h5, "." for a bare name).
+      const std::filesystem::path dir = std::filesystem::path(args->target).parent_path();
+      options->out_dir = dir.empty() ? "." : dir.string();
     }
     sim = Simulation::Resume(args->target, *options);
   }

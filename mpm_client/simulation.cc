@@ -103,6 +103,18 @@ void Simulation::Log(const std::string& line) const {
   }
 }
 
+std::string Simulation::ServerTemplateName(const std::string& name) const {
+  return absl::StrCat(run_id_, ".", name);
+}
+
+absl::Status Simulation::UploadTemplates() {
+  // Under names of this run: an upload replaces a template of the same name,
+  // so two runs sharing a server must not share names.
+  std::vector<store::TemplateRecord> named = templates_;
+  for (store::TemplateRecord& t : named) t.name = ServerTemplateName(t.name);
+  return pool_->UploadTemplates(named);
+}
+
 absl::Status Simulation::Connect() {
   std::vector<std::unique_ptr<RveEndpoint>> endpoints;
   if (options_.servers.empty()) {
@@ -253,6 +265,7 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
                          strain(0, 1), -0.5 * (sigma(0, 0) + sigma(1, 1)),
                          std::sqrt(0.25 * d * d + sigma(0, 1) * sigma(0, 1)), e,
                          solver_->KineticEnergy(), wall_per_step});
+  for (double& v : row) v += 0.0;  // −0 (a negated zero) reads as 0
   if (absl::Status s = out_->timeseries->Append(row); !s.ok()) return s;
   out_->last_row_step = solver_->step();
   return absl::OkStatus();
@@ -294,7 +307,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   if (!templates.ok()) return templates.status();
   sim->templates_ = *std::move(templates);
   if (absl::Status s = sim->Connect(); !s.ok()) return s;
-  if (absl::Status s = sim->pool_->UploadTemplates(sim->templates_); !s.ok()) return s;
+  if (absl::Status s = sim->UploadTemplates(); !s.ok()) return s;
 
   // Material points; the density of a region defaults to its template's.
   std::map<std::string, const store::TemplateRecord*> by_name;
@@ -315,7 +328,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   std::vector<double> cost(n);
   for (std::size_t p = 0; p < n; ++p) {
     const MaterialRegion& r = spec.regions[points->region[p]];
-    template_of[p] = r.rve_template;
+    template_of[p] = sim->ServerTemplateName(r.rve_template);
     cost[p] = static_cast<double>(by_name.at(r.rve_template)->packing.radius.size());
     const double depth = std::max(0.0, r.surface_y - points->position[p].y());
     const double sv =
@@ -398,7 +411,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
   sim->run_id_ = MakeRunId(sim->spec_.name);
   sim->templates_ = std::move(c->templates);
   if (absl::Status s = sim->Connect(); !s.ok()) return s;
-  if (absl::Status s = sim->pool_->UploadTemplates(sim->templates_); !s.ok()) return s;
+  if (absl::Status s = sim->UploadTemplates(); !s.ok()) return s;
   std::vector<double> cost;
   for (store::RveRecord& r : c->rves) {
     r.run_id = sim->run_id_;

@@ -72,6 +72,9 @@ class Simulation {
  private:
   Simulation() = default;
   absl::Status Connect();  // endpoints and pool
+  absl::Status UploadTemplates();
+  // The name of a case template on the servers: unique to this run.
+  std::string ServerTemplateName(const std::string& name) const;
   absl::Status OpenOutputs(bool resume);
   absl::Status WriteFrame();
   absl::Status WriteRow(double wall_per_step);
