@@ -5,10 +5,11 @@
 #include <algorithm>
 #include <chrono>
 #include <climits>
-#include <limits>
+#include <functional>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "rve_server/client/record_stream.h"
 #include "rve_server/service/convert.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
 
@@ -16,10 +17,6 @@ namespace rvehub::mpm {
 namespace {
 
 using service::RveOutcome;
-
-// Headroom below the message limit for framing, as the server keeps for its
-// export chunks, bytes.
-constexpr std::int64_t kChunkOverheadBytes = 64 << 10;
 
 absl::Status Prefixed(absl::string_view prefix, const absl::Status& s) {
   if (s.ok()) return s;
@@ -226,10 +223,8 @@ class RemoteEndpoint final : public RveEndpoint {
     }
     max_batch_ = std::max<std::int64_t>(1, remote_.max_batch);
     if (info.max_batch() > 0) max_batch_ = std::min(max_batch_, info.max_batch());
-    std::int64_t limit = std::numeric_limits<std::int32_t>::max();
-    if (info.max_message_bytes() > 0) limit = std::min(limit, info.max_message_bytes());
-    if (options_.max_message_bytes > 0) limit = std::min(limit, options_.max_message_bytes);
-    chunk_budget_bytes_ = std::max(limit - kChunkOverheadBytes, limit / 2);
+    chunk_budget_bytes_ =
+        client::ImportChunkBudget(info.max_message_bytes(), options_.max_message_bytes);
     return absl::OkStatus();
   }
 
@@ -266,12 +261,7 @@ class RemoteEndpoint final : public RveEndpoint {
     }
     std::vector<RveOutcome> out;
     out.reserve(ids.size());
-    const std::size_t n = ids.size();
-    // An empty request is still sent (the server's answer to it is the
-    // call's, as for the embedded registry).
-    std::size_t begin = 0;
-    do {
-      const std::size_t end = std::min(n, begin + Batch());
+    const absl::Status status = InBatches(ids.size(), [&](std::size_t begin, std::size_t end) {
       v1::CreateRvesRequest req;
       req.set_run_id(std::string(run));
       req.set_template_name(std::string(template_name));
@@ -282,9 +272,9 @@ class RemoteEndpoint final : public RveEndpoint {
       } else if (initial.size() > 1) {
         for (std::size_t k = begin; k < end; ++k) {
           if (initial[k].kind == service::InitialStress::Kind::kTemplate) {
-            return Error(absl::InvalidArgumentError(absl::StrCat(
+            return absl::InvalidArgumentError(absl::StrCat(
                 "material point ", ids[k],
-                ": per-point initial stresses must all be isotropic or K0 on a server")));
+                ": per-point initial stresses must all be isotropic or K0 on a server"));
           }
           ToProto(initial[k], req.add_initial_stresses());
         }
@@ -296,14 +286,12 @@ class RemoteEndpoint final : public RveEndpoint {
       Ready(ctx, remote_.create_timeout);
       absl::Status s = client::FromGrpc(stub_->CreateRves(&ctx, req, &resp));
       if (s.ok()) s = AppendOutcomes(resp.results(), ids.subspan(begin, end - begin), &out);
-      if (!s.ok()) {
-        // Creation is all or nothing on the server per message: drop the
-        // earlier messages' RVEs too (best effort) so it is for the call.
-        if (begin > 0) (void)DropIds(run, ids.subspan(0, begin));
-        return Error(s);
-      }
-      begin = end;
-    } while (begin < n);
+      // Creation is all or nothing on the server per message: drop the
+      // earlier messages' RVEs too (best effort) so it is for the call.
+      if (!s.ok() && begin > 0) (void)DropIds(run, ids.subspan(0, begin));
+      return s;
+    });
+    if (!status.ok()) return Error(status);
     return out;
   }
 
@@ -315,35 +303,31 @@ class RemoteEndpoint final : public RveEndpoint {
         deadline == absl::InfiniteDuration() ? absl::InfiniteFuture() : absl::Now() + deadline;
     std::vector<RveOutcome> out;
     out.reserve(increments.size());
-    const std::size_t n = increments.size();
-    // An empty request is still sent (the server's answer to it is the
-    // call's, as for the embedded registry).
-    std::size_t begin = 0;
-    do {
-      const std::size_t end = std::min(n, begin + Batch());
-      v1::ApplyRequest req;
-      req.set_run_id(std::string(run));
-      req.set_step(step);
-      req.set_mode(v1::APPLY_MODE_COMMIT);
-      ToProto(options, req.mutable_options());
-      std::vector<std::int64_t> ids;
-      ids.reserve(end - begin);
-      for (std::size_t k = begin; k < end; ++k) {
-        v1::Increment* inc = req.add_increments();
-        inc->set_id(increments[k].id);
-        service::ToProto(increments[k].delta_f, inc->mutable_delta_f());
-        ids.push_back(increments[k].id);
-      }
-      v1::ApplyResponse resp;
-      grpc::ClientContext ctx;
-      // Messages of one call share its deadline.
-      Ready(ctx,
-            end_time == absl::InfiniteFuture() ? absl::InfiniteDuration() : end_time - absl::Now());
-      absl::Status s = client::FromGrpc(stub_->Apply(&ctx, req, &resp));
-      if (s.ok()) s = AppendOutcomes(resp.results(), ids, &out);
-      if (!s.ok()) return Error(s);
-      begin = end;
-    } while (begin < n);
+    const absl::Status status =
+        InBatches(increments.size(), [&](std::size_t begin, std::size_t end) {
+          v1::ApplyRequest req;
+          req.set_run_id(std::string(run));
+          req.set_step(step);
+          req.set_mode(v1::APPLY_MODE_COMMIT);
+          ToProto(options, req.mutable_options());
+          std::vector<std::int64_t> ids;
+          ids.reserve(end - begin);
+          for (std::size_t k = begin; k < end; ++k) {
+            v1::Increment* inc = req.add_increments();
+            inc->set_id(increments[k].id);
+            service::ToProto(increments[k].delta_f, inc->mutable_delta_f());
+            ids.push_back(increments[k].id);
+          }
+          v1::ApplyResponse resp;
+          grpc::ClientContext ctx;
+          // Messages of one call share its deadline.
+          Ready(ctx, end_time == absl::InfiniteFuture() ? absl::InfiniteDuration()
+                                                        : end_time - absl::Now());
+          absl::Status s = client::FromGrpc(stub_->Apply(&ctx, req, &resp));
+          if (s.ok()) s = AppendOutcomes(resp.results(), ids, &out);
+          return s;
+        });
+    if (!status.ok()) return Error(status);
     return out;
   }
 
@@ -352,12 +336,7 @@ class RemoteEndpoint final : public RveEndpoint {
                                               bool want_tangent) override {
     std::vector<RveOutcome> out;
     out.reserve(ids.size());
-    const std::size_t n = ids.size();
-    // An empty request is still sent (the server's answer to it is the
-    // call's, as for the embedded registry).
-    std::size_t begin = 0;
-    do {
-      const std::size_t end = std::min(n, begin + Batch());
+    const absl::Status status = InBatches(ids.size(), [&](std::size_t begin, std::size_t end) {
       v1::GetStatesRequest req;
       req.set_run_id(std::string(run));
       for (std::size_t k = begin; k < end; ++k) req.add_ids(ids[k]);
@@ -367,9 +346,9 @@ class RemoteEndpoint final : public RveEndpoint {
       Ready(ctx, remote_.call_timeout);
       absl::Status s = client::FromGrpc(stub_->GetStates(&ctx, req, &resp));
       if (s.ok()) s = AppendOutcomes(resp.results(), ids.subspan(begin, end - begin), &out);
-      if (!s.ok()) return Error(s);
-      begin = end;
-    } while (begin < n);
+      return s;
+    });
+    if (!status.ok()) return Error(status);
     return out;
   }
 
@@ -381,34 +360,7 @@ class RemoteEndpoint final : public RveEndpoint {
     grpc::ClientContext ctx;
     Ready(ctx, remote_.call_timeout);
     std::unique_ptr<grpc::ClientReader<v1::RveChunk>> reader = stub_->Export(&ctx, req);
-    v1::RveChunk chunk;
-    std::int64_t declared = -1, received = 0;
-    absl::Status failed;
-    while (failed.ok() && reader->Read(&chunk)) {
-      if (declared < 0) declared = chunk.total_records();
-      for (const v1::RveRecord& r : chunk.records()) {
-        absl::StatusOr<store::RveRecord> record = service::FromProto(r);
-        if (!record.ok()) {
-          failed = absl::DataLossError(absl::StrCat("exported record of material point ", r.id(),
-                                                    " is malformed: ", record.status().message()));
-          break;
-        }
-        failed = sink(*std::move(record));
-        if (!failed.ok()) break;
-        ++received;
-      }
-    }
-    if (!failed.ok()) {
-      ctx.TryCancel();
-      (void)reader->Finish();  // the stream is abandoned; its status adds nothing
-      return Error(failed);
-    }
-    if (absl::Status s = client::FromGrpc(reader->Finish()); !s.ok()) return Error(s);
-    if (declared > 0 && declared != received) {
-      return Error(absl::DataLossError(absl::StrCat("export of run \"", run, "\" declared ",
-                                                    declared, " records but carried ", received)));
-    }
-    return absl::OkStatus();
+    return Error(client::ReadExport(ctx, *reader, run, sink, client::FromGrpc));
   }
 
   absl::Status Import(std::vector<store::RveRecord> records) override {
@@ -416,47 +368,33 @@ class RemoteEndpoint final : public RveEndpoint {
     Ready(ctx, remote_.call_timeout);
     v1::ImportResponse resp;
     std::unique_ptr<grpc::ClientWriter<v1::RveChunk>> writer = stub_->Import(&ctx, &resp);
-    v1::RveChunk chunk;
-    chunk.set_total_records(static_cast<std::int64_t>(records.size()));
-    std::int64_t chunk_bytes = 16;
-    bool stream_ok = true;
-    absl::Status failed;
-    for (store::RveRecord& r : records) {
-      v1::RveRecord record;
-      service::ToProto(r, &record);
-      r = store::RveRecord();  // the copy in `record` is all that is needed now
-      // The record's bytes in the chunk: field tag and length prefix included.
-      const std::int64_t size = static_cast<std::int64_t>(record.ByteSizeLong()) + 16;
-      if (size > chunk_budget_bytes_) {
-        failed = absl::ResourceExhaustedError(
-            absl::StrCat("material point ", record.id(), " takes ", size,
-                         " bytes, over the message budget of ", chunk_budget_bytes_, " bytes"));
-        break;
-      }
-      if (chunk.records_size() > 0 && chunk_bytes + size > chunk_budget_bytes_) {
-        stream_ok = writer->Write(chunk);
-        if (!stream_ok) break;
-        chunk.Clear();
-        chunk_bytes = 16;
-      }
-      *chunk.add_records() = std::move(record);
-      chunk_bytes += size;
-    }
-    if (!failed.ok()) {
-      ctx.TryCancel();  // the server then drops what it got (all or nothing)
-      (void)writer->Finish();
-      return Error(failed);
-    }
-    if (stream_ok && chunk.records_size() > 0) stream_ok = writer->Write(chunk);
-    if (stream_ok) writer->WritesDone();
-    // A broken stream's reason comes with Finish.
-    return Error(client::FromGrpc(writer->Finish()));
+    return Error(client::WriteImport(
+        ctx, *writer, records.size(),
+        [&](std::size_t k, v1::RveRecord* out) {
+          service::ToProto(records[k], out);
+          records[k] = store::RveRecord();  // the copy in `out` is all that is needed now
+        },
+        chunk_budget_bytes_, client::FromGrpc));
   }
 
   absl::Status Drop(absl::string_view run) override { return DropIds(run, {}); }
 
  private:
-  std::size_t Batch() const { return static_cast<std::size_t>(max_batch_); }
+  // Calls `send(begin, end)` for consecutive batches [begin, end) of `n`
+  // items, max_batch_ at most each, until one fails. An empty call is still
+  // one (empty) message: the server's answer to it is the call's, as for the
+  // embedded registry.
+  absl::Status InBatches(std::size_t n,
+                         const std::function<absl::Status(std::size_t, std::size_t)>& send) const {
+    const std::size_t batch = static_cast<std::size_t>(max_batch_);
+    std::size_t begin = 0;
+    do {
+      const std::size_t end = std::min(n, begin + batch);
+      if (absl::Status s = send(begin, end); !s.ok()) return s;
+      begin = end;
+    } while (begin < n);
+    return absl::OkStatus();
+  }
 
   void Ready(grpc::ClientContext& ctx, absl::Duration timeout) const {
     client::Prepare(ctx, options_, DeadlineOf(timeout));

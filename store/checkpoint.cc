@@ -29,11 +29,7 @@
 namespace rvehub::store {
 namespace {
 
-#define RETURN_IF_ERROR(expr)                          \
-  do {                                                 \
-    if (absl::Status s_ = (expr); !s_.ok()) return s_; \
-  } while (false)
-
+using h5::Span;
 using internal::HasNul;
 using internal::kKindRves;
 using internal::kKindSimulation;
@@ -175,11 +171,6 @@ Eigen::Matrix<double, kN, kN> FromRowMajor(const double* v) {
     for (int c = 0; c < kN; ++c) m(r, c) = v[r * kN + c];
   }
   return m;
-}
-
-template <typename T>
-std::span<const T> Span(const std::vector<T>& v) {
-  return std::span<const T>(v.data(), v.size());
 }
 
 // Writes the packing part shared by both kinds of record, under `group`.

@@ -13,11 +13,6 @@
 namespace rvehub::store::h5 {
 namespace {
 
-#define RETURN_IF_ERROR(expr)                          \
-  do {                                                 \
-    if (absl::Status s_ = (expr); !s_.ok()) return s_; \
-  } while (false)
-
 // HDF5 stores a chunk's size in 32 bits.
 constexpr std::size_t kMaxChunkBytes = (std::size_t{1} << 32) - 1;
 
@@ -299,13 +294,8 @@ absl::StatusOr<std::int64_t> File::ReadIntAttribute(const char* name) const {
   return value;
 }
 
-absl::Status File::CreateDataset(const std::string& name, std::size_t rows, std::size_t width,
-                                 std::size_t row_bytes, hid_t file_type, Handle* dataset) {
-  const std::string where = Where("dataset", name);
-  if (row_bytes == 0 || row_bytes > kMaxChunkBytes) {
-    return absl::InvalidArgumentError(
-        absl::StrCat(where, ": a row of ", row_bytes, " bytes does not fit an HDF5 chunk"));
-  }
+bool ChunkedLayout(std::size_t rows, std::size_t width, std::size_t row_bytes, Handle* space,
+                   Handle* dcpl) {
   const int rank = width == 0 ? 1 : 2;
   const hsize_t dims[2] = {rows, width};
   // HDF5 cannot chunk a dimension fixed at size 0, so an empty dataset gets
@@ -320,14 +310,24 @@ absl::Status File::CreateDataset(const std::string& name, std::size_t rows, std:
     chunk_rows = (rows + num_chunks - 1) / num_chunks;
   }
   const hsize_t chunk[2] = {chunk_rows, width};
+  *space = Handle(H5Screate_simple(rank, dims, max_dims), H5Sclose);
+  *dcpl = Handle(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  return space->valid() && dcpl->valid() && !Failed(H5Pset_chunk(dcpl->id(), rank, chunk)) &&
+         !Failed(H5Pset_fletcher32(dcpl->id())) &&
+         // Every element is written at once: filling chunks first is wasted work.
+         !Failed(H5Pset_fill_time(dcpl->id(), H5D_FILL_TIME_NEVER));
+}
 
-  Handle space(H5Screate_simple(rank, dims, max_dims), H5Sclose);
-  Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+absl::Status File::CreateDataset(const std::string& name, std::size_t rows, std::size_t width,
+                                 std::size_t row_bytes, hid_t file_type, Handle* dataset) {
+  const std::string where = Where("dataset", name);
+  if (row_bytes == 0 || row_bytes > kMaxChunkBytes) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(where, ": a row of ", row_bytes, " bytes does not fit an HDF5 chunk"));
+  }
+  Handle space, dcpl;
   Handle lcpl(H5Pcreate(H5P_LINK_CREATE), H5Pclose);
-  if (!space.valid() || !dcpl.valid() || !lcpl.valid() ||
-      Failed(H5Pset_chunk(dcpl.id(), rank, chunk)) || Failed(H5Pset_fletcher32(dcpl.id())) ||
-      // Every element is written at once: filling chunks first is wasted work.
-      Failed(H5Pset_fill_time(dcpl.id(), H5D_FILL_TIME_NEVER)) ||
+  if (!ChunkedLayout(rows, width, row_bytes, &space, &dcpl) || !lcpl.valid() ||
       Failed(H5Pset_create_intermediate_group(lcpl.id(), 1))) {
     return Error(absl::StatusCode::kInternal, absl::StrCat("cannot set up ", where));
   }

@@ -21,6 +21,13 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
 
+// Returns the status of `expr` from the enclosing function when it is not OK
+// (store/ .cc files only: this header is private to store/).
+#define RETURN_IF_ERROR(expr)                          \
+  do {                                                 \
+    if (absl::Status s_ = (expr); !s_.ok()) return s_; \
+  } while (false)
+
 namespace rvehub::store::h5 {
 
 // Stops HDF5 from printing its error stack to stderr on the calling thread
@@ -68,6 +75,13 @@ class Handle {
   Closer closer_ = nullptr;
 };
 
+// The dataspace and dataset creation properties of every store dataset:
+// [rows] (width 0) or [rows × width], chunked in about kChunkBytes with the
+// rows spread evenly over the chunks, fletcher32-checksummed and never
+// filled. False when HDF5 refuses (its error stack says why).
+bool ChunkedLayout(std::size_t rows, std::size_t width, std::size_t row_bytes, Handle* space,
+                   Handle* dcpl);
+
 // Maps a C++ element type to its HDF5 memory type and its little-endian
 // file type (the same bits on x86-64 and aarch64: no conversion happens).
 template <typename T>
@@ -97,6 +111,13 @@ struct TypeOf<std::uint8_t> {
   static hid_t Memory() { return H5T_NATIVE_UINT8; }
   static hid_t File() { return H5T_STD_U8LE; }
 };
+
+// `v` as the span File::Write takes (a vector does not convert to
+// std::span<const T> while T is being deduced).
+template <typename T>
+std::span<const T> Span(const std::vector<T>& v) {
+  return std::span<const T>(v.data(), v.size());
+}
 
 // Bytes of data per chunk that the writer aims for: large enough that the
 // per-chunk overhead (index entry, checksum, one write call) vanishes, small

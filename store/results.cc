@@ -32,13 +32,9 @@
 namespace rvehub::store {
 namespace {
 
-#define RETURN_IF_ERROR(expr)                          \
-  do {                                                 \
-    if (absl::Status s_ = (expr); !s_.ok()) return s_; \
-  } while (false)
-
 namespace fs = std::filesystem;
 using h5::Handle;
+using h5::Span;
 
 constexpr char kFramesGroup[] = "/frames";
 constexpr char kTopologyGroup[] = "/topology";
@@ -49,11 +45,6 @@ constexpr char kPosition[] = "position";
 // read (ParaView) let go within moments, so the writer retries for a while.
 constexpr int kLockAttempts = 40;
 constexpr std::chrono::milliseconds kLockRetryDelay(250);  // 40 × 0.25 s = 10 s
-
-template <typename T>
-std::span<const T> Span(const std::vector<T>& v) {
-  return std::span<const T>(v.data(), v.size());
-}
 
 // ----------------------------------------------------------------------------
 // HDF5 pieces the read-only h5::File does not offer: opening for appending,
@@ -171,21 +162,8 @@ absl::Status WriteDataset(hid_t file, const std::string& name, std::span<const T
   const std::string where = absl::StrCat("dataset ", name, " of ", path);
   const std::size_t per_row = width == 0 ? 1 : width;
   const std::size_t rows = data.size() / per_row;
-  const int rank = width == 0 ? 1 : 2;
-  const hsize_t dims[2] = {rows, width};
-  // HDF5 cannot chunk a dimension fixed at 0: an empty dataset is unlimited.
-  const hsize_t max_dims[2] = {rows == 0 ? H5S_UNLIMITED : rows, width};
-  // About h5::kChunkBytes per chunk, rows spread evenly over the chunks.
-  hsize_t chunk_rows = std::max<std::size_t>(1, h5::kChunkBytes / (per_row * sizeof(T)));
-  if (rows > 0) {
-    const hsize_t num_chunks = (rows + chunk_rows - 1) / chunk_rows;
-    chunk_rows = (rows + num_chunks - 1) / num_chunks;
-  }
-  const hsize_t chunk[2] = {chunk_rows, width};
-  Handle space(H5Screate_simple(rank, dims, max_dims), H5Sclose);
-  Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
-  if (!space.valid() || !dcpl.valid() || H5Pset_chunk(dcpl.id(), rank, chunk) < 0 ||
-      H5Pset_fletcher32(dcpl.id()) < 0 || H5Pset_fill_time(dcpl.id(), H5D_FILL_TIME_NEVER) < 0) {
+  Handle space, dcpl;
+  if (!h5::ChunkedLayout(rows, width, per_row * sizeof(T), &space, &dcpl)) {
     return h5::Error(absl::StatusCode::kInternal, absl::StrCat("cannot set up ", where));
   }
   *dataset = Handle(H5Dcreate2(file, name.c_str(), h5::TypeOf<T>::File(), space.id(), H5P_DEFAULT,

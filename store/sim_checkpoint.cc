@@ -19,21 +19,12 @@
 namespace rvehub::store {
 namespace {
 
-#define RETURN_IF_ERROR(expr)                          \
-  do {                                                 \
-    if (absl::Status s_ = (expr); !s_.ok()) return s_; \
-  } while (false)
-
+using h5::Span;
 using internal::HasNul;
 
 // Where the record sets live (the rves.h5 / templates.h5 layout below them).
 constexpr char kRvesGroup[] = "/rves";
 constexpr char kTemplatesGroup[] = "/templates";
-
-template <typename T>
-std::span<const T> Span(const std::vector<T>& v) {
-  return std::span<const T>(v.data(), v.size());
-}
 
 // Named arrays as three datasets under `group`: name [a], offset [a+1]
 // (CSR into values) and values [total], in the map's (sorted) order.

@@ -3,24 +3,19 @@
 // outputs are checked, and the server commands against real rve_server
 // processes on free loopback ports (templates, an element test on the server
 // bit-identical to the local one, get, checkpoint and restore).
-#include <fcntl.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
-#include <iterator>
 #include <memory>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "absl/strings/match.h"
@@ -31,11 +26,12 @@
 #include "gtest/gtest.h"
 #include "rve_server/client/channel.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
-
-extern char** environ;
+#include "tests/process_util.h"
 
 namespace rvehub::cli {
 namespace {
+
+using testing_util::ReadFile;
 
 struct Result {
   int exit_code = -1;
@@ -45,22 +41,9 @@ struct Result {
 // Runs rve_cli with `args` (already shell-quoted where needed); `output` has
 // stdout and stderr together, or stdout only when `stdout_only`.
 Result RunCli(const std::string& args, bool stdout_only = false) {
-  const std::string command =
-      absl::StrCat("'", RVE_CLI_PATH, "' ", args, stdout_only ? " 2>/dev/null" : " 2>&1");
-  Result r;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return r;
-  char buffer[4096];
-  std::size_t got;
-  while ((got = std::fread(buffer, 1, sizeof(buffer), pipe)) > 0) r.output.append(buffer, got);
-  const int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  testing_util::CommandResult r = testing_util::RunCommand(
+      absl::StrCat("'", RVE_CLI_PATH, "' ", args, stdout_only ? " 2>/dev/null" : " 2>&1"));
+  return {r.exit_code, std::move(r.out)};
 }
 
 // A path in the test's temporary directory, unique per process.
@@ -264,83 +247,39 @@ TEST(CliTest, UnreachableServerFailsNamingUnavailable) {
 // ---------------------------------------------------------------------------
 // Against real servers.
 
-// A running rve_server on a free loopback port; stopped with SIGTERM (and
-// waited for) by Stop or at destruction.
-class ServerProcess {
+// A running rve_server (testing_util::ServerProcess) and a stub on it; its
+// log is removed at destruction unless the test failed.
+class Server {
  public:
-  explicit ServerProcess(std::vector<std::string> extra_args = {}) {
-    static int count = 0;
-    log_path_ = TempPath(absl::StrCat("server", ++count, ".log"));
-    std::vector<std::string> args = {RVE_SERVER_PATH, "--listen=127.0.0.1:0", "--threads=1",
-                                     "--drain_seconds=5"};
-    args.insert(args.end(), extra_args.begin(), extra_args.end());
-    std::vector<char*> argv;
-    for (std::string& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    int out[2];
-    // Close-on-exec, so that the rve_cli children do not hold the pipe.
-    if (pipe2(out, O_CLOEXEC) != 0) {
-      ADD_FAILURE() << "pipe2: " << std::strerror(errno);
-      return;
-    }
-    // posix_spawn rather than fork: this process runs gRPC threads.
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_adddup2(&actions, out[1], STDOUT_FILENO);
-    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, log_path_.c_str(),
-                                     O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int spawned = posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&actions);
-    close(out[1]);
-    if (spawned != 0) {
-      close(out[0]);
-      pid_ = -1;
-      ADD_FAILURE() << "cannot start " << RVE_SERVER_PATH << ": " << std::strerror(spawned);
-      return;
-    }
-    // The server's first stdout line: "listening on HOST:PORT".
-    FILE* f = fdopen(out[0], "r");
-    char line[256] = {0};
-    if (std::fgets(line, sizeof line, f) != nullptr) {
-      const std::string text(line);
-      const std::string prefix = "listening on ";
-      if (text.starts_with(prefix)) {
-        address_ = text.substr(prefix.size(), text.find('\n') - prefix.size());
-      }
-    }
-    std::fclose(f);
-    EXPECT_FALSE(address_.empty()) << "rve_server did not report its address; log:\n" << Log();
-    stub_ = v1::RveService::NewStub(client::MakeChannel(address_, {}));
-  }
-  ~ServerProcess() {
+  explicit Server(std::vector<std::string> extra_args = {})
+      : process_(RVE_SERVER_PATH, NextLogPath(), std::move(extra_args)),
+        stub_(v1::RveService::NewStub(client::MakeChannel(process_.address(), {}))) {}
+  ~Server() {
     Stop();
-    if (!testing::Test::HasFailure()) std::remove(log_path_.c_str());
+    if (!testing::Test::HasFailure()) std::remove(process_.log_path().c_str());
   }
-  ServerProcess(const ServerProcess&) = delete;
-  ServerProcess& operator=(const ServerProcess&) = delete;
+  Server(const Server&) = delete;
+  Server& operator=(const Server&) = delete;
 
   // SIGTERM and wait; the exit status (−1 when it did not exit normally).
   int Stop() {
-    if (pid_ <= 0) return exit_code_;
     // Our idle connection would hold the server's drain up for seconds.
     stub_.reset();
-    kill(pid_, SIGTERM);
-    int status = 0;
-    waitpid(pid_, &status, 0);
-    pid_ = -1;
-    exit_code_ = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return exit_code_;
+    return process_.Stop();
   }
 
-  const std::string& address() const { return address_; }
-  std::string server_flag() const { return absl::StrCat("--server=", address_); }
+  const std::string& address() const { return process_.address(); }
+  std::string server_flag() const { return absl::StrCat("--server=", address()); }
   v1::RveService::Stub& stub() { return *stub_; }
-  std::string Log() const { return ReadFile(log_path_); }
+  std::string Log() const { return process_.Log(); }
 
  private:
-  pid_t pid_ = -1;
-  int exit_code_ = -1;
-  std::string address_, log_path_;
+  static std::string NextLogPath() {
+    static int count = 0;
+    return TempPath(absl::StrCat("server", ++count, ".log"));
+  }
+
+  testing_util::ServerProcess process_;
   std::unique_ptr<v1::RveService::Stub> stub_;
 };
 
@@ -351,7 +290,7 @@ std::unique_ptr<grpc::ClientContext> Ctx() {
 }
 
 // rve_cli prepare --out (SET-dense, ~0.5 s) and upload-template; the name.
-std::string PrepareAndUpload(const ServerProcess& server, int seed) {
+std::string PrepareAndUpload(const Server& server, int seed) {
   const std::string file = TempPath(absl::StrCat("template", seed, ".h5"));
   const Result prepared =
       RunCli(absl::StrCat("prepare --material=SET-dense --seed=", seed, " --out='", file, "'"));
@@ -366,7 +305,7 @@ std::string PrepareAndUpload(const ServerProcess& server, int seed) {
   return name;
 }
 
-void CreateRves(ServerProcess& server, const std::string& run, const std::string& template_name,
+void CreateRves(Server& server, const std::string& run, const std::string& template_name,
                 const std::vector<std::int64_t>& ids) {
   v1::CreateRvesRequest request;
   request.set_run_id(run);
@@ -378,7 +317,7 @@ void CreateRves(ServerProcess& server, const std::string& run, const std::string
 }
 
 // Commits `step` for `ids` with a small compression; the results.
-v1::ApplyResponse Compress(ServerProcess& server, const std::string& run, std::int64_t step,
+v1::ApplyResponse Compress(Server& server, const std::string& run, std::int64_t step,
                            const std::vector<std::int64_t>& ids) {
   v1::ApplyRequest request;
   request.set_run_id(run);
@@ -399,7 +338,7 @@ v1::ApplyResponse Compress(ServerProcess& server, const std::string& run, std::i
 
 // The serialized records of a run, one Export call per RVE (so that the
 // server's own chunking does not matter here).
-std::vector<std::string> ExportRun(ServerProcess& server, const std::string& run,
+std::vector<std::string> ExportRun(Server& server, const std::string& run,
                                    const std::vector<std::int64_t>& ids) {
   std::vector<std::string> records;
   for (std::int64_t id : ids) {
@@ -434,7 +373,7 @@ void ExpectSameBits(const std::vector<std::vector<double>>& a,
 // prepare --out, upload-template, info, and an isotropic test on the server
 // that matches the local run of the same material and seed bit for bit.
 TEST(CliServerTest, ElementTestOnTheServerMatchesTheLocalRun) {
-  ServerProcess server;
+  Server server;
   ASSERT_FALSE(server.address().empty());
   const std::string name = PrepareAndUpload(server, 1);
 
@@ -512,7 +451,7 @@ double JsonField(const std::string& json, const std::string& key) {
 }
 
 TEST(CliServerTest, GetPrintsOneRve) {
-  ServerProcess server;
+  Server server;
   ASSERT_FALSE(server.address().empty());
   const std::string name = PrepareAndUpload(server, 2);
   CreateRves(server, "g", name, {5, 6});
@@ -584,8 +523,8 @@ TEST(CliServerTest, GetPrintsOneRve) {
 // limit makes the import take several chunks); the restored RVEs are the
 // exported ones bit for bit and continue identically.
 TEST(CliServerTest, CheckpointAndRestoreRoundTrip) {
-  ServerProcess source;
-  ServerProcess target({"--max_message_mb=1"});
+  Server source;
+  Server target({"--max_message_mb=1"});
   ASSERT_FALSE(source.address().empty());
   ASSERT_FALSE(target.address().empty());
   const std::string name = PrepareAndUpload(source, 2);
@@ -660,7 +599,7 @@ TEST(CliServerTest, CheckpointAndRestoreRoundTrip) {
 TEST(CliServerTest, TokenFromTheTokenFile) {
   const std::string token_file = TempPath("token");
   std::ofstream(token_file) << "  s3cret-token\n";
-  ServerProcess server({absl::StrCat("--auth_token_file=", token_file)});
+  Server server({absl::StrCat("--auth_token_file=", token_file)});
   ASSERT_FALSE(server.address().empty());
   const Result refused = RunCli(absl::StrCat("info ", server.server_flag()));
   EXPECT_EQ(refused.exit_code, 1) << refused.output;

@@ -7,23 +7,17 @@
 // The small case is cases/single-element-biaxial.json with a fixed 2 ms time
 // step and 35 steps (0.07 s); prepared templates are shared by every test
 // process through one cache directory.
-#include <fcntl.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
-#include <iterator>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "absl/strings/match.h"
@@ -33,24 +27,19 @@
 #include "absl/strings/str_split.h"
 #include "gtest/gtest.h"
 #include "nlohmann/json.hpp"
-
-extern char** environ;
+#include "tests/process_util.h"
 
 namespace rvehub::mpm {
 namespace {
 
 namespace fs = std::filesystem;
 using Json = nlohmann::json;
+using testing_util::ReadFile;
 
 constexpr char kHeader[] =
     "time,step,left_fx,left_fy,bottom_fx,bottom_fy,platen_fx,platen_fy,platen_dx,platen_dy,"
     "mean_sxx,mean_syy,mean_sxy,mean_exx,mean_eyy,mean_exy,mean_p,mean_q,mean_void_ratio,"
     "kinetic_energy,wall_per_step_s";
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
 
 // This process's scratch directory, created afresh on first use and removed
 // at the end when every test passed.
@@ -92,20 +81,9 @@ struct Result {
 Result RunClient(const std::string& args) {
   static int count = 0;
   const std::string err_path = TempPath(absl::StrCat("stderr", ++count, ".txt"));
-  const std::string command =
-      absl::StrCat(Quote(MPM_CLIENT_PATH), " ", args, " 2>", Quote(err_path));
-  Result r;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) {
-    ADD_FAILURE() << "popen: " << std::strerror(errno);
-    return r;
-  }
-  char buffer[4096];
-  std::size_t got;
-  while ((got = std::fread(buffer, 1, sizeof(buffer), pipe)) > 0) r.out.append(buffer, got);
-  const int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.err = ReadFile(err_path);
+  testing_util::CommandResult run = testing_util::RunCommand(
+      absl::StrCat(Quote(MPM_CLIENT_PATH), " ", args, " 2>", Quote(err_path)));
+  Result r{run.exit_code, std::move(run.out), ReadFile(err_path)};
   std::remove(err_path.c_str());
   return r;
 }
@@ -489,84 +467,22 @@ TEST(MpmCliTest, UnreachableServerFailsNamingIt) {
   EXPECT_FALSE(fs::exists(dir + "/timeseries.csv"));
 }
 
-// A running rve_server on a free loopback port; stopped with SIGTERM (and
-// waited for) by Stop or at destruction.
-class ServerProcess {
- public:
-  explicit ServerProcess(std::vector<std::string> extra_args = {}) {
-    // Short polls, so that the children notice a closed channel quickly.
-    setenv("GRPC_CLIENT_CHANNEL_BACKUP_POLL_INTERVAL_MS", "50", 1);
-    static int count = 0;
-    log_path_ = TempPath(absl::StrCat("server", ++count, ".log"));
-    std::vector<std::string> args = {RVE_SERVER_PATH, "--listen=127.0.0.1:0", "--threads=1",
-                                     "--drain_seconds=5"};
-    args.insert(args.end(), extra_args.begin(), extra_args.end());
-    std::vector<char*> argv;
-    for (std::string& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    int out[2];
-    // Close-on-exec, so that the mpm_client children do not hold the pipe.
-    if (pipe2(out, O_CLOEXEC) != 0) {
-      ADD_FAILURE() << "pipe2: " << std::strerror(errno);
-      return;
-    }
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_adddup2(&actions, out[1], STDOUT_FILENO);
-    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, log_path_.c_str(),
-                                     O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int spawned = posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&actions);
-    close(out[1]);
-    if (spawned != 0) {
-      close(out[0]);
-      pid_ = -1;
-      ADD_FAILURE() << "cannot start " << RVE_SERVER_PATH << ": " << std::strerror(spawned);
-      return;
-    }
-    // The server's first stdout line: "listening on HOST:PORT".
-    FILE* f = fdopen(out[0], "r");
-    char line[256] = {0};
-    if (std::fgets(line, sizeof line, f) != nullptr) {
-      const std::string text(line);
-      const std::string prefix = "listening on ";
-      if (text.starts_with(prefix)) {
-        address_ = text.substr(prefix.size(), text.find('\n') - prefix.size());
-      }
-    }
-    std::fclose(f);
-    EXPECT_FALSE(address_.empty()) << "rve_server did not report its address; log:\n" << Log();
-  }
-  ~ServerProcess() { Stop(); }
-  ServerProcess(const ServerProcess&) = delete;
-  ServerProcess& operator=(const ServerProcess&) = delete;
-
-  // SIGTERM and wait; the exit status (−1 when it did not exit normally).
-  int Stop() {
-    if (pid_ <= 0) return exit_code_;
-    kill(pid_, SIGTERM);
-    int status = 0;
-    waitpid(pid_, &status, 0);
-    pid_ = -1;
-    exit_code_ = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return exit_code_;
-  }
-
-  const std::string& address() const { return address_; }
-  std::string Log() const { return ReadFile(log_path_); }
-
- private:
-  pid_t pid_ = -1;
-  int exit_code_ = -1;
-  std::string address_, log_path_;
-};
+// A running rve_server (testing_util::ServerProcess) for the children to
+// use; from then on gRPC polls briefly, so that the children notice a closed
+// channel quickly.
+testing_util::ServerProcess StartServer(std::vector<std::string> extra_args = {}) {
+  setenv("GRPC_CLIENT_CHANNEL_BACKUP_POLL_INTERVAL_MS", "50", 1);
+  static int count = 0;
+  return testing_util::ServerProcess(
+      RVE_SERVER_PATH, TempPath(absl::StrCat("server", ++count, ".log")), std::move(extra_args));
+}
 
 // Two rve_server processes share the RVEs; the results are the embedded
 // server's, bit for bit.
 TEST(MpmCliTest, RemoteServersGiveTheEmbeddedResult) {
   const RunOutput& reference = ReferenceRun();
   ASSERT_EQ(reference.result.exit_code, 0) << reference.result;
-  ServerProcess a, b;
+  testing_util::ServerProcess a = StartServer(), b = StartServer();
   ASSERT_FALSE(a.address().empty());
   ASSERT_FALSE(b.address().empty());
   const std::string dir = TempPath("remote");
@@ -586,7 +502,7 @@ TEST(MpmCliTest, RemoteServersGiveTheEmbeddedResult) {
 TEST(MpmCliTest, TokenFileIsSentToTheServers) {
   const std::string token = TempPath("token");
   std::ofstream(token) << "mpm-s3cret\n";
-  ServerProcess server({absl::StrCat("--auth_token_file=", token)});
+  testing_util::ServerProcess server = StartServer({absl::StrCat("--auth_token_file=", token)});
   ASSERT_FALSE(server.address().empty());
   const std::string run = absl::StrCat(
       "run ", Quote(WriteCase("token", SmallCase())), " --out=", Quote(TempPath("token_out")),

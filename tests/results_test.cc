@@ -18,8 +18,6 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <limits>
 #include <map>
 #include <regex>
@@ -38,6 +36,7 @@
 #include "store/checkpoint.h"
 #include "store/record.h"
 #include "store/sim_checkpoint.h"
+#include "tests/store_test_util.h"
 #include "tests/test_util.h"
 
 namespace rvehub::store {
@@ -48,17 +47,16 @@ using ::rvehub::dem::testing_util::ExpectIdenticalPackings;
 using ::rvehub::dem::testing_util::Prepared;
 using ::rvehub::dem::testing_util::SameBits;
 using ::rvehub::dem::testing_util::SquareLattice;
-
-::testing::AssertionResult MessageHas(const absl::Status& status, absl::string_view part) {
-  if (absl::StrContains(status.message(), part)) return ::testing::AssertionSuccess();
-  return ::testing::AssertionFailure() << "'" << part << "' not in: " << status;
-}
-
-double FromBits(std::uint64_t bits) {
-  double d;
-  std::memcpy(&d, &bits, sizeof d);
-  return d;
-}
+using testing_util::ChunkLocation;
+using testing_util::FilesStartingWith;
+using testing_util::FlipByte;
+using testing_util::FromBits;
+using testing_util::MessageHas;
+using testing_util::ReadBytes;
+using testing_util::ReplaceInt64Dataset;
+using testing_util::SetIntAttribute;
+using testing_util::TestDirTest;
+using testing_util::WriteBytes;
 
 // Values a lossy path (text, conversion, arithmetic) would alter.
 const std::vector<double>& AwkwardValues() {
@@ -79,48 +77,6 @@ bool SameBits(const std::vector<double>& a, const std::vector<double>& b) {
   return a.size() == b.size() && std::memcmp(a.data(), b.data(), sizeof(double) * a.size()) == 0;
 }
 
-std::string ReadBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
-void WriteBytes(const std::string& path, const std::string& bytes) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-}
-
-void FlipByte(const std::string& path, std::uint64_t offset) {
-  std::string bytes = ReadBytes(path);
-  ASSERT_LT(offset, bytes.size());
-  bytes[offset] = static_cast<char>(bytes[offset] ^ 0x5a);
-  WriteBytes(path, bytes);
-}
-
-// File offset and size of the first chunk of `dataset`.
-void FirstChunk(const std::string& path, const char* dataset, haddr_t* addr, hsize_t* size) {
-  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  ASSERT_GE(file, 0);
-  const hid_t dset = H5Dopen2(file, dataset, H5P_DEFAULT);
-  ASSERT_GE(dset, 0);
-  const hid_t space = H5Dget_space(dset);
-  hsize_t offset[2] = {0, 0};
-  unsigned filter_mask = 0;
-  EXPECT_GE(H5Dget_chunk_info(dset, space, 0, offset, &filter_mask, addr, size), 0);
-  H5Sclose(space);
-  H5Dclose(dset);
-  H5Fclose(file);
-}
-
-void SetIntAttribute(const std::string& path, const char* name, std::int32_t value) {
-  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
-  ASSERT_GE(file, 0);
-  const hid_t attr = H5Aopen(file, name, H5P_DEFAULT);
-  ASSERT_GE(attr, 0);
-  EXPECT_GE(H5Awrite(attr, H5T_NATIVE_INT32, &value), 0);
-  H5Aclose(attr);
-  H5Fclose(file);
-}
-
 void DeleteObject(const std::string& path, const char* name) {
   const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
   ASSERT_GE(file, 0);
@@ -128,49 +84,13 @@ void DeleteObject(const std::string& path, const char* name) {
   H5Fclose(file);
 }
 
-// Replaces dataset `name` by a 1-D int64 dataset holding `values`.
-void ReplaceInt64Dataset(const std::string& path, const char* name,
-                         const std::vector<std::int64_t>& values) {
-  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
-  ASSERT_GE(file, 0);
-  ASSERT_GE(H5Ldelete(file, name, H5P_DEFAULT), 0);
-  const hsize_t dims[1] = {values.size()};
-  const hid_t space = H5Screate_simple(1, dims, nullptr);
-  const hid_t dset =
-      H5Dcreate2(file, name, H5T_STD_I64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-  ASSERT_GE(dset, 0);
-  EXPECT_GE(H5Dwrite(dset, H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()), 0);
-  H5Dclose(dset);
-  H5Sclose(space);
-  H5Fclose(file);
-}
-
-std::vector<std::string> FilesStartingWith(const fs::path& dir, const std::string& prefix) {
-  std::vector<std::string> names;
-  for (const fs::directory_entry& e : fs::directory_iterator(dir)) {
-    const std::string name = e.path().filename().string();
-    if (name.rfind(prefix, 0) == 0) names.push_back(name);
-  }
-  return names;
-}
-
-class StoreFilesTest : public ::testing::Test {
+class StoreFilesTest : public TestDirTest {
  protected:
+  StoreFilesTest() : TestDirTest("rvehub_results_test_") {}
   void SetUp() override {
     H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // the test's own HDF5 calls stay quiet
-    const ::testing::TestInfo* test = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           absl::StrCat("rvehub_results_test_", ::getpid(), "_", test->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    TestDirTest::SetUp();
   }
-  void TearDown() override {
-    std::error_code ignored;
-    fs::remove_all(dir_, ignored);
-  }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
-
-  fs::path dir_;
 };
 
 // ============================================================================
@@ -571,7 +491,7 @@ TEST_F(StoreFilesTest, CorruptOrTruncatedResultsAreDataLoss) {
   const std::string good = ReadBytes(h5);
   haddr_t addr = 0;
   hsize_t size = 0;
-  FirstChunk(h5, "/frames/10/stress", &addr, &size);
+  ChunkLocation(h5, "/frames/10/stress", 0, &addr, &size);
   ASSERT_GT(size, 1000u);
   FlipByte(h5, addr + size / 2);
   absl::StatusOr<std::vector<ResultFrame>> read = ReadResults(h5);
@@ -721,7 +641,7 @@ TEST_F(StoreFilesTest, SimCheckpointCorruptionIsDataLossNamingTheDataset) {
     WriteBytes(path, good);
     haddr_t addr = 0;
     hsize_t size = 0;
-    FirstChunk(path, dataset, &addr, &size);
+    ChunkLocation(path, dataset, 0, &addr, &size);
     ASSERT_GT(size, 1000u) << dataset;
     FlipByte(path, addr + size / 2);
     absl::StatusOr<SimCheckpoint> read = ReadSimCheckpoint(path);

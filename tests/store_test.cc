@@ -10,10 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <cstring>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <limits>
 #include <string>
 #include <vector>
@@ -28,6 +25,7 @@
 #include "rve_server/engine/rve.h"
 #include "store/checkpoint.h"
 #include "store/record.h"
+#include "tests/store_test_util.h"
 #include "tests/test_util.h"
 
 namespace rvehub::store {
@@ -40,19 +38,16 @@ using ::rvehub::dem::testing_util::ExpectIdenticalStates;
 using ::rvehub::dem::testing_util::Prepared;
 using ::rvehub::dem::testing_util::SameBits;
 using ::rvehub::dem::testing_util::SquareLattice;
-
-// gmock is not linked: a plain substring predicate for status messages.
-::testing::AssertionResult MessageHas(const absl::Status& status, absl::string_view part) {
-  if (absl::StrContains(status.message(), part)) return ::testing::AssertionSuccess();
-  return ::testing::AssertionFailure() << "'" << part << "' not in: " << status;
-}
-
-// A double with a chosen bit pattern (NaN payloads and the like).
-double FromBits(std::uint64_t bits) {
-  double d;
-  std::memcpy(&d, &bits, sizeof d);
-  return d;
-}
+using testing_util::ChunkLocation;
+using testing_util::FilesStartingWith;
+using testing_util::FlipByte;
+using testing_util::FromBits;
+using testing_util::MessageHas;
+using testing_util::ReadBytes;
+using testing_util::ReplaceInt64Dataset;
+using testing_util::SetIntAttribute;
+using testing_util::TestDirTest;
+using testing_util::WriteBytes;
 
 // Values that a lossy path (text, float conversion, arithmetic) would alter.
 const std::vector<double>& AwkwardValues() {
@@ -139,47 +134,9 @@ void ExpectIdenticalRecords(const std::vector<RveRecord>& a, const std::vector<R
   }
 }
 
-std::string ReadBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
-void WriteBytes(const std::string& path, const std::string& bytes) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-}
-
-void FlipByte(const std::string& path, std::uint64_t offset) {
-  std::string bytes = ReadBytes(path);
-  ASSERT_LT(offset, bytes.size());
-  bytes[offset] = static_cast<char>(bytes[offset] ^ 0x5a);
-  WriteBytes(path, bytes);
-}
-
-// Files whose names start with `prefix`, e.g. leftover temporaries.
-std::vector<std::string> FilesStartingWith(const fs::path& dir, const std::string& prefix) {
-  std::vector<std::string> names;
-  for (const fs::directory_entry& e : fs::directory_iterator(dir)) {
-    const std::string name = e.path().filename().string();
-    if (name.rfind(prefix, 0) == 0) names.push_back(name);
-  }
-  return names;
-}
-
-class StoreTest : public ::testing::Test {
+class StoreTest : public TestDirTest {
  protected:
-  void SetUp() override {
-    const ::testing::TestInfo* test = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           absl::StrCat("rvehub_store_test_", ::getpid(), "_", test->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override {
-    std::error_code ignored;
-    fs::remove_all(dir_, ignored);
-  }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  StoreTest() : TestDirTest("rvehub_store_test_") {}
 
   // Three records of different sizes, one without contacts.
   std::vector<RveRecord> SomeRecords() const {
@@ -191,7 +148,6 @@ class StoreTest : public ::testing::Test {
     return rves;
   }
 
-  fs::path dir_;
   const FileInfo info_{"store_test 1.0", "2026-11-22T10:00:00Z"};
 };
 
@@ -364,22 +320,6 @@ TEST_F(StoreTest, TruncatedFileIsDataLoss) {
   }
 }
 
-// File offset and size of chunk `index` of `dataset`.
-void ChunkLocation(const std::string& path, const char* dataset, hsize_t index, haddr_t* addr,
-                   hsize_t* size) {
-  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  ASSERT_GE(file, 0);
-  const hid_t dset = H5Dopen2(file, dataset, H5P_DEFAULT);
-  ASSERT_GE(dset, 0);
-  const hid_t space = H5Dget_space(dset);
-  hsize_t offset[2] = {0, 0};
-  unsigned filter_mask = 0;
-  EXPECT_GE(H5Dget_chunk_info(dset, space, index, offset, &filter_mask, addr, size), 0);
-  H5Sclose(space);
-  H5Dclose(dset);
-  H5Fclose(file);
-}
-
 TEST_F(StoreTest, FlippedByteInParticleChunkIsDataLossNamingTheDataset) {
   // 9000 particles: a chunk of /particles/sx large enough that the flipped
   // byte lies well inside it.
@@ -457,17 +397,6 @@ TEST_F(StoreTest, FlippedByteInMetadataIsAClearError) {
   }
 }
 
-// Rewrites one attribute of the root group (forging files from elsewhere).
-void SetIntAttribute(const std::string& path, const char* name, std::int32_t value) {
-  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
-  ASSERT_GE(file, 0);
-  const hid_t attr = H5Aopen(file, name, H5P_DEFAULT);
-  ASSERT_GE(attr, 0);
-  EXPECT_GE(H5Awrite(attr, H5T_NATIVE_INT32, &value), 0);
-  H5Aclose(attr);
-  H5Fclose(file);
-}
-
 TEST_F(StoreTest, NewerFormatVersionNamesBothVersions) {
   const std::string path = Path("future.h5");
   ASSERT_TRUE(WriteRves(path, SomeRecords(), info_).ok());
@@ -478,23 +407,6 @@ TEST_F(StoreTest, NewerFormatVersionNamesBothVersions) {
   EXPECT_TRUE(MessageHas(read.status(), absl::StrCat("format_version ", kFormatVersion, ")")));
   SetIntAttribute(path, "format_version", 0);
   EXPECT_EQ(ReadRves(path).status().code(), absl::StatusCode::kDataLoss);
-}
-
-// Replaces dataset `name` by a 1-D int64 dataset holding `values`.
-void ReplaceInt64Dataset(const std::string& path, const char* name,
-                         const std::vector<std::int64_t>& values) {
-  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
-  ASSERT_GE(file, 0);
-  ASSERT_GE(H5Ldelete(file, name, H5P_DEFAULT), 0);
-  const hsize_t dims[1] = {values.size()};
-  const hid_t space = H5Screate_simple(1, dims, nullptr);
-  const hid_t dset =
-      H5Dcreate2(file, name, H5T_STD_I64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-  ASSERT_GE(dset, 0);
-  EXPECT_GE(H5Dwrite(dset, H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()), 0);
-  H5Dclose(dset);
-  H5Sclose(space);
-  H5Fclose(file);
 }
 
 TEST_F(StoreTest, MalformedFilesGiveSpecificErrors) {

@@ -39,6 +39,7 @@
 #include "absl/strings/string_view.h"
 #include "rve_server/cli/element_test_io.h"
 #include "rve_server/client/channel.h"
+#include "rve_server/client/record_stream.h"
 #include "rve_server/engine/element_test.h"
 #include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
@@ -815,33 +816,15 @@ absl::Status ExportRun(const Remote& remote, const std::string& run,
   grpc::ClientContext ctx;
   remote.Ready(ctx);
   std::unique_ptr<grpc::ClientReader<v1::RveChunk>> reader = remote.stub->Export(&ctx, request);
-  v1::RveChunk chunk;
-  std::int64_t declared = -1, received = 0;
-  absl::Status failed;
-  while (failed.ok() && reader->Read(&chunk)) {
-    if (declared < 0) declared = chunk.total_records();
-    for (const v1::RveRecord& r : chunk.records()) {
-      absl::StatusOr<store::RveRecord> record = service::FromProto(r);
-      if (!record.ok()) {
-        failed = absl::DataLossError(absl::StrCat("run \"", run, "\" record ", received, " (id ",
-                                                  r.id(), "): ", record.status().message()));
-        break;
-      }
-      records->push_back(*std::move(record));
-      ++received;
-    }
-  }
-  if (!failed.ok()) {
-    ctx.TryCancel();
-    (void)reader->Finish();  // the stream is abandoned; its status adds nothing
-    return failed;
-  }
-  RETURN_IF_ERROR(remote.Check(reader->Finish(), absl::StrCat("Export of run \"", run, "\"")));
-  if (declared > 0 && declared != received) {
-    return absl::DataLossError(absl::StrCat("export of run \"", run, "\" declared ", declared,
-                                            " records but carried ", received));
-  }
-  return absl::OkStatus();
+  return client::ReadExport(
+      ctx, *reader, run,
+      [records](store::RveRecord&& r) {
+        records->push_back(std::move(r));
+        return absl::OkStatus();
+      },
+      [&](const grpc::Status& s) {
+        return remote.Check(s, absl::StrCat("Export of run \"", run, "\""));
+      });
 }
 
 absl::Status CheckpointCommand(const Flags& flags) {
@@ -899,57 +882,18 @@ absl::Status RestoreCommand(const Flags& flags) {
   v1::ServerInfo info;
   RETURN_IF_ERROR(remote->Call("GetServerInfo", &v1::RveService::Stub::GetServerInfo,
                                v1::ServerInfoRequest(), &info));
-  std::int64_t limit = info.max_message_bytes() > 0 ? info.max_message_bytes()
-                                                    : std::numeric_limits<std::int32_t>::max();
-  if (remote->options.max_message_bytes > 0) {
-    limit = std::min(limit, remote->options.max_message_bytes);
-  }
-  constexpr std::int64_t kOverhead = 64 << 10;
-  const std::int64_t budget = std::max<std::int64_t>(limit - kOverhead, limit / 2);
+  const std::int64_t budget =
+      client::ImportChunkBudget(info.max_message_bytes(), remote->options.max_message_bytes);
 
   grpc::ClientContext ctx;
   remote->Ready(ctx);
   v1::ImportResponse response;
   std::unique_ptr<grpc::ClientWriter<v1::RveChunk>> writer = remote->stub->Import(&ctx, &response);
-  v1::RveChunk chunk;
-  chunk.set_total_records(static_cast<std::int64_t>(records.size()));
-  std::int64_t chunk_bytes = 16, chunks = 0;
-  bool stream_ok = true;
-  absl::Status failed;
-  for (const store::RveRecord* r : records) {
-    v1::RveRecord record;
-    service::ToProto(*r, &record);
-    // The record's bytes in the chunk: field tag and length prefix included.
-    const std::int64_t size = static_cast<std::int64_t>(record.ByteSizeLong()) + 16;
-    if (size > budget) {
-      failed = absl::ResourceExhaustedError(
-          absl::StrCat("RVE (\"", r->run_id, "\", ", r->id, ") takes ", size,
-                       " bytes, over the message limit of ", limit, " bytes"));
-      break;
-    }
-    if (chunk.records_size() > 0 && chunk_bytes + size > budget) {
-      stream_ok = writer->Write(chunk);
-      if (!stream_ok) break;
-      ++chunks;
-      chunk.Clear();
-      chunk_bytes = 16;
-    }
-    *chunk.add_records() = std::move(record);
-    chunk_bytes += size;
-  }
-  if (!failed.ok()) {
-    // Cancelling makes the server drop what it got (import is all or nothing).
-    ctx.TryCancel();
-    (void)writer->Finish();
-    return failed;
-  }
-  if (stream_ok && chunk.records_size() > 0) {
-    stream_ok = writer->Write(chunk);
-    if (stream_ok) ++chunks;
-  }
-  if (stream_ok) writer->WritesDone();
-  // A broken stream's reason comes with Finish.
-  RETURN_IF_ERROR(remote->Check(writer->Finish(), "Import"));
+  std::int64_t chunks = 0;
+  RETURN_IF_ERROR(client::WriteImport(
+      ctx, *writer, records.size(),
+      [&](std::size_t k, v1::RveRecord* out) { service::ToProto(*records[k], out); }, budget,
+      [&](const grpc::Status& s) { return remote->Check(s, "Import"); }, &chunks));
   std::printf("imported %lld RVEs into %s (%lld chunks, %.2f s)\n",
               static_cast<long long>(response.imported()), remote->target.c_str(),
               static_cast<long long>(chunks), SecondsSince(start));
