@@ -335,5 +335,49 @@ TEST_F(CellFlipTest, FlipStepEqualsAStepInThePreFlippedBasis) {
   EXPECT_LT(max_dft, 1e-9 * max_ft);
 }
 
+// Apply spreads one increment over many DEM steps; a flip during them
+// re-bases the cell, and the rest of the increment must follow the same cell
+// path in the new basis (it used to return to the old basis without the
+// particles' relabelling: the packing jumped by a whole cell, p × 5).
+TEST(CellFlipApplyTest, SimpleShearThroughApplyIsContinuousAcrossAFlip) {
+  ASSERT_FALSE(Prepared("SET-dense").radius.empty());
+  Rve rve = CreateOrDie(Prepared("SET-dense"));
+  Eigen::Matrix3d df = Eigen::Matrix3d::Identity();
+  df(0, 1) = 5e-3;  // simple shear, γ per call
+  RveState prev = rve.Observe();
+  std::vector<double> change;
+  int flips = 0, flip_call = -1;
+  std::int64_t min_steps = 1 << 30;
+  for (int k = 0; k < 140; ++k) {
+    const Eigen::Matrix2d h = rve.cell();
+    absl::StatusOr<RveState> s = rve.Apply(df);
+    ASSERT_TRUE(s.ok()) << s.status();
+    min_steps = std::min(min_steps, s->steps);
+    change.push_back((s->stress - prev.stress).norm());
+    prev = *s;
+    if (std::abs(rve.cell()(0, 1) - h(0, 1)) > 0.5 * h(0, 0)) {
+      ++flips;
+      flip_call = k;
+    }
+  }
+  ASSERT_GT(min_steps, 1) << "the flip must fall inside a multi-step increment";
+  EXPECT_EQ(flips, 1);
+  ASSERT_GE(flip_call, 5);
+  ASSERT_LT(flip_call + 5, static_cast<int>(change.size()));
+  // F = I + 0.7 e_x⊗e_y, through the flip.
+  const Eigen::Matrix2d f = rve.DeformationGradient();
+  EXPECT_NEAR(f(0, 1), 0.7, 1e-9);
+  EXPECT_NEAR(f(0, 0), 1.0, 1e-12);
+  EXPECT_NEAR(f(1, 1), 1.0, 1e-12);
+  double neighbours = 0.0;
+  for (int k = flip_call - 5; k <= flip_call + 5; ++k) {
+    if (k != flip_call) neighbours = std::max(neighbours, change[k]);
+  }
+  EXPECT_LE(change[flip_call], 3.0 * neighbours)
+      << "flip in call " << flip_call << " changed σ by " << change[flip_call] << " Pa";
+  EXPECT_GT(prev.MeanPressure(), 30e3);  // still a loaded packing
+  EXPECT_LT(prev.MeanPressure(), 1e6);
+}
+
 }  // namespace
 }  // namespace rvehub::dem

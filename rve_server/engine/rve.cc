@@ -663,13 +663,13 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
   }
 
   ApplyRigidRotation(angle);
-  const Eigen::Matrix2d start = p_.cell;
+  Eigen::Matrix2d start = p_.cell;
   const Eigen::Matrix2d identity = Eigen::Matrix2d::Identity();
   const double pressure = MeanPressure();
-  const double inertial_number = options.max_inertial_number > 0
-                                     ? std::min(options.max_inertial_number,
-                                                p_.controls.max_inertial_number)
-                                     : p_.controls.max_inertial_number;
+  const double inertial_number =
+      options.max_inertial_number > 0
+          ? std::min(options.max_inertial_number, p_.controls.max_inertial_number)
+          : p_.controls.max_inertial_number;
   const double rate = QuasiStaticStrainRate(inertial_number, pressure);
   const double steps_needed = std::ceil(stretch / (rate * dt_));
   const std::int64_t steps =
@@ -679,6 +679,8 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
     const Eigen::Matrix2d next = (identity + (v - identity) * tau) * start;
     const Eigen::Matrix2d l = (next - p_.cell) * p_.cell.inverse() / dt_;
     Step(l, next, /*measure=*/false);
+    // A flip in Step changed the lattice basis: follow it (h' = h·U, U integer).
+    if (p_.cell != next) start = start * (next.inverse() * p_.cell).array().round().matrix();
   }
   std::int64_t used = steps;
   if (options.relax) used += Relax(options.relax_tolerance, options.relax_max_steps).steps;
