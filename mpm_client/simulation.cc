@@ -72,10 +72,19 @@ std::string MakeRunId(const std::string& case_name) {
                       getpid());
 }
 
-// In-plane small-strain measure of a total F, compression +:
-// ε = I − sym(F) (so εyy = 1 − F_yy, the element tests' axial strain).
+// Nominal in-plane strain of a total F, compression +: ε = I − sym(F), so
+// εyy = 1 − F_yy is the element tests' axial strain (timeseries.csv). Not
+// rotation-free: the frames use LogStrain.
 Eigen::Matrix2d Strain(const Eigen::Matrix2d& f) {
   return Eigen::Matrix2d::Identity() - 0.5 * (f + f.transpose());
+}
+
+// Logarithmic (Hencky) strain of a total F, compression +: −½ ln(F·Fᵀ),
+// rotation-free at any deformation.
+Eigen::Matrix2d LogStrain(const Eigen::Matrix2d& f) {
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(f * f.transpose());
+  const Eigen::Vector2d ln = eig.eigenvalues().array().log();
+  return -0.5 * eig.eigenvectors() * ln.asDiagonal() * eig.eigenvectors().transpose();
 }
 
 }  // namespace
@@ -211,8 +220,9 @@ absl::Status Simulation::WriteFrame() {
     p.values.push_back(-0.5 * (s(0, 0) + s(1, 1)));
     const double d = s(0, 0) - s(1, 1);
     q.values.push_back(std::sqrt(0.25 * d * d + s(0, 1) * s(0, 1)));
-    // εv = tr ε, εq = sqrt(2 e:e) with e = ε − (εv/2) I (2-D, shared/reference).
-    const Eigen::Matrix2d strain = Strain(mp.F[i]);
+    // εv = tr ε, εq = sqrt(2 e:e) with e = ε − (εv/2) I (2-D, shared/reference),
+    // of the logarithmic strain: large rotations (flows) are not strain.
+    const Eigen::Matrix2d strain = LogStrain(mp.F[i]);
     const double vol = strain.trace();
     const Eigen::Matrix2d dev = strain - 0.5 * vol * Eigen::Matrix2d::Identity();
     ev.values.push_back(vol);
