@@ -166,13 +166,18 @@ std::vector<std::string> Simulation::Columns() const {
   return c;
 }
 
-absl::Status Simulation::OpenOutputs(bool resume) {
+// Made before any expensive setup, so an unusable --out fails at once.
+static absl::Status MakeOutputDir(const std::string& dir) {
   std::error_code ec;
-  std::filesystem::create_directories(options_.out_dir, ec);
+  std::filesystem::create_directories(dir, ec);
   if (ec) {
     return absl::UnavailableError(
-        absl::StrCat("cannot create the output directory ", options_.out_dir, ": ", ec.message()));
+        absl::StrCat("cannot create the output directory ", dir, ": ", ec.message()));
   }
+  return absl::OkStatus();
+}
+
+absl::Status Simulation::OpenOutputs(bool resume) {
   out_ = std::make_unique<Outputs>();
   const std::string dir = options_.out_dir;
   const std::string h5 = dir + "/results.h5", xdmf = dir + "/results.xdmf";
@@ -310,6 +315,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   sim->case_json_ = ToJson(spec);
   sim->options_ = options;
   sim->run_id_ = MakeRunId(spec.name);
+  if (absl::Status s = MakeOutputDir(options.out_dir); !s.ok()) return s;
   const std::string cache = options.template_cache_dir.empty() ? options.out_dir + "/templates"
                                                                : options.template_cache_dir;
   absl::StatusOr<std::vector<store::TemplateRecord>> templates =
@@ -407,6 +413,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
 
 absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string& checkpoint_path,
                                                                const RunOptions& options) {
+  if (absl::Status s = MakeOutputDir(options.out_dir); !s.ok()) return s;
   absl::StatusOr<store::SimCheckpoint> c = store::ReadSimCheckpoint(checkpoint_path);
   if (!c.ok()) return c.status();
   absl::StatusOr<CaseSpec> spec = ParseCase(c->case_json, ".");
