@@ -222,9 +222,8 @@ absl::Status Simulation::WriteFrame() {
       for (int c = 0; c < 3; ++c) stress.values.push_back(mp.stress[i](r, c));
     }
     const Eigen::Matrix3d& s = mp.stress[i];
-    p.values.push_back(-0.5 * (s(0, 0) + s(1, 1)));
-    const double d = s(0, 0) - s(1, 1);
-    q.values.push_back(std::sqrt(0.25 * d * d + s(0, 1) * s(0, 1)));
+    p.values.push_back(dem::InPlaneMeanPressure(s));
+    q.values.push_back(dem::InPlaneDeviatorStress(s));
     // εv = tr ε, εq = sqrt(2 e:e) with e = ε − (εv/2) I (2-D, shared/reference),
     // of the logarithmic strain: large rotations (flows) are not strain.
     const Eigen::Matrix2d strain = LogStrain(mp.F[i]);
@@ -275,11 +274,10 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
     strain /= volume;
     e /= volume;
   }
-  const double d = sigma(0, 0) - sigma(1, 1);
-  row.insert(row.end(), {-sigma(0, 0), -sigma(1, 1), -sigma(0, 1), strain(0, 0), strain(1, 1),
-                         strain(0, 1), -0.5 * (sigma(0, 0) + sigma(1, 1)),
-                         std::sqrt(0.25 * d * d + sigma(0, 1) * sigma(0, 1)), e,
-                         solver_->KineticEnergy(), wall_per_step});
+  row.insert(row.end(),
+             {-sigma(0, 0), -sigma(1, 1), -sigma(0, 1), strain(0, 0), strain(1, 1), strain(0, 1),
+              dem::InPlaneMeanPressure(sigma), dem::InPlaneDeviatorStress(sigma), e,
+              solver_->KineticEnergy(), wall_per_step});
   for (double& v : row) v += 0.0;  // −0 (a negated zero) reads as 0
   if (absl::Status s = out_->timeseries->Append(row); !s.ok()) return s;
   out_->last_row_step = solver_->step();
@@ -398,7 +396,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
       return absl::FailedPreconditionError(
           "cannot derive the time step: the RVEs have no stiffness (set solver.time_step)");
     }
-    dt = spec.solver.cfl * spec.grid.cell_size / std::sqrt(modulus / rho);
+    dt = CflTimeStep(spec.solver.cfl, spec.grid.cell_size, modulus, rho);
     sim->Log(absl::StrFormat("time step %.4g s (CFL %.2f, M = %.4g MPa, rho = %.1f kg/m3)", dt,
                              spec.solver.cfl, modulus * 1e-6, rho));
   }

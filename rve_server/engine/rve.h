@@ -16,6 +16,16 @@ namespace rvehub::dem {
 
 // Homogenised state of an RVE. Tensors are 3×3 (plane strain): the 2-D RVE
 // carries no out-of-plane stress, so σzz = σxz = σyz = 0.
+// In-plane invariants of a Cauchy stress (tension +; shared/reference):
+// p = −tr σ/2 (Pa, compression +) and q = sqrt(½ s:s) = sqrt(¼(σxx − σyy)² + σxy²) (Pa).
+inline double InPlaneMeanPressure(const Eigen::Matrix3d& stress) {
+  return -0.5 * (stress(0, 0) + stress(1, 1));
+}
+inline double InPlaneDeviatorStress(const Eigen::Matrix3d& stress) {
+  const double d = stress(0, 0) - stress(1, 1);
+  return std::sqrt(0.25 * d * d + stress(0, 1) * stress(0, 1));
+}
+
 struct RveState {
   Eigen::Matrix3d stress = Eigen::Matrix3d::Zero();  // Love–Weber Cauchy σ, Pa, tension +
   Eigen::Matrix3d fabric = Eigen::Matrix3d::Zero();  // φ = (1/Nc)Σ n⊗n, [-]
@@ -37,17 +47,15 @@ struct RveState {
   double time_step = 0.0;   // s
   double mass_scale = 1.0;  // density scaling used
   bool has_tangent = false;
-  // In-plane invariants (shared/reference): p = −tr σ/2 (Pa, compression +)
-  // and q = sqrt(½ s:s) = sqrt(¼(σxx − σyy)² + σxy²) (Pa).
-  double MeanPressure() const { return -0.5 * (stress(0, 0) + stress(1, 1)); }
-  double DeviatorStress() const {
-    const double d = stress(0, 0) - stress(1, 1);
-    return std::sqrt(0.25 * d * d + stress(0, 1) * stress(0, 1));
-  }
+  double MeanPressure() const;    // p of `stress`, see InPlaneMeanPressure
+  double DeviatorStress() const;  // q of `stress`, see InPlaneDeviatorStress
   // Elastic tangent from contacts, D_ijkl = (1/V)Σ(kn n_i d_j n_k d_l + kt t_i d_j t_k d_l),
   // Pa, stored as D(3i+j, 3k+l).
   Eigen::Matrix<double, 9, 9> tangent = Eigen::Matrix<double, 9, 9>::Zero();
 };
+
+inline double RveState::MeanPressure() const { return InPlaneMeanPressure(stress); }
+inline double RveState::DeviatorStress() const { return InPlaneDeviatorStress(stress); }
 
 struct ApplyOptions {
   bool relax = false;             // after the increment, relax at fixed cell
