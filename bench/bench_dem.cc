@@ -273,6 +273,73 @@ BENCHMARK(BM_BatchApply64)
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
 
+// Homogenisation of the sheared packing: Rve::Observe (the fused loop run
+// after every increment) against the same sums formed from Rve::Contacts()
+// with Eigen, as the definitions read (the way Observe was written before).
+dem::Rve ShearedRve() {
+  dem::Rve rve = MakeRve();
+  Eigen::Matrix3d shear = Eigen::Matrix3d::Identity();
+  shear(0, 1) = 2e-3;
+  (void)rve.Apply(shear);
+  return rve;
+}
+
+void BM_ObserveSetDense(benchmark::State& state) {
+  const dem::Rve rve = ShearedRve();
+  for (auto _ : state) benchmark::DoNotOptimize(rve.Observe());
+}
+BENCHMARK(BM_ObserveSetDense)->Unit(benchmark::kMicrosecond);
+
+void BM_ObserveByDefinition(benchmark::State& state) {
+  const dem::Rve rve = ShearedRve();
+  for (auto _ : state) {
+    Eigen::Matrix2d stress = Eigen::Matrix2d::Zero(), fabric = Eigen::Matrix2d::Zero();
+    std::vector<Eigen::Vector2d> resultant(rve.num_particles(), Eigen::Vector2d::Zero());
+    double force_sum = 0.0, unbalanced = 0.0;
+    for (const dem::ContactForce& c : rve.Contacts()) {
+      const Eigen::Vector2d f = c.ForceOnI();
+      stress += f * c.branch.transpose();
+      fabric += c.normal * c.normal.transpose();
+      force_sum += f.norm();
+      resultant[c.i] += f;
+      resultant[c.j] -= f;
+    }
+    for (const Eigen::Vector2d& r : resultant) unbalanced += std::hypot(r.x(), r.y());
+    benchmark::DoNotOptimize(stress);
+    benchmark::DoNotOptimize(fabric);
+    benchmark::DoNotOptimize(unbalanced / force_sum);
+  }
+}
+BENCHMARK(BM_ObserveByDefinition)->Unit(benchmark::kMicrosecond);
+
+// One MPM-sized increment (strain 1e-6) with the quasi-static criterion
+// alone (min_steps 1): one DEM step plus the homogenisation.
+void BM_ApplySmallIncrement(benchmark::State& state) {
+  dem::Packing packing = DensePacking();
+  packing.controls.min_steps = state.range(0);
+  dem::Rve rve = *dem::Rve::Create(packing);
+  Eigen::Matrix3d delta_f = Eigen::Matrix3d::Identity();
+  delta_f(0, 1) = 1e-6;
+  delta_f(1, 1) = 1.0 - 5e-7;
+  std::int64_t steps = 0;
+  for (auto _ : state) {
+    absl::StatusOr<dem::RveState> s = rve.Apply(delta_f);
+    if (!s.ok()) {
+      state.SkipWithError(s.status().ToString().c_str());
+      break;
+    }
+    steps += s->steps;
+  }
+  state.counters["steps_per_apply"] =
+      static_cast<double>(steps) /
+      static_cast<double>(std::max<std::int64_t>(1, state.iterations()));
+}
+BENCHMARK(BM_ApplySmallIncrement)
+    ->ArgName("min_steps")
+    ->Arg(1)
+    ->Arg(20)
+    ->Unit(benchmark::kMicrosecond);
+
 // Resident set size, bytes (/proc/self/statm: second field, in pages).
 double ResidentBytes() {
   std::ifstream statm("/proc/self/statm");
@@ -323,9 +390,11 @@ class SummaryReporter : public benchmark::ConsoleReporter {
         e.sum.clear();
         e.count = 1;
         for (const auto& [key, c] : run.counters) e.sum[key] = c.value;
+        e.sum["us"] = CpuMicroseconds(run);
       } else if (!e.median) {
         ++e.count;
         for (const auto& [key, c] : run.counters) e.sum[key] += c.value;
+        e.sum["us"] += CpuMicroseconds(run);
       }
     }
   }
@@ -338,6 +407,10 @@ class SummaryReporter : public benchmark::ConsoleReporter {
   }
 
  private:
+  // CPU time per iteration, µs ("us" in Get).
+  static double CpuMicroseconds(const Run& run) {
+    return run.GetAdjustedCPUTime() * 1e6 / benchmark::GetTimeUnitMultiplier(run.time_unit);
+  }
   struct Entry {
     bool median = false;
     int count = 0;
@@ -384,6 +457,18 @@ void PrintSummary(const SummaryReporter& r) {
               fixed / base);
   std::printf("  batch of 64: %.1f increments/s on 1 thread, %.1f on %d (speed-up %.2fx)\n", inc1,
               incn, hw, incn / inc1);
+  const double step_us = 1e6 / r.Get("BM_FixedCellSetDense", "steps_per_second");
+  const double observe_us = r.Get("BM_ObserveSetDense", "us");
+  const double definition_us = r.Get("BM_ObserveByDefinition", "us");
+  std::printf(
+      "  homogenisation (Observe) %.2f us = %.2f DEM steps of %.2f us (goal <= 0.3); "
+      "by definition %.2f us (%.1fx)\n",
+      observe_us, observe_us / step_us, step_us, definition_us, definition_us / observe_us);
+  std::printf("  increment of strain 1e-6: %.2f us with min_steps 1, %.2f us with 20 (%.1fx)\n",
+              r.Get("BM_ApplySmallIncrement/min_steps:1", "us"),
+              r.Get("BM_ApplySmallIncrement/min_steps:20", "us"),
+              r.Get("BM_ApplySmallIncrement/min_steps:20", "us") /
+                  r.Get("BM_ApplySmallIncrement/min_steps:1", "us"));
   std::printf("  memory per 400-disc RVE: RSS %.1f KB, state %.1f KB   (goal <= %.0f KB)\n",
               rss / 1e3, bytes / 1e3, kGoalBytesPerRve / 1e3);
   if (!std::isnan(base)) {

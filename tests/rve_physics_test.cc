@@ -209,13 +209,86 @@ TEST(RvePhysicsTest, AffineTangentBoundsOedometricStiffness) {
 namespace rvehub::dem {
 namespace {
 
-// The cheap pressure pass Apply uses agrees with the full homogenisation.
-TEST(RvePhysicsTest, MeanPressureMatchesObserve) {
+// Apply homogenises with the contact pass of its last DEM step (cached with
+// the forces); a fresh RVE of the same state recomputes both by a pass that
+// only reads the contact history. The two must agree bit for bit, or a
+// resumed run would differ from an uninterrupted one.
+TEST(RvePhysicsTest, CachedHomogenisationEqualsRecomputed) {
   Rve rve = testing_util::CreateOrDie(testing_util::Prepared("SET-dense"));
-  ASSERT_TRUE(rve.Apply(Eigen::Vector3d(1.0, 1.0 - 1e-3, 1.0).asDiagonal().toDenseMatrix()).ok());
-  const double full = rve.Observe().MeanPressure();
-  EXPECT_GT(full, 100e3);
-  EXPECT_NEAR(rve.MeanPressure(), full, 1e-12 * full);
+  Eigen::Matrix3d delta_f = Eigen::Vector3d(1.0, 1.0 - 1e-3, 1.0).asDiagonal();
+  delta_f(0, 1) = 4e-4;  // with a rotation: the cached forces are turned
+  ASSERT_TRUE(rve.Apply(delta_f).ok());
+  const RveState cached = rve.Observe();
+  EXPECT_GT(cached.MeanPressure(), 100e3);
+  Rve fresh = testing_util::CreateOrDie(rve.ToPacking());
+  const RveState recomputed = fresh.Observe();
+  EXPECT_EQ(rve.MeanPressure(), fresh.MeanPressure());
+  for (int a = 0; a < 2; ++a) {
+    for (int b = 0; b < 2; ++b) {
+      EXPECT_EQ(cached.stress(a, b), recomputed.stress(a, b));
+      EXPECT_EQ(cached.fabric(a, b), recomputed.fabric(a, b));
+    }
+  }
+  EXPECT_EQ(cached.unbalanced_force_ratio, recomputed.unbalanced_force_ratio);
+  EXPECT_EQ(cached.mechanical_coordination, recomputed.mechanical_coordination);
+  EXPECT_EQ(cached.num_contacts, recomputed.num_contacts);
+  // And both continue identically.
+  const absl::StatusOr<RveState> a = rve.Apply(delta_f);
+  const absl::StatusOr<RveState> b = fresh.Apply(delta_f);
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_EQ(a->stress, b->stress);
+}
+
+// Observe (the sums of the last step's contact pass) gives the homogenised
+// quantities of their definitions summed over Contacts(), to rounding (the
+// step's kernel takes n = b·(1/|b|), Contacts() n = b/|b|); shear first, so
+// that the tangential forces are not zero.
+TEST(RvePhysicsTest, ObserveMatchesContactDefinitions) {
+  Rve rve = testing_util::CreateOrDie(testing_util::Prepared("SET-dense"));
+  Eigen::Matrix3d shear = Eigen::Matrix3d::Identity();
+  shear(0, 1) = 2e-3;
+  ASSERT_TRUE(rve.Apply(shear).ok());
+  const RveState s = rve.Observe(/*want_tangent=*/true);
+  Eigen::Matrix2d stress = Eigen::Matrix2d::Zero(), fabric = Eigen::Matrix2d::Zero();
+  double force_sum = 0.0, ft_sum = 0.0;
+  std::vector<Eigen::Vector2d> resultant(rve.num_particles(), Eigen::Vector2d::Zero());
+  const std::vector<ContactForce> contacts = rve.Contacts();
+  for (const ContactForce& c : contacts) {
+    const Eigen::Vector2d f = c.ForceOnI();
+    stress += f * c.branch.transpose();
+    fabric += c.normal * c.normal.transpose();
+    force_sum += f.norm();
+    ft_sum += std::abs(c.tangential_force);
+    resultant[c.i] += f;
+    resultant[c.j] -= f;
+  }
+  ASSERT_GT(ft_sum, 0.0);
+  const double volume = rve.cell().determinant() * rve.material().thickness;
+  const Eigen::Matrix2d sym = 0.5 * (stress + stress.transpose()) / volume;
+  EXPECT_EQ(s.num_contacts, static_cast<std::int64_t>(contacts.size()));
+  constexpr double kRounding = 1e-12;  // relative
+  const double scale = sym.norm();
+  for (int a = 0; a < 2; ++a) {
+    for (int b = 0; b < 2; ++b) {
+      EXPECT_NEAR(s.stress(a, b), sym(a, b), kRounding * scale) << a << b;
+      EXPECT_NEAR(s.fabric(a, b), fabric(a, b) / static_cast<double>(contacts.size()), kRounding)
+          << a << b;
+    }
+  }
+  double resultant_sum = 0.0;
+  for (const Eigen::Vector2d& r : resultant) resultant_sum += std::hypot(r.x(), r.y());
+  const double n = rve.num_particles(), nc = static_cast<double>(contacts.size());
+  // The resultant is a small difference of large forces: looser.
+  EXPECT_NEAR(s.unbalanced_force_ratio, (resultant_sum / n) / (force_sum / nc),
+              1e-6 * s.unbalanced_force_ratio);
+  EXPECT_EQ(s.coordination, 2.0 * nc / n);
+  // D_xxxx = (1/V)Σ kn nx bx nx bx + kt tx bx tx bx.
+  double dxxxx = 0.0;
+  for (const ContactForce& c : contacts) {
+    const double tx = -c.normal.y(), bx = c.branch.x(), nx = c.normal.x();
+    dxxxx += c.kn * nx * bx * nx * bx + c.kt * tx * bx * tx * bx;
+  }
+  EXPECT_EQ(s.tangent(0, 0), dxxxx / volume);
 }
 
 }  // namespace

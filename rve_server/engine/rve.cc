@@ -58,14 +58,10 @@ absl::Status CheckFinite(double v, absl::string_view what, std::size_t index) {
   return absl::InvalidArgumentError(absl::StrCat(what, "[", index, "] = ", v, " is not finite"));
 }
 
-// Scratch force arrays shared by every RVE on a thread (keeps RVEs small).
+// Scratch shared by every RVE on a thread (keeps RVEs small): contacts per
+// particle while a step measures.
 struct Scratch {
-  std::vector<double> fx, fy, torque;
-  void Reset(std::size_t n) {
-    fx.assign(n, 0.0);
-    fy.assign(n, 0.0);
-    torque.assign(n, 0.0);
-  }
+  std::vector<double> count;
 };
 Scratch& ThreadScratch() {
   thread_local Scratch scratch;
@@ -262,7 +258,8 @@ std::size_t Rve::MemoryBytes() const {
   return sizeof(*this) + bytes(p_.radius) + bytes(p_.sx) + bytes(p_.sy) + bytes(p_.vx) +
          bytes(p_.vy) + bytes(p_.omega) + bytes(p_.theta) + bytes(p_.contacts) + bytes(row_start_) +
          bytes(nbr_j_) + bytes(nbr_kn_) + bytes(nbr_ft_) + bytes(nbr_moment_) + bytes(nbr_bond_) +
-         bytes(inv_mass_) + bytes(inv_inertia_) + p_.material.name.capacity();
+         bytes(inv_mass_) + bytes(inv_inertia_) + p_.material.name.capacity() +
+         3 * p_.radius.size() * sizeof(double);  // fx_, fy_, tq_ (filled by the first step)
 }
 
 // Cell-list neighbour search in reduced coordinates (valid for any cell shape
@@ -405,6 +402,16 @@ void Rve::MaybeFlip() {
 void Rve::ApplyRigidRotation(double angle) {
   if (angle == 0.0) return;
   const Eigen::Matrix2d r = Rotation(angle);
+  // The contact forces turn with the packing (the next step integrates
+  // with them); the homogenised sums are measured again by that step.
+  sums_valid_ = false;
+  if (forces_valid_) {
+    for (std::size_t i = 0; i < fx_.size(); ++i) {
+      const double fx = fx_[i], fy = fy_[i];
+      fx_[i] = r(0, 0) * fx + r(0, 1) * fy;
+      fy_[i] = r(1, 0) * fx + r(1, 1) * fy;
+    }
+  }
   p_.cell = r * p_.cell;
   p_.frame = r * p_.frame;
   cell_at_build_ = r * cell_at_build_;
@@ -416,8 +423,16 @@ void Rve::ApplyRigidRotation(double angle) {
   }
 }
 
-template <bool kRolling, bool kBonds, bool kHertz, bool kMeasure>
-Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
+// The contact loop: forces and torques on every particle at the current
+// positions into fx_, fy_, tq_ (N, N·m). kUpdate: advance the contact history
+// first (tangential spring by kt·v_t·Δt with the relative velocity of the
+// affine motion l (1/s) and of the particles, Coulomb cap, rolling spring,
+// bond breakage) as the end of a DEM step does; without it the stored history
+// is only read, so a recomputation gives the forces of the state bit for bit.
+// kMeasure: also the homogenisation sums (sums_) and the step's stress and
+// servo stiffness.
+template <bool kRolling, bool kBonds, bool kHertz, bool kMeasure, bool kUpdate>
+Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
   const std::size_t n = p_.radius.size();
   const Material& mat = p_.material;
   const double dt = dt_;
@@ -436,12 +451,23 @@ Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
   const std::uint32_t* __restrict nbr_j = nbr_j_.data();
   const double* __restrict nbr_kn = nbr_kn_.data();
   double* __restrict nbr_ft = nbr_ft_.data();
-  Scratch& scratch = ThreadScratch();
-  scratch.Reset(n);
-  double* __restrict fx = scratch.fx.data();
-  double* __restrict fy = scratch.fy.data();
-  double* __restrict tq = scratch.torque.data();
+  double* __restrict nbr_moment = nbr_moment_.data();
+  double* __restrict nbr_bond = nbr_bond_.data();
+  fx_.assign(n, 0.0);
+  fy_.assign(n, 0.0);
+  tq_.assign(n, 0.0);
+  double* __restrict fx = fx_.data();
+  double* __restrict fy = fy_.data();
+  double* __restrict tq = tq_.data();
+  double* __restrict count = nullptr;  // contacts per particle, while measuring
+  if constexpr (kMeasure) {
+    Scratch& scratch = ThreadScratch();
+    scratch.count.assign(n, 0.0);
+    count = scratch.count.data();
+  }
   double sxx = 0, sxy = 0, syx = 0, syy = 0, kxx = 0, kyy = 0, elastic = 0;
+  double f00 = 0, f01 = 0, f11 = 0, force_sum = 0;
+  std::int64_t nc = 0;
 
   for (std::uint32_t i = 0; i < n; ++i) {
     const double ri = rad[i], sxi = sx[i], syi = sy[i], vxi = vx[i], vyi = vy[i], omi = om[i];
@@ -457,10 +483,12 @@ Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
       const double dy = h10 * dsx + h11 * dsy;
       const double rj = rad[j], rsum = ri + rj;
       const double d2 = dx * dx + dy * dy;
-      bool bonded = kBonds && nbr_bond_[k] > 0;
+      bool bonded = kBonds && nbr_bond[k] > 0;
       if (d2 >= rsum * rsum && !bonded) {
-        nbr_ft[k] = 0.0;
-        if constexpr (kRolling) nbr_moment_[k] = 0.0;
+        if constexpr (kUpdate) {
+          nbr_ft[k] = 0.0;
+          if constexpr (kRolling) nbr_moment[k] = 0.0;
+        }
         continue;
       }
       const double dist = std::sqrt(d2);
@@ -483,29 +511,45 @@ Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
       // Lever arms to the common contact point make a rigid motion of the
       // pair produce no relative tangential velocity.
       const double li = ri - 0.5 * overlap, lj = rj - 0.5 * overlap;
-      const double vrx = vx[j] - vxi + l00 * dx + l01 * dy;
-      const double vry = vy[j] - vyi + l10 * dx + l11 * dy;
-      const double vt = vrx * tx + vry * ty - (omi * li + om[j] * lj);
-      double ft = nbr_ft[k] + kt * vt * dt;
-      if constexpr (kBonds) {
-        if (bonded && (-fn > nbr_bond_[k] || std::abs(ft) > nbr_bond_[k])) {
-          nbr_bond_[k] = 0.0;  // broken: purely frictional from now on
-          bonded = false;
-        }
-        if (!bonded && overlap <= 0.0) {
-          nbr_ft[k] = 0.0;
-          if constexpr (kRolling) nbr_moment_[k] = 0.0;
-          continue;
-        }
-      }
-      if (!bonded) ft = CoulombCap(ft, fn, mu);
-      nbr_ft[k] = ft;
+      double ft = nbr_ft[k];
       double moment = 0.0;
-      if constexpr (kRolling) {
-        const double kr = RollingStiffness(kt, ri, rj, mat.rolling_beta);
-        const double limit = RollingLimit(mat.rolling_eta, ri, rj, fn);
-        moment = std::clamp(nbr_moment_[k] - kr * (omi - om[j]) * dt, -limit, limit);
-        nbr_moment_[k] = moment;
+      if constexpr (kUpdate) {
+        const double vrx = vx[j] - vxi + l00 * dx + l01 * dy;
+        const double vry = vy[j] - vyi + l10 * dx + l11 * dy;
+        const double vt = vrx * tx + vry * ty - (omi * li + om[j] * lj);
+        ft += kt * vt * dt;
+        if constexpr (kBonds) {
+          if (bonded && (-fn > nbr_bond[k] || std::abs(ft) > nbr_bond[k])) {
+            nbr_bond[k] = 0.0;  // broken: purely frictional from now on
+            bonded = false;
+          }
+          if (!bonded && overlap <= 0.0) {
+            nbr_ft[k] = 0.0;
+            if constexpr (kRolling) nbr_moment[k] = 0.0;
+            continue;
+          }
+        }
+        if (!bonded) ft = CoulombCap(ft, fn, mu);
+        nbr_ft[k] = ft;
+        if constexpr (kRolling) {
+          const double kr = RollingStiffness(kt, ri, rj, mat.rolling_beta);
+          const double limit = RollingLimit(mat.rolling_eta, ri, rj, fn);
+          moment = std::clamp(nbr_moment[k] - kr * (omi - om[j]) * dt, -limit, limit);
+          nbr_moment[k] = moment;
+        }
+      } else {
+        // The stored history as the last update left it. Capping again
+        // changes nothing there (ft and M are already within the limits of
+        // these very positions) and keeps a history from elsewhere (an
+        // imported packing) physical.
+        if constexpr (kBonds) {
+          if (!bonded && overlap <= 0.0) continue;
+        }
+        if (!bonded) ft = CoulombCap(ft, fn, mu);
+        if constexpr (kRolling) {
+          const double limit = RollingLimit(mat.rolling_eta, ri, rj, fn);
+          moment = std::clamp(nbr_moment[k], -limit, limit);
+        }
       }
       const double fcx = -fn * nx + ft * tx;  // force on i, N
       const double fcy = -fn * ny + ft * ty;
@@ -523,25 +567,86 @@ Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
         const double kd2 = kn * d2;
         kxx += kd2 * (nx * nx) * (nx * nx);
         kyy += kd2 * (ny * ny) * (ny * ny);
+        f00 += nx * nx;
+        f01 += nx * ny;
+        f11 += ny * ny;
+        force_sum += std::sqrt(fcx * fcx + fcy * fcy);
+        count[i] += 1.0;
+        count[j] += 1.0;
+        ++nc;
       }
     }
     fx[i] += fxi;
     fy[i] += fyi;
     tq[i] += tqi;
   }
+  forces_valid_ = true;
+  const double volume = p_.cell.determinant() * mat.thickness;
+  StepResult out;
+  if constexpr (kMeasure) {
+    Sums& m = sums_;
+    m.stress << sxx, sxy, syx, syy;
+    m.fabric << f00, f01, f01, f11;
+    m.force_sum = force_sum;
+    m.elastic = elastic;
+    m.num_contacts = nc;
+    m.rattlers0 = m.rattlers1 = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      m.rattlers0 += count[i] == 0.0;
+      m.rattlers1 += count[i] == 1.0;
+    }
+    sums_valid_ = true;
+    out.stress << sxx / volume, sxy / volume, syx / volume, syy / volume;
+    out.stiffness = Eigen::Vector2d(kxx, kyy) / volume;
+  } else {
+    sums_valid_ = false;
+  }
+  return out;
+}
 
-  // Leapfrog with local non-viscous damping, acting in the cell's frame.
+Rve::StepResult Rve::Forces(const Eigen::Matrix2d& l, bool measure, bool update) {
+  const bool rolling = !nbr_moment_.empty(), bonds = !nbr_bond_.empty();
+  const bool hertz = p_.material.model == ContactModel::kHertzMindlin;
+  // One instantiation per feature set keeps unused features out of the loop;
+  // a pass that only reads the history always measures (it serves Observe).
+  auto pick = [&]<bool kMeasure, bool kUpdate>() {
+    if (hertz) {
+      return rolling ? ContactLoop<true, false, true, kMeasure, kUpdate>(l)
+                     : ContactLoop<false, false, true, kMeasure, kUpdate>(l);
+    }
+    if (rolling) {
+      return bonds ? ContactLoop<true, true, false, kMeasure, kUpdate>(l)
+                   : ContactLoop<true, false, false, kMeasure, kUpdate>(l);
+    }
+    return bonds ? ContactLoop<false, true, false, kMeasure, kUpdate>(l)
+                 : ContactLoop<false, false, false, kMeasure, kUpdate>(l);
+  };
+  if (!update) return pick.template operator()<true, false>();
+  return measure ? pick.template operator()<true, true>() : pick.template operator()<false, true>();
+}
+
+// Leapfrog with local non-viscous damping, acting in the cell's frame, with
+// the forces of the current positions (fx_, fy_, tq_).
+void Rve::Integrate() {
+  const std::size_t n = p_.radius.size();
+  const Material& mat = p_.material;
+  const double dt = dt_;
   const double alpha = mat.damping;
   const double mass_per_r2 = mat.density * kPi * mat.thickness * p_.controls.mass_scale;  // kg/m²
   const Eigen::Matrix2d& q = p_.frame;
   const bool rotated = q != Eigen::Matrix2d::Identity();
   const Eigen::Matrix2d hinv = p_.cell.inverse();
+  const double* __restrict rad = p_.radius.data();
+  const double* __restrict fx = fx_.data();
+  const double* __restrict fy = fy_.data();
+  const double* __restrict tq = tq_.data();
   double* wvx = p_.vx.data();
   double* wvy = p_.vy.data();
   double* wom = p_.omega.data();
   double* wsx = p_.sx.data();
   double* wsy = p_.sy.data();
   double* wth = p_.theta.data();
+  const bool measure = track_energy_;
   double kinetic2 = 0, vmax2 = 0;
   for (std::size_t i = 0; i < n; ++i) {
     double ax, ay;
@@ -557,7 +662,7 @@ Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
       ay = (fy[i] + q(1, 0) * dfx + q(1, 1) * dfy) * inv_mass_[i];
     }
     const double aw = (tq[i] + Damping(alpha, tq[i], wom[i])) * inv_inertia_[i];
-    if constexpr (kMeasure) {
+    if (measure) {
       // Velocities at the force time (mean of the two half steps) for the energy;
       // m = c·r², I = ½ m r²: multiplications instead of dividing by 1/m.
       const double ux = wvx[i] + 0.5 * dt * ax, uy = wvy[i] + 0.5 * dt * ay,
@@ -575,40 +680,36 @@ Rve::StepResult Rve::StepImpl(const Eigen::Matrix2d& l) {
     vmax2 = std::max(vmax2, wvx[i] * wvx[i] + wvy[i] * wvy[i]);
   }
   displacement_bound_ += std::sqrt(vmax2) * dt;
-  if constexpr (kMeasure) energy_ = {0.5 * kinetic2, elastic};
-
-  const double volume = p_.cell.determinant() * mat.thickness;
-  StepResult out;
-  out.stress << sxx / volume, sxy / volume, syx / volume, syy / volume;
-  out.stiffness = Eigen::Vector2d(kxx, kyy) / volume;
-  return out;
+  if (measure) energy_ = {0.5 * kinetic2, sums_.elastic};
 }
 
 Rve::StepResult Rve::Step(const Eigen::Matrix2d& l, const Eigen::Matrix2d& next_cell,
                           bool measure) {
-  const bool rolling = !nbr_moment_.empty(), bonds = !nbr_bond_.empty();
-  const bool hertz = p_.material.model == ContactModel::kHertzMindlin;
-  measure = measure || track_energy_;
-  // One instantiation per feature set keeps unused features out of the loop.
-  auto pick = [&]<bool kMeasure>() {
-    if (hertz) {
-      return rolling ? StepImpl<true, false, true, kMeasure>(l)
-                     : StepImpl<false, false, true, kMeasure>(l);
-    }
-    if (rolling) {
-      return bonds ? StepImpl<true, true, false, kMeasure>(l)
-                   : StepImpl<true, false, false, kMeasure>(l);
-    }
-    return bonds ? StepImpl<false, true, false, kMeasure>(l)
-                 : StepImpl<false, false, false, kMeasure>(l);
-  };
-  const StepResult r =
-      measure ? pick.template operator()<true>() : pick.template operator()<false>();
+  const StepResult r = Forces(l, measure || track_energy_, /*update=*/true);
+  Integrate();
+  AdvanceCell(next_cell);
+  forces_valid_ = sums_valid_ = false;  // they were those of the old positions
+  return r;
+}
+
+Rve::StepResult Rve::StepForcesLast(const Eigen::Matrix2d& l, const Eigen::Matrix2d& next_cell,
+                                    bool measure) {
+  // The forces of the current positions: those the last step left, or (after
+  // a restore, a Run or a change of the contacts) recomputed from the state.
+  if (!forces_valid_ || (track_energy_ && !sums_valid_)) Forces(l, /*measure=*/true, false);
+  Integrate();
+  AdvanceCell(next_cell);
+  // The new positions' forces, with the history advanced by this step's
+  // motion: the next step integrates with them and, measured, they are the
+  // homogenised state of the new configuration.
+  return Forces(l, measure || track_energy_, /*update=*/true);
+}
+
+void Rve::AdvanceCell(const Eigen::Matrix2d& next_cell) {
   p_.cell = next_cell;
   ++p_.total_steps;
   MaybeFlip();
   MaybeRebuild();
-  return r;
 }
 
 double Rve::QuasiStaticStrainRate(double inertial_number, double pressure) const {
@@ -662,10 +763,12 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
         "ΔF would make the periodic cell thinner than twice the pair cutoff");
   }
 
+  // p before the rotation (which leaves it unchanged): after an increment
+  // it is known from that increment's last step.
+  const double pressure = MeanPressure();
   ApplyRigidRotation(angle);
   Eigen::Matrix2d start = p_.cell;
   const Eigen::Matrix2d identity = Eigen::Matrix2d::Identity();
-  const double pressure = MeanPressure();
   const double inertial_number =
       options.max_inertial_number > 0
           ? std::min(options.max_inertial_number, p_.controls.max_inertial_number)
@@ -678,7 +781,7 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
     const double tau = static_cast<double>(k + 1) / static_cast<double>(steps);
     const Eigen::Matrix2d next = (identity + (v - identity) * tau) * start;
     const Eigen::Matrix2d l = (next - p_.cell) * p_.cell.inverse() / dt_;
-    Step(l, next, /*measure=*/false);
+    StepForcesLast(l, next, /*measure=*/k + 1 == steps);  // the last step homogenises
     // A flip in Step changed the lattice basis: follow it (h' = h·U, U integer).
     if (p_.cell != next) start = start * (next.inverse() * p_.cell).array().round().matrix();
   }
@@ -690,8 +793,7 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
 }
 
 RveState Rve::Run(CellControl& control, std::int64_t steps) {
-  RveState first = Observe();
-  Eigen::Matrix2d stress = first.stress.topLeftCorner<2, 2>();
+  Eigen::Matrix2d stress = DefinitionStress();
   Eigen::Vector2d stiffness = Eigen::Vector2d::Zero();
   const double cap = control.max_strain_rate;
   // PI servo on the strain rate: Δσ ≈ K·L·Δt, so gain·gap/(K·Δt) closes a
@@ -781,12 +883,24 @@ void Rve::ForEachContact(F&& f) const {
   }
 }
 
+void Rve::EnsureSums() const {
+  // A pass that only reads the contact history: it fills the caches and
+  // changes no state, so a const Rve may run it.
+  if (!sums_valid_) {
+    const_cast<Rve*>(this)->Forces(Eigen::Matrix2d::Zero(), /*measure=*/true, /*update=*/false);
+  }
+}
+
 double Rve::MeanPressure() const {
-  // tr(Σ f⊗b) = Σ f·b: the trace of the Love–Weber sum in Observe, without
-  // the fabric, per-particle and tangent work.
-  double trace = 0.0;  // N·m
-  ForEachContact([&](const ContactForce& c) { trace += c.ForceOnI().dot(c.branch); });
-  return -0.5 * trace / (p_.cell.determinant() * p_.material.thickness);
+  EnsureSums();
+  return -0.5 * (sums_.stress(0, 0) + sums_.stress(1, 1)) /
+         (p_.cell.determinant() * p_.material.thickness);
+}
+
+Eigen::Matrix2d Rve::DefinitionStress() const {
+  Eigen::Matrix2d sum = Eigen::Matrix2d::Zero();  // Σ f⊗b, N·m
+  ForEachContact([&](const ContactForce& c) { sum += c.ForceOnI() * c.branch.transpose(); });
+  return 0.5 * (sum + sum.transpose()) / (p_.cell.determinant() * p_.material.thickness);
 }
 
 std::vector<ContactForce> Rve::Contacts() const {
@@ -795,49 +909,25 @@ std::vector<ContactForce> Rve::Contacts() const {
   return out;
 }
 
+// The homogenised state from the sums of the last measured contact pass
+// (the last DEM step of an increment, or a pass that only reads the history)
+// and one pass over the particles. Love–Weber stress σ = (1/V) sym Σ f⊗b.
 RveState Rve::Observe(bool want_tangent) const {
+  EnsureSums();
   const std::size_t n = p_.radius.size();
-  Scratch& scratch = ThreadScratch();
-  scratch.Reset(n);  // fx, fy: resultant force; torque: contact count
-  Eigen::Matrix2d stress = Eigen::Matrix2d::Zero(), fabric = Eigen::Matrix2d::Zero();
-  double d[2][2][2][2] = {};
-  double force_sum = 0.0;
-  std::int64_t nc = 0;
-  ForEachContact([&](const ContactForce& c) {
-    const Eigen::Vector2d f = c.ForceOnI();
-    stress += f * c.branch.transpose();
-    fabric += c.normal * c.normal.transpose();
-    force_sum += f.norm();
-    scratch.fx[c.i] += f.x();
-    scratch.fy[c.i] += f.y();
-    scratch.fx[c.j] -= f.x();
-    scratch.fy[c.j] -= f.y();
-    scratch.torque[c.i] += 1.0;
-    scratch.torque[c.j] += 1.0;
-    ++nc;
-    if (want_tangent) {
-      const Eigen::Vector2d& nn = c.normal;
-      const Eigen::Vector2d t(-nn.y(), nn.x());
-      const Eigen::Vector2d& br = c.branch;
-      for (int a = 0; a < 2; ++a)
-        for (int b = 0; b < 2; ++b)
-          for (int e = 0; e < 2; ++e)
-            for (int g = 0; g < 2; ++g)
-              d[a][b][e][g] +=
-                  c.kn * nn[a] * br[b] * nn[e] * br[g] + c.kt * t[a] * br[b] * t[e] * br[g];
-    }
-  });
+  const Sums& m = sums_;
+  const std::int64_t nc = m.num_contacts;
   RveState s;
   const Eigen::Matrix2d& h = p_.cell;
   const Material& mat = p_.material;
   const double area = h.determinant();
   s.volume = area * mat.thickness;
-  const Eigen::Matrix2d sym = 0.5 * (stress + stress.transpose()) / s.volume;
+  const Eigen::Matrix2d sym = 0.5 * (m.stress + m.stress.transpose()) / s.volume;
   s.stress.topLeftCorner<2, 2>() = sym;
   s.num_contacts = nc;
   if (nc > 0) {
     s.fabric_defined = true;
-    const Eigen::Matrix2d phi = fabric / static_cast<double>(nc);
+    const Eigen::Matrix2d phi = m.fabric / static_cast<double>(nc);
     s.fabric.topLeftCorner<2, 2>() = phi;
     const Eigen::Matrix2d fa = 4.0 * (phi - 0.5 * Eigen::Matrix2d::Identity());
     s.fabric_anisotropy_tensor.topLeftCorner<2, 2>() = fa;
@@ -846,20 +936,20 @@ RveState Rve::Observe(bool want_tangent) const {
   s.void_ratio = (area - solid_area_) / solid_area_;
   s.porosity = s.void_ratio / (1.0 + s.void_ratio);
   s.coordination = 2.0 * static_cast<double>(nc) / static_cast<double>(n);
-  double n0 = 0, n1 = 0, resultant = 0, rotation = 0, kinetic = 0;
+  double resultant = 0, rotation = 0, kinetic = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    n0 += scratch.torque[i] == 0.0;
-    n1 += scratch.torque[i] == 1.0;
-    resultant += std::hypot(scratch.fx[i], scratch.fy[i]);
+    // |Σ contact forces on i|; forces are far from overflow, so no hypot.
+    resultant += std::sqrt(fx_[i] * fx_[i] + fy_[i] * fy_[i]);
     rotation += p_.theta[i];
     kinetic += (p_.vx[i] * p_.vx[i] + p_.vy[i] * p_.vy[i]) / inv_mass_[i] +
                p_.omega[i] * p_.omega[i] / inv_inertia_[i];
   }
   // Thornton's mechanical coordination: rattlers (0 or 1 contact) left out.
+  const double n0 = static_cast<double>(m.rattlers0), n1 = static_cast<double>(m.rattlers1);
   const double active = static_cast<double>(n) - n0 - n1;
   s.mechanical_coordination = active > 0 ? (2.0 * static_cast<double>(nc) - n1) / active : 0.0;
   s.unbalanced_force_ratio =
-      nc > 0 ? (resultant / static_cast<double>(n)) / (force_sum / static_cast<double>(nc)) : 0.0;
+      nc > 0 ? (resultant / static_cast<double>(n)) / (m.force_sum / static_cast<double>(nc)) : 0.0;
   s.mean_rotation = rotation / static_cast<double>(n);
   s.kinetic_energy = 0.5 * kinetic;
   const double e = std::max(s.void_ratio, 0.0);
@@ -867,6 +957,20 @@ RveState Rve::Observe(bool want_tangent) const {
   s.time_step = dt_;
   s.mass_scale = p_.controls.mass_scale;
   if (want_tangent) {
+    // D_ijkl = (1/V)Σ(kn n_i b_j n_k b_l + kt t_i b_j t_k b_l): rarely asked
+    // for (the MPM time step), so one pass of its own.
+    double d[2][2][2][2] = {};
+    ForEachContact([&](const ContactForce& c) {
+      const Eigen::Vector2d& nn = c.normal;
+      const Eigen::Vector2d t(-nn.y(), nn.x());
+      const Eigen::Vector2d& br = c.branch;
+      for (int a = 0; a < 2; ++a)
+        for (int b = 0; b < 2; ++b)
+          for (int e2 = 0; e2 < 2; ++e2)
+            for (int g = 0; g < 2; ++g)
+              d[a][b][e2][g] +=
+                  c.kn * nn[a] * br[b] * nn[e2] * br[g] + c.kt * t[a] * br[b] * t[e2] * br[g];
+    });
     s.has_tangent = true;
     for (int a = 0; a < 2; ++a)
       for (int b = 0; b < 2; ++b)
@@ -883,6 +987,7 @@ absl::Status Rve::SetFriction(double friction) {
         absl::StrCat("friction = ", friction, " is invalid: μ = tan φ must be >= 0"));
   }
   p_.material.friction = friction;
+  forces_valid_ = sums_valid_ = false;
   ForEachContact([&](const ContactForce& c, std::uint32_t k) {
     if (!c.bonded) nbr_ft_[k] = CoulombCap(c.tangential_force, c.normal_force, friction);
   });
@@ -893,6 +998,7 @@ void Rve::BondContacts() {
   const double c = p_.material.bond_cohesion;
   if (c <= 0) return;
   if (nbr_bond_.size() != nbr_j_.size()) nbr_bond_.assign(nbr_j_.size(), 0.0);
+  forces_valid_ = sums_valid_ = false;
   ForEachContact([&](const ContactForce& contact, std::uint32_t k) {
     if (contact.overlap > 0) {
       nbr_bond_[k] = BondStrength(c, p_.radius[contact.i], p_.radius[contact.j]);

@@ -176,13 +176,37 @@ class Rve {
     Eigen::Matrix2d stress = Eigen::Matrix2d::Zero();  // Pa, this step's contact stress
     Eigen::Vector2d stiffness = Eigen::Vector2d::Zero();  // Pa, (1/V)Σ kn d⁴ n_x⁴ … for the servo
   };
-  template <bool kRolling, bool kBonds, bool kHertz, bool kMeasure>
-  StepResult StepImpl(const Eigen::Matrix2d& l);
-  // One DEM step: forces at the current positions with velocity gradient l
-  // (1/s) for the affine relative motion, then velocities, positions and the
-  // cell (to next_cell, m) advance by Δt.
-  // `measure`: also sum the step's stress and servo stiffness (and energy).
+  template <bool kRolling, bool kBonds, bool kHertz, bool kMeasure, bool kUpdate>
+  StepResult ContactLoop(const Eigen::Matrix2d& l);
+  // The contact pass into fx_, fy_, tq_ (and sums_ when measuring): `update`
+  // advances the contact history with velocity gradient l (1/s), as a DEM
+  // step does; without it the history is only read (a pure recomputation of
+  // the state's forces, always measured).
+  StepResult Forces(const Eigen::Matrix2d& l, bool measure, bool update);
+  // Velocities and positions advance by Δt with the forces fx_, fy_, tq_.
+  void Integrate();
+  // One DEM step, forces first: the forces of the current positions, the
+  // contact history advancing with velocity gradient l (1/s) for the affine
+  // relative motion; then velocities, positions and the cell (to next_cell,
+  // m) advance by Δt. `measure`: also sum the step's stress and servo
+  // stiffness (and energy), at the positions before the step.
+  // Run and Relax (element tests, preparation, consolidation) step this way.
   StepResult Step(const Eigen::Matrix2d& l, const Eigen::Matrix2d& next_cell, bool measure);
+  // The same step with the contact pass at its end: velocities and positions
+  // advance with the forces the previous step left (recomputed if unknown),
+  // then the forces of the new positions follow, the history advancing with
+  // l. `measure`: that pass also forms the homogenisation sums, so Apply's
+  // last step homogenises the new configuration at no extra pass.
+  // Leapfrog either way; the two differ only in which l advances the history
+  // at a position (the step's own or the next one's).
+  StepResult StepForcesLast(const Eigen::Matrix2d& l, const Eigen::Matrix2d& next_cell,
+                            bool measure);
+  void AdvanceCell(const Eigen::Matrix2d& next_cell);  // cell, step count, flips, neighbours
+  // (1/V)·sym Σ f⊗b summed as the definitions read (ForEachContact), Pa:
+  // Run seeds its servo with it, as it always has.
+  Eigen::Matrix2d DefinitionStress() const;
+  // sums_ for the current state (a read-only contact pass if not known).
+  void EnsureSums() const;
   void MaybeRebuild();
   void Rebuild(const std::vector<ContactHistory>& history);
   void MaybeFlip();
@@ -197,6 +221,25 @@ class Rve {
   void ForEachContact(F&& f) const;
 
   Packing p_;  // p_.contacts stays empty: the history lives in the list
+  // Caches of the current configuration, never part of the state: each DEM
+  // step ends with the contact pass of its new positions, which the next step
+  // integrates with and, when measured, which Observe reads, so homogenising
+  // an increment costs no pass of its own. A restored RVE recomputes them
+  // from the state by a pass that only reads the contact history, with the
+  // same operations in the same order: the same bits, so a resumed run stays
+  // bit-identical.
+  struct Sums {
+    Eigen::Matrix2d stress = Eigen::Matrix2d::Zero();  // Σ f⊗b (force on i ⊗ branch i→j), N·m
+    Eigen::Matrix2d fabric = Eigen::Matrix2d::Zero();  // Σ n⊗n, [-]
+    double force_sum = 0.0;                            // Σ |f|, N
+    double elastic = 0.0;                              // energy in the normal springs, J
+    std::int64_t num_contacts = 0;
+    std::int64_t rattlers0 = 0, rattlers1 = 0;  // particles with 0 and with 1 contact
+  };
+  std::vector<double> fx_, fy_, tq_;  // contact force (N) and torque (N·m) per particle
+  Sums sums_;
+  bool forces_valid_ = false;  // fx_, fy_, tq_ belong to the current positions
+  bool sums_valid_ = false;    // sums_ too
   double dt_ = 0.0;
   // Half Verlet list in CSR form, rows i ascending, columns j > i ascending.
   std::vector<std::uint32_t> row_start_;
