@@ -255,6 +255,7 @@ void ToProto(const RveOutcome& o, v1::RveResult* out) {
   out->set_id(o.id);
   out->set_code(static_cast<int>(o.status.code()));
   out->set_step(o.step);
+  out->set_engine_seconds(o.engine_seconds);
   if (o.status.ok()) {
     ToProto(o.state, o.deformation_gradient, out->mutable_state());
   } else {

@@ -1,9 +1,15 @@
 #include "rve_server/service/registry.h"
 
 #include <algorithm>
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <optional>
 #include <set>
+#include <tuple>
 #include <utility>
 
+#include "absl/base/casts.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "rve_server/engine/prepare.h"
@@ -215,19 +221,40 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
     if (absl::Status s = CheckRoom(run_id, ids, n * bytes_each); !s.ok()) return s;
   }
 
-  // Consolidation is the expensive part: one RVE per work item. Every new RVE
-  // starts from the same template, so identical requests give identical RVEs.
-  std::vector<std::optional<dem::Rve>> made(ids.size());
-  std::vector<absl::Status> status(ids.size());
-  pool_.ParallelFor(ids.size(), [&](std::size_t k) {
+  // Consolidation is the expensive part. Every new RVE starts from the same
+  // template, so identical targets give identical RVEs: each distinct target
+  // is consolidated once (one work item each) and copied to the ids that ask
+  // for it. A geostatic start has one target per depth, not per point.
+  const InitialStress none;
+  auto target_of = [&](std::size_t k) -> const InitialStress& {
+    return initial.empty() ? none : initial[initial.size() == 1 ? 0 : k];
+  };
+  auto key_of = [&](std::size_t k) {
+    const InitialStress& t = target_of(k);
+    return std::tuple(static_cast<int>(t.kind), absl::bit_cast<std::uint64_t>(t.pressure),
+                      absl::bit_cast<std::uint64_t>(t.vertical_compression),
+                      absl::bit_cast<std::uint64_t>(t.k0));
+  };
+  std::vector<std::size_t> unique_of(ids.size());  // index into `distinct`
+  std::vector<std::size_t> distinct;               // first k of each distinct target
+  {
+    std::map<decltype(key_of(0)), std::size_t> seen;
+    for (std::size_t k = 0; k < ids.size(); ++k) {
+      auto [it, inserted] = seen.try_emplace(key_of(k), distinct.size());
+      if (inserted) distinct.push_back(k);
+      unique_of[k] = it->second;
+    }
+  }
+  std::vector<std::optional<dem::Rve>> consolidated(distinct.size());
+  std::vector<absl::Status> status(distinct.size());
+  pool_.ParallelFor(distinct.size(), [&](std::size_t u) {
     if (absl::Status c = CheckCancelled(cancelled); !c.ok()) {
-      status[k] = c;
+      status[u] = c;
       return;
     }
     dem::Rve rve = *prototype;
     absl::StatusOr<dem::RveState> s = dem::RveState{};
-    const InitialStress none;
-    const InitialStress& target = initial.empty() ? none : initial[initial.size() == 1 ? 0 : k];
+    const InitialStress& target = target_of(distinct[u]);
     if (target.kind == InitialStress::Kind::kIsotropic) {
       s = dem::ConsolidateIsotropic(rve, target.pressure);
     } else if (target.kind == InitialStress::Kind::kK0) {
@@ -235,16 +262,17 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
                                    target.vertical_compression);
     }
     if (!s.ok()) {
-      status[k] = s.status();
+      status[u] = s.status();
       return;
     }
     rve.ResetReference();  // F is measured from the consolidated state
-    made[k].emplace(std::move(rve));
+    consolidated[u].emplace(std::move(rve));
   });
-  for (std::size_t k = 0; k < ids.size(); ++k) {
-    if (!status[k].ok()) {
-      return absl::Status(status[k].code(), absl::StrCat("creating material point ", ids[k], ": ",
-                                                         status[k].message()));
+  for (std::size_t u = 0; u < distinct.size(); ++u) {
+    if (!status[u].ok()) {
+      return absl::Status(
+          status[u].code(),
+          absl::StrCat("creating material point ", ids[distinct[u]], ": ", status[u].message()));
     }
   }
 
@@ -256,7 +284,7 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
     if (absl::Status s = CheckRoom(run_id, ids, n * bytes_each); !s.ok()) return s;
     Run& run = runs_[std::string(run_id)];
     for (std::size_t k = 0; k < ids.size(); ++k) {
-      auto entry = std::make_shared<Entry>(std::move(*made[k]));
+      auto entry = std::make_shared<Entry>(*consolidated[unique_of[k]]);
       entry->memory_bytes = bytes_each;
       out[k].id = ids[k];
       if (want_state) {
@@ -368,9 +396,14 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
       o.status = c;
       return;
     }
+    const auto engine_start = std::chrono::steady_clock::now();
+    auto engine_seconds = [&] {
+      return std::chrono::duration<double>(std::chrono::steady_clock::now() - engine_start).count();
+    };
     if (mode == ApplyMode::kTrial) {
       dem::Rve trial = e.rve;  // the committed state stays as it is
       absl::StatusOr<dem::RveState> s = trial.Apply(inc.delta_f, options);
+      o.engine_seconds = engine_seconds();
       if (!s.ok()) {
         o.status = s.status();
         return;
@@ -380,6 +413,7 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
       return;
     }
     absl::StatusOr<dem::RveState> s = e.rve.Apply(inc.delta_f, options);
+    o.engine_seconds = engine_seconds();
     if (!s.ok()) {  // the engine leaves the RVE untouched on error
       o.status = s.status();
       return;

@@ -47,6 +47,9 @@ struct RveOutcome {
   std::int64_t step = 0;  // the RVE's committed step after the call
   dem::RveState state;    // valid when status is OK
   Eigen::Matrix3d deformation_gradient = Eigen::Matrix3d::Identity();  // F since creation
+  // Wall time the engine spent on this RVE in the call (Apply: DEM steps and
+  // homogenisation), s. A measurement for load figures, never part of a state.
+  double engine_seconds = 0.0;
 };
 
 // Initial stress of new RVEs (compression +, Pa). kTemplate keeps the
