@@ -1,18 +1,26 @@
-// Client-side cost of mpm_client (figures only, never pass/fail).
+// Time to solution of mpm_client cases (figures only, never pass/fail).
 //
-// Runs cases for a number of MPM steps on an embedded server (and, with
-// --remote, on one rve_server on loopback started in this process) and
-// prints the wall time per step split into
-//   rve     time inside the batched RVE calls (DEM work + for remote servers
-//           transport and protobuf),
-//   output  results frames, timeseries rows, checkpoints,
-//   client  the rest: grid work (P2G, velocity gradients, forces, G2P),
-// the client share (client / wall, goal ≤ 5 %) and RVE evaluations per
-// second. The remote run's extra wall time over the embedded one is the
-// marshalling and transport the embedded server avoids.
+// Runs cases on an embedded server (and, with --remote, on one rve_server on
+// loopback started in this process) and prints for each: set-up time (RVE
+// creation), MPM steps, wall time, RVE increments per second, DEM steps per
+// increment (mean and histogram) and where the wall time went (DEM engine,
+// service/transport/idle workers, grid, output), the split mpm_client prints
+// at the end of every run.
 //
-//   build/bench/bench_mpm [--steps=200] [--remote] [--threads=N] [CASE.json ...]
-// Default cases: cases/single-element-biaxial.json and cases/footing-ci.json.
+// --baseline also runs each case with the settings before the time-to-solution
+// work (rve.min_steps = 20 in every RVE) in the same process and prints the
+// speed-up; compare the answers with bench/compare_runs.py on the outputs
+// (kept in /tmp/bench_mpm_<case>[_baseline]).
+//
+//   build/bench/bench_mpm [--steps=N] [--full] [--baseline] [--remote] [--threads=N]
+//                         [CASE.json ...]
+// --steps: MPM steps per case (default 0: to the case's end time). Default
+// cases: the CI-sized ones (single-element-biaxial, footing-ci,
+// biaxial-specimen-ci, column-collapse-ci); --full: footing-coarse,
+// biaxial-specimen-medium, column-collapse-full, footing-full (hours before
+// issue 9; give --steps to sample them).
+#include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -30,11 +38,12 @@ namespace mpm = rvehub::mpm;
 
 struct Row {
   std::string name;
+  double setup_s = 0.0;  // Simulation::Start: templates, RVE creation, Δt, outputs
   mpm::RunSummary sum;
 };
 
 bool RunCase(const std::string& path, const std::vector<std::string>& servers, int threads,
-             long steps, const std::string& label, std::vector<Row>* rows) {
+             long steps, bool baseline, const std::string& label, std::vector<Row>* rows) {
   absl::StatusOr<mpm::CaseSpec> spec = mpm::LoadCase(path);
   if (!spec.ok()) {
     std::fprintf(stderr, "%s\n", std::string(spec.status().message()).c_str());
@@ -42,15 +51,21 @@ bool RunCase(const std::string& path, const std::vector<std::string>& servers, i
   }
   spec->output.checkpoint_every = 0;
   spec->output.frame_every = 1 << 30;  // frames at start and end only
+  if (baseline) spec->rve.min_steps = 20;
   mpm::RunOptions o;
-  o.out_dir = (std::filesystem::temp_directory_path() / ("bench_mpm_" + spec->name)).string();
+  o.out_dir = (std::filesystem::temp_directory_path() /
+               ("bench_mpm_" + spec->name + (baseline ? "_baseline" : "")))
+                  .string();
   o.template_cache_dir = (std::filesystem::temp_directory_path() / "bench_mpm_templates").string();
   o.servers = servers;
   o.threads = threads;
   o.stop_after_steps = steps;
   o.progress = false;
   o.log = [](const std::string&) {};
+  const auto t0 = std::chrono::steady_clock::now();
   absl::StatusOr<std::unique_ptr<mpm::Simulation>> sim = mpm::Simulation::Start(*spec, o);
+  const double setup_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (!sim.ok()) {
     std::fprintf(stderr, "%s: %s\n", path.c_str(), std::string(sim.status().message()).c_str());
     return false;
@@ -60,18 +75,18 @@ bool RunCase(const std::string& path, const std::vector<std::string>& servers, i
     std::fprintf(stderr, "%s: %s\n", path.c_str(), std::string(sum.status().message()).c_str());
     return false;
   }
-  rows->push_back({spec->name + " " + label + " (" +
+  rows->push_back({spec->name + " " + label + (baseline ? " baseline" : "") + " (" +
                        std::to_string((*sim)->solver().points().size()) + " RVEs)",
-                   *sum});
+                   setup_s, *sum});
   return true;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  long steps = 200;
+  long steps = 0;
   int threads = 0;
-  bool remote = false;
+  bool remote = false, full = false, baseline = false;
   std::vector<std::string> cases;
   for (int i = 1; i < argc; ++i) {
     if (std::strncmp(argv[i], "--steps=", 8) == 0) {
@@ -80,13 +95,25 @@ int main(int argc, char** argv) {
       threads = std::atoi(argv[i] + 10);
     } else if (std::strcmp(argv[i], "--remote") == 0) {
       remote = true;
+    } else if (std::strcmp(argv[i], "--full") == 0) {
+      full = true;
+    } else if (std::strcmp(argv[i], "--baseline") == 0) {
+      baseline = true;
+    } else if (argv[i][0] == '-') {
+      std::fprintf(stderr, "unknown flag %s\n", argv[i]);
+      return 2;
     } else {
       cases.emplace_back(argv[i]);
     }
   }
   if (cases.empty()) {
-    cases = {std::string(RVEHUB_SOURCE_DIR) + "/cases/single-element-biaxial.json",
-             std::string(RVEHUB_SOURCE_DIR) + "/cases/footing-ci.json"};
+    const std::vector<std::string> names =
+        full ? std::vector<std::string>{"footing-coarse", "biaxial-specimen-medium",
+                                        "column-collapse-full", "footing-full"}
+             : std::vector<std::string>{"single-element-biaxial", "footing-ci",
+                                        "biaxial-specimen-ci", "column-collapse-ci"};
+    for (const std::string& n : names)
+      cases.push_back(std::string(RVEHUB_SOURCE_DIR) + "/cases/" + n + ".json");
   }
   std::unique_ptr<rvehub::service::RveServer> server;
   if (remote) {
@@ -103,18 +130,38 @@ int main(int argc, char** argv) {
   }
   std::vector<Row> rows;
   for (const std::string& c : cases) {
-    if (!RunCase(c, {}, threads, steps, "embedded", &rows)) return 1;
-    if (remote && !RunCase(c, {server->address()}, threads, steps, "loopback", &rows)) return 1;
+    for (bool base : {false, true}) {
+      if (base && !baseline) continue;
+      if (!RunCase(c, {}, threads, steps, base, "embedded", &rows)) return 1;
+      if (remote && !RunCase(c, {server->address()}, threads, steps, base, "loopback", &rows))
+        return 1;
+    }
   }
-  std::printf("%-44s %7s %10s %10s %10s %10s %8s %12s\n", "case", "steps", "wall ms/st",
-              "rve ms/st", "out ms/st", "client ms", "client%", "RVE evals/s");
+  std::printf("%-52s %8s %7s %9s %10s %12s %9s\n", "case", "setup s", "steps", "wall s",
+              "wall ms/st", "RVE incr/s", "DEM st/inc");
   for (const Row& r : rows) {
-    const double n = static_cast<double>(r.sum.steps);
-    const double client = r.sum.wall_s - r.sum.rve_s - r.sum.output_s;
-    std::printf("%-44s %7lld %10.3f %10.3f %10.3f %10.4f %7.2f%% %12.0f\n", r.name.c_str(),
-                static_cast<long long>(r.sum.steps), 1e3 * r.sum.wall_s / n, 1e3 * r.sum.rve_s / n,
-                1e3 * r.sum.output_s / n, 1e3 * client / n, 100.0 * client / r.sum.wall_s,
-                r.sum.rve_evaluations / r.sum.wall_s);
+    const double n = static_cast<double>(std::max<std::int64_t>(1, r.sum.steps));
+    const mpm::ApplyStats& st = r.sum.rve_stats;
+    std::printf("%-52s %8.1f %7lld %9.1f %10.3f %12.0f %9.2f\n", r.name.c_str(), r.setup_s,
+                static_cast<long long>(r.sum.steps), r.sum.wall_s, 1e3 * r.sum.wall_s / n,
+                r.sum.rve_evaluations / std::max(r.sum.wall_s, 1e-12),
+                static_cast<double>(st.dem_steps) /
+                    static_cast<double>(std::max<std::int64_t>(1, st.increments)));
+  }
+  std::printf("\n");
+  for (const Row& r : rows) {
+    std::printf("%s\n  %s\n", r.name.c_str(), mpm::FormatTimeSplit(r.sum).c_str());
+  }
+  if (baseline) {
+    std::printf(
+        "\nspeed-up over the baseline settings (same steps; wall time, set-up excluded):\n");
+    for (std::size_t k = 0; k + 1 < rows.size(); k += remote ? 4 : 2) {
+      const Row& now = rows[k];
+      const Row& base = rows[k + (remote ? 2 : 1)];
+      std::printf("  %-52s %6.2fx stepping, %6.2fx set-up\n", now.name.c_str(),
+                  base.sum.wall_s / std::max(now.sum.wall_s, 1e-12),
+                  base.setup_s / std::max(now.setup_s, 1e-12));
+    }
   }
   if (server != nullptr) (void)server->Stop(std::chrono::seconds(1));
   return 0;

@@ -741,10 +741,11 @@ absl::Status ParseTraction(const Json& j, const std::string& ptr,
 absl::Status ParseRve(const Json& j, const std::string& ptr, RveSpec* rve) {
   absl::StatusOr<Object> o = Object::Open(j, ptr, {"max_inertial_number", "min_steps"});
   if (!o.ok()) return o.status();
-  RETURN_IF_ERROR(GetNumber(*o, "max_inertial_number", Need::kOptional, kNonNegative,
+  // I above 0.1 is a dense flow, not a quasi-static RVE; more than 10^5 DEM
+  // steps per increment is a mistake, not a setting.
+  RETURN_IF_ERROR(GetNumber(*o, "max_inertial_number", Need::kOptional, Range{0.0, 0.1},
                             &rve->max_inertial_number));
-  RETURN_IF_ERROR(
-      GetInteger(*o, "min_steps", 0, std::numeric_limits<std::int64_t>::max(), &rve->min_steps));
+  RETURN_IF_ERROR(GetInteger(*o, "min_steps", 0, 100000, &rve->min_steps));
   return absl::OkStatus();
 }
 

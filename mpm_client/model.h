@@ -149,8 +149,9 @@ struct OutputSpec {
 };
 
 struct RveSpec {
-  double max_inertial_number = 0.0;  // per-call bound on I; 0: the RVE's own
-  std::int64_t min_steps = 0;        // DEM steps per increment at least; 0: the RVE's own
+  // Set in the controls of every RVE the case creates (0: the template's own).
+  double max_inertial_number = 0.0;  // bound on I = γ̇·d·sqrt(ρ/p) per increment, [-]
+  std::int64_t min_steps = 0;        // DEM steps per increment at least
 };
 
 struct CaseSpec {

@@ -210,6 +210,7 @@ int Main(int argc, char** argv) {
                static_cast<long long>(summary->steps), summary->wall_s, summary->rve_s,
                summary->wall_s > 0 ? 100.0 * summary->rve_s / summary->wall_s : 0.0,
                static_cast<long long>(summary->rve_evaluations));
+  std::fprintf(stderr, "mpm_client: %s\n", FormatTimeSplit(*summary).c_str());
   std::fprintf(stderr, "mpm_client: outputs in %s\n", options->out_dir.c_str());
   return 0;
 }

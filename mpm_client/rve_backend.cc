@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <climits>
+#include <cmath>
 #include <functional>
 #include <utility>
 
@@ -32,6 +33,7 @@ class EmbeddedEndpoint final : public RveEndpoint {
       : registry_(std::move(registry)) {}
 
   std::string name() const override { return "embedded"; }
+  int workers() const override { return registry_->options().threads; }
   std::string label() const override { return "embedded RVE registry"; }
 
   absl::Status PutTemplate(const store::TemplateRecord& record) override {
@@ -160,6 +162,7 @@ absl::StatusOr<RveOutcome> OutcomeFromProto(const v1::RveResult& r) {
   RveOutcome o;
   o.id = r.id();
   o.step = r.step();
+  o.engine_seconds = std::isfinite(r.engine_seconds()) ? r.engine_seconds() : 0.0;
   if (r.code() != 0) {
     o.status = absl::Status(static_cast<absl::StatusCode>(r.code()), r.message());
     return o;
@@ -221,6 +224,7 @@ class RemoteEndpoint final : public RveEndpoint {
       return absl::FailedPreconditionError(absl::StrCat(
           label(), ": speaks API \"", info.api_version(), "\", this client rvehub.v1"));
     }
+    workers_ = std::max(1, info.threads());
     max_batch_ = std::max<std::int64_t>(1, remote_.max_batch);
     if (info.max_batch() > 0) max_batch_ = std::min(max_batch_, info.max_batch());
     chunk_budget_bytes_ =
@@ -229,6 +233,7 @@ class RemoteEndpoint final : public RveEndpoint {
   }
 
   std::string name() const override { return address_; }
+  int workers() const override { return workers_; }
   std::string label() const override { return absl::StrCat("RVE server ", address_); }
 
   absl::Status PutTemplate(const store::TemplateRecord& record) override {
@@ -416,6 +421,7 @@ class RemoteEndpoint final : public RveEndpoint {
   const client::ClientOptions options_;
   const RemoteOptions remote_;
   std::unique_ptr<v1::RveService::Stub> stub_;
+  int workers_ = 1;
   std::int64_t max_batch_ = 1;           // RVEs per message, set by Connect
   std::int64_t chunk_budget_bytes_ = 0;  // bytes of records per import chunk
 };

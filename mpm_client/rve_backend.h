@@ -37,6 +37,8 @@ class RveEndpoint {
   virtual std::string name() const = 0;
   // For messages: "embedded RVE registry" or "RVE server HOST:PORT".
   virtual std::string label() const = 0;
+  // Worker threads evaluating a batch (the server's --threads).
+  virtual int workers() const = 0;
 
   // Uploads a template, replacing one of the same name.
   virtual absl::Status PutTemplate(const store::TemplateRecord& record) = 0;

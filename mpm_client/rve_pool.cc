@@ -150,7 +150,7 @@ absl::Status RvePool::UploadTemplates(std::span<const store::TemplateRecord> tem
 absl::StatusOr<std::vector<dem::RveState>> RvePool::Create(
     std::span<const std::string> template_per_point,
     std::span<const service::InitialStress> initial_per_point,
-    const std::optional<dem::Controls>& controls) {
+    const std::map<std::string, dem::Controls>& controls) {
   if (endpoints_.empty()) return NoEndpoints();
   if (assignment_.empty()) Assign(std::vector<double>(template_per_point.size(), 1.0));
   const std::size_t n = assignment_.size();
@@ -178,8 +178,10 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Create(
         for (std::int64_t p : ids) initial.push_back(initial_per_point[p]);
       }
       const std::string what = absl::StrCat("creating RVEs of template \"", name, "\"");
-      absl::StatusOr<std::vector<service::RveOutcome>> r =
-          endpoints_[k]->Create(run_id_, name, ids, initial, controls);
+      auto own = controls.find(name);
+      absl::StatusOr<std::vector<service::RveOutcome>> r = endpoints_[k]->Create(
+          run_id_, name, ids, initial,
+          own == controls.end() ? std::nullopt : std::optional<dem::Controls>(own->second));
       if (!r.ok()) return CallError(k, r.status(), what);
       if (absl::Status c = Collect(k, ids, *r, what, out); !c.ok()) return c;
     }
@@ -189,8 +191,29 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Create(
   return out;
 }
 
+int ApplyStats::Bin(std::int64_t steps) {
+  int bin = 0;
+  while (bin < kBins - 1 && steps > BinUpper(bin)) ++bin;
+  return bin;
+}
+
+std::int64_t ApplyStats::BinUpper(int k) { return k < kBins - 1 ? std::int64_t{1} << k : -1; }
+
+void ApplyStats::Add(const ApplyStats& other) {
+  increments += other.increments;
+  dem_steps += other.dem_steps;
+  engine_seconds += other.engine_seconds;
+  for (int b = 0; b < kBins; ++b) histogram[b] += other.histogram[b];
+}
+
+int RvePool::total_workers() const {
+  int n = 0;
+  for (const std::unique_ptr<RveEndpoint>& e : endpoints_) n += e->workers();
+  return std::max(1, n);
+}
+
 absl::Status RvePool::ApplyOn(int k, std::int64_t step, std::span<const Eigen::Matrix3d> delta_f,
-                              std::vector<dem::RveState>& out, std::int64_t& evaluated) {
+                              std::vector<dem::RveState>& out, ApplyStats& stats) {
   const std::vector<std::int64_t>& ids = points_[k];
   if (ids.empty()) return absl::OkStatus();
   std::vector<service::Increment> increments(ids.size());
@@ -213,7 +236,14 @@ absl::Status RvePool::ApplyOn(int k, std::int64_t step, std::span<const Eigen::M
       }
       if (transient == nullptr) {
         absl::Status c = Collect(k, ids, *r, what, out);
-        if (c.ok()) evaluated = static_cast<std::int64_t>(ids.size());
+        if (c.ok()) {
+          for (const service::RveOutcome& o : *r) {
+            ++stats.increments;
+            stats.dem_steps += o.state.steps;
+            stats.engine_seconds += o.engine_seconds;
+            ++stats.histogram[ApplyStats::Bin(o.state.steps)];
+          }
+        }
         return c;
       }
       failed = PointError(k, *transient, what);
@@ -241,15 +271,18 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(
   }
   const auto start = std::chrono::steady_clock::now();
   std::vector<dem::RveState> out(n);
-  std::vector<std::int64_t> evaluated(endpoints_.size(), 0);
+  std::vector<ApplyStats> stats(endpoints_.size());
   std::fill(last_apply_seconds_.begin(), last_apply_seconds_.end(), 0.0);
   absl::Status s = ForEachEndpoint([&](int k) {
     const auto endpoint_start = std::chrono::steady_clock::now();
-    absl::Status a = ApplyOn(k, step, delta_f, out, evaluated[k]);
+    absl::Status a = ApplyOn(k, step, delta_f, out, stats[k]);
     last_apply_seconds_[k] = SecondsSince(endpoint_start);
     return a;
   });
-  for (std::int64_t e : evaluated) evaluations_ += e;
+  for (const ApplyStats& st : stats) {
+    evaluations_ += st.increments;
+    stats_.Add(st);
+  }
   total_apply_seconds_ += SecondsSince(start);
   if (!s.ok()) return s;
   return out;

@@ -12,6 +12,7 @@
 #include <Eigen/Dense>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <span>
@@ -28,6 +29,22 @@
 #include "store/record.h"
 
 namespace rvehub::mpm {
+
+// What the increments of a run cost: DEM steps per increment (the
+// quasi-static criterion and min_steps decide them) and the engine's time.
+struct ApplyStats {
+  // Histogram bins of DEM steps per increment: upper bounds 1, 2, 4, 8, …, 2^11, then more.
+  static constexpr int kBins = 13;
+  std::int64_t increments = 0;  // RVE increments committed
+  std::int64_t dem_steps = 0;   // DEM steps over those increments
+  double engine_seconds = 0.0;  // Σ engine wall time per RVE (summed over workers), s
+  std::int64_t histogram[kBins] = {};
+  // Bin of an increment of `steps` DEM steps: 0 for ≤ 1, k for (2^(k−1), 2^k].
+  static int Bin(std::int64_t steps);
+  // Upper bound of bin k (steps); the last bin has none (-1).
+  static std::int64_t BinUpper(int k);
+  void Add(const ApplyStats& other);
+};
 
 struct PoolOptions {
   absl::Duration apply_deadline = absl::Minutes(10);  // per attempt of one endpoint's batch
@@ -76,12 +93,14 @@ class RvePool {
 
   // Creates the run's RVEs: template per point (or one for all) and initial
   // stress per point (empty: the template's state; one for all; or one per
-  // point, e.g. geostatic). Without an assignment, assigns equal costs
-  // first. States after creation, in point order.
+  // point, e.g. geostatic). `controls` (by template name): the controls of
+  // that template's new RVEs; a template not named keeps its own. Without an
+  // assignment, assigns equal costs first. States after creation, in point
+  // order.
   absl::StatusOr<std::vector<dem::RveState>> Create(
       std::span<const std::string> template_per_point,
       std::span<const service::InitialStress> initial_per_point = {},
-      const std::optional<dem::Controls>& controls = std::nullopt);
+      const std::map<std::string, dem::Controls>& controls = {});
 
   // COMMITs step `step` (≥ 1) with ΔF per point ([-], plane strain): one
   // batch per endpoint, all in flight at once; a batch failing transiently is
@@ -105,6 +124,10 @@ class RvePool {
 
   // Successful RVE increments since construction.
   std::int64_t evaluations() const { return evaluations_; }
+  // Their DEM steps and engine time since construction.
+  const ApplyStats& apply_stats() const { return stats_; }
+  // Worker threads over all endpoints.
+  int total_workers() const;
   // Wall time of each endpoint's batch in the last Apply (retries included), s.
   const std::vector<double>& last_apply_seconds() const { return last_apply_seconds_; }
   // Wall time spent inside Apply overall, s.
@@ -116,7 +139,7 @@ class RvePool {
   absl::Status ForEachEndpoint(const std::function<absl::Status(int)>& fn);
   // One endpoint's batch of a step, with retries; states into `out`.
   absl::Status ApplyOn(int k, std::int64_t step, std::span<const Eigen::Matrix3d> delta_f,
-                       std::vector<dem::RveState>& out, std::int64_t& evaluated);
+                       std::vector<dem::RveState>& out, ApplyStats& stats);
   // A whole-call error of endpoint k, with what was being done and the
   // endpoint named (endpoints name themselves; a wrapper might not).
   absl::Status CallError(int k, const absl::Status& s, absl::string_view what) const;
@@ -134,6 +157,7 @@ class RvePool {
   std::vector<int> assignment_;                    // point → endpoint
   std::vector<std::vector<std::int64_t>> points_;  // endpoint → points, ascending
   std::int64_t evaluations_ = 0;
+  ApplyStats stats_;
   std::vector<double> last_apply_seconds_;
   double total_apply_seconds_ = 0.0;
 };

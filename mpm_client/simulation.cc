@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <system_error>
 #include <thread>
 
@@ -141,7 +142,6 @@ absl::Status Simulation::Connect() {
   }
   PoolOptions po;
   po.apply_deadline = absl::Seconds(options_.apply_timeout_s);
-  po.apply_options.max_inertial_number = spec_.rve.max_inertial_number;
   pool_ = std::make_unique<RvePool>(std::move(endpoints), run_id_, po);
   return absl::OkStatus();
 }
@@ -160,7 +160,7 @@ std::vector<std::string> Simulation::Columns() const {
   }
   for (const char* name :
        {"mean_sxx", "mean_syy", "mean_sxy", "mean_exx", "mean_eyy", "mean_exy", "mean_p", "mean_q",
-        "mean_void_ratio", "kinetic_energy", "wall_per_step_s"}) {
+        "mean_void_ratio", "kinetic_energy", "front_x", "top_y", "wall_per_step_s"}) {
     c.push_back(name);
   }
   return c;
@@ -260,6 +260,8 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
   }
   // Volume averages (current volumes), compression +.
   double volume = 0, e = 0;
+  // Extent of the material (points' positions), m: a flow's front and height.
+  double front_x = -std::numeric_limits<double>::infinity(), top_y = front_x;
   Eigen::Matrix3d sigma = Eigen::Matrix3d::Zero();
   Eigen::Matrix2d strain = Eigen::Matrix2d::Zero();
   for (std::size_t i = 0; i < mp.size(); ++i) {
@@ -268,6 +270,8 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
     sigma += v * mp.stress[i];
     strain += v * Strain(mp.F[i]);
     e += v * mp.response[i].void_ratio;
+    front_x = std::max(front_x, mp.position[i].x());
+    top_y = std::max(top_y, mp.position[i].y());
   }
   if (volume > 0) {
     sigma /= volume;
@@ -277,7 +281,7 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
   row.insert(row.end(),
              {-sigma(0, 0), -sigma(1, 1), -sigma(0, 1), strain(0, 0), strain(1, 1), strain(0, 1),
               dem::InPlaneMeanPressure(sigma), dem::InPlaneDeviatorStress(sigma), e,
-              solver_->KineticEnergy(), wall_per_step});
+              solver_->KineticEnergy(), front_x, top_y, wall_per_step});
   for (double& v : row) v += 0.0;  // −0 (a negated zero) reads as 0
   if (absl::Status s = out_->timeseries->Append(row); !s.ok()) return s;
   out_->last_row_step = solver_->step();
@@ -304,6 +308,37 @@ absl::Status Simulation::WriteCheckpoint() {
   store::FileInfo info;
   info.created_by = "mpm_client";
   return store::WriteSimCheckpoint(options_.out_dir + "/checkpoint.h5", *c, info);
+}
+
+std::string FormatTimeSplit(const RunSummary& s) {
+  const double wall = std::max(s.wall_s, 1e-12);
+  const double engine = std::min(s.rve_s, s.rve_stats.engine_seconds / std::max(1, s.rve_workers));
+  const double service = s.rve_s - engine;
+  const double grid = std::max(0.0, s.wall_s - s.rve_s - s.output_s);
+  std::string out = absl::StrFormat(
+      "time split (wall %.1f s): DEM engine %.1f s (%.1f %%; %.1f core-s over %d workers), "
+      "service, transport and idle workers %.1f s (%.1f %%), grid %.1f s (%.1f %%), output %.1f s "
+      "(%.1f %%)",
+      s.wall_s, engine, 100 * engine / wall, s.rve_stats.engine_seconds, s.rve_workers, service,
+      100 * service / wall, grid, 100 * grid / wall, s.output_s, 100 * s.output_s / wall);
+  const ApplyStats& st = s.rve_stats;
+  if (st.increments == 0) return out;
+  absl::StrAppendFormat(&out, "\nDEM steps per increment: mean %.2f over %d increments;",
+                        static_cast<double>(st.dem_steps) / static_cast<double>(st.increments),
+                        st.increments);
+  for (int b = 0; b < ApplyStats::kBins; ++b) {
+    if (st.histogram[b] == 0) continue;
+    const std::int64_t upper = ApplyStats::BinUpper(b);
+    const std::int64_t lower = b == 0 ? 0 : ApplyStats::BinUpper(b - 1) + 1;
+    const std::string label = upper < 0        ? absl::StrCat(">", lower - 1)
+                              : b == 0         ? std::string("<=1")
+                              : lower == upper ? absl::StrCat(upper)
+                                               : absl::StrCat(lower, "-", upper);
+    absl::StrAppendFormat(
+        &out, " %s: %.1f %%", label,
+        100.0 * static_cast<double>(st.histogram[b]) / static_cast<double>(st.increments));
+  }
+  return out;
 }
 
 absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& spec,
@@ -363,17 +398,23 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
     }
   }
   sim->pool_->Assign(cost);
-  std::optional<dem::Controls> controls;
-  if (spec.rve.min_steps > 0) {
-    // One set of controls for all templates: those of the first, with the
-    // case's DEM steps per increment (templates of a case share controls).
-    controls = sim->templates_.front().packing.controls;
-    controls->min_steps = spec.rve.min_steps;
+  // Each template's own controls with the case's DEM steps per increment
+  // and inertial-number bound, where the case sets them.
+  std::map<std::string, dem::Controls> controls;
+  if (spec.rve.min_steps > 0 || spec.rve.max_inertial_number > 0) {
+    for (const store::TemplateRecord& t : sim->templates_) {
+      dem::Controls c = t.packing.controls;
+      if (spec.rve.min_steps > 0) c.min_steps = spec.rve.min_steps;
+      if (spec.rve.max_inertial_number > 0) c.max_inertial_number = spec.rve.max_inertial_number;
+      controls[sim->ServerTemplateName(t.name)] = c;
+    }
   }
   sim->Log(absl::StrFormat("creating %d RVEs on %d server(s)...", n, sim->pool_->num_endpoints()));
+  const Clock::time_point create_start = Clock::now();
   absl::StatusOr<std::vector<dem::RveState>> states =
       sim->pool_->Create(template_of, initial, controls);
   if (!states.ok()) return states.status();
+  sim->Log(absl::StrFormat("created %d RVEs in %.1f s", n, Seconds(Clock::now() - create_start)));
   for (std::size_t p = 0; p < n; ++p) {
     points->stress[p] = (*states)[p].stress;
     points->response[p] = RveStressModel::ToResponse((*states)[p]);
@@ -453,6 +494,7 @@ absl::StatusOr<RunSummary> Simulation::Run() {
   const Clock::time_point start = Clock::now();
   const double rve_start = rve_seconds_;
   const std::int64_t evals_start = pool_->evaluations();
+  const ApplyStats stats_start = pool_->apply_stats();
   Clock::time_point row_clock = start;
   std::int64_t row_step = solver_->step();
   auto output_time = Clock::duration::zero();
@@ -492,6 +534,13 @@ absl::StatusOr<RunSummary> Simulation::Run() {
   sum.rve_s = rve_seconds_ - rve_start;
   sum.output_s = Seconds(output_time);
   sum.rve_evaluations = pool_->evaluations() - evals_start;
+  sum.rve_stats = pool_->apply_stats();
+  sum.rve_stats.increments -= stats_start.increments;
+  sum.rve_stats.dem_steps -= stats_start.dem_steps;
+  sum.rve_stats.engine_seconds -= stats_start.engine_seconds;
+  for (int b = 0; b < ApplyStats::kBins; ++b)
+    sum.rve_stats.histogram[b] -= stats_start.histogram[b];
+  sum.rve_workers = pool_->total_workers();
   sum.final_step = solver_->step();
   sum.final_time = solver_->time();
   sum.finished = solver_->step() >= total_steps;

@@ -45,7 +45,17 @@ struct RunSummary {
   double output_s = 0.0;    // s, of wall_s spent writing outputs/checkpoints
   std::int64_t rve_evaluations = 0;
   bool finished = false;  // reached the case's end time
+  // What the RVE calls cost in this invocation: DEM steps per increment and
+  // the engine's time summed over the workers (rve_workers of them).
+  ApplyStats rve_stats;
+  int rve_workers = 1;
 };
+
+// Where the wall time went, two lines for people: DEM engine (the engine's
+// time over the workers), service/transport/idle workers (the rest of the
+// RVE calls), grid (the MPM step itself) and output; then DEM steps per
+// increment, mean and histogram.
+std::string FormatTimeSplit(const RunSummary& summary);
 
 class Simulation {
  public:

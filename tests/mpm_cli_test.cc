@@ -39,7 +39,7 @@ using testing_util::ReadFile;
 constexpr char kHeader[] =
     "time,step,left_fx,left_fy,bottom_fx,bottom_fy,platen_fx,platen_fy,platen_dx,platen_dy,"
     "mean_sxx,mean_syy,mean_sxy,mean_exx,mean_eyy,mean_exy,mean_p,mean_q,mean_void_ratio,"
-    "kinetic_energy,wall_per_step_s";
+    "kinetic_energy,front_x,top_y,wall_per_step_s";
 
 // This process's scratch directory, created afresh on first use and removed
 // at the end when every test passed.
@@ -280,7 +280,7 @@ TEST(MpmCliTest, CheckPrintsTheCaseInCanonicalForm) {
   EXPECT_EQ(c["solver"]["shape"], "gimp");
   EXPECT_EQ(c["walls"][0]["kind"], "smooth");  // "roller" in canonical form
   EXPECT_EQ(c["tractions"][0]["traction"], Json::array({-100e3, 0.0}));  // tension +
-  EXPECT_EQ(c["rve"]["min_steps"], 0);                                   // defaults filled in
+  EXPECT_EQ(c["rve"]["max_inertial_number"], 0.0);                       // defaults filled in
   // The canonical form is a valid case file itself and prints the same.
   const std::string again = TempPath("check_again.json");
   std::ofstream(again) << r.out;

@@ -207,6 +207,7 @@ class FaultyEndpoint final : public RveEndpoint {
 
   std::string name() const override { return "faulty"; }
   std::string label() const override { return "faulty endpoint"; }
+  int workers() const override { return inner_->workers(); }
   absl::Status PutTemplate(const store::TemplateRecord& r) override {
     return inner_->PutTemplate(r);
   }
