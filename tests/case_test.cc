@@ -423,6 +423,9 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
       // Out of range.
       {"/solver/pic_fraction", 1.5, "/solver/pic_fraction: must be in [0, 1], got 1.5"},
       {"/solver/cfl", 0, "/solver/cfl: must be in (0, 1], got 0"},
+      // Unbounded DEM work per increment.
+      {"/rve/min_steps", 1e15, "/rve/min_steps: must be an integer in 0..100000"},
+      {"/rve/max_inertial_number", 0.5, "/rve/max_inertial_number: must be in [0, 0.1], got 0.5"},
       {"/solver/end_time", 0, "/solver/end_time: must be > 0, got 0"},
       {"/solver/time_step", -1e-3, "/solver/time_step: must be >= 0, got -0.001"},
       {"/solver/thickness", 0, "/solver/thickness: must be > 0, got 0"},

@@ -488,5 +488,93 @@ TEST(RvePoolTest, ExportImportOntoOtherEndpointsContinuesBitIdentically) {
   EXPECT_TRUE(absl::IsAlreadyExists(resumed.ImportAll(*saved)));
 }
 
+TEST(RvePoolTest, ApplyStatsCountIncrementsAndDemSteps) {
+  // Bins of DEM steps per increment: ≤ 1, 2, 3–4, 5–8, …, then above 2048.
+  EXPECT_EQ(ApplyStats::Bin(0), 0);
+  EXPECT_EQ(ApplyStats::Bin(1), 0);
+  EXPECT_EQ(ApplyStats::Bin(2), 1);
+  EXPECT_EQ(ApplyStats::Bin(3), 2);
+  EXPECT_EQ(ApplyStats::Bin(4), 2);
+  EXPECT_EQ(ApplyStats::Bin(5), 3);
+  EXPECT_EQ(ApplyStats::Bin(2048), ApplyStats::kBins - 2);
+  EXPECT_EQ(ApplyStats::Bin(2049), ApplyStats::kBins - 1);
+  EXPECT_EQ(ApplyStats::BinUpper(ApplyStats::kBins - 1), -1);
+
+  RvePool pool(EmbeddedEndpoints(1), kRun);
+  Start(pool);
+  std::int64_t steps = 0;
+  for (std::int64_t step = 1; step <= 3; ++step) {
+    for (const dem::RveState& s : ApplyOrDie(pool, step)) steps += s.steps;
+  }
+  const ApplyStats& st = pool.apply_stats();
+  EXPECT_EQ(st.increments, 3 * kPoints);
+  EXPECT_EQ(st.dem_steps, steps);
+  EXPECT_GE(st.dem_steps, 3 * (4 * 10 + 2 * 12));  // min_steps of the two templates
+  std::int64_t binned = 0;
+  for (std::int64_t h : st.histogram) binned += h;
+  EXPECT_EQ(binned, st.increments);
+  // min_steps 10 and 12 both fall in the 9–16 bin (the criterion asks for
+  // fewer steps for these ΔF).
+  EXPECT_EQ(st.histogram[ApplyStats::Bin(12)], 3 * kPoints);
+  EXPECT_GT(st.engine_seconds, 0.0);
+  EXPECT_EQ(pool.total_workers(), 1);
+}
+
+// Controls given for one template reach its RVEs only, and replace the
+// template's own as a whole (the other template keeps min_steps 12).
+TEST(RvePoolTest, ControlsPerTemplate) {
+  RvePool pool(EmbeddedEndpoints(1), kRun);
+  const std::vector<store::TemplateRecord> templates = Templates();
+  ASSERT_TRUE(pool.UploadTemplates(templates).ok());
+  dem::Controls quick = templates[0].packing.controls;
+  quick.min_steps = 1;
+  ASSERT_TRUE(pool.Create(TemplatePerPoint(), {}, {{"set-dense", quick}}).ok());
+  // A strain of 1e-8: the quasi-static criterion asks for one DEM step.
+  Eigen::Matrix3d tiny = Eigen::Matrix3d::Identity();
+  tiny(1, 1) = 1 - 1e-8;
+  absl::StatusOr<std::vector<dem::RveState>> s =
+      pool.Apply(1, std::vector<Eigen::Matrix3d>(kPoints, tiny));
+  ASSERT_TRUE(s.ok()) << s.status();
+  for (int p = 0; p < kPoints; ++p) {
+    EXPECT_EQ((*s)[p].steps, p % 3 == 0 ? 12 : 1) << "point " << p;
+  }
+}
+
+// Points with the same initial stress share one consolidation: their RVEs
+// are identical, and equal to one consolidated on its own.
+TEST(RvePoolTest, PointsWithTheSameInitialStressGetIdenticalRves) {
+  const std::vector<store::TemplateRecord> templates = Templates();
+  std::vector<service::InitialStress> initial(kPoints);
+  for (int p = 0; p < kPoints; ++p) {
+    initial[p].kind = service::InitialStress::Kind::kIsotropic;
+    initial[p].pressure = p % 2 == 0 ? 60e3 : 80e3;
+  }
+  RvePool pool(EmbeddedEndpoints(1), kRun);
+  ASSERT_TRUE(pool.UploadTemplates(templates).ok());
+  const std::vector<std::string> one_template(kPoints, "set-dense");
+  ASSERT_TRUE(pool.Create(one_template, initial).ok());
+  absl::StatusOr<std::vector<store::RveRecord>> all = pool.ExportAll();
+  ASSERT_TRUE(all.ok()) << all.status();
+
+  const std::vector<service::InitialStress> just_one = {initial[1]};
+  RvePool single(EmbeddedEndpoints(1), kRun);
+  ASSERT_TRUE(single.UploadTemplates(templates).ok());
+  single.Assign(std::vector<double>{1.0});
+  const std::vector<std::string> name = {"set-dense"};
+  ASSERT_TRUE(single.Create(name, just_one).ok());
+  absl::StatusOr<std::vector<store::RveRecord>> own = single.ExportAll();
+  ASSERT_TRUE(own.ok()) << own.status();
+
+  auto same = [](const store::RveRecord& a, const store::RveRecord& b) {
+    return a.packing.sx == b.packing.sx && a.packing.sy == b.packing.sy &&
+           a.packing.cell == b.packing.cell;
+  };
+  for (int p = 2; p < kPoints; ++p) {
+    EXPECT_TRUE(same((*all)[p], (*all)[p % 2])) << "point " << p;
+  }
+  EXPECT_FALSE(same((*all)[0], (*all)[1]));
+  EXPECT_TRUE(same((*all)[1], (*own)[0]));
+}
+
 }  // namespace
 }  // namespace rvehub::mpm
