@@ -429,9 +429,10 @@ void Rve::ApplyRigidRotation(double angle) {
 // affine motion l (1/s) and of the particles, Coulomb cap, rolling spring,
 // bond breakage) as the end of a DEM step does; without it the stored history
 // is only read, so a recomputation gives the forces of the state bit for bit.
-// kMeasure: also the homogenisation sums (sums_) and the step's stress and
-// servo stiffness.
-template <bool kRolling, bool kBonds, bool kHertz, bool kMeasure, bool kUpdate>
+// kMeasure: kServo also sums the stress and the servo stiffness of the step
+// (StepResult); kSums the homogenisation sums (sums_). Both measure the
+// elastic energy (last_elastic_).
+template <bool kRolling, bool kBonds, bool kHertz, Rve::Measure kMeasure, bool kUpdate>
 Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
   const std::size_t n = p_.radius.size();
   const Material& mat = p_.material;
@@ -459,19 +460,25 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
   double* __restrict fx = fx_.data();
   double* __restrict fy = fy_.data();
   double* __restrict tq = tq_.data();
-  double* __restrict count = nullptr;  // contacts per particle, while measuring
-  if constexpr (kMeasure) {
+  constexpr bool kAny = kMeasure != Measure::kNone;
+  constexpr bool kServo = kMeasure == Measure::kServo, kSums = kMeasure == Measure::kSums;
+  double* __restrict count = nullptr;  // contacts per particle, while summing
+  if constexpr (kSums) {
     Scratch& scratch = ThreadScratch();
     scratch.count.assign(n, 0.0);
     count = scratch.count.data();
   }
   double sxx = 0, sxy = 0, syx = 0, syy = 0, kxx = 0, kyy = 0, elastic = 0;
-  double f00 = 0, f01 = 0, f11 = 0, force_sum = 0;
+  double f00 = 0, f01 = 0, force_sum = 0;
+  // Few accumulators keep the loop in registers: the sums need only the
+  // symmetric part of Σ f⊗b (sxy + syx in one) and φxx, φxy (φyy = 1 − φxx),
+  // and the elastic energy only while it is tracked.
+  const bool energy = kServo || track_energy_;
   std::int64_t nc = 0;
 
   for (std::uint32_t i = 0; i < n; ++i) {
     const double ri = rad[i], sxi = sx[i], syi = sy[i], vxi = vx[i], vyi = vy[i], omi = om[i];
-    double fxi = 0, fyi = 0, tqi = 0;
+    double fxi = 0, fyi = 0, tqi = 0, ci = 0;
     const std::uint32_t row_end = row_start[i + 1];
     for (std::uint32_t k = row_start[i]; k < row_end; ++k) {
       const std::uint32_t j = nbr_j[k];
@@ -501,12 +508,12 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
         fn = hz.fn;
         kn = hz.kn;
         kt = hz.kt;
-        if constexpr (kMeasure) elastic += 0.4 * fn * overlap;  // ∫ fn dδ = (2/5) fn δ
+        if (kAny && energy) elastic += 0.4 * fn * overlap;  // ∫ fn dδ = (2/5) fn δ
       } else {
         kn = nbr_kn[k];  // E·r*, cached per pair at the rebuild
         kt = kt_ratio * kn;
         fn = kn * overlap;
-        if constexpr (kMeasure) elastic += 0.5 * fn * overlap;
+        if (kAny && energy) elastic += 0.5 * fn * overlap;
       }
       // Lever arms to the common contact point make a rigid motion of the
       // pair produce no relative tangential velocity.
@@ -559,7 +566,7 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
       fy[j] -= fcy;
       tqi += li * ft + moment;
       tq[j] += lj * ft - moment;
-      if constexpr (kMeasure) {
+      if constexpr (kServo) {
         sxx += fcx * dx;
         sxy += fcx * dy;
         syx += fcy * dx;
@@ -567,11 +574,15 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
         const double kd2 = kn * d2;
         kxx += kd2 * (nx * nx) * (nx * nx);
         kyy += kd2 * (ny * ny) * (ny * ny);
+      }
+      if constexpr (kSums) {
+        sxx += fcx * dx;
+        sxy += fcx * dy + fcy * dx;  // 2 × the symmetric shear part
+        syy += fcy * dy;
         f00 += nx * nx;
         f01 += nx * ny;
-        f11 += ny * ny;
         force_sum += std::sqrt(fcx * fcx + fcy * fcy);
-        count[i] += 1.0;
+        ci += 1.0;
         count[j] += 1.0;
         ++nc;
       }
@@ -579,16 +590,21 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
     fx[i] += fxi;
     fy[i] += fyi;
     tq[i] += tqi;
+    if constexpr (kSums) count[i] += ci;
   }
   forces_valid_ = true;
   const double volume = p_.cell.determinant() * mat.thickness;
   StepResult out;
-  if constexpr (kMeasure) {
+  if constexpr (kAny) last_elastic_ = elastic;
+  if constexpr (kServo) {
+    out.stress << sxx / volume, sxy / volume, syx / volume, syy / volume;
+    out.stiffness = Eigen::Vector2d(kxx, kyy) / volume;
+  }
+  if constexpr (kSums) {
     Sums& m = sums_;
-    m.stress << sxx, sxy, syx, syy;
-    m.fabric << f00, f01, f01, f11;
+    m.stress << sxx, 0.5 * sxy, 0.5 * sxy, syy;  // symmetric part of Σ f⊗b
+    m.fabric << f00, f01, f01, static_cast<double>(nc) - f00;
     m.force_sum = force_sum;
-    m.elastic = elastic;
     m.num_contacts = nc;
     m.rattlers0 = m.rattlers1 = 0;
     for (std::size_t i = 0; i < n; ++i) {
@@ -596,20 +612,18 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
       m.rattlers1 += count[i] == 1.0;
     }
     sums_valid_ = true;
-    out.stress << sxx / volume, sxy / volume, syx / volume, syy / volume;
-    out.stiffness = Eigen::Vector2d(kxx, kyy) / volume;
   } else {
     sums_valid_ = false;
   }
   return out;
 }
 
-Rve::StepResult Rve::Forces(const Eigen::Matrix2d& l, bool measure, bool update) {
+Rve::StepResult Rve::Forces(const Eigen::Matrix2d& l, Measure measure, bool update) {
   const bool rolling = !nbr_moment_.empty(), bonds = !nbr_bond_.empty();
   const bool hertz = p_.material.model == ContactModel::kHertzMindlin;
   // One instantiation per feature set keeps unused features out of the loop;
   // a pass that only reads the history always measures (it serves Observe).
-  auto pick = [&]<bool kMeasure, bool kUpdate>() {
+  auto pick = [&]<Measure kMeasure, bool kUpdate>() {
     if (hertz) {
       return rolling ? ContactLoop<true, false, true, kMeasure, kUpdate>(l)
                      : ContactLoop<false, false, true, kMeasure, kUpdate>(l);
@@ -621,8 +635,16 @@ Rve::StepResult Rve::Forces(const Eigen::Matrix2d& l, bool measure, bool update)
     return bonds ? ContactLoop<false, true, false, kMeasure, kUpdate>(l)
                  : ContactLoop<false, false, false, kMeasure, kUpdate>(l);
   };
-  if (!update) return pick.template operator()<true, false>();
-  return measure ? pick.template operator()<true, true>() : pick.template operator()<false, true>();
+  if (!update) return pick.template operator()<Measure::kSums, false>();
+  switch (measure) {
+    case Measure::kServo:
+      return pick.template operator()<Measure::kServo, true>();
+    case Measure::kSums:
+      return pick.template operator()<Measure::kSums, true>();
+    case Measure::kNone:
+      break;
+  }
+  return pick.template operator()<Measure::kNone, true>();
 }
 
 // Leapfrog with local non-viscous damping, acting in the cell's frame, with
@@ -680,12 +702,13 @@ void Rve::Integrate() {
     vmax2 = std::max(vmax2, wvx[i] * wvx[i] + wvy[i] * wvy[i]);
   }
   displacement_bound_ += std::sqrt(vmax2) * dt;
-  if (measure) energy_ = {0.5 * kinetic2, sums_.elastic};
+  if (measure) energy_ = {0.5 * kinetic2, last_elastic_};
 }
 
 Rve::StepResult Rve::Step(const Eigen::Matrix2d& l, const Eigen::Matrix2d& next_cell,
                           bool measure) {
-  const StepResult r = Forces(l, measure || track_energy_, /*update=*/true);
+  const StepResult r =
+      Forces(l, measure || track_energy_ ? Measure::kServo : Measure::kNone, /*update=*/true);
   Integrate();
   AdvanceCell(next_cell);
   forces_valid_ = sums_valid_ = false;  // they were those of the old positions
@@ -696,13 +719,13 @@ Rve::StepResult Rve::StepForcesLast(const Eigen::Matrix2d& l, const Eigen::Matri
                                     bool measure) {
   // The forces of the current positions: those the last step left, or (after
   // a restore, a Run or a change of the contacts) recomputed from the state.
-  if (!forces_valid_ || (track_energy_ && !sums_valid_)) Forces(l, /*measure=*/true, false);
+  if (!forces_valid_ || (track_energy_ && !sums_valid_)) Forces(l, Measure::kSums, false);
   Integrate();
   AdvanceCell(next_cell);
   // The new positions' forces, with the history advanced by this step's
   // motion: the next step integrates with them and, measured, they are the
   // homogenised state of the new configuration.
-  return Forces(l, measure || track_energy_, /*update=*/true);
+  return Forces(l, measure || track_energy_ ? Measure::kSums : Measure::kNone, /*update=*/true);
 }
 
 void Rve::AdvanceCell(const Eigen::Matrix2d& next_cell) {
@@ -887,7 +910,7 @@ void Rve::EnsureSums() const {
   // A pass that only reads the contact history: it fills the caches and
   // changes no state, so a const Rve may run it.
   if (!sums_valid_) {
-    const_cast<Rve*>(this)->Forces(Eigen::Matrix2d::Zero(), /*measure=*/true, /*update=*/false);
+    const_cast<Rve*>(this)->Forces(Eigen::Matrix2d::Zero(), Measure::kSums, /*update=*/false);
   }
 }
 

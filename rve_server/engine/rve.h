@@ -176,13 +176,17 @@ class Rve {
     Eigen::Matrix2d stress = Eigen::Matrix2d::Zero();  // Pa, this step's contact stress
     Eigen::Vector2d stiffness = Eigen::Vector2d::Zero();  // Pa, (1/V)Σ kn d⁴ n_x⁴ … for the servo
   };
-  template <bool kRolling, bool kBonds, bool kHertz, bool kMeasure, bool kUpdate>
+  // What a contact pass measures besides the forces: nothing; the stress and
+  // servo stiffness of a forces-first step (Run's servo); or the
+  // homogenisation sums of the configuration (sums_).
+  enum class Measure { kNone, kServo, kSums };
+  template <bool kRolling, bool kBonds, bool kHertz, Measure kMeasure, bool kUpdate>
   StepResult ContactLoop(const Eigen::Matrix2d& l);
   // The contact pass into fx_, fy_, tq_ (and sums_ when measuring): `update`
   // advances the contact history with velocity gradient l (1/s), as a DEM
   // step does; without it the history is only read (a pure recomputation of
   // the state's forces, always measured).
-  StepResult Forces(const Eigen::Matrix2d& l, bool measure, bool update);
+  StepResult Forces(const Eigen::Matrix2d& l, Measure measure, bool update);
   // Velocities and positions advance by Δt with the forces fx_, fy_, tq_.
   void Integrate();
   // One DEM step, forces first: the forces of the current positions, the
@@ -229,15 +233,15 @@ class Rve {
   // same operations in the same order: the same bits, so a resumed run stays
   // bit-identical.
   struct Sums {
-    Eigen::Matrix2d stress = Eigen::Matrix2d::Zero();  // Σ f⊗b (force on i ⊗ branch i→j), N·m
-    Eigen::Matrix2d fabric = Eigen::Matrix2d::Zero();  // Σ n⊗n, [-]
+    Eigen::Matrix2d stress = Eigen::Matrix2d::Zero();  // sym Σ f⊗b (force on i ⊗ branch i→j), N·m
+    Eigen::Matrix2d fabric = Eigen::Matrix2d::Zero();  // Σ n⊗n (yy as Nc − xx: |n| = 1), [-]
     double force_sum = 0.0;                            // Σ |f|, N
-    double elastic = 0.0;                              // energy in the normal springs, J
     std::int64_t num_contacts = 0;
     std::int64_t rattlers0 = 0, rattlers1 = 0;  // particles with 0 and with 1 contact
   };
   std::vector<double> fx_, fy_, tq_;  // contact force (N) and torque (N·m) per particle
   Sums sums_;
+  double last_elastic_ = 0.0;  // J, in the normal springs at the last measured pass
   bool forces_valid_ = false;  // fx_, fy_, tq_ belong to the current positions
   bool sums_valid_ = false;    // sums_ too
   double dt_ = 0.0;
