@@ -17,7 +17,8 @@ curves on one plot (numpy and matplotlib; Debian: python3-numpy python3-matplotl
 Differences of a curve y(x): NEW is interpolated onto BASE's x; the difference at
 a point is |y_new - y_base| / max(|y_base|, 0.1 * peak), so the first, nearly
 unloaded points do not dominate. Reported separately up to BASE's peak and after
-it. For a flow: the final front and the run-out d* = (d_f - d_0)/d_0, and the
+it, and after the peak also the mean |difference| as a share of the peak (a
+softening branch is noisy: its worst point says little). For a flow: the final front and the run-out d* = (d_f - d_0)/d_0, and the
 peak kinetic energy with its time.
 """
 import argparse
@@ -85,19 +86,51 @@ def compare_curve(xb, yb, xn, yn):
     xn, yn = monotone(xn, yn)
     k_peak = max(range(len(yb)), key=lambda k: yb[k])
     peak = yb[k_peak]
-    pre, post = 0.0, 0.0
+    pre, post, pre_x, post_x = 0.0, 0.0, None, None
+    post_sum, post_n = 0.0, 0
     for k, (x0, y0) in enumerate(zip(xb, yb)):
         y1 = interp(x0, xn, yn)
         if y1 is None:
             continue
         d = abs(y1 - y0) / max(abs(y0), 0.1 * abs(peak))
         if k <= k_peak:
-            pre = max(pre, d)
+            if d > pre:
+                pre, pre_x = d, x0
         else:
-            post = max(post, d)
+            if d > post:
+                post, post_x = d, x0
+            post_sum += abs(y1 - y0) / abs(peak)
+            post_n += 1
     kn = max(range(len(yn)), key=lambda k: yn[k])
     return {"base_peak": peak, "base_peak_x": xb[k_peak], "new_peak": yn[kn],
-            "new_peak_x": xn[kn], "max_rel_diff_to_peak": pre, "max_rel_diff_after_peak": post}
+            "new_peak_x": xn[kn], "peak_rel_diff": (yn[kn] - peak) / peak,
+            "max_rel_diff_to_peak": pre, "at_x": pre_x,
+            "max_rel_diff_after_peak": post, "after_peak_at_x": post_x,
+            # A softening branch is noisy (shear bands, cell crossings): its
+            # mean difference, as a share of the peak, says more than its worst point.
+            "mean_abs_diff_after_peak_over_peak": post_sum / max(post_n, 1)}
+
+
+def front_from_frames(run_dir):
+    """(time, front x) of every results.h5 frame (runs from before front_x
+    was a timeseries column); needs h5py (Debian: python3-h5py)."""
+    import h5py
+    out = []
+    with h5py.File(run_dir + "/results.h5", "r") as f:
+        for name in f["frames"]:
+            g = f["frames"][name]
+            out.append((float(g.attrs["time"]), float(g["position"][:, 0].max())))
+    out.sort()
+    return [t for t, _ in out], [x for _, x in out]
+
+
+def with_front(ts, run_dir):
+    if "front_x" not in ts:
+        ts = dict(ts)
+        ts["front_time"], ts["front_x"] = front_from_frames(run_dir)
+    else:
+        ts["front_time"] = ts["time"]
+    return ts
 
 
 def compare_flow(tb, tn):
@@ -134,8 +167,10 @@ def main():
         result = compare_curve(xb, yb, xn, yn)
         panels = [(xlabel, ylabel, (xb, yb), (xn, yn))]
     else:
+        tb, tn = with_front(tb, a.base), with_front(tn, a.new)
         result = compare_flow(tb, tn)
-        panels = [("time (s)", "front x (m)", (tb["time"], tb["front_x"]), (tn["time"], tn["front_x"])),
+        panels = [("time (s)", "front x (m)", (tb["front_time"], tb["front_x"]),
+                   (tn["front_time"], tn["front_x"])),
                   ("time (s)", "kinetic energy (J)", (tb["time"], tb["kinetic_energy"]),
                    (tn["time"], tn["kinetic_energy"]))]
     print(json.dumps({"case": case.get("name", a.case), **result}, indent=1))
