@@ -143,12 +143,16 @@ class Rve {
   // Relaxes at fixed cell until the unbalanced-force ratio < tolerance or the cap.
   RveState Relax(double tolerance, std::int64_t max_steps);
 
-  // Homogenised state of the current configuration (pure: changes nothing).
+  // Homogenised state of the current configuration. Changes no state: after
+  // an increment it reads the sums of the increment's last DEM step; else
+  // (after a restore, Run or Relax) it makes them by a contact pass that only
+  // reads the history and keeps them as a cache. Not safe to call on one Rve
+  // from two threads at once (the cache), like every other member.
   RveState Observe(bool want_tangent = false) const;
   // The active contacts of the current configuration, sorted by (i, j).
   std::vector<ContactForce> Contacts() const;
-  // p = −tr σ/2 of the Love–Weber stress (Pa, compression +), at the cost of
-  // one pass over the contacts (Observe does much more).
+  // p = −tr σ/2 of the Love–Weber stress (Pa, compression +), from the same
+  // sums as Observe (no pass over the contacts after an increment).
   double MeanPressure() const;
   // Current position of particle i in the cell (x = h·s, unwrapped), m.
   Eigen::Vector2d Position(int i) const { return p_.cell * Eigen::Vector2d(p_.sx[i], p_.sy[i]); }
