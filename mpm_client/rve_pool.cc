@@ -206,6 +206,15 @@ void ApplyStats::Add(const ApplyStats& other) {
   for (int b = 0; b < kBins; ++b) histogram[b] += other.histogram[b];
 }
 
+ApplyStats ApplyStats::Since(const ApplyStats& start) const {
+  ApplyStats d = *this;
+  d.increments -= start.increments;
+  d.dem_steps -= start.dem_steps;
+  d.engine_seconds -= start.engine_seconds;
+  for (int b = 0; b < kBins; ++b) d.histogram[b] -= start.histogram[b];
+  return d;
+}
+
 int RvePool::total_workers() const {
   int n = 0;
   for (const std::unique_ptr<RveEndpoint>& e : endpoints_) n += e->workers();

@@ -44,6 +44,8 @@ struct ApplyStats {
   // Upper bound of bin k (steps); the last bin has none (-1).
   static std::int64_t BinUpper(int k);
   void Add(const ApplyStats& other);
+  // What was added since `start` (an earlier copy of this one).
+  ApplyStats Since(const ApplyStats& start) const;
 };
 
 struct PoolOptions {

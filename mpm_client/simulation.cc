@@ -534,12 +534,7 @@ absl::StatusOr<RunSummary> Simulation::Run() {
   sum.rve_s = rve_seconds_ - rve_start;
   sum.output_s = Seconds(output_time);
   sum.rve_evaluations = pool_->evaluations() - evals_start;
-  sum.rve_stats = pool_->apply_stats();
-  sum.rve_stats.increments -= stats_start.increments;
-  sum.rve_stats.dem_steps -= stats_start.dem_steps;
-  sum.rve_stats.engine_seconds -= stats_start.engine_seconds;
-  for (int b = 0; b < ApplyStats::kBins; ++b)
-    sum.rve_stats.histogram[b] -= stats_start.histogram[b];
+  sum.rve_stats = pool_->apply_stats().Since(stats_start);
   sum.rve_workers = pool_->total_workers();
   sum.final_step = solver_->step();
   sum.final_time = solver_->time();
