@@ -27,9 +27,12 @@ inline double RoundNearest(double x) {
 // sign(x) ∈ {−1, 0, 1}.
 inline double Sign(double x) { return (x > 0.0) - (x < 0.0); }
 
-// Local non-viscous damping force −α|f|·sign(v) (N), one component.
+// Local non-viscous damping force −α|f|·sign(v) (N), one component; −0 for
+// v = 0. Selects rather than multiplies by sign(v), so the compiler can blend
+// it in SIMD lanes (sign(v) is unpredictable: no branch either way).
 inline double Damping(double alpha, double f, double v) {
-  return -alpha * std::abs(f) * Sign(v);  // branch-free: sign(v) is unpredictable
+  const double d = alpha * std::abs(f);
+  return v > 0.0 ? -d : (v < 0.0 ? d : -0.0);
 }
 
 // Heights of the cell (m): distance between the two pairs of opposite edges.
@@ -62,6 +65,10 @@ absl::Status CheckFinite(double v, absl::string_view what, std::size_t index) {
 // particle while a step measures.
 struct Scratch {
   std::vector<double> count;
+  // Per active contact, in pass order, while a contact pass measures the
+  // homogenisation sums: force on i (N), branch i → j (m), normal; and the
+  // elastic energy terms (J).
+  std::vector<double> fx, fy, dx, dy, nx, ny, elastic;
 };
 Scratch& ThreadScratch() {
   thread_local Scratch scratch;
@@ -462,12 +469,32 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
   double* __restrict tq = tq_.data();
   constexpr bool kAny = kMeasure != Measure::kNone;
   constexpr bool kServo = kMeasure == Measure::kServo, kSums = kMeasure == Measure::kSums;
-  double* __restrict count = nullptr;  // contacts per particle, while summing
+  // While summing: contacts per particle, and each active contact's terms,
+  // summed after the loop in the same order (the loop itself keeps few
+  // accumulators, so they stay in registers: about 3× faster than summing
+  // inside it, with the same bits).
+  double* __restrict count = nullptr;
+  double *__restrict c_fx = nullptr, *__restrict c_fy = nullptr, *__restrict c_dx = nullptr,
+                     *__restrict c_dy = nullptr, *__restrict c_nx = nullptr,
+                     *__restrict c_ny = nullptr, *__restrict c_el = nullptr;
   if constexpr (kSums) {
     Scratch& scratch = ThreadScratch();
     scratch.count.assign(n, 0.0);
     count = scratch.count.data();
+    const std::size_t pairs = nbr_j_.size();
+    for (std::vector<double>* v : {&scratch.fx, &scratch.fy, &scratch.dx, &scratch.dy,
+                                   &scratch.nx, &scratch.ny, &scratch.elastic}) {
+      if (v->size() < pairs) v->resize(pairs);
+    }
+    c_fx = scratch.fx.data();
+    c_fy = scratch.fy.data();
+    c_dx = scratch.dx.data();
+    c_dy = scratch.dy.data();
+    c_nx = scratch.nx.data();
+    c_ny = scratch.ny.data();
+    c_el = scratch.elastic.data();
   }
+  std::size_t ne = 0;  // elastic terms stored
   double sxx = 0, sxy = 0, syx = 0, syy = 0, kxx = 0, kyy = 0, elastic = 0;
   double f00 = 0, f01 = 0, force_sum = 0;
   // Few accumulators keep the loop in registers: the sums need only the
@@ -508,12 +535,18 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
         fn = hz.fn;
         kn = hz.kn;
         kt = hz.kt;
-        if (kAny && energy) elastic += 0.4 * fn * overlap;  // ∫ fn dδ = (2/5) fn δ
+        if (kAny && energy) {
+          const double e = 0.4 * fn * overlap;  // ∫ fn dδ = (2/5) fn δ
+          if constexpr (kSums) c_el[ne++] = e; else elastic += e;
+        }
       } else {
         kn = nbr_kn[k];  // E·r*, cached per pair at the rebuild
         kt = kt_ratio * kn;
         fn = kn * overlap;
-        if (kAny && energy) elastic += 0.5 * fn * overlap;
+        if (kAny && energy) {
+          const double e = 0.5 * fn * overlap;
+          if constexpr (kSums) c_el[ne++] = e; else elastic += e;
+        }
       }
       // Lever arms to the common contact point make a rigid motion of the
       // pair produce no relative tangential velocity.
@@ -576,12 +609,12 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
         kyy += kd2 * (ny * ny) * (ny * ny);
       }
       if constexpr (kSums) {
-        sxx += fcx * dx;
-        sxy += fcx * dy + fcy * dx;  // 2 × the symmetric shear part
-        syy += fcy * dy;
-        f00 += nx * nx;
-        f01 += nx * ny;
-        force_sum += std::sqrt(fcx * fcx + fcy * fcy);
+        c_fx[nc] = fcx;
+        c_fy[nc] = fcy;
+        c_dx[nc] = dx;
+        c_dy[nc] = dy;
+        c_nx[nc] = nx;
+        c_ny[nc] = ny;
         ci += 1.0;
         count[j] += 1.0;
         ++nc;
@@ -591,6 +624,18 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
     fy[i] += fyi;
     tq[i] += tqi;
     if constexpr (kSums) count[i] += ci;
+  }
+  if constexpr (kSums) {
+    for (std::int64_t c = 0; c < nc; ++c) {
+      const double fcx = c_fx[c], fcy = c_fy[c], dx = c_dx[c], dy = c_dy[c], nx = c_nx[c];
+      sxx += fcx * dx;
+      sxy += fcx * dy + fcy * dx;  // 2 × the symmetric shear part
+      syy += fcy * dy;
+      f00 += nx * nx;
+      f01 += nx * c_ny[c];
+      force_sum += std::sqrt(fcx * fcx + fcy * fcy);
+    }
+    for (std::size_t c = 0; c < ne; ++c) elastic += c_el[c];
   }
   forces_valid_ = true;
   const double volume = p_.cell.determinant() * mat.thickness;
@@ -647,62 +692,111 @@ Rve::StepResult Rve::Forces(const Eigen::Matrix2d& l, Measure measure, bool upda
   return pick.template operator()<Measure::kNone, true>();
 }
 
+namespace {
+
+// The arrays one leapfrog step reads and writes, one entry per particle.
+struct ParticleArrays {
+  std::size_t n;
+  const double* rad;          // m
+  const double* fx;           // N
+  const double* fy;           // N
+  const double* tq;           // N·m
+  const double* inv_mass;     // 1/kg
+  const double* inv_inertia;  // 1/(kg m²)
+  double* vx;                 // m/s
+  double* vy;                 // m/s
+  double* om;                 // rad/s
+  double* sx;                 // reduced coordinates
+  double* sy;
+  double* th;  // rad
+};
+
+// Leapfrog with local non-viscous damping acting in the frame q (the cell's
+// axes). Returns max |v|² (m²/s²). kMeasure adds the kinetic energy ×2 (J)
+// at the force time into *kinetic2, in particle order. Each particle's
+// update is independent, so without kMeasure the loop runs in SIMD lanes
+// with the scalar operations' bits (a max needs no order).
+template <bool kRotated, bool kMeasure>
+double Leapfrog(const ParticleArrays& a, double dt, double alpha, const Eigen::Matrix2d& q,
+                const Eigen::Matrix2d& hinv, double mass_per_r2, double* kinetic2) {
+  const double q00 = q(0, 0), q01 = q(0, 1), q10 = q(1, 0), q11 = q(1, 1);
+  const double i00 = hinv(0, 0), i01 = hinv(0, 1), i10 = hinv(1, 0), i11 = hinv(1, 1);
+  const std::size_t n = a.n;
+  const double* __restrict rad = a.rad;
+  const double* __restrict ffx = a.fx;
+  const double* __restrict ffy = a.fy;
+  const double* __restrict ftq = a.tq;
+  const double* __restrict inv_mass = a.inv_mass;
+  const double* __restrict inv_inertia = a.inv_inertia;
+  double* __restrict wvx = a.vx;
+  double* __restrict wvy = a.vy;
+  double* __restrict wom = a.om;
+  double* __restrict wsx = a.sx;
+  double* __restrict wsy = a.sy;
+  double* __restrict wth = a.th;
+  double vmax2 = 0.0;
+  double k2 = 0.0;
+#pragma omp simd reduction(max : vmax2) if (!kMeasure)
+  for (std::size_t i = 0; i < n; ++i) {
+    const double fx = ffx[i], fy = ffy[i], tq = ftq[i], vx = wvx[i], vy = wvy[i], om = wom[i];
+    double ax, ay;
+    if constexpr (!kRotated) {
+      ax = (fx + Damping(alpha, fx, vx)) * inv_mass[i];
+      ay = (fy + Damping(alpha, fy, vy)) * inv_mass[i];
+    } else {
+      const double lfx = q00 * fx + q10 * fy, lfy = q01 * fx + q11 * fy;
+      const double lvx = q00 * vx + q10 * vy, lvy = q01 * vx + q11 * vy;
+      const double dfx = Damping(alpha, lfx, lvx), dfy = Damping(alpha, lfy, lvy);
+      ax = (fx + q00 * dfx + q01 * dfy) * inv_mass[i];
+      ay = (fy + q10 * dfx + q11 * dfy) * inv_mass[i];
+    }
+    const double aw = (tq + Damping(alpha, tq, om)) * inv_inertia[i];
+    if constexpr (kMeasure) {
+      // Velocities at the force time (mean of the two half steps) for the energy;
+      // m = c·r², I = ½ m r²: multiplications instead of dividing by 1/m.
+      const double ux = vx + 0.5 * dt * ax, uy = vy + 0.5 * dt * ay, uw = om + 0.5 * dt * aw;
+      const double r2 = rad[i] * rad[i];
+      k2 += mass_per_r2 * r2 * (ux * ux + uy * uy + 0.5 * r2 * uw * uw);
+    }
+    const double nvx = vx + dt * ax, nvy = vy + dt * ay, nom = om + dt * aw;
+    wvx[i] = nvx;
+    wvy[i] = nvy;
+    wom[i] = nom;
+    wth[i] += dt * nom;
+    const double dxr = dt * nvx, dyr = dt * nvy;
+    wsx[i] += i00 * dxr + i01 * dyr;
+    wsy[i] += i10 * dxr + i11 * dyr;
+    const double v2 = nvx * nvx + nvy * nvy;
+    vmax2 = v2 > vmax2 ? v2 : vmax2;
+  }
+  if constexpr (kMeasure) *kinetic2 = k2;
+  return vmax2;
+}
+
+}  // namespace
+
 // Leapfrog with local non-viscous damping, acting in the cell's frame, with
 // the forces of the current positions (fx_, fy_, tq_).
 void Rve::Integrate() {
-  const std::size_t n = p_.radius.size();
   const Material& mat = p_.material;
-  const double dt = dt_;
-  const double alpha = mat.damping;
+  const ParticleArrays a{p_.radius.size(), p_.radius.data(), fx_.data(), fy_.data(),
+                         tq_.data(), inv_mass_.data(), inv_inertia_.data(), p_.vx.data(),
+                         p_.vy.data(), p_.omega.data(), p_.sx.data(), p_.sy.data(),
+                         p_.theta.data()};
   const double mass_per_r2 = mat.density * kPi * mat.thickness * p_.controls.mass_scale;  // kg/m²
   const Eigen::Matrix2d& q = p_.frame;
-  const bool rotated = q != Eigen::Matrix2d::Identity();
   const Eigen::Matrix2d hinv = p_.cell.inverse();
-  const double* __restrict rad = p_.radius.data();
-  const double* __restrict fx = fx_.data();
-  const double* __restrict fy = fy_.data();
-  const double* __restrict tq = tq_.data();
-  double* wvx = p_.vx.data();
-  double* wvy = p_.vy.data();
-  double* wom = p_.omega.data();
-  double* wsx = p_.sx.data();
-  double* wsy = p_.sy.data();
-  double* wth = p_.theta.data();
-  const bool measure = track_energy_;
-  double kinetic2 = 0, vmax2 = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    double ax, ay;
-    if (!rotated) {
-      ax = (fx[i] + Damping(alpha, fx[i], wvx[i])) * inv_mass_[i];
-      ay = (fy[i] + Damping(alpha, fy[i], wvy[i])) * inv_mass_[i];
-    } else {
-      const double lfx = q(0, 0) * fx[i] + q(1, 0) * fy[i], lfy = q(0, 1) * fx[i] + q(1, 1) * fy[i];
-      const double lvx = q(0, 0) * wvx[i] + q(1, 0) * wvy[i],
-                   lvy = q(0, 1) * wvx[i] + q(1, 1) * wvy[i];
-      const double dfx = Damping(alpha, lfx, lvx), dfy = Damping(alpha, lfy, lvy);
-      ax = (fx[i] + q(0, 0) * dfx + q(0, 1) * dfy) * inv_mass_[i];
-      ay = (fy[i] + q(1, 0) * dfx + q(1, 1) * dfy) * inv_mass_[i];
-    }
-    const double aw = (tq[i] + Damping(alpha, tq[i], wom[i])) * inv_inertia_[i];
-    if (measure) {
-      // Velocities at the force time (mean of the two half steps) for the energy;
-      // m = c·r², I = ½ m r²: multiplications instead of dividing by 1/m.
-      const double ux = wvx[i] + 0.5 * dt * ax, uy = wvy[i] + 0.5 * dt * ay,
-                   uw = wom[i] + 0.5 * dt * aw;
-      const double r2 = rad[i] * rad[i];
-      kinetic2 += mass_per_r2 * r2 * (ux * ux + uy * uy + 0.5 * r2 * uw * uw);
-    }
-    wvx[i] += dt * ax;
-    wvy[i] += dt * ay;
-    wom[i] += dt * aw;
-    wth[i] += dt * wom[i];
-    const double dxr = dt * wvx[i], dyr = dt * wvy[i];
-    wsx[i] += hinv(0, 0) * dxr + hinv(0, 1) * dyr;
-    wsy[i] += hinv(1, 0) * dxr + hinv(1, 1) * dyr;
-    vmax2 = std::max(vmax2, wvx[i] * wvx[i] + wvy[i] * wvy[i]);
+  const bool rotated = q != Eigen::Matrix2d::Identity();
+  double kinetic2 = 0.0, vmax2;
+  if (track_energy_) {
+    vmax2 = rotated ? Leapfrog<true, true>(a, dt_, mat.damping, q, hinv, mass_per_r2, &kinetic2)
+                    : Leapfrog<false, true>(a, dt_, mat.damping, q, hinv, mass_per_r2, &kinetic2);
+    energy_ = {0.5 * kinetic2, last_elastic_};
+  } else {
+    vmax2 = rotated ? Leapfrog<true, false>(a, dt_, mat.damping, q, hinv, mass_per_r2, nullptr)
+                    : Leapfrog<false, false>(a, dt_, mat.damping, q, hinv, mass_per_r2, nullptr);
   }
-  displacement_bound_ += std::sqrt(vmax2) * dt;
-  if (measure) energy_ = {0.5 * kinetic2, last_elastic_};
+  displacement_bound_ += std::sqrt(vmax2) * dt_;
 }
 
 Rve::StepResult Rve::Step(const Eigen::Matrix2d& l, const Eigen::Matrix2d& next_cell,
