@@ -5,6 +5,7 @@
 //   BM_FixedCellSetDense    engine at fixed cell (same work as the baseline)
 //   BM_BaselineAllPairs     plain reference DEM: AoS, all pairs every step
 //   BM_BatchApply64         64 RVEs × one small ΔF through dem::ApplyBatch
+//   BM_ApplyManyRves        one-step increments on 1 or 4096 RVEs in turn (cache misses)
 //   BM_MemoryPerRve         RSS growth and Rve::MemoryBytes() per 400-disc RVE
 //
 // After the runs a summary line prints the engine/baseline ratio, the batch
@@ -339,6 +340,29 @@ BENCHMARK(BM_ApplySmallIncrement)
     ->Arg(1)
     ->Arg(20)
     ->Unit(benchmark::kMicrosecond);
+
+// One-step increments (min_steps 1) on `rves` RVEs in turn, as an MPM step
+// walks its points: with thousands of RVEs each increment starts from data
+// that left the caches since its RVE's last increment (the footing-full case
+// holds 7776 RVEs, ~0.5 GB). The ratio to rves:1 is the price of that.
+void BM_ApplyManyRves(benchmark::State& state) {
+  dem::Packing packing = DensePacking();
+  packing.controls.min_steps = 1;
+  std::vector<dem::Rve> rves(static_cast<std::size_t>(state.range(0)), *dem::Rve::Create(packing));
+  Eigen::Matrix3d delta_f = Eigen::Matrix3d::Identity();
+  delta_f(0, 1) = 1e-6;
+  delta_f(1, 1) = 1.0 - 5e-7;
+  std::size_t next = 0;
+  for (auto _ : state) {
+    absl::StatusOr<dem::RveState> s = rves[next].Apply(delta_f);
+    if (!s.ok()) {
+      state.SkipWithError(s.status().ToString().c_str());
+      break;
+    }
+    next = next + 1 == rves.size() ? 0 : next + 1;
+  }
+}
+BENCHMARK(BM_ApplyManyRves)->ArgName("rves")->Arg(1)->Arg(4096)->Unit(benchmark::kMicrosecond);
 
 // Resident set size, bytes (/proc/self/statm: second field, in pages).
 double ResidentBytes() {

@@ -61,14 +61,14 @@ absl::Status CheckFinite(double v, absl::string_view what, std::size_t index) {
   return absl::InvalidArgumentError(absl::StrCat(what, "[", index, "] = ", v, " is not finite"));
 }
 
-// Scratch shared by every RVE on a thread (keeps RVEs small): contacts per
-// particle while a step measures.
+// Scratch shared by every RVE on a thread (keeps RVEs small): the contact
+// pass's per-pair results and per-particle contact counts.
 struct Scratch {
-  std::vector<double> count;
-  // Per active contact, in pass order, while a contact pass measures the
-  // homogenisation sums: force on i (N), branch i → j (m), normal; and the
-  // elastic energy terms (J).
-  std::vector<double> fx, fy, dx, dy, nx, ny, elastic;
+  std::vector<double> count;  // contacts per particle
+  // Per listed pair, from the pair pass: force on i (N), torques on i and j
+  // (N·m); while measuring, the branch (m), the normal, kn·|b|² (N·m, servo),
+  // the elastic energy (J) and 1 for an active contact (else all 0).
+  std::vector<double> fx, fy, ti, tj, dx, dy, nx, ny, kd2, elastic, active;
 };
 Scratch& ThreadScratch() {
   thread_local Scratch scratch;
@@ -264,8 +264,8 @@ std::size_t Rve::MemoryBytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
   return sizeof(*this) + bytes(p_.radius) + bytes(p_.sx) + bytes(p_.sy) + bytes(p_.vx) +
          bytes(p_.vy) + bytes(p_.omega) + bytes(p_.theta) + bytes(p_.contacts) + bytes(row_start_) +
-         bytes(nbr_j_) + bytes(nbr_kn_) + bytes(nbr_ft_) + bytes(nbr_moment_) + bytes(nbr_bond_) +
-         bytes(inv_mass_) + bytes(inv_inertia_) + p_.material.name.capacity() +
+         bytes(nbr_i_) + bytes(nbr_j_) + bytes(nbr_kn_) + bytes(nbr_ft_) + bytes(nbr_moment_) +
+         bytes(nbr_bond_) + bytes(inv_mass_) + bytes(inv_inertia_) + p_.material.name.capacity() +
          3 * p_.radius.size() * sizeof(double);  // fx_, fy_, tq_ (filled by the first step)
 }
 
@@ -335,10 +335,12 @@ void Rve::Rebuild(const std::vector<ContactHistory>& history) {
   std::sort(pairs.begin(), pairs.end());
   pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
   row_start_.assign(n + 1, 0);
+  nbr_i_.resize(pairs.size());
   nbr_j_.resize(pairs.size());
   for (std::size_t k = 0; k < pairs.size(); ++k) {
+    nbr_i_[k] = static_cast<std::uint32_t>(pairs[k] >> 32);
     nbr_j_[k] = static_cast<std::uint32_t>(pairs[k]);
-    ++row_start_[(pairs[k] >> 32) + 1];
+    ++row_start_[nbr_i_[k] + 1];
   }
   for (std::size_t i = 0; i < n; ++i) row_start_[i + 1] += row_start_[i];
   nbr_ft_.assign(nbr_j_.size(), 0.0);
@@ -430,233 +432,308 @@ void Rve::ApplyRigidRotation(double angle) {
   }
 }
 
-// The contact loop: forces and torques on every particle at the current
-// positions into fx_, fy_, tq_ (N, N·m). kUpdate: advance the contact history
-// first (tangential spring by kt·v_t·Δt with the relative velocity of the
-// affine motion l (1/s) and of the particles, Coulomb cap, rolling spring,
-// bond breakage) as the end of a DEM step does; without it the stored history
-// is only read, so a recomputation gives the forces of the state bit for bit.
-// kMeasure: kServo also sums the stress and the servo stiffness of the step
-// (StepResult); kSums the homogenisation sums (sums_). Both measure the
+namespace {
+
+// What the pair pass reads and writes: particle and pair arrays, the cell
+// h (m), the velocity gradient l (1/s) and the material.
+struct PairPassArgs {
+  const double* rad;  // m
+  const double* sx;   // reduced coordinates
+  const double* sy;
+  const double* vx;  // m/s
+  const double* vy;
+  const double* om;             // rad/s
+  const std::uint32_t* pair_i;  // pair k = (pair_i[k], pair_j[k]), i < j
+  const std::uint32_t* pair_j;
+  const double* kn;  // N/m, linear model's E·r* per pair
+  double* ft;        // N, tangential history per pair
+  double* moment;    // N·m, rolling history per pair
+  double* bond;      // N, bond strength per pair (0: none)
+  Scratch* out;
+  double h00, h01, h10, h11, l00, l01, l10, l11;
+  double dt;  // s
+  const Material* mat;
+};
+
+// The contact law of every listed pair k ∈ [0, m): force on i −fn·n + ft·t
+// (N) and the torques on i and j (N·m) into out->fx, fy, ti, tj, all 0 for a
+// pair not in contact; kUpdate advances the history first (tangential spring
+// by kt·v_t·Δt with the relative velocity of the affine motion l and of the
+// particles, Coulomb cap, rolling spring, bond breakage) as the end of a DEM
+// step does; without it the stored history is only read, so a recomputation
+// gives the forces of the state bit for bit. kMeasure (0 none, 1 the servo's
+// stress and stiffness, 2 the homogenisation sums) also stores each pair's
+// terms for those sums. The pairs are independent: the loop runs in SIMD
+// lanes (an AVX2 clone where the CPU has it) with selects for every branch,
+// each lane doing the scalar operations in the scalar order, so the bits do
+// not depend on the lane count or the CPU.
+template <bool kRolling, bool kBonds, bool kHertz, int kMeasure, bool kUpdate>
+__attribute__((target_clones("avx2", "default"))) void PairPass(const PairPassArgs& a,
+                                                                std::size_t m) {
+  const double h00 = a.h00, h01 = a.h01, h10 = a.h10, h11 = a.h11;
+  const double l00 = a.l00, l01 = a.l01, l10 = a.l10, l11 = a.l11, dt = a.dt;
+  const Material& mat = *a.mat;
+  const double young = mat.young_modulus, poisson = mat.poisson_ratio;
+  const double kt_ratio = mat.stiffness_ratio, mu = mat.friction;
+  const double beta = mat.rolling_beta, eta = mat.rolling_eta;
+  const double* __restrict rad = a.rad;
+  const double* __restrict sx = a.sx;
+  const double* __restrict sy = a.sy;
+  const double* __restrict vx = a.vx;
+  const double* __restrict vy = a.vy;
+  const double* __restrict om = a.om;
+  const std::uint32_t* __restrict pair_i = a.pair_i;
+  const std::uint32_t* __restrict pair_j = a.pair_j;
+  const double* __restrict nbr_kn = a.kn;
+  double* __restrict nbr_ft = a.ft;
+  double* __restrict nbr_moment = a.moment;
+  double* __restrict nbr_bond = a.bond;
+  double* __restrict o_fx = a.out->fx.data();
+  double* __restrict o_fy = a.out->fy.data();
+  double* __restrict o_ti = a.out->ti.data();
+  double* __restrict o_tj = a.out->tj.data();
+  double* __restrict o_dx = a.out->dx.data();
+  double* __restrict o_dy = a.out->dy.data();
+  double* __restrict o_nx = a.out->nx.data();
+  double* __restrict o_ny = a.out->ny.data();
+  double* __restrict o_kd2 = a.out->kd2.data();
+  double* __restrict o_el = a.out->elastic.data();
+  double* __restrict o_act = a.out->active.data();
+#pragma omp simd
+  for (std::size_t k = 0; k < m; ++k) {
+    const std::uint32_t i = pair_i[k], j = pair_j[k];
+    double dsx = sx[j] - sx[i], dsy = sy[j] - sy[i];
+    dsx -= RoundNearest(dsx);
+    dsy -= RoundNearest(dsy);
+    const double dx = h00 * dsx + h01 * dsy;  // branch vector i → j, m
+    const double dy = h10 * dsx + h11 * dsy;
+    const double ri = rad[i], rj = rad[j], rsum = ri + rj;
+    const double d2 = dx * dx + dy * dy;
+    const double bond = kBonds ? nbr_bond[k] : 0.0;
+    bool bonded = kBonds && bond > 0;
+    const bool touching = !(d2 >= rsum * rsum) || bonded;
+    const double dist = std::sqrt(d2);
+    const double inv = 1.0 / dist;
+    const double nx = dx * inv, ny = dy * inv, tx = -ny, ty = nx;
+    const double overlap = rsum - dist;  // m; < 0 only for a stretched bond
+    double fn, kn, kt, elastic;
+    if constexpr (kHertz) {
+      const HertzResponse hz = HertzMindlin(young, poisson, ri, rj, overlap);
+      fn = hz.fn;
+      kn = hz.kn;
+      kt = hz.kt;
+      elastic = 0.4 * fn * overlap;  // ∫ fn dδ = (2/5) fn δ
+    } else {
+      kn = nbr_kn[k];  // E·r*, cached per pair at the rebuild
+      kt = kt_ratio * kn;
+      fn = kn * overlap;
+      elastic = 0.5 * fn * overlap;
+    }
+    // Lever arms to the common contact point make a rigid motion of the
+    // pair produce no relative tangential velocity.
+    const double li = ri - 0.5 * overlap, lj = rj - 0.5 * overlap;
+    double ft = nbr_ft[k];
+    double moment = 0.0;
+    bool gone = false;  // a broken bond's pair out of contact: no force
+    if constexpr (kUpdate) {
+      const double vrx = vx[j] - vx[i] + l00 * dx + l01 * dy;
+      const double vry = vy[j] - vy[i] + l10 * dx + l11 * dy;
+      const double vt = vrx * tx + vry * ty - (om[i] * li + om[j] * lj);
+      ft += kt * vt * dt;
+      if constexpr (kBonds) {
+        const bool broken = bonded && (-fn > bond || std::abs(ft) > bond);
+        nbr_bond[k] = broken ? 0.0 : bond;  // broken: purely frictional from now on
+        bonded = bonded && !broken;
+        gone = !bonded && overlap <= 0.0;
+      }
+      ft = bonded ? ft : CoulombCap(ft, fn, mu);
+      if constexpr (kRolling) {
+        const double kr = RollingStiffness(kt, ri, rj, beta);
+        const double limit = RollingLimit(eta, ri, rj, fn);
+        moment = std::clamp(nbr_moment[k] - kr * (om[i] - om[j]) * dt, -limit, limit);
+      }
+    } else {
+      // The stored history as the last update left it. Capping again
+      // changes nothing there (ft and M are already within the limits of
+      // these very positions) and keeps a history from elsewhere (an
+      // imported packing) physical.
+      if constexpr (kBonds) gone = !bonded && overlap <= 0.0;
+      ft = bonded ? ft : CoulombCap(ft, fn, mu);
+      if constexpr (kRolling) {
+        const double limit = RollingLimit(eta, ri, rj, fn);
+        moment = std::clamp(nbr_moment[k], -limit, limit);
+      }
+    }
+    const bool active = touching && !gone;
+    if constexpr (kUpdate) {
+      nbr_ft[k] = active ? ft : 0.0;
+      if constexpr (kRolling) nbr_moment[k] = active ? moment : 0.0;
+    }
+    const double fcx = -fn * nx + ft * tx;  // force on i, N
+    const double fcy = -fn * ny + ft * ty;
+    o_fx[k] = active ? fcx : 0.0;
+    o_fy[k] = active ? fcy : 0.0;
+    o_ti[k] = active ? li * ft + moment : 0.0;
+    o_tj[k] = active ? lj * ft - moment : 0.0;
+    if constexpr (kMeasure != 0) {
+      o_dx[k] = active ? dx : 0.0;
+      o_dy[k] = active ? dy : 0.0;
+      o_nx[k] = active ? nx : 0.0;
+      o_ny[k] = active ? ny : 0.0;
+      o_kd2[k] = active ? kn * d2 : 0.0;
+      o_el[k] = touching ? elastic : 0.0;  // counted before a bond breaks, as always
+      o_act[k] = active ? 1.0 : 0.0;
+    }
+  }
+}
+
+}  // namespace
+
+// The contact pass: the pair pass above, then the forces and torques summed
+// per particle into fx_, fy_, tq_ (N, N·m) in pair order, then (kMeasure)
+// the sums, again in pair order. A pair not in contact adds +0, which
+// changes no sum (none is ever −0), so the bits are those of one loop that
+// skips such pairs. kServo sums the stress and the servo stiffness of the
+// step (StepResult); kSums the homogenisation sums (sums_). Both measure the
 // elastic energy (last_elastic_).
 template <bool kRolling, bool kBonds, bool kHertz, Rve::Measure kMeasure, bool kUpdate>
 Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
   const std::size_t n = p_.radius.size();
-  const Material& mat = p_.material;
-  const double dt = dt_;
-  const double h00 = p_.cell(0, 0), h01 = p_.cell(0, 1), h10 = p_.cell(1, 0), h11 = p_.cell(1, 1);
-  const double l00 = l(0, 0), l01 = l(0, 1), l10 = l(1, 0), l11 = l(1, 1);
-  const double young = mat.young_modulus, kt_ratio = mat.stiffness_ratio, mu = mat.friction;
-  // __restrict: the arrays never overlap, so stores to forces and history
-  // need not reload the particle data.
-  const double* __restrict rad = p_.radius.data();
-  const double* __restrict sx = p_.sx.data();
-  const double* __restrict sy = p_.sy.data();
-  const double* __restrict vx = p_.vx.data();
-  const double* __restrict vy = p_.vy.data();
-  const double* __restrict om = p_.omega.data();
-  const std::uint32_t* __restrict row_start = row_start_.data();
-  const std::uint32_t* __restrict nbr_j = nbr_j_.data();
-  const double* __restrict nbr_kn = nbr_kn_.data();
-  double* __restrict nbr_ft = nbr_ft_.data();
-  double* __restrict nbr_moment = nbr_moment_.data();
-  double* __restrict nbr_bond = nbr_bond_.data();
+  const std::size_t m = nbr_j_.size();
+  constexpr bool kAny = kMeasure != Measure::kNone;
+  constexpr bool kServo = kMeasure == Measure::kServo, kSums = kMeasure == Measure::kSums;
+  Scratch& scratch = ThreadScratch();
+  for (std::vector<double>* v : {&scratch.fx, &scratch.fy, &scratch.ti, &scratch.tj}) {
+    if (v->size() < m) v->resize(m);
+  }
+  if constexpr (kAny) {
+    for (std::vector<double>* v : {&scratch.dx, &scratch.dy, &scratch.nx, &scratch.ny, &scratch.kd2,
+                                   &scratch.elastic, &scratch.active}) {
+      if (v->size() < m) v->resize(m);
+    }
+  }
+  const PairPassArgs args{p_.radius.data(),
+                          p_.sx.data(),
+                          p_.sy.data(),
+                          p_.vx.data(),
+                          p_.vy.data(),
+                          p_.omega.data(),
+                          nbr_i_.data(),
+                          nbr_j_.data(),
+                          nbr_kn_.data(),
+                          nbr_ft_.data(),
+                          nbr_moment_.data(),
+                          nbr_bond_.data(),
+                          &scratch,
+                          p_.cell(0, 0),
+                          p_.cell(0, 1),
+                          p_.cell(1, 0),
+                          p_.cell(1, 1),
+                          l(0, 0),
+                          l(0, 1),
+                          l(1, 0),
+                          l(1, 1),
+                          dt_,
+                          &p_.material};
+  PairPass<kRolling, kBonds, kHertz, static_cast<int>(kMeasure), kUpdate>(args, m);
+
+  // Forces and torques per particle, in the order of one loop over rows i:
+  // row i's own pairs summed apart and added last.
   fx_.assign(n, 0.0);
   fy_.assign(n, 0.0);
   tq_.assign(n, 0.0);
   double* __restrict fx = fx_.data();
   double* __restrict fy = fy_.data();
   double* __restrict tq = tq_.data();
-  constexpr bool kAny = kMeasure != Measure::kNone;
-  constexpr bool kServo = kMeasure == Measure::kServo, kSums = kMeasure == Measure::kSums;
-  // While summing: contacts per particle, and each active contact's terms,
-  // summed after the loop in the same order (the loop itself keeps few
-  // accumulators, so they stay in registers: about 3× faster than summing
-  // inside it, with the same bits).
-  double* __restrict count = nullptr;
-  double *__restrict c_fx = nullptr, *__restrict c_fy = nullptr, *__restrict c_dx = nullptr,
-                     *__restrict c_dy = nullptr, *__restrict c_nx = nullptr,
-                     *__restrict c_ny = nullptr, *__restrict c_el = nullptr;
-  if constexpr (kSums) {
-    Scratch& scratch = ThreadScratch();
-    scratch.count.assign(n, 0.0);
-    count = scratch.count.data();
-    const std::size_t pairs = nbr_j_.size();
-    for (std::vector<double>* v : {&scratch.fx, &scratch.fy, &scratch.dx, &scratch.dy,
-                                   &scratch.nx, &scratch.ny, &scratch.elastic}) {
-      if (v->size() < pairs) v->resize(pairs);
-    }
-    c_fx = scratch.fx.data();
-    c_fy = scratch.fy.data();
-    c_dx = scratch.dx.data();
-    c_dy = scratch.dy.data();
-    c_nx = scratch.nx.data();
-    c_ny = scratch.ny.data();
-    c_el = scratch.elastic.data();
-  }
-  std::size_t ne = 0;  // elastic terms stored
-  double sxx = 0, sxy = 0, syx = 0, syy = 0, kxx = 0, kyy = 0, elastic = 0;
-  double f00 = 0, f01 = 0, force_sum = 0;
-  // Few accumulators keep the loop in registers: the sums need only the
-  // symmetric part of Σ f⊗b (sxy + syx in one) and φxx, φxy (φyy = 1 − φxx),
-  // and the elastic energy only while it is tracked.
-  const bool energy = kServo || track_energy_;
-  std::int64_t nc = 0;
-
+  const double* __restrict c_fx = scratch.fx.data();
+  const double* __restrict c_fy = scratch.fy.data();
+  const double* __restrict c_ti = scratch.ti.data();
+  const double* __restrict c_tj = scratch.tj.data();
+  const std::uint32_t* __restrict row_start = row_start_.data();
+  const std::uint32_t* __restrict nbr_j = nbr_j_.data();
   for (std::uint32_t i = 0; i < n; ++i) {
-    const double ri = rad[i], sxi = sx[i], syi = sy[i], vxi = vx[i], vyi = vy[i], omi = om[i];
-    double fxi = 0, fyi = 0, tqi = 0, ci = 0;
+    double fxi = 0, fyi = 0, tqi = 0;
     const std::uint32_t row_end = row_start[i + 1];
     for (std::uint32_t k = row_start[i]; k < row_end; ++k) {
       const std::uint32_t j = nbr_j[k];
-      // Branch(i, j) inlined with the cell and particle i hoisted.
-      double dsx = sx[j] - sxi, dsy = sy[j] - syi;
-      dsx -= RoundNearest(dsx);
-      dsy -= RoundNearest(dsy);
-      const double dx = h00 * dsx + h01 * dsy;  // branch vector i → j, m
-      const double dy = h10 * dsx + h11 * dsy;
-      const double rj = rad[j], rsum = ri + rj;
-      const double d2 = dx * dx + dy * dy;
-      bool bonded = kBonds && nbr_bond[k] > 0;
-      if (d2 >= rsum * rsum && !bonded) {
-        if constexpr (kUpdate) {
-          nbr_ft[k] = 0.0;
-          if constexpr (kRolling) nbr_moment[k] = 0.0;
-        }
-        continue;
-      }
-      const double dist = std::sqrt(d2);
-      const double inv = 1.0 / dist;
-      const double nx = dx * inv, ny = dy * inv, tx = -ny, ty = nx;
-      const double overlap = rsum - dist;  // m; < 0 only for a stretched bond
-      double fn, kn, kt;
-      if constexpr (kHertz) {
-        const HertzResponse hz = HertzMindlin(young, mat.poisson_ratio, ri, rj, overlap);
-        fn = hz.fn;
-        kn = hz.kn;
-        kt = hz.kt;
-        if (kAny && energy) {
-          const double e = 0.4 * fn * overlap;  // ∫ fn dδ = (2/5) fn δ
-          if constexpr (kSums) c_el[ne++] = e; else elastic += e;
-        }
-      } else {
-        kn = nbr_kn[k];  // E·r*, cached per pair at the rebuild
-        kt = kt_ratio * kn;
-        fn = kn * overlap;
-        if (kAny && energy) {
-          const double e = 0.5 * fn * overlap;
-          if constexpr (kSums) c_el[ne++] = e; else elastic += e;
-        }
-      }
-      // Lever arms to the common contact point make a rigid motion of the
-      // pair produce no relative tangential velocity.
-      const double li = ri - 0.5 * overlap, lj = rj - 0.5 * overlap;
-      double ft = nbr_ft[k];
-      double moment = 0.0;
-      if constexpr (kUpdate) {
-        const double vrx = vx[j] - vxi + l00 * dx + l01 * dy;
-        const double vry = vy[j] - vyi + l10 * dx + l11 * dy;
-        const double vt = vrx * tx + vry * ty - (omi * li + om[j] * lj);
-        ft += kt * vt * dt;
-        if constexpr (kBonds) {
-          if (bonded && (-fn > nbr_bond[k] || std::abs(ft) > nbr_bond[k])) {
-            nbr_bond[k] = 0.0;  // broken: purely frictional from now on
-            bonded = false;
-          }
-          if (!bonded && overlap <= 0.0) {
-            nbr_ft[k] = 0.0;
-            if constexpr (kRolling) nbr_moment[k] = 0.0;
-            continue;
-          }
-        }
-        if (!bonded) ft = CoulombCap(ft, fn, mu);
-        nbr_ft[k] = ft;
-        if constexpr (kRolling) {
-          const double kr = RollingStiffness(kt, ri, rj, mat.rolling_beta);
-          const double limit = RollingLimit(mat.rolling_eta, ri, rj, fn);
-          moment = std::clamp(nbr_moment[k] - kr * (omi - om[j]) * dt, -limit, limit);
-          nbr_moment[k] = moment;
-        }
-      } else {
-        // The stored history as the last update left it. Capping again
-        // changes nothing there (ft and M are already within the limits of
-        // these very positions) and keeps a history from elsewhere (an
-        // imported packing) physical.
-        if constexpr (kBonds) {
-          if (!bonded && overlap <= 0.0) continue;
-        }
-        if (!bonded) ft = CoulombCap(ft, fn, mu);
-        if constexpr (kRolling) {
-          const double limit = RollingLimit(mat.rolling_eta, ri, rj, fn);
-          moment = std::clamp(nbr_moment[k], -limit, limit);
-        }
-      }
-      const double fcx = -fn * nx + ft * tx;  // force on i, N
-      const double fcy = -fn * ny + ft * ty;
-      fxi += fcx;
-      fyi += fcy;
-      fx[j] -= fcx;
-      fy[j] -= fcy;
-      tqi += li * ft + moment;
-      tq[j] += lj * ft - moment;
-      if constexpr (kServo) {
-        sxx += fcx * dx;
-        sxy += fcx * dy;
-        syx += fcy * dx;
-        syy += fcy * dy;
-        const double kd2 = kn * d2;
-        kxx += kd2 * (nx * nx) * (nx * nx);
-        kyy += kd2 * (ny * ny) * (ny * ny);
-      }
-      if constexpr (kSums) {
-        c_fx[nc] = fcx;
-        c_fy[nc] = fcy;
-        c_dx[nc] = dx;
-        c_dy[nc] = dy;
-        c_nx[nc] = nx;
-        c_ny[nc] = ny;
-        ci += 1.0;
-        count[j] += 1.0;
-        ++nc;
-      }
+      fxi += c_fx[k];
+      fyi += c_fy[k];
+      fx[j] -= c_fx[k];
+      fy[j] -= c_fy[k];
+      tqi += c_ti[k];
+      tq[j] += c_tj[k];
     }
     fx[i] += fxi;
     fy[i] += fyi;
     tq[i] += tqi;
-    if constexpr (kSums) count[i] += ci;
-  }
-  if constexpr (kSums) {
-    for (std::int64_t c = 0; c < nc; ++c) {
-      const double fcx = c_fx[c], fcy = c_fy[c], dx = c_dx[c], dy = c_dy[c], nx = c_nx[c];
-      sxx += fcx * dx;
-      sxy += fcx * dy + fcy * dx;  // 2 × the symmetric shear part
-      syy += fcy * dy;
-      f00 += nx * nx;
-      f01 += nx * c_ny[c];
-      force_sum += std::sqrt(fcx * fcx + fcy * fcy);
-    }
-    for (std::size_t c = 0; c < ne; ++c) elastic += c_el[c];
   }
   forces_valid_ = true;
-  const double volume = p_.cell.determinant() * mat.thickness;
+
+  const double volume = p_.cell.determinant() * p_.material.thickness;
   StepResult out;
-  if constexpr (kAny) last_elastic_ = elastic;
-  if constexpr (kServo) {
-    out.stress << sxx / volume, sxy / volume, syx / volume, syy / volume;
-    out.stiffness = Eigen::Vector2d(kxx, kyy) / volume;
-  }
-  if constexpr (kSums) {
-    Sums& m = sums_;
-    m.stress << sxx, 0.5 * sxy, 0.5 * sxy, syy;  // symmetric part of Σ f⊗b
-    m.fabric << f00, f01, f01, static_cast<double>(nc) - f00;
-    m.force_sum = force_sum;
-    m.num_contacts = nc;
-    m.rattlers0 = m.rattlers1 = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-      m.rattlers0 += count[i] == 0.0;
-      m.rattlers1 += count[i] == 1.0;
+  if constexpr (kAny) {
+    const double* __restrict c_dx = scratch.dx.data();
+    const double* __restrict c_dy = scratch.dy.data();
+    const double* __restrict c_nx = scratch.nx.data();
+    const double* __restrict c_ny = scratch.ny.data();
+    if (kServo || track_energy_) {
+      double elastic = 0;
+      for (std::size_t k = 0; k < m; ++k) elastic += scratch.elastic[k];
+      last_elastic_ = elastic;
+    } else {
+      last_elastic_ = 0.0;
     }
-    sums_valid_ = true;
+    if constexpr (kServo) {
+      double sxx = 0, sxy = 0, syx = 0, syy = 0, kxx = 0, kyy = 0;
+      const double* __restrict c_kd2 = scratch.kd2.data();
+      for (std::size_t k = 0; k < m; ++k) {
+        const double fcx = c_fx[k], fcy = c_fy[k], dx = c_dx[k], dy = c_dy[k];
+        const double nx = c_nx[k], ny = c_ny[k];
+        sxx += fcx * dx;
+        sxy += fcx * dy;
+        syx += fcy * dx;
+        syy += fcy * dy;
+        kxx += c_kd2[k] * (nx * nx) * (nx * nx);
+        kyy += c_kd2[k] * (ny * ny) * (ny * ny);
+      }
+      out.stress << sxx / volume, sxy / volume, syx / volume, syy / volume;
+      out.stiffness = Eigen::Vector2d(kxx, kyy) / volume;
+      sums_valid_ = false;
+    }
+    if constexpr (kSums) {
+      double sxx = 0, sxy = 0, syy = 0, f00 = 0, f01 = 0, force_sum = 0;
+      for (std::size_t k = 0; k < m; ++k) {
+        const double fcx = c_fx[k], fcy = c_fy[k], dx = c_dx[k], dy = c_dy[k], nx = c_nx[k];
+        sxx += fcx * dx;
+        sxy += fcx * dy + fcy * dx;  // 2 × the symmetric shear part
+        syy += fcy * dy;
+        f00 += nx * nx;
+        f01 += nx * c_ny[k];
+        force_sum += std::sqrt(fcx * fcx + fcy * fcy);
+      }
+      // Contacts per particle: integer counts, exact in any order.
+      scratch.count.assign(n, 0.0);
+      double* __restrict count = scratch.count.data();
+      const double* __restrict c_act = scratch.active.data();
+      const std::uint32_t* __restrict nbr_i = nbr_i_.data();
+      double nc = 0;
+      for (std::size_t k = 0; k < m; ++k) {
+        count[nbr_i[k]] += c_act[k];
+        count[nbr_j[k]] += c_act[k];
+        nc += c_act[k];
+      }
+      Sums& s = sums_;
+      s.stress << sxx, 0.5 * sxy, 0.5 * sxy, syy;  // symmetric part of Σ f⊗b
+      s.fabric << f00, f01, f01, nc - f00;
+      s.force_sum = force_sum;
+      s.num_contacts = static_cast<std::int64_t>(nc);
+      s.rattlers0 = s.rattlers1 = 0;
+      for (std::size_t i = 0; i < n; ++i) {
+        s.rattlers0 += count[i] == 0.0;
+        s.rattlers1 += count[i] == 1.0;
+      }
+      sums_valid_ = true;
+    }
   } else {
     sums_valid_ = false;
   }
@@ -779,9 +856,9 @@ double Leapfrog(const ParticleArrays& a, double dt, double alpha, const Eigen::M
 // the forces of the current positions (fx_, fy_, tq_).
 void Rve::Integrate() {
   const Material& mat = p_.material;
-  const ParticleArrays a{p_.radius.size(), p_.radius.data(), fx_.data(), fy_.data(),
-                         tq_.data(), inv_mass_.data(), inv_inertia_.data(), p_.vx.data(),
-                         p_.vy.data(), p_.omega.data(), p_.sx.data(), p_.sy.data(),
+  const ParticleArrays a{p_.radius.size(), p_.radius.data(), fx_.data(),          fy_.data(),
+                         tq_.data(),       inv_mass_.data(), inv_inertia_.data(), p_.vx.data(),
+                         p_.vy.data(),     p_.omega.data(),  p_.sx.data(),        p_.sy.data(),
                          p_.theta.data()};
   const double mass_per_r2 = mat.density * kPi * mat.thickness * p_.controls.mass_scale;  // kg/m²
   const Eigen::Matrix2d& q = p_.frame;

@@ -251,8 +251,8 @@ class Rve {
   double dt_ = 0.0;
   // Half Verlet list in CSR form, rows i ascending, columns j > i ascending.
   std::vector<std::uint32_t> row_start_;
-  std::vector<std::uint32_t> nbr_j_;
-  std::vector<double> nbr_kn_;  // N/m, E·r* per pair (linear model)
+  std::vector<std::uint32_t> nbr_i_, nbr_j_;  // pair k = (nbr_i_[k], nbr_j_[k]), row-major
+  std::vector<double> nbr_kn_;                // N/m, E·r* per pair (linear model)
   std::vector<double> nbr_ft_, nbr_moment_, nbr_bond_;
   // Rebuild trigger: cell at the last rebuild and a bound on the largest
   // fluctuation displacement since.
