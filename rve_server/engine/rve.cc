@@ -2,6 +2,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 #include <type_traits>
@@ -66,9 +67,10 @@ absl::Status CheckFinite(double v, absl::string_view what, std::size_t index) {
 struct Scratch {
   std::vector<double> count;  // contacts per particle
   // Per listed pair, from the pair pass: force on i (N), torques on i and j
-  // (N·m); while measuring, the branch (m), the normal, kn·|b|² (N·m, servo),
-  // the elastic energy (J) and 1 for an active contact (else all 0).
-  std::vector<double> fx, fy, ti, tj, dx, dy, nx, ny, kd2, elastic, active;
+  // (N·m); while measuring, the six terms of the measured sums (see
+  // PairPass), the elastic energy (J) and 1 for an active contact (else all 0).
+  std::vector<double> fx, fy, ti, tj, elastic, active;
+  std::array<std::vector<double>, 6> term;
 };
 Scratch& ThreadScratch() {
   thread_local Scratch scratch;
@@ -516,11 +518,12 @@ __attribute__((target_clones("avx2", "default"))) void PairPass(const PairPassAr
   double* __restrict o_fy = a.out->fy.data();
   double* __restrict o_ti = a.out->ti.data();
   double* __restrict o_tj = a.out->tj.data();
-  double* __restrict o_dx = a.out->dx.data();
-  double* __restrict o_dy = a.out->dy.data();
-  double* __restrict o_nx = a.out->nx.data();
-  double* __restrict o_ny = a.out->ny.data();
-  double* __restrict o_kd2 = a.out->kd2.data();
+  double* __restrict o_t0 = a.out->term[0].data();
+  double* __restrict o_t1 = a.out->term[1].data();
+  double* __restrict o_t2 = a.out->term[2].data();
+  double* __restrict o_t3 = a.out->term[3].data();
+  double* __restrict o_t4 = a.out->term[4].data();
+  double* __restrict o_t5 = a.out->term[5].data();
   double* __restrict o_el = a.out->elastic.data();
   double* __restrict o_act = a.out->active.data();
 #pragma omp simd
@@ -600,11 +603,22 @@ __attribute__((target_clones("avx2", "default"))) void PairPass(const PairPassAr
     o_ti[k] = active ? li * ft + moment : 0.0;
     o_tj[k] = active ? lj * ft - moment : 0.0;
     if constexpr (kMeasure != 0) {
-      o_dx[k] = active ? dx : 0.0;
-      o_dy[k] = active ? dy : 0.0;
-      o_nx[k] = active ? nx : 0.0;
-      o_ny[k] = active ? ny : 0.0;
-      o_kd2[k] = active ? kn * d2 : 0.0;
+      if constexpr (kMeasure == 1) {  // Σ f⊗b and the servo's Σ kn |b|² n_x⁴, n_y⁴
+        const double kd2 = kn * d2;
+        o_t0[k] = active ? fcx * dx : 0.0;
+        o_t1[k] = active ? fcx * dy : 0.0;
+        o_t2[k] = active ? fcy * dx : 0.0;
+        o_t3[k] = active ? fcy * dy : 0.0;
+        o_t4[k] = active ? kd2 * (nx * nx) * (nx * nx) : 0.0;
+        o_t5[k] = active ? kd2 * (ny * ny) * (ny * ny) : 0.0;
+      } else {  // sym Σ f⊗b (xy twice), Σ n⊗n (xx, xy) and Σ |f|
+        o_t0[k] = active ? fcx * dx : 0.0;
+        o_t1[k] = active ? fcx * dy + fcy * dx : 0.0;
+        o_t2[k] = active ? fcy * dy : 0.0;
+        o_t3[k] = active ? nx * nx : 0.0;
+        o_t4[k] = active ? nx * ny : 0.0;
+        o_t5[k] = active ? std::sqrt(fcx * fcx + fcy * fcy) : 0.0;
+      }
       o_el[k] = touching ? elastic : 0.0;  // counted before a bond breaks, as always
       o_act[k] = active ? 1.0 : 0.0;
     }
@@ -631,8 +645,9 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
     if (v->size() < m) v->resize(m);
   }
   if constexpr (kAny) {
-    for (std::vector<double>* v : {&scratch.dx, &scratch.dy, &scratch.nx, &scratch.ny, &scratch.kd2,
-                                   &scratch.elastic, &scratch.active}) {
+    for (std::vector<double>* v :
+         {&scratch.elastic, &scratch.active, &scratch.term[0], &scratch.term[1], &scratch.term[2],
+          &scratch.term[3], &scratch.term[4], &scratch.term[5]}) {
       if (v->size() < m) v->resize(m);
     }
   }
@@ -696,10 +711,22 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
   const double volume = p_.cell.determinant() * p_.material.thickness;
   StepResult out;
   if constexpr (kAny) {
-    const double* __restrict c_dx = scratch.dx.data();
-    const double* __restrict c_dy = scratch.dy.data();
-    const double* __restrict c_nx = scratch.nx.data();
-    const double* __restrict c_ny = scratch.ny.data();
+    // The six sums, each in pair order.
+    double sum[6] = {0, 0, 0, 0, 0, 0};
+    const double* __restrict t0 = scratch.term[0].data();
+    const double* __restrict t1 = scratch.term[1].data();
+    const double* __restrict t2 = scratch.term[2].data();
+    const double* __restrict t3 = scratch.term[3].data();
+    const double* __restrict t4 = scratch.term[4].data();
+    const double* __restrict t5 = scratch.term[5].data();
+    for (std::size_t k = 0; k < m; ++k) {
+      sum[0] += t0[k];
+      sum[1] += t1[k];
+      sum[2] += t2[k];
+      sum[3] += t3[k];
+      sum[4] += t4[k];
+      sum[5] += t5[k];
+    }
     if (kServo || track_energy_) {
       double elastic = 0;
       for (std::size_t k = 0; k < m; ++k) elastic += scratch.elastic[k];
@@ -708,33 +735,11 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
       last_elastic_ = 0.0;
     }
     if constexpr (kServo) {
-      double sxx = 0, sxy = 0, syx = 0, syy = 0, kxx = 0, kyy = 0;
-      const double* __restrict c_kd2 = scratch.kd2.data();
-      for (std::size_t k = 0; k < m; ++k) {
-        const double fcx = c_fx[k], fcy = c_fy[k], dx = c_dx[k], dy = c_dy[k];
-        const double nx = c_nx[k], ny = c_ny[k];
-        sxx += fcx * dx;
-        sxy += fcx * dy;
-        syx += fcy * dx;
-        syy += fcy * dy;
-        kxx += c_kd2[k] * (nx * nx) * (nx * nx);
-        kyy += c_kd2[k] * (ny * ny) * (ny * ny);
-      }
-      out.stress << sxx / volume, sxy / volume, syx / volume, syy / volume;
-      out.stiffness = Eigen::Vector2d(kxx, kyy) / volume;
+      out.stress << sum[0] / volume, sum[1] / volume, sum[2] / volume, sum[3] / volume;
+      out.stiffness = Eigen::Vector2d(sum[4], sum[5]) / volume;
       sums_valid_ = false;
     }
     if constexpr (kSums) {
-      double sxx = 0, sxy = 0, syy = 0, f00 = 0, f01 = 0, force_sum = 0;
-      for (std::size_t k = 0; k < m; ++k) {
-        const double fcx = c_fx[k], fcy = c_fy[k], dx = c_dx[k], dy = c_dy[k], nx = c_nx[k];
-        sxx += fcx * dx;
-        sxy += fcx * dy + fcy * dx;  // 2 × the symmetric shear part
-        syy += fcy * dy;
-        f00 += nx * nx;
-        f01 += nx * c_ny[k];
-        force_sum += std::sqrt(fcx * fcx + fcy * fcy);
-      }
       // Contacts per particle: integer counts, exact in any order.
       scratch.count.assign(n, 0.0);
       double* __restrict count = scratch.count.data();
@@ -747,9 +752,9 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
         nc += c_act[k];
       }
       Sums& s = sums_;
-      s.stress << sxx, 0.5 * sxy, 0.5 * sxy, syy;  // symmetric part of Σ f⊗b
-      s.fabric << f00, f01, f01, nc - f00;
-      s.force_sum = force_sum;
+      s.stress << sum[0], 0.5 * sum[1], 0.5 * sum[1], sum[2];  // symmetric part of Σ f⊗b
+      s.fabric << sum[3], sum[4], sum[4], nc - sum[3];
+      s.force_sum = sum[5];
       s.num_contacts = static_cast<std::int64_t>(nc);
       s.rattlers0 = s.rattlers1 = 0;
       for (std::size_t i = 0; i < n; ++i) {
