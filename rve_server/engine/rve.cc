@@ -288,11 +288,19 @@ void Rve::Rebuild(const std::vector<ContactHistory>& history) {
   auto add = [&](std::uint32_t i, std::uint32_t j) {
     pairs.push_back(static_cast<std::uint64_t>(std::min(i, j)) << 32 | std::max(i, j));
   };
-  auto consider = [&](std::uint32_t i, std::uint32_t j) {
-    const Eigen::Vector2d d = Branch(i, j);
-    const double dx = d.x(), dy = d.y();
-    const double reach = p_.radius[i] + p_.radius[j] + cutoff_skin;
-    if (dx * dx + dy * dy < reach * reach) add(i, j);
+  // Whether discs i and j are within the cutoff (Branch(i, j) inlined with
+  // the cell hoisted: the search's inner loop).
+  const double h00 = h(0, 0), h01 = h(0, 1), h10 = h(1, 0), h11 = h(1, 1);
+  const double* __restrict sx = p_.sx.data();
+  const double* __restrict sy = p_.sy.data();
+  const double* __restrict rad = p_.radius.data();
+  auto within = [&](std::uint32_t i, std::uint32_t j) {
+    double dsx = sx[j] - sx[i], dsy = sy[j] - sy[i];
+    dsx -= RoundNearest(dsx);
+    dsy -= RoundNearest(dsy);
+    const double dx = h00 * dsx + h01 * dsy, dy = h10 * dsx + h11 * dsy;
+    const double reach = rad[i] + rad[j] + cutoff_skin;
+    return dx * dx + dy * dy < reach * reach;
   };
   if (nbx >= 3 && nby >= 3) {
     const int nbins = nbx * nby;
@@ -312,10 +320,6 @@ void Rve::Rebuild(const std::vector<ContactHistory>& history) {
     // Every candidate of the 9 bins is written and kept only if it is a
     // later particle within reach (about one in six is: a branch on that
     // would mispredict more often than the arithmetic costs).
-    const double h00 = h(0, 0), h01 = h(0, 1), h10 = h(1, 0), h11 = h(1, 1);
-    const double* __restrict sx = p_.sx.data();
-    const double* __restrict sy = p_.sy.data();
-    const double* __restrict rad = p_.radius.data();
     std::size_t kept = 0;
     for (std::uint32_t i = 0; i < n; ++i) {
       const int bx = bin_of[i] % nbx, by = bin_of[i] / nbx;
@@ -329,24 +333,20 @@ void Rve::Rebuild(const std::vector<ContactHistory>& history) {
       }
       if (pairs.size() < kept + candidates) pairs.resize(2 * (kept + candidates));
       std::uint64_t* __restrict out = pairs.data();
-      const double sxi = sx[i], syi = sy[i], ri = rad[i];
       for (const int b : bins) {
         for (std::uint32_t k = bin_start[b]; k < bin_start[b + 1]; ++k) {
           const std::uint32_t j = order[k];
-          double dsx = sx[j] - sxi, dsy = sy[j] - syi;  // Branch(i, j), inlined
-          dsx -= RoundNearest(dsx);
-          dsy -= RoundNearest(dsy);
-          const double dx = h00 * dsx + h01 * dsy, dy = h10 * dsx + h11 * dsy;
-          const double reach = ri + rad[j] + cutoff_skin;
           out[kept] = static_cast<std::uint64_t>(i) << 32 | j;
-          kept += static_cast<std::size_t>((j > i) & (dx * dx + dy * dy < reach * reach));
+          kept += static_cast<std::size_t>((j > i) & within(i, j));
         }
       }
     }
     pairs.resize(kept);
   } else {
     for (std::uint32_t i = 0; i < n; ++i) {
-      for (std::uint32_t j = i + 1; j < n; ++j) consider(i, j);
+      for (std::uint32_t j = i + 1; j < n; ++j) {
+        if (within(i, j)) add(i, j);
+      }
     }
   }
   // Bonded pairs stay listed whatever their distance.
