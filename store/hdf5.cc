@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstring>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -121,35 +122,77 @@ std::string File::Where(absl::string_view what, absl::string_view name) const {
   return absl::StrCat(what, " ", name, " of ", path_);
 }
 
-absl::StatusOr<File> File::Create(const std::string& path) {
+namespace {
+
+bool IsLockFailure(const std::string& stack) {
+  return absl::StrContains(absl::AsciiStrToLower(stack), "unable to lock file");
+}
+
+// Opens (create: creates, truncating) `path` with `fapl`, retrying while
+// another process holds the file's lock.
+absl::StatusOr<Handle> OpenRetrying(const std::string& path, bool create, unsigned flags,
+                                    hid_t fapl, LockRetry retry) {
+  for (int attempt = 1;; ++attempt) {
+    Handle file(create ? H5Fcreate(path.c_str(), flags, H5P_DEFAULT, fapl)
+                       : H5Fopen(path.c_str(), flags, fapl),
+                H5Fclose);
+    if (file.valid()) return file;
+    const ErrorInfo info = TakeErrorInfo();
+    if (IsLockFailure(info.text) && attempt >= std::max(retry.attempts, 1)) {
+      return absl::UnavailableError(absl::StrCat(
+          path, " stays locked by another process (a reader keeping it open, e.g. h5py or ",
+          "HDFView, or another run writing it): ", info.text));
+    }
+    if (!IsLockFailure(info.text)) {
+      if (create) {
+        return absl::InternalError(absl::StrCat("cannot create HDF5 file ", path, ": ", info.text));
+      }
+      return absl::DataLossError(
+          absl::StrCat("cannot open ", path, (flags & H5F_ACC_RDWR) ? " for appending" : "",
+                       info.metadata_checksum ? " (metadata checksum mismatch)" : "",
+                       ": file is truncated, corrupt or not HDF5: ", info.text));
+    }
+    std::this_thread::sleep_for(retry.delay);
+  }
+}
+
+}  // namespace
+
+absl::StatusOr<File> File::Create(const std::string& path, Format format, LockRetry retry) {
   SilenceErrorPrinting();
   Handle fapl = FileAccess();
   if (!fapl.valid()) return Error(absl::StatusCode::kInternal, "creating a file access list");
-  // v1.10 format at both ends: checksummed superblock (v3), object headers
-  // (v2) and chunk indices, and a format any HDF5 >= 1.10 reads.
-  if (Failed(H5Pset_libver_bounds(fapl.id(), H5F_LIBVER_V110, H5F_LIBVER_V110))) {
-    return Error(absl::StatusCode::kInternal, "setting the v1.10 file format");
+  const H5F_libver_t low = format == Format::kV110 ? H5F_LIBVER_V110 : H5F_LIBVER_V18;
+  if (Failed(H5Pset_libver_bounds(fapl.id(), low, H5F_LIBVER_V110))) {
+    return Error(absl::StatusCode::kInternal, "setting the file format bounds");
   }
-  Handle file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.id()), H5Fclose);
-  if (!file.valid()) {
-    return Error(absl::StatusCode::kInternal, absl::StrCat("cannot create HDF5 file ", path));
-  }
-  return File(std::move(file), path);
+  absl::StatusOr<Handle> file = OpenRetrying(path, /*create=*/true, H5F_ACC_TRUNC, fapl.id(), retry);
+  if (!file.ok()) return file.status();
+  return File(*std::move(file), path);
 }
 
 absl::StatusOr<File> File::Open(const std::string& path) {
   SilenceErrorPrinting();
   Handle fapl = FileAccess();
   if (!fapl.valid()) return Error(absl::StatusCode::kInternal, "creating a file access list");
-  Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, fapl.id()), H5Fclose);
-  if (!file.valid()) {
-    const ErrorInfo info = TakeErrorInfo();
-    return absl::DataLossError(
-        absl::StrCat("cannot open ", path, " as an HDF5 file",
-                     info.metadata_checksum ? " (metadata checksum mismatch)" : "",
-                     ": file is truncated, corrupt or not HDF5: ", info.text));
+  absl::StatusOr<Handle> file =
+      OpenRetrying(path, /*create=*/false, H5F_ACC_RDONLY, fapl.id(), LockRetry{});
+  if (!file.ok()) return file.status();
+  return File(*std::move(file), path);
+}
+
+absl::StatusOr<File> File::OpenForAppend(const std::string& path, LockRetry retry) {
+  SilenceErrorPrinting();
+  Handle fapl = FileAccess();
+  // The bounds of Format::kAppendable: objects added keep the file's format.
+  if (!fapl.valid() ||
+      Failed(H5Pset_libver_bounds(fapl.id(), H5F_LIBVER_V18, H5F_LIBVER_V110))) {
+    return Error(absl::StatusCode::kInternal, "creating a file access list");
   }
-  return File(std::move(file), path);
+  absl::StatusOr<Handle> file =
+      OpenRetrying(path, /*create=*/false, H5F_ACC_RDWR, fapl.id(), retry);
+  if (!file.ok()) return file.status();
+  return File(*std::move(file), path);
 }
 
 absl::Status File::Close() {
@@ -189,23 +232,28 @@ absl::StatusOr<bool> File::Exists(const std::string& name) const {
   return true;
 }
 
-absl::Status File::WriteAttribute(const char* name, hid_t file_type, hid_t memory_type,
-                                  const void* value) {
+absl::Status Object::WriteAttributeRaw(const char* name, hid_t file_type, hid_t memory_type,
+                                       const void* value) {
+  const std::string what = absl::StrCat("cannot write attribute ", name, " of ", where_);
+  const htri_t exists = H5Aexists(handle_.id(), name);
+  if (exists < 0 || (exists > 0 && Failed(H5Adelete(handle_.id(), name)))) {
+    return Error(absl::StatusCode::kInternal, what);
+  }
   Handle space(H5Screate(H5S_SCALAR), H5Sclose);
   if (!space.valid()) return Error(absl::StatusCode::kInternal, "creating a scalar dataspace");
   Handle attribute(H5Acreate2(handle_.id(), name, file_type, space.id(), H5P_DEFAULT, H5P_DEFAULT),
                    H5Aclose);
   if (!attribute.valid() || Failed(H5Awrite(attribute.id(), memory_type, value)) ||
       !attribute.Close()) {
-    return Error(absl::StatusCode::kInternal, Where("cannot write attribute", name));
+    return Error(absl::StatusCode::kInternal, what);
   }
   return absl::OkStatus();
 }
 
-absl::Status File::WriteStringAttribute(const char* name, absl::string_view value) {
+absl::Status Object::WriteStringAttribute(const char* name, absl::string_view value) {
   if (value.find('\0') != absl::string_view::npos) {
     return absl::InvalidArgumentError(
-        absl::StrCat("attribute ", name, " must not contain NUL bytes"));
+        absl::StrCat("attribute ", name, " of ", where_, " must not contain NUL bytes"));
   }
   Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
   // HDF5 has no zero-length fixed strings: an empty value is one NUL byte.
@@ -213,28 +261,27 @@ absl::Status File::WriteStringAttribute(const char* name, absl::string_view valu
   if (!type.valid() || Failed(H5Tset_size(type.id(), buffer.size())) ||
       Failed(H5Tset_strpad(type.id(), H5T_STR_NULLPAD)) ||
       Failed(H5Tset_cset(type.id(), H5T_CSET_UTF8))) {
-    return Error(absl::StatusCode::kInternal, Where("cannot make the type of attribute", name));
+    return Error(absl::StatusCode::kInternal,
+                 absl::StrCat("cannot make the type of attribute ", name, " of ", where_));
   }
-  return WriteAttribute(name, type.id(), type.id(), buffer.data());
+  return WriteAttributeRaw(name, type.id(), type.id(), buffer.data());
 }
 
-absl::Status File::WriteInt32Attribute(const char* name, std::int32_t value) {
-  return WriteAttribute(name, H5T_STD_I32LE, H5T_NATIVE_INT32, &value);
-}
-
-absl::Status File::WriteInt64Attribute(const char* name, std::int64_t value) {
-  return WriteAttribute(name, H5T_STD_I64LE, H5T_NATIVE_INT64, &value);
+absl::StatusOr<bool> Object::HasAttribute(const char* name) const {
+  const htri_t exists = H5Aexists(handle_.id(), name);
+  if (exists < 0) return CorruptError("look up", absl::StrCat("attribute ", name, " of ", where_));
+  return exists > 0;
 }
 
 namespace {
 
-// Opens attribute `name` of `file`, which must hold one element.
-absl::Status OpenScalarAttribute(hid_t file, const char* name, const std::string& where,
+// Opens attribute `name` of `object`, which must hold one element.
+absl::Status OpenScalarAttribute(hid_t object, const char* name, const std::string& where,
                                  Handle* attribute) {
-  const htri_t exists = H5Aexists(file, name);
+  const htri_t exists = H5Aexists(object, name);
   if (exists < 0) return CorruptError("read", where);
   if (exists == 0) return absl::NotFoundError(absl::StrCat("missing ", where));
-  *attribute = Handle(H5Aopen(file, name, H5P_DEFAULT), H5Aclose);
+  *attribute = Handle(H5Aopen(object, name, H5P_DEFAULT), H5Aclose);
   if (!attribute->valid()) return CorruptError("open", where);
   Handle space(H5Aget_space(attribute->id()), H5Sclose);
   if (!space.valid() || H5Sget_simple_extent_npoints(space.id()) != 1) {
@@ -246,8 +293,22 @@ absl::Status OpenScalarAttribute(hid_t file, const char* name, const std::string
 
 }  // namespace
 
-absl::StatusOr<std::string> File::ReadStringAttribute(const char* name) const {
-  const std::string where = Where("attribute", name);
+absl::Status Object::ReadAttributeRaw(const char* name, hid_t file_type, hid_t memory_type,
+                                      void* value) const {
+  const std::string where = absl::StrCat("attribute ", name, " of ", where_);
+  Handle attribute;
+  RETURN_IF_ERROR(OpenScalarAttribute(handle_.id(), name, where, &attribute));
+  Handle type(H5Aget_type(attribute.id()), H5Tclose);
+  if (!type.valid() || H5Tequal(type.id(), file_type) <= 0) {
+    H5Eclear2(H5E_DEFAULT);
+    return absl::DataLossError(absl::StrCat(where, " has an unexpected type"));
+  }
+  if (Failed(H5Aread(attribute.id(), memory_type, value))) return CorruptError("read", where);
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::string> Object::ReadStringAttribute(const char* name) const {
+  const std::string where = absl::StrCat("attribute ", name, " of ", where_);
   Handle attribute;
   RETURN_IF_ERROR(OpenScalarAttribute(handle_.id(), name, where, &attribute));
   Handle type(H5Aget_type(attribute.id()), H5Tclose);
@@ -256,8 +317,6 @@ absl::StatusOr<std::string> File::ReadStringAttribute(const char* name) const {
     return absl::DataLossError(absl::StrCat(where, " is not a string"));
   }
   if (H5Tis_variable_str(type.id()) > 0) {
-    // Not what this code writes, but what h5py writes by default: accepted
-    // so that files annotated from Python stay readable.
     Handle memory(H5Tcopy(H5T_C_S1), H5Tclose);
     char* text = nullptr;
     if (!memory.valid() || Failed(H5Tset_size(memory.id(), H5T_VARIABLE)) ||
@@ -278,8 +337,8 @@ absl::StatusOr<std::string> File::ReadStringAttribute(const char* name) const {
   return buffer;
 }
 
-absl::StatusOr<std::int64_t> File::ReadIntAttribute(const char* name) const {
-  const std::string where = Where("attribute", name);
+absl::StatusOr<std::int64_t> Object::ReadIntAttribute(const char* name) const {
+  const std::string where = absl::StrCat("attribute ", name, " of ", where_);
   Handle attribute;
   RETURN_IF_ERROR(OpenScalarAttribute(handle_.id(), name, where, &attribute));
   Handle type(H5Aget_type(attribute.id()), H5Tclose);
@@ -292,6 +351,80 @@ absl::StatusOr<std::int64_t> File::ReadIntAttribute(const char* name) const {
     return CorruptError("read", where);
   }
   return value;
+}
+
+absl::StatusOr<std::vector<std::string>> Group::LinkNames() const {
+  H5G_info_t info;
+  if (Failed(H5Gget_info(handle_.id(), &info))) {
+    return Error(absl::StatusCode::kDataLoss, absl::StrCat("cannot open ", where_));
+  }
+  std::vector<std::string> names;
+  for (H5_index_t index : {H5_INDEX_CRT_ORDER, H5_INDEX_NAME}) {
+    names.clear();
+    for (hsize_t k = 0; k < info.nlinks; ++k) {
+      const ssize_t size =
+          H5Lget_name_by_idx(handle_.id(), ".", index, H5_ITER_INC, k, nullptr, 0, H5P_DEFAULT);
+      if (size < 0) break;
+      std::string name(static_cast<std::size_t>(size) + 1, '\0');
+      if (H5Lget_name_by_idx(handle_.id(), ".", index, H5_ITER_INC, k, name.data(), name.size(),
+                             H5P_DEFAULT) < 0) {
+        break;
+      }
+      name.resize(static_cast<std::size_t>(size));
+      names.push_back(std::move(name));
+    }
+    if (names.size() == info.nlinks) {
+      H5Eclear2(H5E_DEFAULT);  // a failed creation-order attempt
+      return names;
+    }
+  }
+  return Error(absl::StatusCode::kDataLoss, absl::StrCat("cannot list ", where_));
+}
+
+absl::StatusOr<Group> File::CreateGroup(const std::string& name) {
+  const std::string where = Where("group", name);
+  Handle gcpl(H5Pcreate(H5P_GROUP_CREATE), H5Pclose);
+  if (!gcpl.valid() ||
+      Failed(H5Pset_link_creation_order(gcpl.id(),
+                                        H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED))) {
+    return Error(absl::StatusCode::kInternal, "creating a group creation list");
+  }
+  Handle group(H5Gcreate2(handle_.id(), name.c_str(), H5P_DEFAULT, gcpl.id(), H5P_DEFAULT),
+               H5Gclose);
+  if (!group.valid()) return Error(absl::StatusCode::kInternal, "cannot create " + where);
+  return Group(std::move(group), where);
+}
+
+absl::StatusOr<Group> File::OpenGroup(const std::string& name) const {
+  const std::string where = Where("group", name);
+  absl::StatusOr<bool> exists = Exists(name);
+  if (!exists.ok()) return exists.status();
+  if (!*exists) return absl::DataLossError(absl::StrCat("missing ", where, ": file is corrupt"));
+  Handle group(H5Gopen2(handle_.id(), name.c_str(), H5P_DEFAULT), H5Gclose);
+  if (!group.valid()) return CorruptError("open", where);
+  return Group(std::move(group), where);
+}
+
+absl::StatusOr<Dataset> File::OpenDataset(const std::string& name) const {
+  const std::string where = Where("dataset", name);
+  absl::StatusOr<bool> exists = Exists(name);
+  if (!exists.ok()) return exists.status();
+  if (!*exists) return absl::DataLossError(absl::StrCat("missing ", where, ": file is corrupt"));
+  Handle dataset(H5Dopen2(handle_.id(), name.c_str(), H5P_DEFAULT), H5Dclose);
+  if (!dataset.valid()) return CorruptError("open", where);
+  return Dataset(std::move(dataset), where);
+}
+
+absl::Status File::Delete(const std::string& name) {
+  if (Failed(H5Ldelete(handle_.id(), name.c_str(), H5P_DEFAULT))) {
+    return Error(absl::StatusCode::kInternal, absl::StrCat("cannot delete ", name, " of ", path_));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status File::CheckShape(const std::string& name, std::size_t rows, std::size_t width) const {
+  Handle dataset;
+  return OpenShaped(name, rows, width, &dataset);
 }
 
 bool ChunkedLayout(std::size_t rows, std::size_t width, std::size_t row_bytes, Handle* space,
@@ -343,7 +476,7 @@ absl::Status File::CreateDataset(const std::string& name, std::size_t rows, std:
 
 absl::Status File::WriteRaw(const std::string& name, const void* data, std::size_t count,
                             std::size_t width, std::size_t element_size, hid_t file_type,
-                            hid_t memory_type) {
+                            hid_t memory_type, Handle* keep_open) {
   const std::size_t per_row = width == 0 ? 1 : width;
   if (count % per_row != 0) {
     return absl::InvalidArgumentError(
@@ -356,14 +489,18 @@ absl::Status File::WriteRaw(const std::string& name, const void* data, std::size
       Failed(H5Dwrite(dataset.id(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data))) {
     return Error(absl::StatusCode::kInternal, Where("cannot write dataset", name));
   }
+  if (keep_open != nullptr) {
+    *keep_open = std::move(dataset);
+    return absl::OkStatus();
+  }
   if (!dataset.Close()) {
     return Error(absl::StatusCode::kInternal, Where("cannot close dataset", name));
   }
   return absl::OkStatus();
 }
 
-absl::Status File::OpenDataset(const std::string& name, std::size_t rows, std::size_t width,
-                               Handle* dataset) const {
+absl::Status File::OpenShaped(const std::string& name, std::size_t rows, std::size_t width,
+                              Handle* dataset) const {
   const std::string where = Where("dataset", name);
   absl::StatusOr<bool> exists = Exists(name);
   if (!exists.ok()) return exists.status();
@@ -428,7 +565,7 @@ absl::Status File::ReadRaw(const std::string& name, void* data, std::size_t rows
                            hid_t file_type, hid_t memory_type) const {
   const std::string where = Where("dataset", name);
   Handle dataset;
-  RETURN_IF_ERROR(OpenDataset(name, rows, width, &dataset));
+  RETURN_IF_ERROR(OpenShaped(name, rows, width, &dataset));
   Handle type(H5Dget_type(dataset.id()), H5Tclose);
   // Exactly the stored type, so the read converts nothing and the bits
   // come back as written.
@@ -439,6 +576,71 @@ absl::Status File::ReadRaw(const std::string& name, void* data, std::size_t rows
   if (rows == 0) return absl::OkStatus();
   if (Failed(H5Dread(dataset.id(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data))) {
     return ReadFailure(where);
+  }
+  return absl::OkStatus();
+}
+
+absl::Status File::CreateAppendableRaw(const std::string& name, std::size_t width,
+                                       std::size_t element_size, hid_t file_type) {
+  // ChunkedLayout gives a dataset of 0 rows an unlimited first dimension.
+  Handle dataset;
+  RETURN_IF_ERROR(
+      CreateDataset(name, 0, width, (width == 0 ? 1 : width) * element_size, file_type, &dataset));
+  if (!dataset.Close()) {
+    return Error(absl::StatusCode::kInternal, Where("cannot close dataset", name));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::size_t> File::NumRows(const std::string& name) const {
+  absl::StatusOr<Dataset> dataset = OpenDataset(name);
+  if (!dataset.ok()) return dataset.status();
+  Handle space(H5Dget_space(dataset->id()), H5Sclose);
+  hsize_t dims[2] = {0, 0};
+  const int rank = space.valid() ? H5Sget_simple_extent_ndims(space.id()) : -1;
+  if (rank < 1 || rank > 2 || H5Sget_simple_extent_dims(space.id(), dims, nullptr) != rank) {
+    H5Eclear2(H5E_DEFAULT);
+    return absl::DataLossError(absl::StrCat(Where("dataset", name), " is not 1-D or 2-D"));
+  }
+  return static_cast<std::size_t>(dims[0]);
+}
+
+absl::Status File::AppendRaw(const std::string& name, const void* data, std::size_t count,
+                             hid_t file_type, hid_t memory_type) {
+  const std::string where = Where("dataset", name);
+  absl::StatusOr<Dataset> dataset = OpenDataset(name);
+  if (!dataset.ok()) return dataset.status();
+  Handle space(H5Dget_space(dataset->id()), H5Sclose);
+  Handle type(H5Dget_type(dataset->id()), H5Tclose);
+  hsize_t dims[2] = {0, 0}, max_dims[2] = {0, 0};
+  const int rank = space.valid() ? H5Sget_simple_extent_ndims(space.id()) : -1;
+  if (rank < 1 || rank > 2 || H5Sget_simple_extent_dims(space.id(), dims, max_dims) != rank ||
+      max_dims[0] != H5S_UNLIMITED || !type.valid() || H5Tequal(type.id(), file_type) <= 0) {
+    H5Eclear2(H5E_DEFAULT);
+    return absl::InvalidArgumentError(
+        absl::StrCat(where, " is not an appendable dataset of this element type"));
+  }
+  const std::size_t width = rank == 2 ? dims[1] : 1;
+  if (count % width != 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(where, ": ", count, " values are not rows of ", width));
+  }
+  const hsize_t rows = count / width;
+  if (rows == 0) return absl::OkStatus();
+  const hsize_t new_dims[2] = {dims[0] + rows, dims[1]};
+  const hsize_t start[2] = {dims[0], 0};
+  const hsize_t block[2] = {rows, dims[1]};
+  if (Failed(H5Dset_extent(dataset->id(), new_dims))) {
+    return Error(absl::StatusCode::kInternal, absl::StrCat("cannot extend ", where));
+  }
+  Handle file_space(H5Dget_space(dataset->id()), H5Sclose);
+  Handle memory_space(H5Screate_simple(rank, block, nullptr), H5Sclose);
+  if (!file_space.valid() || !memory_space.valid() ||
+      Failed(H5Sselect_hyperslab(file_space.id(), H5S_SELECT_SET, start, nullptr, block,
+                                 nullptr)) ||
+      Failed(H5Dwrite(dataset->id(), memory_type, memory_space.id(), file_space.id(), H5P_DEFAULT,
+                      data))) {
+    return Error(absl::StatusCode::kInternal, absl::StrCat("cannot append to ", where));
   }
   return absl::OkStatus();
 }
@@ -478,7 +680,7 @@ absl::Status File::ReadStrings(const std::string& name, std::size_t rows,
                                std::vector<std::string>* out) const {
   const std::string where = Where("dataset", name);
   Handle dataset;
-  RETURN_IF_ERROR(OpenDataset(name, rows, 0, &dataset));
+  RETURN_IF_ERROR(OpenShaped(name, rows, 0, &dataset));
   Handle type(H5Dget_type(dataset.id()), H5Tclose);
   if (!type.valid() || H5Tget_class(type.id()) != H5T_STRING ||
       H5Tis_variable_str(type.id()) != 0) {

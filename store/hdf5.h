@@ -1,15 +1,17 @@
 // Thin RAII wrappers over the HDF5 C API, private to store/: only store .cc
 // files include this header, so HDF5's headers never reach the rest of the
-// project. Only what the checkpoint code needs: create/open a file, whole
+// project. The only code that calls HDF5 directly: files, groups and
+// datasets as RAII handles sharing one attribute interface (Object); whole
 // 1-D or [rows × width] datasets of a few numeric types and of fixed-length
-// strings (every one chunked and fletcher32-checksummed), and string and
-// integer attributes on the root group. Every failure becomes an absl::Status
-// naming the file, the object and the operation, with HDF5's error stack.
+// strings, and appendable ones (every one chunked and
+// fletcher32-checksummed). Every failure becomes an absl::Status naming the
+// file, the object and the operation, with HDF5's error stack.
 #ifndef RVEHUB_STORE_HDF5_H_
 #define RVEHUB_STORE_HDF5_H_
 
 #include <hdf5.h>
 
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -19,6 +21,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 
 // Returns the status of `expr` from the enclosing function when it is not OK
@@ -124,16 +127,118 @@ std::span<const T> Span(const std::vector<T>& v) {
 // enough that a corrupt chunk is pinpointed and a partial read stays cheap.
 inline constexpr std::size_t kChunkBytes = std::size_t{1} << 20;  // 1 MiB
 
-// An open HDF5 file. Dataset and attribute names are absolute paths
-// ("/particles/sx"); groups along the path are created on demand.
-class File {
+// How long a writer waits for HDF5's advisory lock of a file that another
+// process keeps open (a reader such as h5py or HDFView): `attempts` opens,
+// `delay` apart. The default tries once.
+struct LockRetry {
+  int attempts = 1;
+  std::chrono::milliseconds delay{0};
+};
+
+// The on-disk format bounds a file is created with.
+enum class Format {
+  // v1.10 at both ends: checksummed superblock (v3), object headers (v2) and
+  // chunk indices, readable by any HDF5 >= 1.10. For files written once
+  // under a temporary name (checkpoints).
+  kV110,
+  // v1.8 .. v1.10: superblock v2 (checksummed) rather than v3, whose "open
+  // for writing" flag a killed writer leaves set, after which HDF5 refuses
+  // to open the file (even read-only) until `h5clear -s` runs. For files
+  // reopened and appended to in place (results).
+  kAppendable,
+};
+
+// An open HDF5 object (a file's root group, a group or a dataset) and its
+// attributes: the part File, Group and Dataset share. Attribute strings are
+// fixed-length UTF-8 (stored inside the checksummed object header, unlike
+// variable-length strings, which live in the unchecksummed global heap);
+// numbers are scalars of the types TypeOf knows.
+class Object {
  public:
-  // Creates (truncating) `path` with the v1.10 file format, whose superblock,
-  // object headers and chunk indices carry metadata checksums.
-  static absl::StatusOr<File> Create(const std::string& path);
+  Object(Object&&) = default;
+  Object& operator=(Object&&) = default;
+
+  hid_t id() const { return handle_.id(); }
+  // "group /frames/30 of out/results.h5" and the like, for messages.
+  const std::string& where() const { return where_; }
+
+  // Writes a scalar attribute, replacing one of the same name.
+  template <typename T>
+  absl::Status WriteAttribute(const char* name, T value) {
+    return WriteAttributeRaw(name, TypeOf<T>::File(), TypeOf<T>::Memory(), &value);
+  }
+  // InvalidArgument when `value` contains NUL bytes.
+  absl::Status WriteStringAttribute(const char* name, absl::string_view value);
+
+  // DataLoss when the lookup itself fails (corrupt metadata).
+  absl::StatusOr<bool> HasAttribute(const char* name) const;
+  // One value of exactly T's file type. NotFound when absent; DataLoss when
+  // of another type or shape.
+  template <typename T>
+  absl::StatusOr<T> ReadAttribute(const char* name) const {
+    T value{};
+    if (absl::Status s = ReadAttributeRaw(name, TypeOf<T>::File(), TypeOf<T>::Memory(), &value);
+        !s.ok()) {
+      return s;
+    }
+    return value;
+  }
+  // Any integer type, as int64; any string type (h5py writes variable-length
+  // strings by default, so files annotated from Python stay readable).
+  // NotFound when absent; DataLoss when of another class.
+  absl::StatusOr<std::int64_t> ReadIntAttribute(const char* name) const;
+  absl::StatusOr<std::string> ReadStringAttribute(const char* name) const;
+
+ protected:
+  Object() = default;
+  Object(Handle handle, std::string where)
+      : handle_(std::move(handle)), where_(std::move(where)) {}
+
+  Handle handle_;
+  std::string where_;
+
+ private:
+  absl::Status WriteAttributeRaw(const char* name, hid_t file_type, hid_t memory_type,
+                                 const void* value);
+  absl::Status ReadAttributeRaw(const char* name, hid_t file_type, hid_t memory_type,
+                                void* value) const;
+};
+
+// An open group. Created by File::CreateGroup / OpenGroup.
+class Group : public Object {
+ public:
+  // The names of the group's links, in creation order where the group
+  // tracks it (File::CreateGroup's groups do), else by name.
+  absl::StatusOr<std::vector<std::string>> LinkNames() const;
+
+ private:
+  friend class File;
+  using Object::Object;
+};
+
+// An open dataset, for its attributes. Created by File::WriteDataset /
+// OpenDataset.
+class Dataset : public Object {
+ private:
+  friend class File;
+  using Object::Object;
+};
+
+// An open HDF5 file; as an Object, its attributes are the root group's.
+// Dataset and group names are absolute paths ("/particles/sx"); the groups
+// along a dataset's path are created on demand.
+class File : public Object {
+ public:
+  // Creates (truncating) `path`. A file another process holds locked is
+  // retried as `retry` says, then Unavailable.
+  static absl::StatusOr<File> Create(const std::string& path, Format format = Format::kV110,
+                                     LockRetry retry = {});
   // Opens `path` read-only. The caller checks existence first (for a precise
   // NotFound); a file HDF5 cannot open is reported as DataLoss.
   static absl::StatusOr<File> Open(const std::string& path);
+  // Opens `path` for reading and writing (appending), retrying a lock as
+  // Create does. DataLoss when HDF5 cannot open it.
+  static absl::StatusOr<File> OpenForAppend(const std::string& path, LockRetry retry = {});
 
   const std::string& path() const { return path_; }
   // Flushes and closes, reporting errors (a write is complete only after this).
@@ -141,22 +246,33 @@ class File {
   // Size of the file in bytes as HDF5 sees it.
   absl::StatusOr<std::uint64_t> Size() const;
 
-  // Root-group attributes. Strings are fixed-length (stored inside the
-  // checksummed object header, unlike variable-length strings, which live
-  // in the unchecksummed global heap); integers are scalars.
-  absl::Status WriteStringAttribute(const char* name, absl::string_view value);
-  absl::Status WriteInt32Attribute(const char* name, std::int32_t value);
-  absl::Status WriteInt64Attribute(const char* name, std::int64_t value);
-  // NotFound when absent; DataLoss when of another type.
-  absl::StatusOr<std::string> ReadStringAttribute(const char* name) const;
-  absl::StatusOr<std::int64_t> ReadIntAttribute(const char* name) const;
+  // A new group whose links are listed in creation order (members keep the
+  // order they were written in).
+  absl::StatusOr<Group> CreateGroup(const std::string& name);
+  // DataLoss when missing or unreadable.
+  absl::StatusOr<Group> OpenGroup(const std::string& name) const;
+  absl::StatusOr<Dataset> OpenDataset(const std::string& name) const;
+  // Unlinks `name` (HDF5 does not reclaim its space; h5repack does).
+  absl::Status Delete(const std::string& name);
 
   // A [rows] dataset (width 0) or a [rows × width] dataset from `data`
   // (row-major, rows·max(width, 1) elements), chunked and checksummed.
   template <typename T>
   absl::Status Write(const std::string& name, std::span<const T> data, std::size_t width = 0) {
     return WriteRaw(name, data.data(), data.size(), width, sizeof(T), TypeOf<T>::File(),
-                    TypeOf<T>::Memory());
+                    TypeOf<T>::Memory(), nullptr);
+  }
+  // As Write, and returns the dataset still open (for its attributes).
+  template <typename T>
+  absl::StatusOr<Dataset> WriteDataset(const std::string& name, std::span<const T> data,
+                                       std::size_t width = 0) {
+    Handle dataset;
+    if (absl::Status s = WriteRaw(name, data.data(), data.size(), width, sizeof(T),
+                                  TypeOf<T>::File(), TypeOf<T>::Memory(), &dataset);
+        !s.ok()) {
+      return s;
+    }
+    return Dataset(std::move(dataset), Where("dataset", name));
   }
   // Reads a dataset that must have exactly `rows` rows (and `width` columns,
   // 0 for 1-D) and exactly the element type T; anything else is DataLoss.
@@ -169,6 +285,22 @@ class File {
     out->resize(rows * (width == 0 ? 1 : width));
     return ReadRaw(name, out->data(), rows, width, TypeOf<T>::File(), TypeOf<T>::Memory());
   }
+  // DataLoss unless dataset `name` exists with shape [rows] (width 0) or
+  // [rows × width]; reads nothing.
+  absl::Status CheckShape(const std::string& name, std::size_t rows, std::size_t width) const;
+
+  // Appendable datasets: [0 × width] (width 0: [0]) with an unlimited first
+  // dimension, chunked and checksummed like the rest; AppendRows adds rows
+  // at the end (rows·max(width, 1) values); NumRows says how many it holds.
+  template <typename T>
+  absl::Status CreateAppendable(const std::string& name, std::size_t width = 0) {
+    return CreateAppendableRaw(name, width, sizeof(T), TypeOf<T>::File());
+  }
+  template <typename T>
+  absl::Status AppendRows(const std::string& name, std::span<const T> data) {
+    return AppendRaw(name, data.data(), data.size(), TypeOf<T>::File(), TypeOf<T>::Memory());
+  }
+  absl::StatusOr<std::size_t> NumRows(const std::string& name) const;
 
   // A [rows] dataset of fixed-length, NUL-padded UTF-8 strings as wide as the
   // longest (at least 1 byte). Strings must not contain NUL bytes.
@@ -179,15 +311,19 @@ class File {
   // Whether every group along `name` and the object itself exist; DataLoss
   // when the lookup itself fails (corrupt metadata).
   absl::StatusOr<bool> Exists(const std::string& name) const;
-  hid_t id() const { return handle_.id(); }
 
  private:
-  File(Handle handle, std::string path) : handle_(std::move(handle)), path_(std::move(path)) {}
+  File(Handle handle, std::string path)
+      : Object(std::move(handle), absl::StrCat("file ", path)), path_(std::move(path)) {}
   absl::Status WriteRaw(const std::string& name, const void* data, std::size_t count,
                         std::size_t width, std::size_t element_size, hid_t file_type,
-                        hid_t memory_type);
+                        hid_t memory_type, Handle* keep_open);
   absl::Status ReadRaw(const std::string& name, void* data, std::size_t rows, std::size_t width,
                        hid_t file_type, hid_t memory_type) const;
+  absl::Status CreateAppendableRaw(const std::string& name, std::size_t width,
+                                   std::size_t element_size, hid_t file_type);
+  absl::Status AppendRaw(const std::string& name, const void* data, std::size_t count,
+                         hid_t file_type, hid_t memory_type);
   // DataLoss unless rows × max(width, 1) elements of `element_size` bytes
   // fit in the file (unfiltered data must).
   absl::Status CheckFits(const std::string& name, std::size_t rows, std::size_t width,
@@ -195,14 +331,11 @@ class File {
   absl::Status CreateDataset(const std::string& name, std::size_t rows, std::size_t width,
                              std::size_t row_bytes, hid_t file_type, Handle* dataset);
   // Opens `name` and checks its shape against rows × width (0: 1-D).
-  absl::Status OpenDataset(const std::string& name, std::size_t rows, std::size_t width,
-                           Handle* dataset) const;
-  absl::Status WriteAttribute(const char* name, hid_t file_type, hid_t memory_type,
-                              const void* value);
+  absl::Status OpenShaped(const std::string& name, std::size_t rows, std::size_t width,
+                          Handle* dataset) const;
   // "dataset /particles/sx of FILE" and the like, for messages.
   std::string Where(absl::string_view what, absl::string_view name) const;
 
-  Handle handle_;
   std::string path_;
 };
 

@@ -58,11 +58,17 @@ absl::StatusOr<std::vector<TemplateRecord>> ReadTemplateRecords(const h5::File& 
                                                                 const std::string& group,
                                                                 std::size_t n);
 
+// Removes the temporaries PATH.tmp-PID next to `path` that writers killed
+// mid-write (kill -9, power loss) left behind: those whose PID names no
+// live process. Others (a writer in another live process) are left alone.
+void RemoveStaleTemporaries(const std::string& path);
+
 // Builds a store file under a temporary name next to `path` with the root
 // attributes format_version, kind, created_by, created_at, the integer
 // attributes `counts` (e.g. {"num_records", n}) and engine, then whatever
 // `body` writes; renames it over `path` only when complete (see FORMAT.md,
-// "Atomic write"). The caller holds StoreMutex().
+// "Atomic write"); first removes stale temporaries of `path`. The caller
+// holds StoreMutex().
 absl::Status WriteAtomically(const std::string& path, const char* kind,
                              std::span<const std::pair<const char*, std::int64_t>> counts,
                              const FileInfo& info,

@@ -33,7 +33,6 @@ namespace rvehub::store {
 namespace {
 
 namespace fs = std::filesystem;
-using h5::Handle;
 using h5::Span;
 
 constexpr char kFramesGroup[] = "/frames";
@@ -46,216 +45,20 @@ constexpr char kPosition[] = "position";
 constexpr int kLockAttempts = 40;
 constexpr std::chrono::milliseconds kLockRetryDelay(250);  // 40 × 0.25 s = 10 s
 
-// ----------------------------------------------------------------------------
-// HDF5 pieces the read-only h5::File does not offer: opening for appending,
-// groups with ordered links, attributes on groups and datasets, deletion.
+// A reader that keeps the HDF5 file open (h5py, HDFView) holds HDF5's
+// advisory lock and makes the writer's open fail; readers that open per
+// read (ParaView) let go within moments, so the writer retries for a while.
+constexpr h5::LockRetry kLockRetry{40, std::chrono::milliseconds(250)};  // 10 s
 
-// File access list: HDF5's advisory lock as in the rest of the store, and
-// format bounds V18..V110, which give superblock version 2 (checksummed)
-// rather than 3: version 3 carries an "open for writing" flag that a killed
-// writer leaves set, after which HDF5 refuses to open the file (even
-// read-only) until `h5clear -s` is run on it.
-Handle ResultsFileAccess() {
-  Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
-  if (!fapl.valid() || H5Pset_file_locking(fapl.id(), 1, 1) < 0 ||
-      H5Pset_libver_bounds(fapl.id(), H5F_LIBVER_V18, H5F_LIBVER_V110) < 0) {
-    return Handle();
-  }
-  return fapl;
-}
-
-bool IsLockFailure(const std::string& stack) {
-  return absl::StrContains(absl::AsciiStrToLower(stack), "unable to lock file");
-}
-
-// Creates (truncating) or opens for appending, retrying while another
-// process holds the file's lock.
-absl::Status OpenForWriting(const std::string& path, bool create, Handle* file) {
-  Handle fapl = ResultsFileAccess();
-  if (!fapl.valid()) return h5::Error(absl::StatusCode::kInternal, "creating a file access list");
-  for (int attempt = 1;; ++attempt) {
-    *file = Handle(create ? H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.id())
-                          : H5Fopen(path.c_str(), H5F_ACC_RDWR, fapl.id()),
-                   H5Fclose);
-    if (file->valid()) return absl::OkStatus();
-    const h5::ErrorInfo info = h5::TakeErrorInfo();
-    if (!IsLockFailure(info.text)) {
-      return absl::Status(create ? absl::StatusCode::kInternal : absl::StatusCode::kDataLoss,
-                          absl::StrCat("cannot ", create ? "create " : "open ", path,
-                                       create ? "" : " for appending", ": ", info.text));
-    }
-    if (attempt == kLockAttempts) {
-      return absl::UnavailableError(absl::StrCat(
-          path, " stays locked by another process (a reader keeping it open, e.g. h5py or ",
-          "HDFView, or another run writing it): ", info.text));
-    }
-    std::this_thread::sleep_for(kLockRetryDelay);
-  }
-}
-
-// Closes, reporting errors (a frame is on disk only after this).
-absl::Status CloseFile(Handle& file, const std::string& path) {
-  if (H5Fflush(file.id(), H5F_SCOPE_LOCAL) < 0 || !file.Close()) {
-    return h5::Error(absl::StatusCode::kInternal, absl::StrCat("cannot close ", path));
-  }
-  return absl::OkStatus();
-}
-
-// A group whose links are listed in creation order (fields keep their
-// order; frames are listed as appended).
-absl::Status CreateGroup(hid_t file, const std::string& name, const std::string& path) {
-  Handle gcpl(H5Pcreate(H5P_GROUP_CREATE), H5Pclose);
-  if (!gcpl.valid() ||
-      H5Pset_link_creation_order(gcpl.id(), H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED) < 0) {
-    return h5::Error(absl::StatusCode::kInternal, "creating a group creation list");
-  }
-  Handle group(H5Gcreate2(file, name.c_str(), H5P_DEFAULT, gcpl.id(), H5P_DEFAULT), H5Gclose);
-  if (!group.valid() || !group.Close()) {
-    return h5::Error(absl::StatusCode::kInternal,
-                     absl::StrCat("cannot create group ", name, " of ", path));
-  }
-  return absl::OkStatus();
-}
-
-// Writes a scalar attribute of `object`, replacing one of that name.
-absl::Status WriteAttribute(hid_t object, const char* name, hid_t file_type, hid_t memory_type,
-                            const void* value, const std::string& where) {
-  const htri_t exists = H5Aexists(object, name);
-  Handle space(H5Screate(H5S_SCALAR), H5Sclose);
-  if (exists < 0 || (exists > 0 && H5Adelete(object, name) < 0) || !space.valid()) {
-    return h5::Error(absl::StatusCode::kInternal,
-                     absl::StrCat("cannot write attribute ", name, " of ", where));
-  }
-  Handle attribute(H5Acreate2(object, name, file_type, space.id(), H5P_DEFAULT, H5P_DEFAULT),
-                   H5Aclose);
-  if (!attribute.valid() || H5Awrite(attribute.id(), memory_type, value) < 0 ||
-      !attribute.Close()) {
-    return h5::Error(absl::StatusCode::kInternal,
-                     absl::StrCat("cannot write attribute ", name, " of ", where));
-  }
-  return absl::OkStatus();
-}
-
+// A required attribute: absent is DataLoss here (the writer always writes it).
 template <typename T>
-absl::Status WriteAttribute(hid_t object, const char* name, T value, const std::string& where) {
-  return WriteAttribute(object, name, h5::TypeOf<T>::File(), h5::TypeOf<T>::Memory(), &value,
-                        where);
-}
-
-// Fixed-length, NUL-padded UTF-8, as h5::File writes them.
-absl::Status WriteStringAttribute(hid_t object, const char* name, const std::string& value,
-                                  const std::string& where) {
-  const std::string buffer = value.empty() ? std::string(1, '\0') : value;
-  Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
-  if (!type.valid() || H5Tset_size(type.id(), buffer.size()) < 0 ||
-      H5Tset_strpad(type.id(), H5T_STR_NULLPAD) < 0 || H5Tset_cset(type.id(), H5T_CSET_UTF8) < 0) {
-    return h5::Error(absl::StatusCode::kInternal, "creating a string type");
+absl::Status ReadRequired(const h5::Object& object, const char* name, T* value) {
+  absl::StatusOr<T> read = object.ReadAttribute<T>(name);
+  if (absl::IsNotFound(read.status())) {
+    return absl::DataLossError(absl::StrCat(object.where(), " has no attribute '", name, "'"));
   }
-  return WriteAttribute(object, name, type.id(), type.id(), buffer.data(), where);
-}
-
-// A [rows] (width 0) or [rows × width] dataset, chunked and
-// fletcher32-checksummed like every store dataset (FORMAT.md).
-template <typename T>
-absl::Status WriteDataset(hid_t file, const std::string& name, std::span<const T> data,
-                          std::size_t width, const std::string& path, Handle* dataset) {
-  const std::string where = absl::StrCat("dataset ", name, " of ", path);
-  const std::size_t per_row = width == 0 ? 1 : width;
-  const std::size_t rows = data.size() / per_row;
-  Handle space, dcpl;
-  if (!h5::ChunkedLayout(rows, width, per_row * sizeof(T), &space, &dcpl)) {
-    return h5::Error(absl::StatusCode::kInternal, absl::StrCat("cannot set up ", where));
-  }
-  *dataset = Handle(H5Dcreate2(file, name.c_str(), h5::TypeOf<T>::File(), space.id(), H5P_DEFAULT,
-                               dcpl.id(), H5P_DEFAULT),
-                    H5Dclose);
-  if (!dataset->valid() || (rows > 0 && H5Dwrite(dataset->id(), h5::TypeOf<T>::Memory(), H5S_ALL,
-                                                 H5S_ALL, H5P_DEFAULT, data.data()) < 0)) {
-    return h5::Error(absl::StatusCode::kInternal, absl::StrCat("cannot write ", where));
-  }
-  return absl::OkStatus();
-}
-
-// Attribute `name` of `object` (described by `where`): one value of exactly
-// the type T is written with; anything else is DataLoss.
-template <typename T>
-absl::Status ReadAttribute(hid_t object, const char* name, const std::string& where, T* value) {
-  const htri_t exists = H5Aexists(object, name);
-  if (exists < 0) return h5::Error(absl::StatusCode::kDataLoss, absl::StrCat("reading ", where));
-  if (exists == 0) {
-    return absl::DataLossError(absl::StrCat(where, " has no attribute '", name, "'"));
-  }
-  Handle attribute(H5Aopen(object, name, H5P_DEFAULT), H5Aclose);
-  Handle space(attribute.valid() ? H5Aget_space(attribute.id()) : -1, H5Sclose);
-  Handle type(attribute.valid() ? H5Aget_type(attribute.id()) : -1, H5Tclose);
-  if (!space.valid() || !type.valid() || H5Sget_simple_extent_npoints(space.id()) != 1 ||
-      H5Tequal(type.id(), h5::TypeOf<T>::File()) <= 0) {
-    H5Eclear2(H5E_DEFAULT);
-    return absl::DataLossError(
-        absl::StrCat("attribute '", name, "' of ", where, " is not a single value of its type"));
-  }
-  if (H5Aread(attribute.id(), h5::TypeOf<T>::Memory(), value) < 0) {
-    return h5::Error(absl::StatusCode::kDataLoss,
-                     absl::StrCat("cannot read attribute '", name, "' of ", where));
-  }
-  return absl::OkStatus();
-}
-
-// The names of the links in `group`, in creation order where the group
-// tracks it (every group this code creates), else by name.
-absl::Status ListLinks(hid_t file, const std::string& group, const std::string& path,
-                       std::vector<std::string>* names) {
-  const std::string where = absl::StrCat("group ", group, " of ", path);
-  const htri_t exists = H5Lexists(file, group.c_str(), H5P_DEFAULT);
-  if (exists <= 0) {
-    H5Eclear2(H5E_DEFAULT);
-    return absl::DataLossError(absl::StrCat("missing ", where, ": file is corrupt"));
-  }
-  Handle g(H5Gopen2(file, group.c_str(), H5P_DEFAULT), H5Gclose);
-  H5G_info_t info;
-  if (!g.valid() || H5Gget_info(g.id(), &info) < 0) {
-    return h5::Error(absl::StatusCode::kDataLoss, absl::StrCat("cannot open ", where));
-  }
-  for (H5_index_t index : {H5_INDEX_CRT_ORDER, H5_INDEX_NAME}) {
-    names->clear();
-    for (hsize_t k = 0; k < info.nlinks; ++k) {
-      const ssize_t size =
-          H5Lget_name_by_idx(g.id(), ".", index, H5_ITER_INC, k, nullptr, 0, H5P_DEFAULT);
-      if (size < 0) break;
-      std::string name(static_cast<std::size_t>(size) + 1, '\0');
-      if (H5Lget_name_by_idx(g.id(), ".", index, H5_ITER_INC, k, name.data(), name.size(),
-                             H5P_DEFAULT) < 0) {
-        break;
-      }
-      name.resize(static_cast<std::size_t>(size));
-      names->push_back(std::move(name));
-    }
-    if (names->size() == info.nlinks) {
-      H5Eclear2(H5E_DEFAULT);  // a failed creation-order attempt
-      return absl::OkStatus();
-    }
-  }
-  return h5::Error(absl::StatusCode::kDataLoss, absl::StrCat("cannot list ", where));
-}
-
-// DataLoss unless dataset `name` has shape [rows] (width 0) or [rows × width].
-absl::Status CheckShape(hid_t file, const std::string& name, std::size_t rows, std::size_t width,
-                        const std::string& path) {
-  const std::string where = absl::StrCat("dataset ", name, " of ", path);
-  Handle dataset(H5Dopen2(file, name.c_str(), H5P_DEFAULT), H5Dclose);
-  Handle space(dataset.valid() ? H5Dget_space(dataset.id()) : -1, H5Sclose);
-  if (!space.valid())
-    return h5::Error(absl::StatusCode::kDataLoss, absl::StrCat("opening ", where));
-  hsize_t dims[2] = {0, 0};
-  const int rank = H5Sget_simple_extent_ndims(space.id());
-  if (rank != (width == 0 ? 1 : 2) ||
-      H5Sget_simple_extent_dims(space.id(), dims, nullptr) != rank || dims[0] != rows ||
-      (rank == 2 && dims[1] != width)) {
-    H5Eclear2(H5E_DEFAULT);
-    return absl::DataLossError(absl::StrCat(where, " does not have shape [", rows,
-                                            width == 0 ? "" : absl::StrCat(", ", width),
-                                            "]: file is corrupt"));
-  }
+  if (!read.ok()) return read.status();
+  *value = *read;
   return absl::OkStatus();
 }
 
@@ -319,60 +122,57 @@ absl::Status CheckFrame(const ResultFrame& frame, const std::int64_t* last_step,
 
 // Writes frame (already checked) into the open file; the group's
 // attributes come last, so a frame with a `step` attribute is complete.
-absl::Status WriteFrame(hid_t file, const ResultFrame& frame, const std::string& path) {
+absl::Status WriteFrame(h5::File& file, const ResultFrame& frame) {
   const std::size_t n = frame.position.size() / 2;
   const std::string group = FramePath(frame.step);
-  RETURN_IF_ERROR(CreateGroup(file, group, path));
+  absl::StatusOr<h5::Group> g = file.CreateGroup(group);
+  if (!g.ok()) return g.status();
   std::vector<double> values;
   values.reserve(3 * n);
   for (std::size_t i = 0; i < n; ++i) {
     values.insert(values.end(), {frame.position[2 * i], frame.position[2 * i + 1], 0.0});
   }
-  Handle dataset;
-  RETURN_IF_ERROR(
-      WriteDataset(file, absl::StrCat(group, "/", kPosition), Span(values), 3, path, &dataset));
+  RETURN_IF_ERROR(file.Write(absl::StrCat(group, "/", kPosition), Span(values), 3));
   for (const ResultField& f : frame.fields) {
     const std::string name = absl::StrCat(group, "/", f.name);
+    absl::StatusOr<h5::Dataset> dataset;
     if (f.components == 2) {
       values.clear();
       for (std::size_t i = 0; i < n; ++i) {
         values.insert(values.end(), {f.values[2 * i], f.values[2 * i + 1], 0.0});
       }
-      RETURN_IF_ERROR(WriteDataset(file, name, Span(values), 3, path, &dataset));
+      dataset = file.WriteDataset(name, Span(values), 3);
     } else {
-      RETURN_IF_ERROR(
-          WriteDataset(file, name, Span(f.values), StoredWidth(f.components), path, &dataset));
+      dataset = file.WriteDataset(name, Span(f.values), StoredWidth(f.components));
     }
-    RETURN_IF_ERROR(WriteAttribute<std::int32_t>(dataset.id(), "components", f.components,
-                                                 absl::StrCat("dataset ", name, " of ", path)));
+    if (!dataset.ok()) return dataset.status();
+    RETURN_IF_ERROR(dataset->WriteAttribute<std::int32_t>("components", f.components));
   }
-  dataset = Handle();
   // Point ids 0 … n-1, the Polyvertex connectivity of every frame of n
   // points (ParaView builds no vertex cells without it).
   const std::string topology = TopologyPath(n);
-  const htri_t exists = H5Lexists(file, topology.c_str(), H5P_DEFAULT);
-  if (exists < 0) return h5::Error(absl::StatusCode::kInternal, "looking up " + topology);
-  if (exists == 0) {
+  absl::StatusOr<bool> exists = file.Exists(topology);
+  if (!exists.ok()) return exists.status();
+  if (!*exists) {
     std::vector<std::int64_t> ids(n);
     for (std::size_t i = 0; i < n; ++i) ids[i] = static_cast<std::int64_t>(i);
-    RETURN_IF_ERROR(WriteDataset(file, topology, Span(ids), 0, path, &dataset));
+    RETURN_IF_ERROR(file.Write(topology, Span(ids), 0));
   }
-  Handle g(H5Gopen2(file, group.c_str(), H5P_DEFAULT), H5Gclose);
-  const std::string where = absl::StrCat("group ", group, " of ", path);
-  if (!g.valid()) return h5::Error(absl::StatusCode::kInternal, "opening " + where);
-  RETURN_IF_ERROR(
-      WriteAttribute<std::int64_t>(g.id(), "num_points", static_cast<std::int64_t>(n), where));
-  RETURN_IF_ERROR(WriteAttribute<double>(g.id(), "time", frame.time, where));
-  return WriteAttribute<std::int64_t>(g.id(), "step", frame.step, where);
+  RETURN_IF_ERROR(g->WriteAttribute<std::int64_t>("num_points", static_cast<std::int64_t>(n)));
+  RETURN_IF_ERROR(g->WriteAttribute<double>("time", frame.time));
+  return g->WriteAttribute<std::int64_t>("step", frame.step);
 }
 
 // The frames of a results file, by step: group name and step.
 absl::StatusOr<std::vector<std::pair<std::string, std::int64_t>>> ListFrames(
-    hid_t file, const std::string& path) {
-  std::vector<std::string> names;
-  RETURN_IF_ERROR(ListLinks(file, kFramesGroup, path, &names));
+    const h5::File& file) {
+  const std::string& path = file.path();
+  absl::StatusOr<h5::Group> group = file.OpenGroup(kFramesGroup);
+  if (!group.ok()) return group.status();
+  absl::StatusOr<std::vector<std::string>> names = group->LinkNames();
+  if (!names.ok()) return names.status();
   std::vector<std::pair<std::string, std::int64_t>> frames;
-  for (std::string& name : names) {
+  for (std::string& name : *names) {
     std::int64_t step = 0;
     if (!absl::SimpleAtoi(name, &step) || absl::StrCat(step) != name) {
       return absl::DataLossError(absl::StrCat("unexpected object ", kFramesGroup, "/", name, " in ",
@@ -393,16 +193,18 @@ absl::Status ReadFrame(const h5::File& file, std::int64_t step, bool data, Resul
   const std::string& path = file.path();
   const std::string group = FramePath(step);
   const std::string where = absl::StrCat("frame ", group, " of ", path);
-  Handle g(H5Gopen2(file.id(), group.c_str(), H5P_DEFAULT), H5Gclose);
-  if (!g.valid()) return h5::Error(absl::StatusCode::kDataLoss, "opening " + where);
+  absl::StatusOr<h5::Group> g = file.OpenGroup(group);
+  if (!g.ok()) return g.status();
   // `step` is written last: without it the writer was interrupted.
-  if (H5Aexists(g.id(), "step") == 0) {
+  absl::StatusOr<bool> complete = g->HasAttribute("step");
+  if (!complete.ok()) return complete.status();
+  if (!*complete) {
     return absl::DataLossError(absl::StrCat(where, " is incomplete (its writer was interrupted)"));
   }
   std::int64_t stored_step = 0, n = 0;
-  RETURN_IF_ERROR(ReadAttribute(g.id(), "step", where, &stored_step));
-  RETURN_IF_ERROR(ReadAttribute(g.id(), "time", where, &frame->time));
-  RETURN_IF_ERROR(ReadAttribute(g.id(), "num_points", where, &n));
+  RETURN_IF_ERROR(ReadRequired(*g, "step", &stored_step));
+  RETURN_IF_ERROR(ReadRequired(*g, "time", &frame->time));
+  RETURN_IF_ERROR(ReadRequired(*g, "num_points", &n));
   absl::StatusOr<std::uint64_t> size = file.Size();
   if (!size.ok()) return size.status();
   if (stored_step != step || n < 0 || static_cast<std::uint64_t>(n) > *size) {
@@ -411,8 +213,9 @@ absl::Status ReadFrame(const h5::File& file, std::int64_t step, bool data, Resul
   }
   frame->step = step;
   *num_points = static_cast<std::size_t>(n);
-  std::vector<std::string> names;
-  RETURN_IF_ERROR(ListLinks(file.id(), group, path, &names));
+  absl::StatusOr<std::vector<std::string>> listed = g->LinkNames();
+  if (!listed.ok()) return listed.status();
+  const std::vector<std::string>& names = *listed;
   if (std::find(names.begin(), names.end(), kPosition) == names.end()) {
     return absl::DataLossError(
         absl::StrCat("missing dataset ", group, "/", kPosition, " of ", path));
@@ -423,7 +226,7 @@ absl::Status ReadFrame(const h5::File& file, std::int64_t step, bool data, Resul
     const std::string dataset = absl::StrCat(group, "/", name);
     if (name == kPosition) {
       if (!data) {
-        RETURN_IF_ERROR(CheckShape(file.id(), dataset, *num_points, 3, path));
+        RETURN_IF_ERROR(file.CheckShape(dataset, *num_points, 3));
         continue;
       }
       RETURN_IF_ERROR(file.Read(dataset, *num_points, 3, &values));
@@ -436,19 +239,18 @@ absl::Status ReadFrame(const h5::File& file, std::int64_t step, bool data, Resul
     }
     ResultField& f = frame->fields.emplace_back();
     f.name = name;
-    const std::string dataset_where = absl::StrCat("dataset ", dataset, " of ", path);
-    Handle d(H5Dopen2(file.id(), dataset.c_str(), H5P_DEFAULT), H5Dclose);
-    if (!d.valid()) return h5::Error(absl::StatusCode::kDataLoss, "opening " + dataset_where);
+    absl::StatusOr<h5::Dataset> d = file.OpenDataset(dataset);
+    if (!d.ok()) return d.status();
     std::int32_t components = 0;
-    RETURN_IF_ERROR(ReadAttribute(d.id(), "components", dataset_where, &components));
+    RETURN_IF_ERROR(ReadRequired(*d, "components", &components));
     if (!ValidComponents(components)) {
       return absl::DataLossError(
-          absl::StrCat(dataset_where, " has components ", components, ": file is corrupt"));
+          absl::StrCat(d->where(), " has components ", components, ": file is corrupt"));
     }
     f.components = components;
     const std::size_t width = StoredWidth(components);
     if (!data) {
-      RETURN_IF_ERROR(CheckShape(file.id(), dataset, *num_points, width, path));
+      RETURN_IF_ERROR(file.CheckShape(dataset, *num_points, width));
     } else if (components == 2) {
       RETURN_IF_ERROR(file.Read(dataset, *num_points, width, &values));
       f.values.resize(2 * *num_points);
@@ -540,18 +342,17 @@ absl::StatusOr<std::unique_ptr<ResultsWriter>> ResultsWriter::Create(
   ::close(fd);
   {
     std::lock_guard<std::mutex> lock(internal::StoreMutex());
-    h5::SilenceErrorPrinting();
-    Handle file;
-    RETURN_IF_ERROR(OpenForWriting(h5_path, /*create=*/true, &file));
-    const std::string where = absl::StrCat("file ", h5_path);
-    RETURN_IF_ERROR(
-        WriteAttribute<std::int32_t>(file.id(), "format_version", kFormatVersion, where));
-    RETURN_IF_ERROR(WriteStringAttribute(file.id(), "kind", internal::kKindResults, where));
-    RETURN_IF_ERROR(WriteStringAttribute(file.id(), "created_by", created_by, where));
-    RETURN_IF_ERROR(WriteStringAttribute(file.id(), "created_at", internal::UtcNow(), where));
-    RETURN_IF_ERROR(CreateGroup(file.id(), kFramesGroup, h5_path));
-    RETURN_IF_ERROR(CreateGroup(file.id(), kTopologyGroup, h5_path));
-    RETURN_IF_ERROR(CloseFile(file, h5_path));
+    absl::StatusOr<h5::File> file = h5::File::Create(h5_path, h5::Format::kAppendable, kLockRetry);
+    if (!file.ok()) return file.status();
+    RETURN_IF_ERROR(file->WriteAttribute<std::int32_t>("format_version", kFormatVersion));
+    RETURN_IF_ERROR(file->WriteStringAttribute("kind", internal::kKindResults));
+    RETURN_IF_ERROR(file->WriteStringAttribute("created_by", created_by));
+    RETURN_IF_ERROR(file->WriteStringAttribute("created_at", internal::UtcNow()));
+    for (const char* group : {kFramesGroup, kTopologyGroup}) {
+      absl::StatusOr<h5::Group> g = file->CreateGroup(group);
+      if (!g.ok()) return g.status();
+    }
+    RETURN_IF_ERROR(file->Close());
     internal::SyncPath(h5_path, O_RDONLY);
   }
   std::unique_ptr<ResultsWriter> writer(
@@ -580,7 +381,7 @@ absl::StatusOr<std::unique_ptr<ResultsWriter>> ResultsWriter::Open(const std::st
       absl::StatusOr<h5::File> file = internal::OpenStore(h5_path, internal::kKindResults, nullptr);
       if (!file.ok()) return file.status();
       absl::StatusOr<std::vector<std::pair<std::string, std::int64_t>>> frames =
-          ListFrames(file->id(), h5_path);
+          ListFrames(*file);
       if (!frames.ok()) return frames.status();
       for (const auto& [name, step] : *frames) {
         if (step > keep_through_step) {
@@ -599,17 +400,11 @@ absl::StatusOr<std::unique_ptr<ResultsWriter>> ResultsWriter::Open(const std::st
       // read-write that the process has open read-only.
       RETURN_IF_ERROR(file->Close());
     }
-    Handle file;
-    RETURN_IF_ERROR(OpenForWriting(h5_path, /*create=*/false, &file));
-    for (std::int64_t step : dropped) {
-      if (H5Ldelete(file.id(), FramePath(step).c_str(), H5P_DEFAULT) < 0) {
-        return h5::Error(absl::StatusCode::kInternal,
-                         absl::StrCat("cannot delete frame ", FramePath(step), " of ", h5_path));
-      }
-    }
-    RETURN_IF_ERROR(
-        WriteStringAttribute(file.id(), "resumed_by", created_by, absl::StrCat("file ", h5_path)));
-    RETURN_IF_ERROR(CloseFile(file, h5_path));
+    absl::StatusOr<h5::File> file = h5::File::OpenForAppend(h5_path, kLockRetry);
+    if (!file.ok()) return file.status();
+    for (std::int64_t step : dropped) RETURN_IF_ERROR(file->Delete(FramePath(step)));
+    RETURN_IF_ERROR(file->WriteStringAttribute("resumed_by", created_by));
+    RETURN_IF_ERROR(file->Close());
     internal::SyncPath(h5_path, O_RDONLY);
   }
   RETURN_IF_ERROR(writer->WriteXdmf());
@@ -624,17 +419,15 @@ absl::Status ResultsWriter::Append(const ResultFrame& frame) {
   RETURN_IF_ERROR(CheckFrame(frame, frames_.empty() ? nullptr : &frames_.back().step, h5_path_));
   {
     std::lock_guard<std::mutex> lock(internal::StoreMutex());
-    h5::SilenceErrorPrinting();
-    Handle file;
-    RETURN_IF_ERROR(OpenForWriting(h5_path_, /*create=*/false, &file));
-    if (absl::Status s = WriteFrame(file.id(), frame, h5_path_); !s.ok()) {
+    absl::StatusOr<h5::File> file = h5::File::OpenForAppend(h5_path_, kLockRetry);
+    if (!file.ok()) return file.status();
+    if (absl::Status s = WriteFrame(*file, frame); !s.ok()) {
       // Best effort: no partial frame left behind (a later Append of the
       // same step would collide with it).
-      H5Ldelete(file.id(), FramePath(frame.step).c_str(), H5P_DEFAULT);
-      H5Eclear2(H5E_DEFAULT);
+      file->Delete(FramePath(frame.step)).IgnoreError();
       return absl::Status(s.code(), absl::StrCat("appending step ", frame.step, ": ", s.message()));
     }
-    RETURN_IF_ERROR(CloseFile(file, h5_path_));
+    RETURN_IF_ERROR(file->Close());
     // Data before name: the XDMF file never lists a frame not on disk.
     internal::SyncPath(h5_path_, O_RDONLY);
   }
@@ -723,7 +516,7 @@ absl::StatusOr<std::vector<ResultFrame>> ReadResults(const std::string& h5_path)
   absl::StatusOr<h5::File> file = internal::OpenStore(h5_path, internal::kKindResults, nullptr);
   if (!file.ok()) return file.status();
   absl::StatusOr<std::vector<std::pair<std::string, std::int64_t>>> frames =
-      ListFrames(file->id(), h5_path);
+      ListFrames(*file);
   if (!frames.ok()) return frames.status();
   std::vector<ResultFrame> out(frames->size());
   for (std::size_t k = 0; k < out.size(); ++k) {

@@ -5,6 +5,7 @@
 // The test opens the written files with the HDF5 C API to find the bytes to
 // corrupt (chunk and object-header addresses) and to forge malformed files.
 #include <hdf5.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -573,6 +574,28 @@ TEST_F(StoreTest, FailedWriteLeavesNoTemporaryAndTheOldFileUntouched) {
   ASSERT_TRUE(read.ok()) << read.status();
   ExpectIdenticalRecords(one, *read);
   EXPECT_TRUE(FilesStartingWith(dir_, "existing.h5.tmp").empty());
+}
+
+TEST_F(StoreTest, NextWriteRemovesTemporariesOfKilledWriters) {
+  // A pid that names no process: a child that has exited and been reaped.
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) ::_exit(0);
+  ASSERT_EQ(::waitpid(child, nullptr, 0), child);
+  const std::string path = Path("rves.h5");
+  const std::string stale = absl::StrCat(path, ".tmp-", child);
+  // A live writer in another process (our parent, the test runner).
+  const std::string live = absl::StrCat(path, ".tmp-", ::getppid());
+  const std::string other = Path("other.h5.tmp-") + std::to_string(child);
+  for (const std::string& name : {stale, live, other}) WriteBytes(name, std::string(4096, 'x'));
+
+  ASSERT_TRUE(WriteRves(path, SomeRecords(), info_).ok());
+  EXPECT_FALSE(fs::exists(stale)) << "a killed writer's temporary survived the next write";
+  EXPECT_TRUE(fs::exists(live)) << "a live writer's temporary was removed";
+  EXPECT_TRUE(fs::exists(other)) << "another file's temporary was removed";
+  absl::StatusOr<std::vector<RveRecord>> read = ReadRves(path);
+  ASSERT_TRUE(read.ok()) << read.status();
+  ExpectIdenticalRecords(SomeRecords(), *read);
 }
 
 }  // namespace
