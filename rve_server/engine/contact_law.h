@@ -35,6 +35,51 @@ inline HertzResponse HertzMindlin(double young, double poisson, double r1, doubl
   return {4.0 / 3.0 * e_star * a * overlap, 2.0 * e_star * a, 8.0 * g_star * a};
 }
 
+// The normal law of either contact model, with what the rest of a contact
+// needs from it: fn (N), the tangent kn and the tangential kt (N/m), and the
+// stored elastic energy ∫ fn dδ (J).
+struct NormalResponse {
+  double fn;
+  double kn;
+  double kt;
+  double elastic;
+};
+
+// What the normal law reads of the material, taken once per pass.
+struct NormalLawParams {
+  double young;     // Pa, E
+  double poisson;   // [-], ν (Hertz–Mindlin)
+  double kt_ratio;  // [-], kt/kn (linear)
+};
+inline NormalLawParams NormalParams(const Material& m) {
+  return {m.young_modulus, m.poisson_ratio, m.stiffness_ratio};
+}
+
+// The one dispatcher of the normal law: Hertz–Mindlin (kHertz) or linear
+// springs with kn = `kn_linear` = LinearNormalStiffness (the step kernel
+// caches it per pair; unused for Hertz). Overlap δ in m, radii in m.
+template <bool kHertz>
+inline NormalResponse NormalLaw(const NormalLawParams& p, double r1, double r2, double overlap,
+                                double kn_linear) {
+  if constexpr (kHertz) {
+    const HertzResponse hz = HertzMindlin(p.young, p.poisson, r1, r2, overlap);
+    return {hz.fn, hz.kn, hz.kt, 0.4 * hz.fn * overlap};  // ∫ fn dδ = (2/5) fn δ
+  } else {
+    const double fn = kn_linear * overlap;
+    return {fn, kn_linear, p.kt_ratio * kn_linear, 0.5 * fn * overlap};
+  }
+}
+
+// The same for the material's model chosen at run time (code outside the
+// step kernel, which instantiates the model it runs).
+inline NormalResponse NormalLaw(const Material& m, double r1, double r2, double overlap) {
+  if (m.model == ContactModel::kHertzMindlin) {
+    return NormalLaw<true>(NormalParams(m), r1, r2, overlap, 0.0);
+  }
+  return NormalLaw<false>(NormalParams(m), r1, r2, overlap,
+                          LinearNormalStiffness(m.young_modulus, r1, r2));
+}
+
 // Coulomb limit |ft| ≤ μ·fn (N); returns the capped tangential force.
 inline double CoulombCap(double ft, double fn, double friction) {
   const double limit = friction * std::max(fn, 0.0);

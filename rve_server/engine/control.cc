@@ -1,0 +1,130 @@
+// Driving the DEM: an increment of deformation at a bounded inertial
+// number (Apply), stress- or strain-controlled runs (Run) and relaxation.
+#include "rve_server/engine/rve.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "rve_server/engine/rve_internal.h"
+
+namespace rvehub::dem {
+
+using internal::CellHeights;
+using internal::Rotation;
+using internal::Sign;
+
+double Rve::QuasiStaticStrainRate(double inertial_number, double pressure) const {
+  const double p = std::max(pressure, p_.controls.pressure_floor);
+  const double rho = p_.material.density * p_.controls.mass_scale;
+  return inertial_number / (2.0 * radius_mean_ * std::sqrt(rho / p));  // I = γ̇ d sqrt(ρ/p)
+}
+
+absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyOptions& options) {
+  if (absl::Status valid = ValidateDeltaF(delta_f); !valid.ok()) return valid;
+  const Eigen::Matrix2d f = delta_f.topLeftCorner<2, 2>();
+  // Polar split ΔF = V·R: rotate rigidly (exact, objective), then stretch.
+  const double angle = std::atan2(f(1, 0) - f(0, 1), f(0, 0) + f(1, 1));
+  const Eigen::Matrix2d v = f * Rotation(angle).transpose();
+  const double stretch = (v - Eigen::Matrix2d::Identity()).norm();
+  if (std::abs(angle) > p_.controls.max_rotation) {
+    return absl::InvalidArgumentError(absl::StrCat("rotation of ΔF ", angle,
+                                                   " rad exceeds the per-call limit ",
+                                                   p_.controls.max_rotation, " rad"));
+  }
+  if (stretch > p_.controls.max_stretch) {
+    return absl::InvalidArgumentError(absl::StrCat("stretch |V − I| = ", stretch,
+                                                   " of ΔF exceeds the per-call limit ",
+                                                   p_.controls.max_stretch));
+  }
+  if (CellHeights(f * p_.cell).minCoeff() <= 2.0 * Cutoff()) {
+    return absl::FailedPreconditionError(
+        "ΔF would make the periodic cell thinner than twice the pair cutoff");
+  }
+
+  // p before the rotation (which leaves it unchanged): after an increment
+  // it is known from that increment's last step.
+  const double pressure = MeanPressure();
+  ApplyRigidRotation(angle);
+  Eigen::Matrix2d start = p_.cell;
+  const Eigen::Matrix2d identity = Eigen::Matrix2d::Identity();
+  const double inertial_number =
+      options.max_inertial_number > 0
+          ? std::min(options.max_inertial_number, p_.controls.max_inertial_number)
+          : p_.controls.max_inertial_number;
+  const double rate = QuasiStaticStrainRate(inertial_number, pressure);
+  const double steps_needed = std::ceil(stretch / (rate * dt_));
+  const std::int64_t steps =
+      std::max<std::int64_t>(p_.controls.min_steps, static_cast<std::int64_t>(steps_needed));
+  for (std::int64_t k = 0; k < steps; ++k) {
+    const double tau = static_cast<double>(k + 1) / static_cast<double>(steps);
+    const Eigen::Matrix2d next = (identity + (v - identity) * tau) * start;
+    const Eigen::Matrix2d l = (next - p_.cell) * p_.cell.inverse() / dt_;
+    StepForcesLast(l, next, /*measure=*/k + 1 == steps);  // the last step homogenises
+    // A flip in Step changed the lattice basis: follow it (h' = h·U, U integer).
+    if (p_.cell != next) start = start * (next.inverse() * p_.cell).array().round().matrix();
+  }
+  std::int64_t used = steps;
+  if (options.relax) used += Relax(options.relax_tolerance, options.relax_max_steps).steps;
+  RveState s = Observe(options.want_tangent);
+  s.steps = used;
+  return s;
+}
+
+RveState Rve::Run(CellControl& control, std::int64_t steps) {
+  Eigen::Matrix2d stress = DefinitionStress();
+  Eigen::Vector2d stiffness = Eigen::Vector2d::Zero();
+  const double cap = control.max_strain_rate;
+  // PI servo on the strain rate: Δσ ≈ K·L·Δt, so gain·gap/(K·Δt) closes a
+  // fraction `gain` of the stress gap per step; the integral removes the
+  // steady-state error while the stress keeps being pushed (e.g. dilation).
+  auto servo = [&](const ComponentControl& c, double sigma, double k, double& integral) {
+    if (c.mode == ControlMode::kStrainRate) return c.value;
+    const double gap = c.value - sigma;
+    double p_term = k > 0 ? control.servo_gain * gap / (k * dt_) : Sign(gap) * cap;
+    p_term = std::clamp(p_term, -cap, cap);
+    if (control.servo_integral_steps <= 0) return p_term;
+    integral = std::clamp(integral + p_term / control.servo_integral_steps, -cap, cap);
+    return std::clamp(p_term + integral, -cap, cap);
+  };
+  Eigen::Vector3d& integral = control.servo_integral;
+  // The step measures stress and stiffness only when a servo needs them.
+  const bool servo_on = control.xx.mode == ControlMode::kStress ||
+                        control.yy.mode == ControlMode::kStress ||
+                        control.xy.mode == ControlMode::kStress;
+  for (std::int64_t k = 0; k < steps; ++k) {
+    Eigen::Matrix2d l = Eigen::Matrix2d::Zero();
+    l(0, 0) = servo(control.xx, stress(0, 0), stiffness.x(), integral[0]);
+    l(1, 1) = servo(control.yy, stress(1, 1), stiffness.y(), integral[1]);
+    l(0, 1) =
+        servo(control.xy, 0.5 * (stress(0, 1) + stress(1, 0)), 0.25 * stiffness.sum(), integral[2]);
+    const Eigen::Matrix2d next = p_.cell + dt_ * l * p_.cell;
+    const StepResult r = Step(l, next, servo_on);
+    stress = r.stress;
+    stiffness = r.stiffness;
+  }
+  RveState s = Observe();
+  s.steps = steps;
+  return s;
+}
+
+RveState Rve::Relax(double tolerance, std::int64_t max_steps) {
+  constexpr std::int64_t kCheckEvery = 50;
+  std::int64_t done = 0;
+  RveState s = Observe();
+  while (done < max_steps && !(s.unbalanced_force_ratio < tolerance && s.num_contacts > 0)) {
+    const std::int64_t chunk = std::min(kCheckEvery, max_steps - done);
+    for (std::int64_t k = 0; k < chunk; ++k)
+      Step(Eigen::Matrix2d::Zero(), p_.cell, /*measure=*/false);
+    done += chunk;
+    s = Observe();
+  }
+  s.steps = done;
+  return s;
+}
+
+}  // namespace rvehub::dem

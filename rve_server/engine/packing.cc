@@ -1,0 +1,36 @@
+#include "rve_server/engine/packing.h"
+
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
+#include "rve_server/engine/rve_internal.h"
+
+namespace rvehub::dem {
+
+using internal::kPi;
+
+absl::Status Validate(const Controls& c) {
+  auto check = [](bool ok, absl::string_view field, double v, absl::string_view rule) {
+    return ok && std::isfinite(v)
+               ? absl::OkStatus()
+               : absl::InvalidArgumentError(absl::StrCat(field, " = ", v, " is invalid: ", rule));
+  };
+  for (const absl::Status& s : {
+           check(c.time_step_factor > 0 && c.time_step_factor <= 1, "time_step_factor",
+                 c.time_step_factor, "must lie in (0, 1]"),
+           check(c.max_inertial_number > 0, "max_inertial_number", c.max_inertial_number,
+                 "must be > 0"),
+           check(c.pressure_floor > 0, "pressure_floor", c.pressure_floor, "must be > 0 Pa"),
+           check(c.min_steps >= 0, "min_steps", static_cast<double>(c.min_steps), "must be >= 0"),
+           check(c.max_stretch > 0, "max_stretch", c.max_stretch, "must be > 0"),
+           check(c.max_rotation > 0 && c.max_rotation <= kPi / 2, "max_rotation", c.max_rotation,
+                 "must lie in (0, π/2] rad"),
+           check(c.mass_scale >= 1, "mass_scale", c.mass_scale, "must be >= 1"),
+           check(c.skin > 0 && c.skin <= 2, "skin", c.skin, "must lie in (0, 2] (× r_min)"),
+       }) {
+    if (!s.ok()) return s;
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace rvehub::dem
