@@ -4,7 +4,7 @@
 //   BM_ShearSetDense        engine, undrained simple shear of the SET-dense RVE
 //   BM_FixedCellSetDense    engine at fixed cell (same work as the baseline)
 //   BM_BaselineAllPairs     plain reference DEM: AoS, all pairs every step
-//   BM_BatchApply64         64 RVEs × one small ΔF through dem::ApplyBatch
+//   BM_BatchApply64         64 RVEs × one small ΔF over the server's worker pool
 //   BM_ApplyManyRves        one-step increments on 1 or 4096 RVEs in turn (cache misses)
 //   BM_MemoryPerRve         RSS growth and Rve::MemoryBytes() per 400-disc RVE
 //
@@ -26,15 +26,16 @@
 #include <thread>
 #include <vector>
 
-#include "rve_server/engine/batch.h"
 #include "rve_server/engine/material.h"
 #include "rve_server/engine/packing.h"
 #include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
+#include "rve_server/service/worker_pool.h"
 
 namespace {
 
 namespace dem = rvehub::dem;
+namespace service = rvehub::service;
 
 constexpr std::int64_t kShearSteps = 1000;    // DEM steps per iteration (engine)
 constexpr std::int64_t kBaselineSteps = 100;  // DEM steps per iteration (baseline)
@@ -243,13 +244,12 @@ void BM_BatchApply64(benchmark::State& state) {
   delta_f << 1.0, 1e-4, 0.0, 0.0, 1.0 - 5e-5, 0.0, 0.0, 0.0, 1.0;
   const std::vector<Eigen::Matrix3d> increments(kBatchSize, delta_f);
   std::int64_t steps = 0;
+  service::WorkerPool pool(threads);
+  std::vector<absl::StatusOr<dem::RveState>> results(kBatchSize, absl::UnknownError("not run"));
   for (auto _ : state) {
-    auto results = dem::ApplyBatch(ptrs, increments, {}, threads);
-    if (!results.ok()) {
-      state.SkipWithError(results.status().ToString().c_str());
-      break;
-    }
-    for (const absl::StatusOr<dem::RveState>& r : *results) {
+    pool.ParallelFor(ptrs.size(),
+                     [&](std::size_t k) { results[k] = ptrs[k]->Apply(increments[k], {}); });
+    for (const absl::StatusOr<dem::RveState>& r : results) {
       if (!r.ok()) {
         state.SkipWithError(r.status().ToString().c_str());
         break;

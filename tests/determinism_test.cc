@@ -1,6 +1,6 @@
-// Bit-exact determinism of the DEM engine: repeated runs, thread counts of
-// ApplyBatch (batch.h: "results are bit-identical whatever the thread count")
-// and restart from a Packing (packing.h: "Restoring it gives a bit-identical
+// Bit-exact determinism of the DEM engine: repeated runs, the thread count
+// of the server's worker pool (each RVE on one thread, RVEs sharing no
+// state: results are bit-identical whatever the thread count) and restart from a Packing (packing.h: "Restoring it gives a bit-identical
 // continuation"). Doubles are compared bit for bit, never with tolerances.
 #include <Eigen/Dense>
 #include <cmath>
@@ -13,10 +13,10 @@
 
 #include "absl/status/statusor.h"
 #include "gtest/gtest.h"
-#include "rve_server/engine/batch.h"
 #include "rve_server/engine/material.h"
 #include "rve_server/engine/packing.h"
 #include "rve_server/engine/rve.h"
+#include "rve_server/service/worker_pool.h"
 #include "tests/test_util.h"
 
 namespace rvehub::dem {
@@ -69,7 +69,7 @@ TEST(DeterminismTest, SameStateAndIncrementsGiveIdenticalResults) {
   EXPECT_TRUE(sa.back().has_tangent);
 }
 
-TEST(DeterminismTest, ApplyBatchIsIndependentOfThreadCount) {
+TEST(DeterminismTest, WorkerPoolApplyIsIndependentOfThreadCount) {
   constexpr int kRves = 8;
   constexpr int kRounds = 4;
   std::vector<Rve> one, two;
@@ -88,19 +88,20 @@ TEST(DeterminismTest, ApplyBatchIsIndependentOfThreadCount) {
   for (int k = 0; k < kRves; ++k) df.push_back(ShearIncrement(1.0 + 0.5 * k));
   ApplyOptions options;
   options.want_tangent = true;
+  // The server's worker pool, the one parallel mechanism in production.
+  service::WorkerPool pool_one(1), pool_two(2);
+  const auto apply = [&](service::WorkerPool& pool, std::vector<Rve*>& rves) {
+    std::vector<absl::StatusOr<RveState>> out(rves.size(), absl::UnknownError("not run"));
+    pool.ParallelFor(rves.size(), [&](std::size_t k) { out[k] = rves[k]->Apply(df[k], options); });
+    return out;
+  };
   for (int round = 0; round < kRounds; ++round) {
-    absl::StatusOr<std::vector<absl::StatusOr<RveState>>> r1 =
-        ApplyBatch(std::span<Rve* const>(ptr_one), df, options, /*threads=*/1);
-    absl::StatusOr<std::vector<absl::StatusOr<RveState>>> r2 =
-        ApplyBatch(std::span<Rve* const>(ptr_two), df, options, /*threads=*/2);
-    ASSERT_TRUE(r1.ok()) << r1.status();
-    ASSERT_TRUE(r2.ok()) << r2.status();
-    ASSERT_EQ(r1->size(), static_cast<std::size_t>(kRves));
-    ASSERT_EQ(r2->size(), static_cast<std::size_t>(kRves));
+    const std::vector<absl::StatusOr<RveState>> r1 = apply(pool_one, ptr_one);
+    const std::vector<absl::StatusOr<RveState>> r2 = apply(pool_two, ptr_two);
     for (int k = 0; k < kRves; ++k) {
-      ASSERT_TRUE((*r1)[k].ok()) << (*r1)[k].status();
-      ASSERT_TRUE((*r2)[k].ok()) << (*r2)[k].status();
-      ExpectIdenticalStates(*(*r1)[k], *(*r2)[k],
+      ASSERT_TRUE(r1[k].ok()) << r1[k].status();
+      ASSERT_TRUE(r2[k].ok()) << r2[k].status();
+      ExpectIdenticalStates(*r1[k], *r2[k],
                             "round " + std::to_string(round) + ", RVE " + std::to_string(k));
     }
   }

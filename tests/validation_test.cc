@@ -19,7 +19,6 @@
 #include "absl/strings/string_view.h"
 #include "gtest/gtest-spi.h"
 #include "gtest/gtest.h"
-#include "rve_server/engine/batch.h"
 #include "rve_server/engine/element_test.h"
 #include "rve_server/engine/material.h"
 #include "rve_server/engine/packing.h"
@@ -433,50 +432,6 @@ TEST(ParseElementTestKindTest, UnknownNameListsTheKinds) {
   EXPECT_TRUE(HasSubstr(kind.status().message(), "'triaxial'"));
   EXPECT_TRUE(HasSubstr(kind.status().message(), "drained-biaxial"));
   EXPECT_TRUE(HasSubstr(kind.status().message(), "cyclic-simple-shear"));
-}
-
-// --- ApplyBatch. ---
-
-TEST(ApplyBatchTest, BadArgumentsChangeNoRve) {
-  Rve a = CreateOrDie(Loaded()), b = CreateOrDie(Loaded());
-  std::vector<Rve*> rves = {&a, &b};
-  const std::vector<Eigen::Matrix3d> one = {Diag(1.01, 1.0)};
-  const std::vector<Eigen::Matrix3d> two = {Diag(1.01, 1.0), Diag(1.0, 0.99)};
-  struct Case {
-    std::string what;
-    std::vector<Rve*> rves;
-    const std::vector<Eigen::Matrix3d>* delta_f;
-    int threads;
-    std::string message;
-  };
-  const std::vector<Case> cases = {
-      {"mismatched spans", rves, &one, 2, "2 RVEs but 1"},
-      {"no threads", rves, &two, 0, "threads = 0"},
-      {"negative threads", rves, &two, -3, "threads = -3"},
-      {"null RVE", {&a, nullptr}, &two, 2, "RVE 1 is null"},
-      {"same RVE twice", {&a, &a}, &two, 2, "the same RVE appears twice"},
-  };
-  for (const Case& c : cases) {
-    const auto result = ApplyBatch(c.rves, *c.delta_f, {}, c.threads);
-    ASSERT_FALSE(result.ok()) << c.what;
-    EXPECT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument) << c.what;
-    EXPECT_TRUE(HasSubstr(result.status().message(), c.message));
-    ExpectIdenticalPackings(a.ToPacking(), Loaded());
-    ExpectIdenticalPackings(b.ToPacking(), Loaded());
-  }
-}
-
-TEST(ApplyBatchTest, OneBadIncrementFailsOnlyItsRve) {
-  Rve a = CreateOrDie(Loaded()), b = CreateOrDie(Loaded());
-  const std::vector<Rve*> rves = {&a, &b};
-  const std::vector<Eigen::Matrix3d> delta_f = {Diag(1.01, 1.0), Diag(kNaN, 1.0)};
-  const auto result = ApplyBatch(rves, delta_f, {}, 2);
-  ASSERT_TRUE(result.ok()) << result.status();
-  ASSERT_EQ(result->size(), 2u);
-  EXPECT_TRUE((*result)[0].ok());
-  EXPECT_EQ((*result)[1].status().code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_GT(a.ToPacking().total_steps, Loaded().total_steps);
-  ExpectIdenticalPackings(b.ToPacking(), Loaded());
 }
 
 // --- RunElementTest. ---
