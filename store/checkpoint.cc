@@ -30,11 +30,9 @@ absl::Status WriteRves(const std::string& path, std::span<const RveRecord> rves,
 
 absl::StatusOr<std::vector<RveRecord>> ReadRves(const std::string& path, FileInfo* info) {
   std::lock_guard<std::mutex> lock(StoreMutex());
-  absl::StatusOr<h5::File> file = internal::OpenStore(path, kKindRves, info);
-  if (!file.ok()) return file.status();
-  absl::StatusOr<std::size_t> n = internal::ReadCount(*file, "num_records");
-  if (!n.ok()) return n.status();
-  return internal::ReadRveRecords(*file, "", *n);
+  ASSIGN_OR_RETURN(h5::File file, internal::OpenStore(path, kKindRves, info));
+  ASSIGN_OR_RETURN(std::size_t n, internal::ReadCount(file, "num_records"));
+  return internal::ReadRveRecords(file, "", n);
 }
 
 absl::Status WriteTemplates(const std::string& path, std::span<const TemplateRecord> templates,
@@ -50,13 +48,9 @@ absl::Status WriteTemplates(const std::string& path, std::span<const TemplateRec
 
 absl::StatusOr<std::vector<TemplateRecord>> ReadTemplates(const std::string& path, FileInfo* info) {
   std::lock_guard<std::mutex> lock(StoreMutex());
-  absl::StatusOr<h5::File> file = internal::OpenStore(path, kKindTemplates, info);
-  if (!file.ok()) return file.status();
-  absl::StatusOr<std::size_t> n = internal::ReadCount(*file, "num_records");
-  if (!n.ok()) return n.status();
-  return internal::ReadTemplateRecords(*file, "", *n);
+  ASSIGN_OR_RETURN(h5::File file, internal::OpenStore(path, kKindTemplates, info));
+  ASSIGN_OR_RETURN(std::size_t n, internal::ReadCount(file, "num_records"));
+  return internal::ReadTemplateRecords(file, "", n);
 }
-
-#undef RETURN_IF_ERROR
 
 }  // namespace rvehub::store

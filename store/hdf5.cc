@@ -166,33 +166,30 @@ absl::StatusOr<File> File::Create(const std::string& path, Format format, LockRe
   if (Failed(H5Pset_libver_bounds(fapl.id(), low, H5F_LIBVER_V110))) {
     return Error(absl::StatusCode::kInternal, "setting the file format bounds");
   }
-  absl::StatusOr<Handle> file = OpenRetrying(path, /*create=*/true, H5F_ACC_TRUNC, fapl.id(), retry);
-  if (!file.ok()) return file.status();
-  return File(*std::move(file), path);
+  ASSIGN_OR_RETURN(Handle file,
+                   OpenRetrying(path, /*create=*/true, H5F_ACC_TRUNC, fapl.id(), retry));
+  return File(std::move(file), path);
 }
 
 absl::StatusOr<File> File::Open(const std::string& path) {
   SilenceErrorPrinting();
   Handle fapl = FileAccess();
   if (!fapl.valid()) return Error(absl::StatusCode::kInternal, "creating a file access list");
-  absl::StatusOr<Handle> file =
-      OpenRetrying(path, /*create=*/false, H5F_ACC_RDONLY, fapl.id(), LockRetry{});
-  if (!file.ok()) return file.status();
-  return File(*std::move(file), path);
+  ASSIGN_OR_RETURN(Handle file,
+                   OpenRetrying(path, /*create=*/false, H5F_ACC_RDONLY, fapl.id(), LockRetry{}));
+  return File(std::move(file), path);
 }
 
 absl::StatusOr<File> File::OpenForAppend(const std::string& path, LockRetry retry) {
   SilenceErrorPrinting();
   Handle fapl = FileAccess();
   // The bounds of Format::kAppendable: objects added keep the file's format.
-  if (!fapl.valid() ||
-      Failed(H5Pset_libver_bounds(fapl.id(), H5F_LIBVER_V18, H5F_LIBVER_V110))) {
+  if (!fapl.valid() || Failed(H5Pset_libver_bounds(fapl.id(), H5F_LIBVER_V18, H5F_LIBVER_V110))) {
     return Error(absl::StatusCode::kInternal, "creating a file access list");
   }
-  absl::StatusOr<Handle> file =
-      OpenRetrying(path, /*create=*/false, H5F_ACC_RDWR, fapl.id(), retry);
-  if (!file.ok()) return file.status();
-  return File(*std::move(file), path);
+  ASSIGN_OR_RETURN(Handle file,
+                   OpenRetrying(path, /*create=*/false, H5F_ACC_RDWR, fapl.id(), retry));
+  return File(std::move(file), path);
 }
 
 absl::Status File::Close() {
@@ -384,9 +381,8 @@ absl::StatusOr<std::vector<std::string>> Group::LinkNames() const {
 absl::StatusOr<Group> File::CreateGroup(const std::string& name) {
   const std::string where = Where("group", name);
   Handle gcpl(H5Pcreate(H5P_GROUP_CREATE), H5Pclose);
-  if (!gcpl.valid() ||
-      Failed(H5Pset_link_creation_order(gcpl.id(),
-                                        H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED))) {
+  if (!gcpl.valid() || Failed(H5Pset_link_creation_order(
+                           gcpl.id(), H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED))) {
     return Error(absl::StatusCode::kInternal, "creating a group creation list");
   }
   Handle group(H5Gcreate2(handle_.id(), name.c_str(), H5P_DEFAULT, gcpl.id(), H5P_DEFAULT),
@@ -397,9 +393,8 @@ absl::StatusOr<Group> File::CreateGroup(const std::string& name) {
 
 absl::StatusOr<Group> File::OpenGroup(const std::string& name) const {
   const std::string where = Where("group", name);
-  absl::StatusOr<bool> exists = Exists(name);
-  if (!exists.ok()) return exists.status();
-  if (!*exists) return absl::DataLossError(absl::StrCat("missing ", where, ": file is corrupt"));
+  ASSIGN_OR_RETURN(bool exists, Exists(name));
+  if (!exists) return absl::DataLossError(absl::StrCat("missing ", where, ": file is corrupt"));
   Handle group(H5Gopen2(handle_.id(), name.c_str(), H5P_DEFAULT), H5Gclose);
   if (!group.valid()) return CorruptError("open", where);
   return Group(std::move(group), where);
@@ -407,9 +402,8 @@ absl::StatusOr<Group> File::OpenGroup(const std::string& name) const {
 
 absl::StatusOr<Dataset> File::OpenDataset(const std::string& name) const {
   const std::string where = Where("dataset", name);
-  absl::StatusOr<bool> exists = Exists(name);
-  if (!exists.ok()) return exists.status();
-  if (!*exists) return absl::DataLossError(absl::StrCat("missing ", where, ": file is corrupt"));
+  ASSIGN_OR_RETURN(bool exists, Exists(name));
+  if (!exists) return absl::DataLossError(absl::StrCat("missing ", where, ": file is corrupt"));
   Handle dataset(H5Dopen2(handle_.id(), name.c_str(), H5P_DEFAULT), H5Dclose);
   if (!dataset.valid()) return CorruptError("open", where);
   return Dataset(std::move(dataset), where);
@@ -502,9 +496,8 @@ absl::Status File::WriteRaw(const std::string& name, const void* data, std::size
 absl::Status File::OpenShaped(const std::string& name, std::size_t rows, std::size_t width,
                               Handle* dataset) const {
   const std::string where = Where("dataset", name);
-  absl::StatusOr<bool> exists = Exists(name);
-  if (!exists.ok()) return exists.status();
-  if (!*exists) return absl::DataLossError(absl::StrCat("missing ", where));
+  ASSIGN_OR_RETURN(bool exists, Exists(name));
+  if (!exists) return absl::DataLossError(absl::StrCat("missing ", where));
   const Handle dapl = UncachedAccess();
   *dataset = Handle(H5Dopen2(handle_.id(), name.c_str(), dapl.valid() ? dapl.id() : H5P_DEFAULT),
                     H5Dclose);
@@ -549,14 +542,13 @@ absl::Status ReadFailure(const std::string& where) {
 absl::Status File::CheckFits(const std::string& name, std::size_t rows, std::size_t width,
                              std::size_t element_size) const {
   if (rows == 0) return absl::OkStatus();
-  absl::StatusOr<std::uint64_t> file_size = Size();
-  if (!file_size.ok()) return file_size.status();
+  ASSIGN_OR_RETURN(std::uint64_t file_size, Size());
   const std::uint64_t row_bytes = std::uint64_t{element_size} * (width == 0 ? 1 : width);
   // Division, not multiplication: a corrupt count must not overflow.
-  if (row_bytes == 0 || rows > *file_size / row_bytes) {
+  if (row_bytes == 0 || rows > file_size / row_bytes) {
     return absl::DataLossError(absl::StrCat(Where("dataset", name), " would hold ", rows,
                                             " rows of ", row_bytes, " bytes, more than the file's ",
-                                            *file_size, " bytes: file is corrupt"));
+                                            file_size, " bytes: file is corrupt"));
   }
   return absl::OkStatus();
 }
@@ -593,9 +585,8 @@ absl::Status File::CreateAppendableRaw(const std::string& name, std::size_t widt
 }
 
 absl::StatusOr<std::size_t> File::NumRows(const std::string& name) const {
-  absl::StatusOr<Dataset> dataset = OpenDataset(name);
-  if (!dataset.ok()) return dataset.status();
-  Handle space(H5Dget_space(dataset->id()), H5Sclose);
+  ASSIGN_OR_RETURN(Dataset dataset, OpenDataset(name));
+  Handle space(H5Dget_space(dataset.id()), H5Sclose);
   hsize_t dims[2] = {0, 0};
   const int rank = space.valid() ? H5Sget_simple_extent_ndims(space.id()) : -1;
   if (rank < 1 || rank > 2 || H5Sget_simple_extent_dims(space.id(), dims, nullptr) != rank) {
@@ -608,10 +599,9 @@ absl::StatusOr<std::size_t> File::NumRows(const std::string& name) const {
 absl::Status File::AppendRaw(const std::string& name, const void* data, std::size_t count,
                              hid_t file_type, hid_t memory_type) {
   const std::string where = Where("dataset", name);
-  absl::StatusOr<Dataset> dataset = OpenDataset(name);
-  if (!dataset.ok()) return dataset.status();
-  Handle space(H5Dget_space(dataset->id()), H5Sclose);
-  Handle type(H5Dget_type(dataset->id()), H5Tclose);
+  ASSIGN_OR_RETURN(Dataset dataset, OpenDataset(name));
+  Handle space(H5Dget_space(dataset.id()), H5Sclose);
+  Handle type(H5Dget_type(dataset.id()), H5Tclose);
   hsize_t dims[2] = {0, 0}, max_dims[2] = {0, 0};
   const int rank = space.valid() ? H5Sget_simple_extent_ndims(space.id()) : -1;
   if (rank < 1 || rank > 2 || H5Sget_simple_extent_dims(space.id(), dims, max_dims) != rank ||
@@ -630,15 +620,15 @@ absl::Status File::AppendRaw(const std::string& name, const void* data, std::siz
   const hsize_t new_dims[2] = {dims[0] + rows, dims[1]};
   const hsize_t start[2] = {dims[0], 0};
   const hsize_t block[2] = {rows, dims[1]};
-  if (Failed(H5Dset_extent(dataset->id(), new_dims))) {
+  if (Failed(H5Dset_extent(dataset.id(), new_dims))) {
     return Error(absl::StatusCode::kInternal, absl::StrCat("cannot extend ", where));
   }
-  Handle file_space(H5Dget_space(dataset->id()), H5Sclose);
+  Handle file_space(H5Dget_space(dataset.id()), H5Sclose);
   Handle memory_space(H5Screate_simple(rank, block, nullptr), H5Sclose);
   if (!file_space.valid() || !memory_space.valid() ||
-      Failed(H5Sselect_hyperslab(file_space.id(), H5S_SELECT_SET, start, nullptr, block,
-                                 nullptr)) ||
-      Failed(H5Dwrite(dataset->id(), memory_type, memory_space.id(), file_space.id(), H5P_DEFAULT,
+      Failed(
+          H5Sselect_hyperslab(file_space.id(), H5S_SELECT_SET, start, nullptr, block, nullptr)) ||
+      Failed(H5Dwrite(dataset.id(), memory_type, memory_space.id(), file_space.id(), H5P_DEFAULT,
                       data))) {
     return Error(absl::StatusCode::kInternal, absl::StrCat("cannot append to ", where));
   }
@@ -703,7 +693,5 @@ absl::Status File::ReadStrings(const std::string& name, std::size_t rows,
   }
   return absl::OkStatus();
 }
-
-#undef RETURN_IF_ERROR
 
 }  // namespace rvehub::store::h5

@@ -23,13 +23,7 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
-
-// Returns the status of `expr` from the enclosing function when it is not OK
-// (store/ .cc files only: this header is private to store/).
-#define RETURN_IF_ERROR(expr)                          \
-  do {                                                 \
-    if (absl::Status s_ = (expr); !s_.ok()) return s_; \
-  } while (false)
+#include "rve_server/common/status_macros.h"
 
 namespace rvehub::store::h5 {
 
@@ -191,8 +185,7 @@ class Object {
 
  protected:
   Object() = default;
-  Object(Handle handle, std::string where)
-      : handle_(std::move(handle)), where_(std::move(where)) {}
+  Object(Handle handle, std::string where) : handle_(std::move(handle)), where_(std::move(where)) {}
 
   Handle handle_;
   std::string where_;

@@ -3,8 +3,8 @@
 #include "store/record_io.h"
 
 #include <fcntl.h>
-#include <sys/stat.h>
 #include <signal.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <Eigen/Dense>
@@ -496,16 +496,16 @@ absl::StatusOr<std::vector<RveRecord>> ReadRveRecords(const h5::File& file,
   RETURN_IF_ERROR(file.Read(absl::StrCat(group, "/records/id"), n, 0, &ids));
   RETURN_IF_ERROR(file.Read(absl::StrCat(group, "/records/step"), n, 0, &steps));
   RETURN_IF_ERROR(file.Read(absl::StrCat(group, "/records/last_delta_f"), n, 9, &delta_f));
-  absl::StatusOr<std::vector<dem::Packing>> packings =
-      ReadPackings(file, group, n, [&](std::size_t k) { return RveLabel(k, run_ids[k], ids[k]); });
-  if (!packings.ok()) return packings.status();
+  ASSIGN_OR_RETURN(
+      std::vector<dem::Packing> packings,
+      ReadPackings(file, group, n, [&](std::size_t k) { return RveLabel(k, run_ids[k], ids[k]); }));
   std::vector<RveRecord> rves(n);
   for (std::size_t k = 0; k < n; ++k) {
     rves[k].run_id = std::move(run_ids[k]);
     rves[k].id = ids[k];
     rves[k].step = steps[k];
     rves[k].last_delta_f = FromRowMajor<3>(&delta_f[9 * k]);
-    rves[k].packing = std::move((*packings)[k]);
+    rves[k].packing = std::move((packings)[k]);
   }
   return rves;
 }
@@ -533,14 +533,14 @@ absl::StatusOr<std::vector<TemplateRecord>> ReadTemplateRecords(const h5::File& 
   std::vector<std::string> names, descriptions;
   RETURN_IF_ERROR(file.ReadStrings(absl::StrCat(group, "/records/name"), n, &names));
   RETURN_IF_ERROR(file.ReadStrings(absl::StrCat(group, "/records/description"), n, &descriptions));
-  absl::StatusOr<std::vector<dem::Packing>> packings =
-      ReadPackings(file, group, n, [&](std::size_t k) { return TemplateLabel(k, names[k]); });
-  if (!packings.ok()) return packings.status();
+  ASSIGN_OR_RETURN(
+      std::vector<dem::Packing> packings,
+      ReadPackings(file, group, n, [&](std::size_t k) { return TemplateLabel(k, names[k]); }));
   std::vector<TemplateRecord> templates(n);
   for (std::size_t k = 0; k < n; ++k) {
     templates[k].name = std::move(names[k]);
     templates[k].description = std::move(descriptions[k]);
-    templates[k].packing = std::move((*packings)[k]);
+    templates[k].packing = std::move((packings)[k]);
   }
   return templates;
 }
@@ -587,19 +587,18 @@ absl::Status WriteAtomically(const std::string& path, const char* kind,
   ::close(fd);
 
   absl::Status status = [&]() -> absl::Status {
-    absl::StatusOr<h5::File> file = h5::File::Create(temp);
-    if (!file.ok()) return file.status();
-    RETURN_IF_ERROR(file->WriteAttribute<std::int32_t>("format_version", kFormatVersion));
-    RETURN_IF_ERROR(file->WriteStringAttribute("kind", kind));
-    RETURN_IF_ERROR(file->WriteStringAttribute("created_by", info.created_by));
-    RETURN_IF_ERROR(file->WriteStringAttribute(
+    ASSIGN_OR_RETURN(h5::File file, h5::File::Create(temp));
+    RETURN_IF_ERROR(file.WriteAttribute<std::int32_t>("format_version", kFormatVersion));
+    RETURN_IF_ERROR(file.WriteStringAttribute("kind", kind));
+    RETURN_IF_ERROR(file.WriteStringAttribute("created_by", info.created_by));
+    RETURN_IF_ERROR(file.WriteStringAttribute(
         "created_at", info.created_at.empty() ? UtcNow() : info.created_at));
     for (const auto& [name, value] : counts) {
-      RETURN_IF_ERROR(file->WriteAttribute<std::int64_t>(name, value));
+      RETURN_IF_ERROR(file.WriteAttribute<std::int64_t>(name, value));
     }
-    RETURN_IF_ERROR(file->WriteStringAttribute("engine", kEngine));
-    RETURN_IF_ERROR(body(*file));
-    RETURN_IF_ERROR(file->Close());
+    RETURN_IF_ERROR(file.WriteStringAttribute("engine", kEngine));
+    RETURN_IF_ERROR(body(file));
+    RETURN_IF_ERROR(file.Close());
     // Data before name: after a crash `path` holds the old or the new file,
     // never a renamed but unwritten one.
     SyncPath(temp, O_RDONLY);
@@ -629,24 +628,22 @@ absl::StatusOr<h5::File> OpenStore(const std::string& path, const char* kind, Fi
   ::close(fd);
   if (!regular) return absl::InvalidArgumentError(absl::StrCat(path, " is not a regular file"));
 
-  absl::StatusOr<h5::File> file = h5::File::Open(path);
-  if (!file.ok()) return file.status();
-  absl::StatusOr<std::string> file_kind = file->ReadStringAttribute("kind");
+  ASSIGN_OR_RETURN(h5::File file, h5::File::Open(path));
+  absl::StatusOr<std::string> file_kind = file.ReadStringAttribute("kind");
   if (absl::IsNotFound(file_kind.status())) {
     return absl::InvalidArgumentError(
         absl::StrCat(path, " is not an RVEHub store file (no 'kind' attribute)"));
   }
   if (!file_kind.ok()) return file_kind.status();
-  absl::StatusOr<std::int64_t> version = file->ReadIntAttribute("format_version");
-  if (!version.ok()) return version.status();
-  if (*version > kFormatVersion) {
+  ASSIGN_OR_RETURN(std::int64_t version, file.ReadIntAttribute("format_version"));
+  if (version > kFormatVersion) {
     return absl::FailedPreconditionError(absl::StrCat(
-        path, " has format_version ", *version, ", newer than this build reads (format_version ",
+        path, " has format_version ", version, ", newer than this build reads (format_version ",
         kFormatVersion, "): read it with a newer RVEHub"));
   }
-  if (*version < 1) {
+  if (version < 1) {
     return absl::DataLossError(
-        absl::StrCat(path, " has an invalid format_version ", *version, ": file is corrupt"));
+        absl::StrCat(path, " has an invalid format_version ", version, ": file is corrupt"));
   }
   if (*file_kind != kind) {
     const std::string reader = ReaderFor(*file_kind);
@@ -655,33 +652,27 @@ absl::StatusOr<h5::File> OpenStore(const std::string& path, const char* kind, Fi
                      "', not '", kind, "'", reader.empty() ? "" : ": read it with ", reader));
   }
   if (info != nullptr) {
-    absl::StatusOr<std::string> created_by = file->ReadStringAttribute("created_by");
-    if (!created_by.ok()) return created_by.status();
-    absl::StatusOr<std::string> created_at = file->ReadStringAttribute("created_at");
-    if (!created_at.ok()) return created_at.status();
-    info->created_by = *std::move(created_by);
-    info->created_at = *std::move(created_at);
-    info->format_version = static_cast<std::int32_t>(*version);
+    ASSIGN_OR_RETURN(std::string created_by, file.ReadStringAttribute("created_by"));
+    ASSIGN_OR_RETURN(std::string created_at, file.ReadStringAttribute("created_at"));
+    info->created_by = std::move(created_by);
+    info->created_at = std::move(created_at);
+    info->format_version = static_cast<std::int32_t>(version);
   }
   return file;
 }
 
 absl::StatusOr<std::size_t> ReadCount(const h5::File& file, const char* attribute) {
-  absl::StatusOr<std::int64_t> n = file.ReadIntAttribute(attribute);
-  if (!n.ok()) return n.status();
-  absl::StatusOr<std::uint64_t> size = file.Size();
-  if (!size.ok()) return size.status();
+  ASSIGN_OR_RETURN(std::int64_t n, file.ReadIntAttribute(attribute));
+  ASSIGN_OR_RETURN(std::uint64_t size, file.Size());
   // Every record takes well over a byte; the bound keeps a corrupt count
   // from allocating absurd amounts of memory.
-  if (*n < 0 || static_cast<std::uint64_t>(*n) > *size) {
+  if (n < 0 || static_cast<std::uint64_t>(n) > size) {
     return absl::DataLossError(
-        absl::StrCat(file.path(), " has an invalid ", attribute, " ", *n, ": file is corrupt"));
+        absl::StrCat(file.path(), " has an invalid ", attribute, " ", n, ": file is corrupt"));
   }
-  return static_cast<std::size_t>(*n);
+  return static_cast<std::size_t>(n);
 }
 
 }  // namespace internal
-
-#undef RETURN_IF_ERROR
 
 }  // namespace rvehub::store

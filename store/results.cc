@@ -125,8 +125,7 @@ absl::Status CheckFrame(const ResultFrame& frame, const std::int64_t* last_step,
 absl::Status WriteFrame(h5::File& file, const ResultFrame& frame) {
   const std::size_t n = frame.position.size() / 2;
   const std::string group = FramePath(frame.step);
-  absl::StatusOr<h5::Group> g = file.CreateGroup(group);
-  if (!g.ok()) return g.status();
+  ASSIGN_OR_RETURN(h5::Group g, file.CreateGroup(group));
   std::vector<double> values;
   values.reserve(3 * n);
   for (std::size_t i = 0; i < n; ++i) {
@@ -151,28 +150,24 @@ absl::Status WriteFrame(h5::File& file, const ResultFrame& frame) {
   // Point ids 0 … n-1, the Polyvertex connectivity of every frame of n
   // points (ParaView builds no vertex cells without it).
   const std::string topology = TopologyPath(n);
-  absl::StatusOr<bool> exists = file.Exists(topology);
-  if (!exists.ok()) return exists.status();
-  if (!*exists) {
+  ASSIGN_OR_RETURN(bool exists, file.Exists(topology));
+  if (!exists) {
     std::vector<std::int64_t> ids(n);
     for (std::size_t i = 0; i < n; ++i) ids[i] = static_cast<std::int64_t>(i);
     RETURN_IF_ERROR(file.Write(topology, Span(ids), 0));
   }
-  RETURN_IF_ERROR(g->WriteAttribute<std::int64_t>("num_points", static_cast<std::int64_t>(n)));
-  RETURN_IF_ERROR(g->WriteAttribute<double>("time", frame.time));
-  return g->WriteAttribute<std::int64_t>("step", frame.step);
+  RETURN_IF_ERROR(g.WriteAttribute<std::int64_t>("num_points", static_cast<std::int64_t>(n)));
+  RETURN_IF_ERROR(g.WriteAttribute<double>("time", frame.time));
+  return g.WriteAttribute<std::int64_t>("step", frame.step);
 }
 
 // The frames of a results file, by step: group name and step.
-absl::StatusOr<std::vector<std::pair<std::string, std::int64_t>>> ListFrames(
-    const h5::File& file) {
+absl::StatusOr<std::vector<std::pair<std::string, std::int64_t>>> ListFrames(const h5::File& file) {
   const std::string& path = file.path();
-  absl::StatusOr<h5::Group> group = file.OpenGroup(kFramesGroup);
-  if (!group.ok()) return group.status();
-  absl::StatusOr<std::vector<std::string>> names = group->LinkNames();
-  if (!names.ok()) return names.status();
+  ASSIGN_OR_RETURN(h5::Group group, file.OpenGroup(kFramesGroup));
+  ASSIGN_OR_RETURN(std::vector<std::string> names, group.LinkNames());
   std::vector<std::pair<std::string, std::int64_t>> frames;
-  for (std::string& name : *names) {
+  for (std::string& name : names) {
     std::int64_t step = 0;
     if (!absl::SimpleAtoi(name, &step) || absl::StrCat(step) != name) {
       return absl::DataLossError(absl::StrCat("unexpected object ", kFramesGroup, "/", name, " in ",
@@ -193,29 +188,25 @@ absl::Status ReadFrame(const h5::File& file, std::int64_t step, bool data, Resul
   const std::string& path = file.path();
   const std::string group = FramePath(step);
   const std::string where = absl::StrCat("frame ", group, " of ", path);
-  absl::StatusOr<h5::Group> g = file.OpenGroup(group);
-  if (!g.ok()) return g.status();
+  ASSIGN_OR_RETURN(h5::Group g, file.OpenGroup(group));
   // `step` is written last: without it the writer was interrupted.
-  absl::StatusOr<bool> complete = g->HasAttribute("step");
-  if (!complete.ok()) return complete.status();
-  if (!*complete) {
+  ASSIGN_OR_RETURN(bool complete, g.HasAttribute("step"));
+  if (!complete) {
     return absl::DataLossError(absl::StrCat(where, " is incomplete (its writer was interrupted)"));
   }
   std::int64_t stored_step = 0, n = 0;
-  RETURN_IF_ERROR(ReadRequired(*g, "step", &stored_step));
-  RETURN_IF_ERROR(ReadRequired(*g, "time", &frame->time));
-  RETURN_IF_ERROR(ReadRequired(*g, "num_points", &n));
-  absl::StatusOr<std::uint64_t> size = file.Size();
-  if (!size.ok()) return size.status();
-  if (stored_step != step || n < 0 || static_cast<std::uint64_t>(n) > *size) {
+  RETURN_IF_ERROR(ReadRequired(g, "step", &stored_step));
+  RETURN_IF_ERROR(ReadRequired(g, "time", &frame->time));
+  RETURN_IF_ERROR(ReadRequired(g, "num_points", &n));
+  ASSIGN_OR_RETURN(std::uint64_t size, file.Size());
+  if (stored_step != step || n < 0 || static_cast<std::uint64_t>(n) > size) {
     return absl::DataLossError(
         absl::StrCat(where, " has step ", stored_step, " and num_points ", n, ": file is corrupt"));
   }
   frame->step = step;
   *num_points = static_cast<std::size_t>(n);
-  absl::StatusOr<std::vector<std::string>> listed = g->LinkNames();
-  if (!listed.ok()) return listed.status();
-  const std::vector<std::string>& names = *listed;
+  ASSIGN_OR_RETURN(std::vector<std::string> listed, g.LinkNames());
+  const std::vector<std::string>& names = listed;
   if (std::find(names.begin(), names.end(), kPosition) == names.end()) {
     return absl::DataLossError(
         absl::StrCat("missing dataset ", group, "/", kPosition, " of ", path));
@@ -239,13 +230,12 @@ absl::Status ReadFrame(const h5::File& file, std::int64_t step, bool data, Resul
     }
     ResultField& f = frame->fields.emplace_back();
     f.name = name;
-    absl::StatusOr<h5::Dataset> d = file.OpenDataset(dataset);
-    if (!d.ok()) return d.status();
+    ASSIGN_OR_RETURN(h5::Dataset d, file.OpenDataset(dataset));
     std::int32_t components = 0;
-    RETURN_IF_ERROR(ReadRequired(*d, "components", &components));
+    RETURN_IF_ERROR(ReadRequired(d, "components", &components));
     if (!ValidComponents(components)) {
       return absl::DataLossError(
-          absl::StrCat(d->where(), " has components ", components, ": file is corrupt"));
+          absl::StrCat(d.where(), " has components ", components, ": file is corrupt"));
     }
     f.components = components;
     const std::size_t width = StoredWidth(components);
@@ -331,8 +321,7 @@ ResultsWriter::~ResultsWriter() = default;
 
 absl::StatusOr<std::unique_ptr<ResultsWriter>> ResultsWriter::Create(
     const std::string& h5_path, const std::string& xdmf_path, const std::string& created_by) {
-  absl::StatusOr<std::string> reference = H5Reference(h5_path, xdmf_path);
-  if (!reference.ok()) return reference.status();
+  ASSIGN_OR_RETURN(std::string reference, H5Reference(h5_path, xdmf_path));
   if (internal::HasNul(created_by)) {
     return absl::InvalidArgumentError("created_by must not contain NUL bytes");
   }
@@ -342,21 +331,19 @@ absl::StatusOr<std::unique_ptr<ResultsWriter>> ResultsWriter::Create(
   ::close(fd);
   {
     std::lock_guard<std::mutex> lock(internal::StoreMutex());
-    absl::StatusOr<h5::File> file = h5::File::Create(h5_path, h5::Format::kAppendable, kLockRetry);
-    if (!file.ok()) return file.status();
-    RETURN_IF_ERROR(file->WriteAttribute<std::int32_t>("format_version", kFormatVersion));
-    RETURN_IF_ERROR(file->WriteStringAttribute("kind", internal::kKindResults));
-    RETURN_IF_ERROR(file->WriteStringAttribute("created_by", created_by));
-    RETURN_IF_ERROR(file->WriteStringAttribute("created_at", internal::UtcNow()));
+    ASSIGN_OR_RETURN(h5::File file, h5::File::Create(h5_path, h5::Format::kAppendable, kLockRetry));
+    RETURN_IF_ERROR(file.WriteAttribute<std::int32_t>("format_version", kFormatVersion));
+    RETURN_IF_ERROR(file.WriteStringAttribute("kind", internal::kKindResults));
+    RETURN_IF_ERROR(file.WriteStringAttribute("created_by", created_by));
+    RETURN_IF_ERROR(file.WriteStringAttribute("created_at", internal::UtcNow()));
     for (const char* group : {kFramesGroup, kTopologyGroup}) {
-      absl::StatusOr<h5::Group> g = file->CreateGroup(group);
-      if (!g.ok()) return g.status();
+      ASSIGN_OR_RETURN(h5::Group g, file.CreateGroup(group));
     }
-    RETURN_IF_ERROR(file->Close());
+    RETURN_IF_ERROR(file.Close());
     internal::SyncPath(h5_path, O_RDONLY);
   }
   std::unique_ptr<ResultsWriter> writer(
-      new ResultsWriter(h5_path, xdmf_path, *std::move(reference)));
+      new ResultsWriter(h5_path, xdmf_path, std::move(reference)));
   RETURN_IF_ERROR(writer->WriteXdmf());
   return writer;
 }
@@ -365,32 +352,29 @@ absl::StatusOr<std::unique_ptr<ResultsWriter>> ResultsWriter::Open(const std::st
                                                                    const std::string& xdmf_path,
                                                                    const std::string& created_by,
                                                                    std::int64_t keep_through_step) {
-  absl::StatusOr<std::string> reference = H5Reference(h5_path, xdmf_path);
-  if (!reference.ok()) return reference.status();
+  ASSIGN_OR_RETURN(std::string reference, H5Reference(h5_path, xdmf_path));
   if (internal::HasNul(created_by)) {
     return absl::InvalidArgumentError("created_by must not contain NUL bytes");
   }
   std::unique_ptr<ResultsWriter> writer(
-      new ResultsWriter(h5_path, xdmf_path, *std::move(reference)));
+      new ResultsWriter(h5_path, xdmf_path, std::move(reference)));
   {
     std::lock_guard<std::mutex> lock(internal::StoreMutex());
     std::vector<std::int64_t> dropped;
     {
       // Read-only first, with the store's checks of kind and version; the
       // kept frames are checked (not read) so the XDMF file can list them.
-      absl::StatusOr<h5::File> file = internal::OpenStore(h5_path, internal::kKindResults, nullptr);
-      if (!file.ok()) return file.status();
-      absl::StatusOr<std::vector<std::pair<std::string, std::int64_t>>> frames =
-          ListFrames(*file);
-      if (!frames.ok()) return frames.status();
-      for (const auto& [name, step] : *frames) {
+      ASSIGN_OR_RETURN(h5::File file,
+                       internal::OpenStore(h5_path, internal::kKindResults, nullptr));
+      ASSIGN_OR_RETURN(auto frames, ListFrames(file));
+      for (const auto& [name, step] : frames) {
         if (step > keep_through_step) {
           dropped.push_back(step);
           continue;
         }
         ResultFrame frame;
         FrameInfo info;
-        RETURN_IF_ERROR(ReadFrame(*file, step, /*data=*/false, &frame, &info.num_points));
+        RETURN_IF_ERROR(ReadFrame(file, step, /*data=*/false, &frame, &info.num_points));
         info.step = step;
         info.time = frame.time;
         for (const ResultField& f : frame.fields) info.fields.emplace_back(f.name, f.components);
@@ -398,13 +382,12 @@ absl::StatusOr<std::unique_ptr<ResultsWriter>> ResultsWriter::Open(const std::st
       }
       // Closed before the read-write open: HDF5 refuses to open a file
       // read-write that the process has open read-only.
-      RETURN_IF_ERROR(file->Close());
+      RETURN_IF_ERROR(file.Close());
     }
-    absl::StatusOr<h5::File> file = h5::File::OpenForAppend(h5_path, kLockRetry);
-    if (!file.ok()) return file.status();
-    for (std::int64_t step : dropped) RETURN_IF_ERROR(file->Delete(FramePath(step)));
-    RETURN_IF_ERROR(file->WriteStringAttribute("resumed_by", created_by));
-    RETURN_IF_ERROR(file->Close());
+    ASSIGN_OR_RETURN(h5::File file, h5::File::OpenForAppend(h5_path, kLockRetry));
+    for (std::int64_t step : dropped) RETURN_IF_ERROR(file.Delete(FramePath(step)));
+    RETURN_IF_ERROR(file.WriteStringAttribute("resumed_by", created_by));
+    RETURN_IF_ERROR(file.Close());
     internal::SyncPath(h5_path, O_RDONLY);
   }
   RETURN_IF_ERROR(writer->WriteXdmf());
@@ -419,15 +402,14 @@ absl::Status ResultsWriter::Append(const ResultFrame& frame) {
   RETURN_IF_ERROR(CheckFrame(frame, frames_.empty() ? nullptr : &frames_.back().step, h5_path_));
   {
     std::lock_guard<std::mutex> lock(internal::StoreMutex());
-    absl::StatusOr<h5::File> file = h5::File::OpenForAppend(h5_path_, kLockRetry);
-    if (!file.ok()) return file.status();
-    if (absl::Status s = WriteFrame(*file, frame); !s.ok()) {
+    ASSIGN_OR_RETURN(h5::File file, h5::File::OpenForAppend(h5_path_, kLockRetry));
+    if (absl::Status s = WriteFrame(file, frame); !s.ok()) {
       // Best effort: no partial frame left behind (a later Append of the
       // same step would collide with it).
-      file->Delete(FramePath(frame.step)).IgnoreError();
+      file.Delete(FramePath(frame.step)).IgnoreError();
       return absl::Status(s.code(), absl::StrCat("appending step ", frame.step, ": ", s.message()));
     }
-    RETURN_IF_ERROR(file->Close());
+    RETURN_IF_ERROR(file.Close());
     // Data before name: the XDMF file never lists a frame not on disk.
     internal::SyncPath(h5_path_, O_RDONLY);
   }
@@ -513,19 +495,14 @@ absl::Status ResultsWriter::WriteXdmf() const {
 
 absl::StatusOr<std::vector<ResultFrame>> ReadResults(const std::string& h5_path) {
   std::lock_guard<std::mutex> lock(internal::StoreMutex());
-  absl::StatusOr<h5::File> file = internal::OpenStore(h5_path, internal::kKindResults, nullptr);
-  if (!file.ok()) return file.status();
-  absl::StatusOr<std::vector<std::pair<std::string, std::int64_t>>> frames =
-      ListFrames(*file);
-  if (!frames.ok()) return frames.status();
-  std::vector<ResultFrame> out(frames->size());
+  ASSIGN_OR_RETURN(h5::File file, internal::OpenStore(h5_path, internal::kKindResults, nullptr));
+  ASSIGN_OR_RETURN(auto frames, ListFrames(file));
+  std::vector<ResultFrame> out(frames.size());
   for (std::size_t k = 0; k < out.size(); ++k) {
     std::size_t num_points = 0;
-    RETURN_IF_ERROR(ReadFrame(*file, (*frames)[k].second, /*data=*/true, &out[k], &num_points));
+    RETURN_IF_ERROR(ReadFrame(file, (frames)[k].second, /*data=*/true, &out[k], &num_points));
   }
   return out;
 }
-
-#undef RETURN_IF_ERROR
 
 }  // namespace rvehub::store

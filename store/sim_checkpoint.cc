@@ -153,39 +153,33 @@ absl::Status WriteSimCheckpoint(const std::string& path, const SimCheckpoint& c,
 
 absl::StatusOr<SimCheckpoint> ReadSimCheckpoint(const std::string& path, FileInfo* info) {
   std::lock_guard<std::mutex> lock(internal::StoreMutex());
-  absl::StatusOr<h5::File> file = internal::OpenStore(path, internal::kKindSimulation, info);
-  if (!file.ok()) return file.status();
+  ASSIGN_OR_RETURN(h5::File file, internal::OpenStore(path, internal::kKindSimulation, info));
   std::size_t counts[4] = {};
   const char* const count_names[4] = {"num_rves", "num_templates", "num_double_arrays",
                                       "num_int_arrays"};
   for (int k = 0; k < 4; ++k) {
-    absl::StatusOr<std::size_t> n = internal::ReadCount(*file, count_names[k]);
-    if (!n.ok()) return n.status();
-    counts[k] = *n;
+    ASSIGN_OR_RETURN(std::size_t n, internal::ReadCount(file, count_names[k]));
+    counts[k] = n;
   }
   SimCheckpoint c;
-  RETURN_IF_ERROR(ReadString(*file, "/simulation/case_json", &c.case_json));
-  RETURN_IF_ERROR(ReadString(*file, "/simulation/run_id", &c.run_id));
-  RETURN_IF_ERROR(ReadScalar(*file, "/simulation/step", &c.step));
-  RETURN_IF_ERROR(ReadScalar(*file, "/simulation/time", &c.time));
-  RETURN_IF_ERROR(ReadNamedArrays(*file, "/mpm/doubles", counts[2], &c.doubles));
-  RETURN_IF_ERROR(ReadNamedArrays(*file, "/mpm/ints", counts[3], &c.ints));
-  absl::StatusOr<std::vector<RveRecord>> rves =
-      internal::ReadRveRecords(*file, kRvesGroup, counts[0]);
-  if (!rves.ok()) return rves.status();
-  c.rves = *std::move(rves);
+  RETURN_IF_ERROR(ReadString(file, "/simulation/case_json", &c.case_json));
+  RETURN_IF_ERROR(ReadString(file, "/simulation/run_id", &c.run_id));
+  RETURN_IF_ERROR(ReadScalar(file, "/simulation/step", &c.step));
+  RETURN_IF_ERROR(ReadScalar(file, "/simulation/time", &c.time));
+  RETURN_IF_ERROR(ReadNamedArrays(file, "/mpm/doubles", counts[2], &c.doubles));
+  RETURN_IF_ERROR(ReadNamedArrays(file, "/mpm/ints", counts[3], &c.ints));
+  ASSIGN_OR_RETURN(std::vector<RveRecord> rves,
+                   internal::ReadRveRecords(file, kRvesGroup, counts[0]));
+  c.rves = std::move(rves);
   if (const std::size_t k = FirstUnsorted(c.rves); k < c.rves.size()) {
     return absl::DataLossError(absl::StrCat(
         "dataset ", kRvesGroup, "/records/id of ", path, " is not strictly increasing at entry ", k,
         " (", c.rves[k - 1].id, ", ", c.rves[k].id, "): file is corrupt"));
   }
-  absl::StatusOr<std::vector<TemplateRecord>> templates =
-      internal::ReadTemplateRecords(*file, kTemplatesGroup, counts[1]);
-  if (!templates.ok()) return templates.status();
-  c.templates = *std::move(templates);
+  ASSIGN_OR_RETURN(std::vector<TemplateRecord> templates,
+                   internal::ReadTemplateRecords(file, kTemplatesGroup, counts[1]));
+  c.templates = std::move(templates);
   return c;
 }
-
-#undef RETURN_IF_ERROR
 
 }  // namespace rvehub::store

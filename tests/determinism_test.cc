@@ -1,7 +1,8 @@
 // Bit-exact determinism of the DEM engine: repeated runs, the thread count
 // of the server's worker pool (each RVE on one thread, RVEs sharing no
-// state: results are bit-identical whatever the thread count) and restart from a Packing (packing.h: "Restoring it gives a bit-identical
-// continuation"). Doubles are compared bit for bit, never with tolerances.
+// state: results are bit-identical whatever the thread count) and restart from a Packing
+// (packing.h: "Restoring it gives a bit-identical continuation"). Doubles are compared bit for bit,
+// never with tolerances.
 #include <Eigen/Dense>
 #include <cmath>
 #include <cstdint>

@@ -1,7 +1,5 @@
 // Cell flips (an exact change of lattice basis that keeps a sheared cell
 // reduced) and rigid rotations of the whole RVE.
-#include "rve_server/engine/rve.h"
-
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -9,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "rve_server/engine/rve.h"
 #include "rve_server/engine/rve_internal.h"
 
 namespace rvehub::dem {

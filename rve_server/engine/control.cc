@@ -1,7 +1,5 @@
 // Driving the DEM: an increment of deformation at a bounded inertial
 // number (Apply), stress- or strain-controlled runs (Run) and relaxation.
-#include "rve_server/engine/rve.h"
-
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -10,6 +8,7 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "rve_server/engine/rve.h"
 #include "rve_server/engine/rve_internal.h"
 
 namespace rvehub::dem {

@@ -1,8 +1,6 @@
 // The homogenised state of an RVE: Love–Weber stress, fabric, void ratio,
 // coordination and the tangent, from the sums of the last measured contact
 // pass.
-#include "rve_server/engine/rve.h"
-
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -11,6 +9,7 @@
 #include <vector>
 
 #include "rve_server/engine/contact_law.h"
+#include "rve_server/engine/rve.h"
 #include "rve_server/engine/rve_internal.h"
 
 namespace rvehub::dem {

@@ -1,8 +1,6 @@
 // The neighbour list: cell-list search in reduced coordinates, the
 // verlet-skin test that decides when to search again, and the contact
 // history carried over from list to list.
-#include "rve_server/engine/rve.h"
-
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -11,6 +9,7 @@
 #include <vector>
 
 #include "rve_server/engine/contact_law.h"
+#include "rve_server/engine/rve.h"
 #include "rve_server/engine/rve_internal.h"
 
 namespace rvehub::dem {

@@ -17,8 +17,8 @@
 
 namespace rvehub::dem {
 
-using internal::kPi;
 using internal::CellHeights;
+using internal::kPi;
 
 namespace {
 

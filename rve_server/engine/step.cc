@@ -1,7 +1,5 @@
 // The DEM step: the contact pass (pair law in SIMD lanes, then per-particle
 // sums and the measured sums) and the leapfrog integration.
-#include "rve_server/engine/rve.h"
-
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -10,15 +8,16 @@
 #include <vector>
 
 #include "rve_server/engine/contact_law.h"
+#include "rve_server/engine/rve.h"
 #include "rve_server/engine/rve_internal.h"
 
 namespace rvehub::dem {
 
 using internal::Damping;
+using internal::kPi;
 using internal::RoundNearest;
 using internal::Scratch;
 using internal::ThreadScratch;
-using internal::kPi;
 
 namespace {
 
