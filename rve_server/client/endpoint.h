@@ -1,0 +1,127 @@
+// One RVE server as a client sees it: a Registry in this process (embedded:
+// direct calls, no gRPC, no marshalling) or a remote rve_server reached over
+// gRPC. Both give the same results bit for bit (the wire carries doubles
+// exactly), so a run may mix them or move between them.
+#ifndef RVEHUB_RVE_SERVER_CLIENT_ENDPOINT_H_
+#define RVEHUB_RVE_SERVER_CLIENT_ENDPOINT_H_
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
+#include "absl/time/time.h"
+#include "rve_server/client/channel.h"
+#include "rve_server/client/types.h"
+#include "rve_server/engine/packing.h"
+#include "rve_server/engine/rve.h"
+#include "store/record.h"
+
+namespace rvehub::client {
+
+// An Apply under way (RveEndpoint::StartApply).
+class PendingApply {
+ public:
+  virtual ~PendingApply() = default;
+  // Waits for the call to end: its outcomes, or the whole-call error. Once.
+  virtual absl::StatusOr<std::vector<RveOutcome>> Finish() = 0;
+};
+
+// Whole-call errors come back as the status of a call; per-RVE results as
+// RveOutcome (in the order of the ids or increments given). Every error of
+// an endpoint starts with its label().
+class RveEndpoint {
+ public:
+  virtual ~RveEndpoint() = default;
+
+  // "embedded", or the server's HOST:PORT.
+  virtual std::string name() const = 0;
+  // For messages: "embedded RVE registry" or "RVE server HOST:PORT".
+  virtual std::string label() const = 0;
+  // Worker threads evaluating a batch (the server's --threads).
+  virtual int workers() const = 0;
+
+  // Uploads a template, replacing one of the same name.
+  virtual absl::Status PutTemplate(const store::TemplateRecord& record) = 0;
+
+  // Creates RVEs of `template_name` with ids `ids` in run `run`, consolidated
+  // to `initial` (empty: the template's state; one for all; or one per id)
+  // with optional other controls. Outcomes carry the state after creation.
+  // All or nothing.
+  virtual absl::StatusOr<std::vector<RveOutcome>> Create(
+      absl::string_view run, absl::string_view template_name, std::span<const std::int64_t> ids,
+      std::span<const InitialStress> initial, const std::optional<dem::Controls>& controls) = 0;
+
+  // Starts the COMMIT of step `step` (RVEs at step − 1 go to `step`; a
+  // repeat with the same ΔF returns the stored result) and returns without
+  // blocking the caller on a remote server: its messages go out through
+  // gRPC's callback API, so one thread drives any number of servers. The
+  // embedded endpoint works inside StartApply, on the registry's workers.
+  // `deadline`: time the call may take. The spans must outlive Finish().
+  virtual std::unique_ptr<PendingApply> StartApply(absl::string_view run, std::int64_t step,
+                                                   std::span<const Increment> increments,
+                                                   const dem::ApplyOptions& options,
+                                                   absl::Duration deadline) = 0;
+  // StartApply, then Finish.
+  absl::StatusOr<std::vector<RveOutcome>> Apply(absl::string_view run, std::int64_t step,
+                                                std::span<const Increment> increments,
+                                                const dem::ApplyOptions& options,
+                                                absl::Duration deadline) {
+    return StartApply(run, step, increments, options, deadline)->Finish();
+  }
+
+  // Current states of `ids` (unknown ids: a NotFound outcome).
+  virtual absl::StatusOr<std::vector<RveOutcome>> Get(absl::string_view run,
+                                                      std::span<const std::int64_t> ids,
+                                                      bool want_tangent) = 0;
+
+  // Full states of `ids` (empty: the whole run), in id order, one at a time
+  // to `sink`; stops at the first error of `sink`.
+  virtual absl::Status Export(absl::string_view run, std::span<const std::int64_t> ids,
+                              const RecordSink& sink) = 0;
+
+  // All or nothing per call (a remote import is one stream): AlreadyExists
+  // when a (run, id) is hosted.
+  virtual absl::Status Import(std::vector<store::RveRecord> records) = 0;
+
+  // Drops every RVE of the run; NotFound when the endpoint hosts none.
+  virtual absl::Status Drop(absl::string_view run) = 0;
+};
+
+// An RVE registry of this process's own, with `threads` workers.
+struct EmbeddedOptions {
+  int threads = 1;
+};
+std::unique_ptr<RveEndpoint> MakeEmbeddedEndpoint(const EmbeddedOptions& options);
+
+struct RemoteOptions {
+  // GetServerInfo on creation must answer within this.
+  absl::Duration connect_timeout = absl::Seconds(5);
+  // Deadline of Create, which may consolidate thousands of RVEs to their
+  // initial stresses (seconds each).
+  absl::Duration create_timeout = absl::Hours(2);
+  // Deadline of the other calls (Apply gets its own).
+  absl::Duration call_timeout = absl::Minutes(10);
+  // RVEs per Create/Apply/Get message at most: about 1 KB each in a reply
+  // with a tangent, so 2048 stays far below the default 64 MiB limit. The
+  // server's own max batch lowers it further.
+  std::int64_t max_batch = 2048;
+};
+
+// A gRPC stub for the server at `address` (HOST:PORT), checked with a
+// GetServerInfo call: Unavailable "RVE server HOST:PORT is unreachable:
+// <reason>" when it gets no answer; a refusal (a wrong token:
+// Unauthenticated) keeps its code. Every other error of the endpoint starts
+// with "RVE server HOST:PORT: ".
+absl::StatusOr<std::unique_ptr<RveEndpoint>> MakeRemoteEndpoint(const std::string& address,
+                                                                const ClientOptions& options,
+                                                                const RemoteOptions& remote = {});
+
+}  // namespace rvehub::client
+
+#endif  // RVEHUB_RVE_SERVER_CLIENT_ENDPOINT_H_
