@@ -9,7 +9,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
-#include "rve_server/cli/plot.h"
+#include "rve_server/common/plot.h"
 
 namespace rvehub::mpm {
 namespace {

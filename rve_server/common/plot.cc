@@ -1,4 +1,4 @@
-#include "rve_server/cli/plot.h"
+#include "rve_server/common/plot.h"
 
 #include <cairo.h>
 
