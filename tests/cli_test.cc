@@ -127,6 +127,28 @@ TEST(CliTest, UnknownMaterialFailsWithTheKnownNames) {
   EXPECT_FALSE(std::ifstream(csv).good());
 }
 
+// rve_server and mpm_client answer --help like rve_cli: usage on stdout,
+// exit 0, no build paths (absl's own --help exits 1 and prints them).
+TEST(CliTest, EveryBinaryHelpExitsZeroWithoutBuildPaths) {
+  for (const std::string& binary : {std::string(RVE_SERVER_PATH), std::string(MPM_CLIENT_PATH),
+                                    std::string(RVE_CLI_PATH)}) {
+    for (const char* flag : {"--help", "-h"}) {
+      const testing_util::CommandResult r =
+          testing_util::RunCommand(absl::StrCat("'", binary, "' ", flag, " 2>&1"));
+      EXPECT_EQ(r.exit_code, 0) << binary << " " << flag << ": " << r.out;
+      EXPECT_TRUE(absl::StrContains(r.out, "Usage")) << binary << ": " << r.out;
+      EXPECT_FALSE(absl::StrContains(r.out, RVEHUB_SOURCE_DIR)) << binary << ": " << r.out;
+      EXPECT_FALSE(absl::StrContains(r.out, ".cc")) << binary << ": " << r.out;
+    }
+  }
+  const testing_util::CommandResult server =
+      testing_util::RunCommand(absl::StrCat("'", RVE_SERVER_PATH, "' --help"));
+  for (const char* flag : {"--listen=127.0.0.1:50051", "--threads=0", "--checkpoint_dir=",
+                           "--auth_token_file=", "--tls_cert=", "--drain_seconds=30"}) {
+    EXPECT_TRUE(absl::StrContains(server.out, flag)) << flag << " in\n" << server.out;
+  }
+}
+
 // A header and one line per set with its parameters (cases/REFERENCE.md).
 TEST(CliTest, MaterialsListsTheParameterSets) {
   const Result r = RunCli("materials");
