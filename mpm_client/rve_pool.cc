@@ -171,9 +171,9 @@ struct CreateCall {
 };
 
 // The calls for `ids` of one template on one endpoint: whole groups of equal
-// initial stress, at least `per_call` groups a call (the last may have
-// fewer), so each stress is still consolidated once and the workers stay
-// busy, while progress is seen every few consolidations.
+// initial stress, `per_call` groups a call (the last may have fewer), so
+// each stress is still consolidated once and the workers stay busy, while
+// progress is seen every few consolidations.
 std::vector<CreateCall> SplitCreate(const std::vector<std::int64_t>& ids,
                                     std::span<const service::InitialStress> initial_per_point,
                                     std::int64_t per_call) {
@@ -233,9 +233,11 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Create(
     for (std::int64_t p : points_[k])
       by_template[template_per_point.size() == 1 ? template_per_point[0] : template_per_point[p]]
           .push_back(p);
-    // Four consolidations per worker a call: the workers' idle tail at the
-    // end of each call stays small.
-    const std::int64_t per_call = 4 * std::max(1, endpoints_[k]->workers());
+    // Two consolidations per worker a call: a few calls even for a column's
+    // handful of depths (column-collapse-ci: 8 on 2 workers), while the
+    // workers' idle tail at the end of each call stays about one
+    // consolidation (neighbouring depths cost about the same).
+    const std::int64_t per_call = 2 * std::max(1, endpoints_[k]->workers());
     for (const auto& [name, ids] : by_template) {
       plan[k].push_back({name, SplitCreate(ids, initial_per_point, per_call)});
       for (const CreateCall& c : plan[k].back().calls) total += c.consolidations;
@@ -243,6 +245,7 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Create(
   }
   absl::Mutex mu;
   std::int64_t done = 0;
+  if (progress) progress(0, total);
   std::vector<dem::RveState> out(n);
   absl::Status s = ForEachEndpoint([&](int k) -> absl::Status {
     for (const TemplateCalls& t : plan[k]) {

@@ -101,8 +101,9 @@ class RvePool {
   // order.
   // Consolidation is the slow part, one per distinct initial stress (per
   // template and endpoint): those are sent in calls of a few at a time, and
-  // `progress(done, total)` (optional; called from the endpoints' threads,
-  // one call at a time) counts the consolidations finished.
+  // `progress(done, total)` (optional; first with done = 0, then after each
+  // call, from the endpoints' threads, one call at a time) counts the
+  // consolidations finished.
   using CreateProgress = std::function<void(std::int64_t done, std::int64_t total)>;
   absl::StatusOr<std::vector<dem::RveState>> Create(
       std::span<const std::string> template_per_point,

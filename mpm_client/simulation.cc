@@ -13,6 +13,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/synchronization/mutex.h"
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
 #include "mpm_client/case.h"
@@ -411,20 +412,45 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   }
   sim->Log(absl::StrFormat("creating %d RVEs on %d server(s)...", n, sim->pool_->num_endpoints()));
   const Clock::time_point create_start = Clock::now();
-  // A line every ~2 s in the style of the stepping's progress lines:
-  // consolidating hundreds of RVEs can take minutes.
-  Clock::time_point last_line = create_start;
-  auto progress = [&](std::int64_t done, std::int64_t total) {
-    const Clock::time_point now = Clock::now();
-    if (!options.progress || done >= total || now - last_line < std::chrono::seconds(2)) return;
-    last_line = now;
-    const double wall = Seconds(now - create_start);
-    sim->Log(absl::StrFormat("consolidated %d/%d initial stresses  wall %.1f s  ETA %.0f s", done,
-                             total, wall,
-                             wall / static_cast<double>(done) * static_cast<double>(total - done)));
-  };
-  absl::StatusOr<std::vector<dem::RveState>> states =
-      sim->pool_->Create(template_of, initial, controls, progress);
+  // A line every ~2 s while the RVEs are consolidated (minutes for large
+  // cases), in the style of the stepping's progress lines, from a ticker
+  // thread: a call to the servers can take longer than that.
+  struct Consolidation {
+    absl::Mutex mu;
+    std::int64_t done ABSL_GUARDED_BY(mu) = 0;
+    std::int64_t total ABSL_GUARDED_BY(mu) = 0;
+    bool finished ABSL_GUARDED_BY(mu) = false;
+  } consolidation;
+  std::thread ticker;
+  if (options.progress) {
+    ticker = std::thread([&] {
+      absl::MutexLock lock(&consolidation.mu);
+      while (!consolidation.mu.AwaitWithTimeout(absl::Condition(&consolidation.finished),
+                                                absl::Seconds(2))) {
+        const std::int64_t done = consolidation.done, total = consolidation.total;
+        if (total == 0) continue;
+        const double wall = Seconds(Clock::now() - create_start);
+        const std::string eta =
+            done > 0 ? absl::StrFormat("%.0f s", wall / static_cast<double>(done) *
+                                                     static_cast<double>(total - done))
+                     : std::string("?");
+        sim->Log(absl::StrFormat("consolidating RVEs: %d/%d initial stresses done  wall %.1f s  "
+                                 "ETA %s",
+                                 done, total, wall, eta));
+      }
+    });
+  }
+  absl::StatusOr<std::vector<dem::RveState>> states = sim->pool_->Create(
+      template_of, initial, controls, [&](std::int64_t done, std::int64_t total) {
+        absl::MutexLock lock(&consolidation.mu);
+        consolidation.done = done;
+        consolidation.total = total;
+      });
+  {
+    absl::MutexLock lock(&consolidation.mu);
+    consolidation.finished = true;
+  }
+  if (ticker.joinable()) ticker.join();
   if (!states.ok()) return states.status();
   sim->Log(absl::StrFormat("created %d RVEs in %.1f s", n, Seconds(Clock::now() - create_start)));
   for (std::size_t p = 0; p < n; ++p) {

@@ -26,7 +26,7 @@ TEST(CreateProgressTest, ReportsEachCallAndMatchesOneCall) {
   dem::Packing packing = dem::testing_util::Prepared("SET-dense");
   const store::TemplateRecord record{"t", "SET-dense seed 1", packing};
   // 9 distinct stresses over 12 points (points 9..11 repeat 0..2); one
-  // worker: calls of 4, 4 and 1 consolidations.
+  // worker: calls of 2, 2, 2, 2 and 1 consolidations.
   constexpr int kPoints = 12;
   std::vector<service::InitialStress> initial(kPoints);
   std::vector<std::int64_t> ids;
@@ -46,7 +46,7 @@ TEST(CreateProgressTest, ReportsEachCallAndMatchesOneCall) {
       pool.Create(std::vector<std::string>(kPoints, "t"), initial, {},
                   [&](std::int64_t done, std::int64_t total) { reports.emplace_back(done, total); });
   ASSERT_TRUE(states.ok()) << states.status();
-  EXPECT_EQ(reports, (std::vector<std::pair<std::int64_t, std::int64_t>>{{4, 9}, {8, 9}, {9, 9}}));
+  EXPECT_EQ(reports, (std::vector<std::pair<std::int64_t, std::int64_t>>{{0, 9}, {2, 9}, {4, 9}, {6, 9}, {8, 9}, {9, 9}}));
 
   // The same RVEs created in one registry call.
   service::Registry registry(options);
