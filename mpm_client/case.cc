@@ -143,6 +143,11 @@ class Object {
 
 enum class Need { kOptional, kRequired };
 
+// Every number of a case is at most 1e12 in magnitude (fields with a
+// physical range have tighter bounds): products of a few case values, such as
+// ρ·|g|·depth, then stay far from overflow.
+constexpr double kMaxMagnitude = 1e12;
+
 // An allowed interval of a real number, open or closed at either end.
 struct Range {
   double lo = -kInf;
@@ -153,23 +158,30 @@ struct Range {
   bool Contains(double x) const {
     return (lo_open ? x > lo : x >= lo) && (hi_open ? x < hi : x <= hi);
   }
-  std::string Rule() const {
-    if (lo == -kInf && hi == kInf) return "must be a finite number";
-    if (hi == kInf) return absl::StrCat("must be ", lo_open ? "> " : ">= ", Num(lo));
-    if (lo == -kInf) return absl::StrCat("must be ", hi_open ? "< " : "<= ", Num(hi));
-    return absl::StrCat("must be in ", lo_open ? "(" : "[", Num(lo), ", ", Num(hi),
+  // What is wrong with x; the generic magnitude bound is only named when x
+  // breaks it.
+  std::string Rule(double x) const {
+    if (std::isfinite(x) && ((hi == kMaxMagnitude && x > hi) || (lo == -kMaxMagnitude && x < lo))) {
+      return absl::StrCat("must be at most ", Num(kMaxMagnitude), " in magnitude");
+    }
+    const double low = lo == -kMaxMagnitude ? -kInf : lo;
+    const double high = hi == kMaxMagnitude ? kInf : hi;
+    if (low == -kInf && high == kInf) return "must be a finite number";
+    if (high == kInf) return absl::StrCat("must be ", lo_open ? "> " : ">= ", Num(low));
+    if (low == -kInf) return absl::StrCat("must be ", hi_open ? "< " : "<= ", Num(high));
+    return absl::StrCat("must be in ", lo_open ? "(" : "[", Num(low), ", ", Num(high),
                         hi_open ? ")" : "]");
   }
 };
-constexpr Range kAny{};
-constexpr Range kPositive{0.0, kInf, true, false};
-constexpr Range kNonNegative{0.0, kInf, false, false};
+constexpr Range kAny{-kMaxMagnitude, kMaxMagnitude, false, false};
+constexpr Range kPositive{0.0, kMaxMagnitude, true, false};
+constexpr Range kNonNegative{0.0, kMaxMagnitude, false, false};
 constexpr Range kUnit{0.0, 1.0, false, false};
 
 absl::Status ReadNumber(const Json& v, absl::string_view ptr, const Range& range, double* out) {
   if (!v.is_number()) return Bad(ptr, "must be a number, got ", Got(v));
   const double x = v.get<double>();
-  if (!std::isfinite(x) || !range.Contains(x)) return Bad(ptr, range.Rule(), ", got ", Num(x));
+  if (!std::isfinite(x) || !range.Contains(x)) return Bad(ptr, range.Rule(x), ", got ", Num(x));
   *out = x;
   return absl::OkStatus();
 }
