@@ -149,6 +149,19 @@ TEST(CliTest, EveryBinaryHelpExitsZeroWithoutBuildPaths) {
   }
 }
 
+// A template file that cannot be written (a file size limit, as a full
+// disk) fails with the file named, exit 1, and no crash at exit.
+TEST(CliTest, FailedWriteExitsOneWithoutCrashing) {
+  const std::string file = TempPath("too_big.h5");
+  // SIGXFSZ ignored: writes past 40 blocks of 512 bytes fail with EFBIG.
+  const testing_util::CommandResult r = testing_util::RunCommand(
+      absl::StrCat("trap '' XFSZ; ulimit -f 40; '", RVE_CLI_PATH, "' prepare --out='", file,
+                   "' 2>&1"));
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_TRUE(absl::StrContains(r.out, absl::StrCat("writing ", file))) << r.out;
+  EXPECT_FALSE(std::ifstream(file).good());
+}
+
 // A header and one line per set with its parameters (cases/REFERENCE.md).
 TEST(CliTest, MaterialsListsTheParameterSets) {
   const Result r = RunCli("materials");

@@ -19,6 +19,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <limits>
 #include <memory>
@@ -1090,4 +1091,13 @@ int Main(int argc, char** argv) {
 }  // namespace
 }  // namespace rvehub::cli
 
-int main(int argc, char** argv) { return rvehub::cli::Main(argc, argv); }
+int main(int argc, char** argv) {
+  const int code = rvehub::cli::Main(argc, argv);
+  if (code != 0) {
+    // As in mpm_client: after a store write failed part-way (ENOSPC, EFBIG)
+    // HDF5's exit-time cleanup crashes on the file whose close failed.
+    std::fflush(nullptr);
+    std::_Exit(code);
+  }
+  return code;
+}
