@@ -162,6 +162,32 @@ TEST(CliTest, FailedWriteExitsOneWithoutCrashing) {
   EXPECT_FALSE(std::ifstream(file).good());
 }
 
+// rve_server whose checkpoint on SIGTERM cannot be written (a file size
+// limit, as a full disk) exits 1 rather than crashing in HDF5's cleanup.
+TEST(CliTest, ServerWithAFailedCheckpointExitsOne) {
+  const std::string dir = TempPath("server_checkpoint");
+  std::filesystem::create_directories(dir);
+  // The limit applies to the server only, through a wrapper that execs it.
+  const std::string wrapper = TempPath("limited_server.sh");
+  std::ofstream(wrapper) << "#!/bin/sh\ntrap '' XFSZ\nulimit -f 40\nexec '" << RVE_SERVER_PATH
+                         << "' \"$@\"\n";
+  std::filesystem::permissions(wrapper, std::filesystem::perms::owner_all);
+  testing_util::ServerProcess server(wrapper, TempPath("limited_server.log"),
+                                     {absl::StrCat("--checkpoint_dir=", dir)});
+  ASSERT_FALSE(server.address().empty()) << server.Log();
+  // A template (66 KB) to checkpoint: upload one prepared here.
+  const std::string file = TempPath("limited_template.h5");
+  ASSERT_EQ(RunCli(absl::StrCat("prepare --out='", file, "'")).exit_code, 0);
+  const Result upload = RunCli(absl::StrCat("upload-template --server=", server.address(),
+                                            " --file='", file, "'"));
+  ASSERT_EQ(upload.exit_code, 0) << upload.output;
+  EXPECT_EQ(server.Stop(), 1) << server.Log();
+  EXPECT_TRUE(absl::StrContains(server.Log(), "templates.h5")) << server.Log();
+  std::filesystem::remove_all(dir);
+  std::remove(file.c_str());
+  std::remove(wrapper.c_str());
+}
+
 // A header and one line per set with its parameters (cases/REFERENCE.md).
 TEST(CliTest, MaterialsListsTheParameterSets) {
   const Result r = RunCli("materials");
