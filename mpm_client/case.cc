@@ -16,9 +16,11 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
+#include "absl/strings/str_split.h"
 #include "rve_server/common/text_file.h"
 #include "rve_server/engine/material.h"
 
@@ -37,6 +39,8 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // Coordinates within this fraction of a cell of a grid line are on it (and
 // snapped onto it): decimal inputs such as 0.3 with h = 0.1 are not exact.
 constexpr double kGridTolerance = 1e-6;
+
+constexpr double kMaxEndTime = 1e6;  // s
 
 // ---------------------------------------------------------------- messages
 
@@ -139,6 +143,11 @@ class Object {
 
 enum class Need { kOptional, kRequired };
 
+// Every number of a case is at most 1e12 in magnitude (fields with a
+// physical range have tighter bounds): products of a few case values, such as
+// ρ·|g|·depth, then stay far from overflow.
+constexpr double kMaxMagnitude = 1e12;
+
 // An allowed interval of a real number, open or closed at either end.
 struct Range {
   double lo = -kInf;
@@ -149,23 +158,30 @@ struct Range {
   bool Contains(double x) const {
     return (lo_open ? x > lo : x >= lo) && (hi_open ? x < hi : x <= hi);
   }
-  std::string Rule() const {
-    if (lo == -kInf && hi == kInf) return "must be a finite number";
-    if (hi == kInf) return absl::StrCat("must be ", lo_open ? "> " : ">= ", Num(lo));
-    if (lo == -kInf) return absl::StrCat("must be ", hi_open ? "< " : "<= ", Num(hi));
-    return absl::StrCat("must be in ", lo_open ? "(" : "[", Num(lo), ", ", Num(hi),
+  // What is wrong with x; the generic magnitude bound is only named when x
+  // breaks it.
+  std::string Rule(double x) const {
+    if (std::isfinite(x) && ((hi == kMaxMagnitude && x > hi) || (lo == -kMaxMagnitude && x < lo))) {
+      return absl::StrCat("must be at most ", Num(kMaxMagnitude), " in magnitude");
+    }
+    const double low = lo == -kMaxMagnitude ? -kInf : lo;
+    const double high = hi == kMaxMagnitude ? kInf : hi;
+    if (low == -kInf && high == kInf) return "must be a finite number";
+    if (high == kInf) return absl::StrCat("must be ", lo_open ? "> " : ">= ", Num(low));
+    if (low == -kInf) return absl::StrCat("must be ", hi_open ? "< " : "<= ", Num(high));
+    return absl::StrCat("must be in ", lo_open ? "(" : "[", Num(low), ", ", Num(high),
                         hi_open ? ")" : "]");
   }
 };
-constexpr Range kAny{};
-constexpr Range kPositive{0.0, kInf, true, false};
-constexpr Range kNonNegative{0.0, kInf, false, false};
+constexpr Range kAny{-kMaxMagnitude, kMaxMagnitude, false, false};
+constexpr Range kPositive{0.0, kMaxMagnitude, true, false};
+constexpr Range kNonNegative{0.0, kMaxMagnitude, false, false};
 constexpr Range kUnit{0.0, 1.0, false, false};
 
 absl::Status ReadNumber(const Json& v, absl::string_view ptr, const Range& range, double* out) {
   if (!v.is_number()) return Bad(ptr, "must be a number, got ", Got(v));
   const double x = v.get<double>();
-  if (!std::isfinite(x) || !range.Contains(x)) return Bad(ptr, range.Rule(), ", got ", Num(x));
+  if (!std::isfinite(x) || !range.Contains(x)) return Bad(ptr, range.Rule(x), ", got ", Num(x));
   *out = x;
   return absl::OkStatus();
 }
@@ -421,12 +437,16 @@ absl::Status ParseSolver(const Json& j, const std::string& ptr, SolverSpec* solv
   RETURN_IF_ERROR(GetEnum(*o, "shape", Need::kOptional, "shape function", kShapes, &solver->shape));
   RETURN_IF_ERROR(GetNumber(*o, "pic_fraction", Need::kOptional, kUnit, &solver->pic_fraction));
   RETURN_IF_ERROR(GetVec2(*o, "gravity", Need::kOptional, kAny, &solver->gravity));
-  RETURN_IF_ERROR(GetNumber(*o, "time_step", Need::kOptional, kNonNegative, &solver->time_step));
+  RETURN_IF_ERROR(GetNumber(*o, "time_step", Need::kOptional, Range{0.0, kMaxEndTime},
+                            &solver->time_step));
   RETURN_IF_ERROR(
       GetNumber(*o, "cfl", Need::kOptional, Range{0.0, 1.0, true, false}, &solver->cfl));
   RETURN_IF_ERROR(
       GetNumber(*o, "wave_modulus", Need::kOptional, kNonNegative, &solver->wave_modulus));
-  RETURN_IF_ERROR(GetNumber(*o, "end_time", Need::kRequired, kPositive, &solver->end_time));
+  // A bound that keeps end_time / Δt a step count (1e308 s overflowed it and
+  // ended the run at step 0); the step count itself is bounded at the start.
+  RETURN_IF_ERROR(GetNumber(*o, "end_time", Need::kRequired, Range{0.0, kMaxEndTime, true, false},
+                            &solver->end_time));
   RETURN_IF_ERROR(GetNumber(*o, "thickness", Need::kOptional, kPositive, &solver->thickness));
   return absl::OkStatus();
 }
@@ -932,7 +952,94 @@ void Write(const OrderedJson& j, int indent, std::string* out) {
 
 }  // namespace
 
+CaseSize EstimateSize(const CaseSpec& spec) {
+  CaseSize size;
+  size.nodes = (static_cast<std::int64_t>(spec.grid.nx) + 1) * (spec.grid.ny + 1);
+  std::map<std::string, double> rve_bytes;
+  for (const TemplateSpec& t : spec.templates) {
+    // A prepared template's disc count is known; a file's is not read here.
+    absl::StatusOr<dem::ParameterSet> set = dem::FindParameterSet(t.parameter_set);
+    const int discs = t.file.empty() && set.ok() ? set->preparation.num_particles : 400;
+    rve_bytes[t.name] = kRveBytesPerDisc * discs;
+  }
+  double bytes = kBytesPerNode * static_cast<double>(size.nodes);
+  for (const MaterialRegion& r : spec.regions) {
+    double points = static_cast<double>(r.points_per_cell_side) * r.points_per_cell_side;
+    for (int d = 0; d < 2; ++d) {
+      points *= std::max(0.0, std::round((r.upper[d] - r.lower[d]) / spec.grid.cell_size));
+    }
+    size.points += static_cast<std::int64_t>(points);
+    bytes += points * (kBytesPerPoint + rve_bytes[r.rve_template]);
+  }
+  size.bytes = bytes;
+  return size;
+}
+
+absl::StatusOr<CaseOverride> ParseOverride(absl::string_view text) {
+  const std::size_t eq = text.find('=');
+  if (eq == absl::string_view::npos || eq == 0) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "--set needs PATH=VALUE (e.g. --set=/rve/min_steps=4 or --set=rve.min_steps=4), got '",
+        text, "'"));
+  }
+  CaseOverride o;
+  const absl::string_view path = text.substr(0, eq);
+  o.value = std::string(text.substr(eq + 1));
+  if (absl::StartsWith(path, "/")) {
+    o.pointer = std::string(path);
+  } else {
+    for (absl::string_view token : absl::StrSplit(path, '.')) {
+      o.pointer = Child(o.pointer, token);
+    }
+  }
+  return o;
+}
+
+namespace {
+
+absl::Status ApplyOverride(const CaseOverride& o, Json& doc) {
+  const std::string what = absl::StrCat("--set ", o.pointer);
+  Json::json_pointer pointer;
+  try {
+    pointer = Json::json_pointer(o.pointer);
+  } catch (const Json::exception& e) {
+    return absl::InvalidArgumentError(absl::StrCat(what, ": not a JSON pointer (", e.what(), ")"));
+  }
+  if (pointer.empty()) return absl::InvalidArgumentError(absl::StrCat(what, ": names the whole case"));
+  const Json::json_pointer parent = pointer.parent_pointer();
+  const std::string parent_text = parent.empty() ? "the case" : parent.to_string();
+  if (!doc.contains(parent)) {
+    return absl::InvalidArgumentError(absl::StrCat(what, ": ", parent_text, " is not in the case"));
+  }
+  Json& container = doc[parent];
+  if (container.is_array()) {
+    // Only existing elements: an override changes a case, it does not grow lists.
+    if (!doc.contains(pointer)) {
+      return absl::InvalidArgumentError(absl::StrCat(what, ": ", parent_text, " has ",
+                                                     container.size(), " elements"));
+    }
+  } else if (!container.is_object()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(what, ": ", parent_text, " is not an object or array"));
+  }
+  Json value;
+  try {
+    value = Json::parse(o.value);
+  } catch (const Json::exception&) {
+    value = o.value;  // a bare word: a string
+  }
+  doc[pointer] = std::move(value);
+  return absl::OkStatus();
+}
+
+}  // namespace
+
 absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::string& base_dir) {
+  return ParseCase(json_text, base_dir, {});
+}
+
+absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::string& base_dir,
+                                   std::span<const CaseOverride> overrides) {
   Json doc;
   DuplicateKeys duplicates;
   try {
@@ -943,6 +1050,7 @@ absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::strin
   if (!duplicates.first().empty()) {
     return Bad(duplicates.first(), "duplicate key (an object holds each key once)");
   }
+  for (const CaseOverride& o : overrides) RETURN_IF_ERROR(ApplyOverride(o, doc));
 
   absl::StatusOr<Object> root =
       Object::Open(doc, "",
@@ -998,10 +1106,20 @@ absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::strin
   if (const Json* output = root->Get("output")) {
     RETURN_IF_ERROR(ParseOutput(*output, root->At("output"), spec.bodies, &spec.output));
   }
+  // Refused here rather than as std::bad_alloc an hour into setting up.
+  if (const CaseSize size = EstimateSize(spec); size.bytes > kMaxCaseBytes) {
+    return Bad("/grid", absl::StrFormat(
+                            "the case needs about %.1f GiB (%d grid nodes, %d material points "
+                            "with their RVEs), more than the limit of %.0f GiB: use a coarser grid "
+                            "or smaller regions",
+                            size.bytes / (1 << 30), size.nodes, size.points,
+                            kMaxCaseBytes / (1 << 30)));
+  }
   return spec;
 }
 
-absl::StatusOr<CaseSpec> LoadCase(const std::string& path) {
+absl::StatusOr<CaseSpec> LoadCase(const std::string& path,
+                                  std::span<const CaseOverride> overrides) {
   std::error_code error;
   if (std::filesystem::is_directory(path, error)) {
     return absl::InvalidArgumentError(absl::StrCat("case file '", path, "' is a directory"));
@@ -1010,7 +1128,7 @@ absl::StatusOr<CaseSpec> LoadCase(const std::string& path) {
   if (!text.ok()) return text.status();
   const std::filesystem::path file(path);
   const std::string dir = file.has_parent_path() ? file.parent_path().string() : ".";
-  absl::StatusOr<CaseSpec> spec = ParseCase(*text, dir);
+  absl::StatusOr<CaseSpec> spec = ParseCase(*text, dir, overrides);
   if (!spec.ok()) {
     return absl::Status(spec.status().code(), absl::StrCat(path, ": ", spec.status().message()));
   }

@@ -5,6 +5,8 @@
 //   mpm_client run CASE --out=DIR --servers=host1:50051,host2:50051
 //   mpm_client resume out/se/checkpoint.h5
 //   mpm_client check CASE
+#include <unistd.h>
+
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -14,15 +16,36 @@
 #include <thread>
 #include <vector>
 
+#include "absl/flags/flag.h"
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "absl/synchronization/mutex.h"
+#include "absl/time/clock.h"
+#include "absl/time/time.h"
 #include "mpm_client/case.h"
 #include "mpm_client/simulation.h"
+#include "rve_server/cli/flags.h"
+#include "nlohmann/json.hpp"
 #include "rve_server/client/channel.h"
+#include "rve_server/common/text_file.h"
+#include "rve_server/service/server.h"
+
+// The options (kUsage documents them); cli::ParseArgs reads them with
+// hyphens (--stop-after).
+ABSL_FLAG(std::string, out, "", "output directory");
+ABSL_FLAG(std::string, servers, "", "RVE servers, HOST:PORT,...");
+ABSL_FLAG(int, threads, 0, "workers of the embedded server");
+ABSL_FLAG(std::string, token_file, "", "bearer token file");
+ABSL_FLAG(std::string, tls_ca, "", "CA certificate (PEM)");
+ABSL_FLAG(double, timeout, 600, "deadline of one batched RVE call, s");
+ABSL_FLAG(std::string, template_cache, "", "template cache directory");
+ABSL_FLAG(int64_t, stop_after, 0, "stop after N steps");
+ABSL_FLAG(bool, quiet, false, "no progress lines");
+// Repeatable: cli::ParseArgs keeps each occurrence as typed (Args::repeated).
+ABSL_FLAG(std::vector<std::string>, set, {}, "case overrides PATH=VALUE");
 
 namespace rvehub::mpm {
 namespace {
@@ -32,14 +55,16 @@ constexpr char kUsage[] = R"(mpm_client — multiscale MPM×DEM simulations on R
 Usage:
   mpm_client run CASE.json --out=DIR [options]   run a case
   mpm_client resume CHECKPOINT.h5 [options]       continue a run from its checkpoint
-  mpm_client check CASE.json                      validate a case file and print it in full
+  mpm_client check CASE.json [--set=...]         validate a case file and print it in full
   mpm_client --help
 
 Options (run, resume):
   --out=DIR            output directory (run: required; resume: default the checkpoint's
                        directory). Written there: results.h5 + results.xdmf (material-point
                        fields per frame; open results.xdmf in ParaView), timeseries.csv,
-                       plot.png, checkpoint.h5 (when the case sets output.checkpoint_every)
+                       plot.png, run.json (the run record: case, version, command line,
+                       host, start and end), checkpoint.h5 (when the case sets
+                       output.checkpoint_every, or at --stop-after)
   --servers=H:P,...    RVE servers to use (rve_server). Default: one embedded server in
                        this process, no network
   --threads=N          workers of the embedded server (default: all cores)
@@ -47,117 +72,130 @@ Options (run, resume):
   --tls-ca=FILE        CA certificate (PEM) to verify TLS servers
   --timeout=SECONDS    deadline of one batched RVE call (default 600)
   --template-cache=DIR where prepared RVE templates are cached (default DIR/templates)
-  --stop-after=N       stop after N steps (writing a checkpoint if checkpoints are on)
+  --stop-after=N       stop after N steps, writing DIR/checkpoint.h5 there (to resume)
   --quiet              no progress lines
+
+Option (run, check):
+  --set=PATH=VALUE     override one case field before the case is validated; repeatable.
+                       PATH is a JSON pointer or dotted: --set=/rve/min_steps=4,
+                       --set=regions.0.density=1600, --set=solver.shape=gimp
 
 Exit status: 0 done, 1 failure (message on stderr), 2 usage error.
 )";
 
-struct Args {
-  std::string command;
-  std::string target;
-  std::map<std::string, std::string> flags;
+using cli::Args;
+
+// The options that take a value parse into their flag first; a value the
+// flag cannot read gets the same message as one out of range.
+constexpr char kThreadsRule[] = "must be an integer in 1..1024";
+constexpr char kTimeoutRule[] = "must be a number of seconds in (0, 1e7]";
+constexpr char kStopAfterRule[] = "must be a positive integer";
+
+struct Command {
+  std::string name;    // run, resume, check, help
+  std::string target;  // the case file or checkpoint
+  Args args;
 };
 
-absl::StatusOr<Args> Parse(int argc, char** argv) {
-  Args a;
-  const std::set<std::string> known = {"out",    "servers", "threads",        "token-file",
-                                       "tls-ca", "timeout", "template-cache", "stop-after",
-                                       "quiet"};
+absl::StatusOr<Command> Parse(int argc, char** argv) {
+  Command c;
   // --help wins over anything else on the line (as in rve_cli).
-  for (int i = 1; i < argc; ++i) {
-    if (std::string arg = argv[i]; arg == "--help" || arg == "-h") {
-      a.command = "help";
-      return a;
+  if (cli::WantsHelp(argc, argv, 1)) {
+    c.name = "help";
+    return c;
+  }
+  cli::ArgSpec spec;
+  spec.allowed = {"out",    "servers", "threads",        "token-file", "tls-ca",
+                  "timeout", "template-cache", "stop-after", "quiet", "set"};
+  spec.repeatable = {"set"};
+  spec.bare = {"quiet"};
+  spec.rules = {{"threads", kThreadsRule}, {"timeout", kTimeoutRule},
+                {"stop-after", kStopAfterRule}};
+  absl::StatusOr<Args> args = cli::ParseArgs(argc, argv, 1, spec);
+  if (!args.ok()) return args.status();
+  c.args = *std::move(args);
+  std::vector<std::string>& positional = c.args.positional;
+  if (positional.size() > 2) {
+    return absl::InvalidArgumentError(absl::StrCat("unexpected argument '", positional[2], "'"));
+  }
+  if (positional.empty()) return absl::InvalidArgumentError("no command (see --help)");
+  c.name = positional[0];
+  if (c.name != "run" && c.name != "resume" && c.name != "check") {
+    return absl::InvalidArgumentError(absl::StrCat("unknown command '", c.name, "'"));
+  }
+  if (positional.size() < 2) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(c.name, " needs a ", c.name == "resume" ? "checkpoint" : "case file"));
+  }
+  c.target = positional[1];
+  if (c.name == "check") {
+    for (const auto& [key, value] : c.args.text) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("check takes no options (got --", key, "), only --set"));
     }
   }
-  for (int i = 1; i < argc; ++i) {
-    std::string arg = argv[i];
-    if (arg.starts_with("--")) {
-      std::string key = arg.substr(2), value;
-      if (std::size_t eq = key.find('='); eq != std::string::npos) {
-        value = key.substr(eq + 1);
-        key = key.substr(0, eq);
-      } else if (key != "quiet") {
-        return absl::InvalidArgumentError(
-            absl::StrCat("--", key, " needs a value (--", key, "=...)"));
-      }
-      if (key == "quiet" && arg.find('=') != std::string::npos) {
-        return absl::InvalidArgumentError("--quiet takes no value");
-      }
-      if (!known.contains(key)) {
-        return absl::InvalidArgumentError(absl::StrCat("unknown option --", key, " (see --help)"));
-      }
-      a.flags[key] = value;
-    } else if (a.command.empty()) {
-      a.command = arg;
-    } else if (a.target.empty()) {
-      a.target = arg;
-    } else {
-      return absl::InvalidArgumentError(absl::StrCat("unexpected argument '", arg, "'"));
-    }
-  }
-  if (a.command.empty()) return absl::InvalidArgumentError("no command (see --help)");
-  if (a.command != "run" && a.command != "resume" && a.command != "check") {
-    return absl::InvalidArgumentError(absl::StrCat("unknown command '", a.command, "'"));
-  }
-  if (a.target.empty()) {
+  if (c.name == "resume" && c.args.contains("set")) {
     return absl::InvalidArgumentError(
-        absl::StrCat(a.command, " needs a ", a.command == "resume" ? "checkpoint" : "case file"));
+        "resume takes no --set (a checkpoint continues the case it was written with)");
   }
-  if (a.command == "check" && !a.flags.empty()) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("check takes no options (got --", a.flags.begin()->first, ")"));
-  }
-  return a;
+  return c;
 }
 
-const std::string* Flag(const Args& a, const char* key) {
-  auto it = a.flags.find(key);
-  return it == a.flags.end() ? nullptr : &it->second;
+// The case overrides of --set, in the order given.
+absl::StatusOr<std::vector<CaseOverride>> Overrides(const Args& a) {
+  std::vector<CaseOverride> out;
+  auto it = a.repeated.find("set");
+  if (it == a.repeated.end()) return out;
+  for (const std::string& text : it->second) {
+    absl::StatusOr<CaseOverride> o = ParseOverride(text);
+    if (!o.ok()) return o.status();
+    out.push_back(*std::move(o));
+  }
+  return out;
 }
 
 // The run options from the flags; usage errors only (files are read by
 // LoadClientOptions).
 absl::StatusOr<RunOptions> Options(const Args& a) {
   RunOptions o;
-  auto flag = [&](const char* k) { return Flag(a, k); };
-  if (const std::string* v = flag("out")) {
-    if (v->empty()) return absl::InvalidArgumentError("--out=DIR needs a directory");
-    o.out_dir = *v;
+  if (a.contains("out")) {
+    o.out_dir = absl::GetFlag(FLAGS_out);
+    if (o.out_dir.empty()) return absl::InvalidArgumentError("--out=DIR needs a directory");
   }
-  if (const std::string* v = flag("servers")) {
-    for (absl::string_view s : absl::StrSplit(*v, ',', absl::SkipWhitespace())) {
+  if (a.contains("servers")) {
+    for (absl::string_view s :
+         absl::StrSplit(absl::GetFlag(FLAGS_servers), ',', absl::SkipWhitespace())) {
       o.servers.emplace_back(s);
     }
     if (o.servers.empty()) return absl::InvalidArgumentError("--servers lists no server");
   }
-  if (const std::string* v = flag("threads")) {
-    if (!absl::SimpleAtoi(*v, &o.threads) || o.threads < 1 || o.threads > 1024) {
-      return absl::InvalidArgumentError("--threads must be an integer in 1..1024");
+  if (a.contains("threads")) {
+    o.threads = absl::GetFlag(FLAGS_threads);
+    if (o.threads < 1 || o.threads > 1024) {
+      return absl::InvalidArgumentError(absl::StrCat("--threads ", kThreadsRule));
     }
   }
-  if (const std::string* v = flag("timeout")) {
-    if (!absl::SimpleAtod(*v, &o.apply_timeout_s) || !(o.apply_timeout_s > 0) ||
-        o.apply_timeout_s > 1e7) {
-      return absl::InvalidArgumentError("--timeout must be a number of seconds in (0, 1e7]");
+  if (a.contains("timeout")) {
+    o.apply_timeout_s = absl::GetFlag(FLAGS_timeout);
+    if (!(o.apply_timeout_s > 0) || o.apply_timeout_s > 1e7) {
+      return absl::InvalidArgumentError(absl::StrCat("--timeout ", kTimeoutRule));
     }
   }
-  if (const std::string* v = flag("stop-after")) {
-    if (!absl::SimpleAtoi(*v, &o.stop_after_steps) || o.stop_after_steps < 1) {
-      return absl::InvalidArgumentError("--stop-after must be a positive integer");
+  if (a.contains("stop-after")) {
+    o.stop_after_steps = absl::GetFlag(FLAGS_stop_after);
+    if (o.stop_after_steps < 1) {
+      return absl::InvalidArgumentError(absl::StrCat("--stop-after ", kStopAfterRule));
     }
   }
-  if (const std::string* v = flag("template-cache")) o.template_cache_dir = *v;
-  o.progress = flag("quiet") == nullptr;
+  if (a.contains("template-cache")) o.template_cache_dir = absl::GetFlag(FLAGS_template_cache);
+  o.progress = !a.contains("quiet");
   return o;
 }
 
 // The token and CA certificate for the servers, read from their files.
-absl::StatusOr<client::ClientOptions> LoadClientOptions(const Args& a) {
-  const std::string* token = Flag(a, "token-file");
-  const std::string* ca = Flag(a, "tls-ca");
-  return client::ClientOptionsFromFiles(token ? *token : "", ca ? *ca : "");
+absl::StatusOr<client::ClientOptions> LoadClientOptions() {
+  return client::ClientOptionsFromFiles(absl::GetFlag(FLAGS_token_file),
+                                        absl::GetFlag(FLAGS_tls_ca));
 }
 
 int Fail(const absl::Status& s, int code) {
@@ -165,47 +203,135 @@ int Fail(const absl::Status& s, int code) {
   return code;
 }
 
+std::string Now() {
+  return absl::FormatTime("%Y-%m-%dT%H:%M:%E3SZ", absl::Now(), absl::UTCTimeZone());
+}
+
+std::string HostName() {
+  char name[256] = {};
+  if (gethostname(name, sizeof(name) - 1) != 0) return "";
+  return name;
+}
+
+// DIR/run.json: what ran, where and when, so that an output directory says
+// how it was made. Written when the run starts (outcome "running") and again
+// at its end; a resume keeps the records before it under "previous".
+class RunRecord {
+ public:
+  RunRecord(int argc, char** argv, const std::string& command) {
+    json_["program"] = "mpm_client";
+    json_["version"] = RVEHUB_GIT_DESCRIBE;
+    json_["api_version"] = service::kServerVersion;
+    json_["command_line"] = std::vector<std::string>(argv, argv + argc);
+    json_["command"] = command;
+    json_["host"] = HostName();
+    std::error_code ec;
+    json_["working_directory"] = std::filesystem::current_path(ec).string();
+    json_["start"] = Now();
+    json_["end"] = nullptr;
+    json_["outcome"] = "running";
+  }
+
+  // The case as run (canonical, after --set) and where the outputs go.
+  void Started(const std::string& dir, const CaseSpec& spec, bool resumed) {
+    dir_ = dir;
+    json_["case"] = Json::parse(ToJson(spec));
+    if (resumed) {
+      // The run this one continues, and any it continued.
+      if (absl::StatusOr<std::string> old = ReadTextFile(Path(), "run record"); old.ok()) {
+        Json previous = Json::parse(*old, nullptr, /*allow_exceptions=*/false);
+        if (!previous.is_discarded()) {
+          Json chain = previous.contains("previous") ? previous["previous"] : Json::array();
+          previous.erase("previous");
+          chain.push_back(std::move(previous));
+          json_["previous"] = std::move(chain);
+        }
+      }
+    }
+    Write();
+  }
+
+  void Finished(const absl::StatusOr<RunSummary>& summary) {
+    json_["end"] = Now();
+    if (!summary.ok()) {
+      json_["outcome"] = "failed";
+      json_["error"] = std::string(summary.status().message());
+    } else {
+      json_["outcome"] = summary->finished ? "finished" : "stopped";
+      json_["final_step"] = summary->final_step;
+      json_["final_time"] = summary->final_time;
+      json_["wall_s"] = summary->wall_s;
+    }
+    Write();
+  }
+
+ private:
+  using Json = nlohmann::ordered_json;
+  std::string Path() const { return dir_ + "/run.json"; }
+  // A record that cannot be written is reported, not fatal: the results are.
+  void Write() const {
+    if (dir_.empty()) return;
+    const std::string tmp = Path() + ".tmp";
+    std::FILE* f = std::fopen(tmp.c_str(), "w");
+    const std::string text = json_.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
+    const bool ok = f != nullptr && std::fwrite(text.data(), 1, text.size(), f) == text.size();
+    const bool closed = f != nullptr && std::fclose(f) == 0;
+    if (!ok || !closed || std::rename(tmp.c_str(), Path().c_str()) != 0) {
+      std::remove(tmp.c_str());
+      std::fprintf(stderr, "mpm_client: cannot write %s\n", Path().c_str());
+    }
+  }
+
+  Json json_;
+  std::string dir_;
+};
+
 int Main(int argc, char** argv) {
   // Debian's Abseil is built with mutex deadlock detection on: a graph update
   // per lock, and the embedded registry locks every RVE every step (~2 % of
   // footing-full). The tests keep it on.
   absl::SetMutexDeadlockDetectionMode(absl::OnDeadlockCycle::kIgnore);
-  absl::StatusOr<Args> args = Parse(argc, argv);
-  if (!args.ok()) return Fail(args.status(), 2);
-  if (args->command == "help") {
+  absl::StatusOr<Command> command = Parse(argc, argv);
+  if (!command.ok()) return Fail(command.status(), 2);
+  if (command->name == "help") {
     std::fputs(kUsage, stdout);
     return 0;
   }
-  if (args->command == "check") {
-    absl::StatusOr<CaseSpec> spec = LoadCase(args->target);
+  absl::StatusOr<std::vector<CaseOverride>> overrides = Overrides(command->args);
+  if (!overrides.ok()) return Fail(overrides.status(), 2);
+  if (command->name == "check") {
+    absl::StatusOr<CaseSpec> spec = LoadCase(command->target, *overrides);
     if (!spec.ok()) return Fail(spec.status(), 1);
     std::printf("%s\n", ToJson(*spec).c_str());
     return 0;
   }
-  absl::StatusOr<RunOptions> options = Options(*args);
+  absl::StatusOr<RunOptions> options = Options(command->args);
   if (!options.ok()) return Fail(options.status(), 2);
-  if (args->command == "run" && !args->flags.contains("out")) {
+  if (command->name == "run" && !command->args.contains("out")) {
     return Fail(absl::InvalidArgumentError("--out=DIR is required"), 2);
   }
   // An unreadable token or CA file is a failure, not a usage error.
-  absl::StatusOr<client::ClientOptions> client_options = LoadClientOptions(*args);
+  absl::StatusOr<client::ClientOptions> client_options = LoadClientOptions();
   if (!client_options.ok()) return Fail(client_options.status(), 1);
   options->client = *std::move(client_options);
+  RunRecord record(argc, argv, command->name);
   absl::StatusOr<std::unique_ptr<Simulation>> sim;
-  if (args->command == "run") {
-    absl::StatusOr<CaseSpec> spec = LoadCase(args->target);
+  if (command->name == "run") {
+    absl::StatusOr<CaseSpec> spec = LoadCase(command->target, *overrides);
     if (!spec.ok()) return Fail(spec.status(), 1);
     sim = Simulation::Start(*spec, *options);
   } else {
-    if (!args->flags.contains("out")) {
+    if (!command->args.contains("out")) {
       // The checkpoint's directory ("/" for /checkpoint.h5, "." for a bare name).
-      const std::filesystem::path dir = std::filesystem::path(args->target).parent_path();
+      const std::filesystem::path dir = std::filesystem::path(command->target).parent_path();
       options->out_dir = dir.empty() ? "." : dir.string();
     }
-    sim = Simulation::Resume(args->target, *options);
+    sim = Simulation::Resume(command->target, *options);
   }
   if (!sim.ok()) return Fail(sim.status(), 1);
+  record.Started(options->out_dir, (*sim)->spec(), command->name == "resume");
   absl::StatusOr<RunSummary> summary = (*sim)->Run();
+  record.Finished(summary);
   if (!summary.ok()) return Fail(summary.status(), 1);
   std::fprintf(stderr,
                "mpm_client: %s at step %lld, t = %.6g s; %lld steps in %.1f s wall (RVE calls "
@@ -223,4 +349,15 @@ int Main(int argc, char** argv) {
 }  // namespace
 }  // namespace rvehub::mpm
 
-int main(int argc, char** argv) { return rvehub::mpm::Main(argc, argv); }
+int main(int argc, char** argv) {
+  const int code = rvehub::mpm::Main(argc, argv);
+  if (code != 0) {
+    // A store write that failed part-way (ENOSPC, EFBIG) can leave HDF5
+    // holding a file whose close failed, and HDF5's exit-time cleanup then
+    // crashes on it (H5F__close_cb). Main has closed or given up every file
+    // by now, so a failed run leaves without the exit handlers.
+    std::fflush(nullptr);
+    std::_Exit(code);
+  }
+  return code;
+}

@@ -5,11 +5,15 @@
 #include <cmath>
 #include <map>
 #include <numeric>
+#include <optional>
 #include <thread>
+#include <tuple>
 #include <utility>
 
+#include "absl/base/casts.h"
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
+#include "absl/synchronization/mutex.h"
 
 namespace rvehub::mpm {
 namespace {
@@ -147,10 +151,64 @@ absl::Status RvePool::UploadTemplates(std::span<const store::TemplateRecord> tem
   });
 }
 
+namespace {
+
+// The registry consolidates each distinct initial stress of a call once
+// (bitwise equal targets); the same key here keeps them in one call.
+using StressKey = std::tuple<int, std::uint64_t, std::uint64_t, std::uint64_t>;
+StressKey KeyOf(const service::InitialStress& s) {
+  return {static_cast<int>(s.kind), absl::bit_cast<std::uint64_t>(s.pressure),
+          absl::bit_cast<std::uint64_t>(s.vertical_compression),
+          absl::bit_cast<std::uint64_t>(s.k0)};
+}
+
+// One Create call: ids with their initial stresses (none, one for all, or
+// one per id) and the distinct stresses among them.
+struct CreateCall {
+  std::vector<std::int64_t> ids;
+  std::vector<service::InitialStress> initial;
+  std::int64_t consolidations = 1;
+};
+
+// The calls for `ids` of one template on one endpoint: whole groups of equal
+// initial stress, `per_call` groups a call (the last may have fewer), so
+// each stress is still consolidated once and the workers stay busy, while
+// progress is seen every few consolidations.
+std::vector<CreateCall> SplitCreate(const std::vector<std::int64_t>& ids,
+                                    std::span<const service::InitialStress> initial_per_point,
+                                    std::int64_t per_call) {
+  std::vector<CreateCall> calls;
+  if (initial_per_point.size() <= 1) {
+    CreateCall& c = calls.emplace_back();
+    c.ids = ids;
+    c.initial.assign(initial_per_point.begin(), initial_per_point.end());
+    return calls;
+  }
+  std::map<StressKey, std::size_t> group_of;
+  std::vector<std::vector<std::int64_t>> groups;  // in order of first appearance
+  for (std::int64_t p : ids) {
+    auto [it, inserted] = group_of.try_emplace(KeyOf(initial_per_point[p]), groups.size());
+    if (inserted) groups.emplace_back();
+    groups[it->second].push_back(p);
+  }
+  for (std::size_t g = 0; g < groups.size(); ++g) {
+    if (g % per_call == 0) calls.emplace_back().consolidations = 0;
+    CreateCall& c = calls.back();
+    ++c.consolidations;
+    for (std::int64_t p : groups[g]) {
+      c.ids.push_back(p);
+      c.initial.push_back(initial_per_point[p]);
+    }
+  }
+  return calls;
+}
+
+}  // namespace
+
 absl::StatusOr<std::vector<dem::RveState>> RvePool::Create(
     std::span<const std::string> template_per_point,
     std::span<const service::InitialStress> initial_per_point,
-    const std::map<std::string, dem::Controls>& controls) {
+    const std::map<std::string, dem::Controls>& controls, const CreateProgress& progress) {
   if (endpoints_.empty()) return NoEndpoints();
   if (assignment_.empty()) Assign(std::vector<double>(template_per_point.size(), 1.0));
   const std::size_t n = assignment_.size();
@@ -163,27 +221,48 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Create(
         absl::StrCat("give no initial stress, one for all or one per point (", n, "), not ",
                      initial_per_point.size()));
   }
-  std::vector<dem::RveState> out(n);
-  absl::Status s = ForEachEndpoint([&](int k) -> absl::Status {
-    // One call per template, in name order.
+  // Per endpoint: one template at a time, in name order, in calls.
+  struct TemplateCalls {
+    std::string name;
+    std::vector<CreateCall> calls;
+  };
+  std::vector<std::vector<TemplateCalls>> plan(endpoints_.size());
+  std::int64_t total = 0;
+  for (int k = 0; k < num_endpoints(); ++k) {
     std::map<std::string, std::vector<std::int64_t>> by_template;
     for (std::int64_t p : points_[k])
       by_template[template_per_point.size() == 1 ? template_per_point[0] : template_per_point[p]]
           .push_back(p);
+    // Two consolidations per worker a call: a few calls even for a column's
+    // handful of depths (column-collapse-ci: 8 on 2 workers), while the
+    // workers' idle tail at the end of each call stays about one
+    // consolidation (neighbouring depths cost about the same).
+    const std::int64_t per_call = 2 * std::max(1, endpoints_[k]->workers());
     for (const auto& [name, ids] : by_template) {
-      std::vector<service::InitialStress> initial;
-      if (initial_per_point.size() == 1) {
-        initial.push_back(initial_per_point[0]);
-      } else if (!initial_per_point.empty()) {
-        for (std::int64_t p : ids) initial.push_back(initial_per_point[p]);
+      plan[k].push_back({name, SplitCreate(ids, initial_per_point, per_call)});
+      for (const CreateCall& c : plan[k].back().calls) total += c.consolidations;
+    }
+  }
+  absl::Mutex mu;
+  std::int64_t done = 0;
+  if (progress) progress(0, total);
+  std::vector<dem::RveState> out(n);
+  absl::Status s = ForEachEndpoint([&](int k) -> absl::Status {
+    for (const TemplateCalls& t : plan[k]) {
+      const std::string what = absl::StrCat("creating RVEs of template \"", t.name, "\"");
+      auto own = controls.find(t.name);
+      for (const CreateCall& c : t.calls) {
+        absl::StatusOr<std::vector<service::RveOutcome>> r = endpoints_[k]->Create(
+            run_id_, t.name, c.ids, c.initial,
+            own == controls.end() ? std::nullopt : std::optional<dem::Controls>(own->second));
+        if (!r.ok()) return CallError(k, r.status(), what);
+        if (absl::Status e = Collect(k, c.ids, *r, what, out); !e.ok()) return e;
+        if (progress) {
+          absl::MutexLock lock(&mu);
+          done += c.consolidations;
+          progress(done, total);
+        }
       }
-      const std::string what = absl::StrCat("creating RVEs of template \"", name, "\"");
-      auto own = controls.find(name);
-      absl::StatusOr<std::vector<service::RveOutcome>> r = endpoints_[k]->Create(
-          run_id_, name, ids, initial,
-          own == controls.end() ? std::nullopt : std::optional<dem::Controls>(own->second));
-      if (!r.ok()) return CallError(k, r.status(), what);
-      if (absl::Status c = Collect(k, ids, *r, what, out); !c.ok()) return c;
     }
     return absl::OkStatus();
   });

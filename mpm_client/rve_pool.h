@@ -99,10 +99,17 @@ class RvePool {
   // that template's new RVEs; a template not named keeps its own. Without an
   // assignment, assigns equal costs first. States after creation, in point
   // order.
+  // Consolidation is the slow part, one per distinct initial stress (per
+  // template and endpoint): those are sent in calls of a few at a time, and
+  // `progress(done, total)` (optional; first with done = 0, then after each
+  // call, from the endpoints' threads, one call at a time) counts the
+  // consolidations finished.
+  using CreateProgress = std::function<void(std::int64_t done, std::int64_t total)>;
   absl::StatusOr<std::vector<dem::RveState>> Create(
       std::span<const std::string> template_per_point,
       std::span<const service::InitialStress> initial_per_point = {},
-      const std::map<std::string, dem::Controls>& controls = {});
+      const std::map<std::string, dem::Controls>& controls = {},
+      const CreateProgress& progress = {});
 
   // COMMITs step `step` (≥ 1) with ΔF per point ([-], plane strain): one
   // batch per endpoint, all in flight at once; a batch failing transiently is

@@ -13,6 +13,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/synchronization/mutex.h"
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
 #include "mpm_client/case.h"
@@ -411,8 +412,45 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   }
   sim->Log(absl::StrFormat("creating %d RVEs on %d server(s)...", n, sim->pool_->num_endpoints()));
   const Clock::time_point create_start = Clock::now();
-  absl::StatusOr<std::vector<dem::RveState>> states =
-      sim->pool_->Create(template_of, initial, controls);
+  // A line every ~2 s while the RVEs are consolidated (minutes for large
+  // cases), in the style of the stepping's progress lines, from a ticker
+  // thread: a call to the servers can take longer than that.
+  struct Consolidation {
+    absl::Mutex mu;
+    std::int64_t done ABSL_GUARDED_BY(mu) = 0;
+    std::int64_t total ABSL_GUARDED_BY(mu) = 0;
+    bool finished ABSL_GUARDED_BY(mu) = false;
+  } consolidation;
+  std::thread ticker;
+  if (options.progress) {
+    ticker = std::thread([&] {
+      absl::MutexLock lock(&consolidation.mu);
+      while (!consolidation.mu.AwaitWithTimeout(absl::Condition(&consolidation.finished),
+                                                absl::Seconds(2))) {
+        const std::int64_t done = consolidation.done, total = consolidation.total;
+        if (total == 0) continue;
+        const double wall = Seconds(Clock::now() - create_start);
+        const std::string eta =
+            done > 0 ? absl::StrFormat("%.0f s", wall / static_cast<double>(done) *
+                                                     static_cast<double>(total - done))
+                     : std::string("?");
+        sim->Log(absl::StrFormat("consolidating RVEs: %d/%d initial stresses done  wall %.1f s  "
+                                 "ETA %s",
+                                 done, total, wall, eta));
+      }
+    });
+  }
+  absl::StatusOr<std::vector<dem::RveState>> states = sim->pool_->Create(
+      template_of, initial, controls, [&](std::int64_t done, std::int64_t total) {
+        absl::MutexLock lock(&consolidation.mu);
+        consolidation.done = done;
+        consolidation.total = total;
+      });
+  {
+    absl::MutexLock lock(&consolidation.mu);
+    consolidation.finished = true;
+  }
+  if (ticker.joinable()) ticker.join();
   if (!states.ok()) return states.status();
   sim->Log(absl::StrFormat("created %d RVEs in %.1f s", n, Seconds(Clock::now() - create_start)));
   for (std::size_t p = 0; p < n; ++p) {
@@ -490,7 +528,16 @@ absl::StatusOr<RunSummary> Simulation::Run() {
   RunSummary sum;
   const OutputSpec& o = spec_.output;
   const double end = spec_.solver.end_time;
-  const std::int64_t total_steps = static_cast<std::int64_t>(std::ceil(end / solver_->dt() - 1e-9));
+  // Bounded before the cast: a step count beyond int64 was undefined (and
+  // ended runs at step 0); beyond kMaxSteps a run would not end in a lifetime.
+  const double steps_needed = std::ceil(end / solver_->dt() - 1e-9);
+  if (!(steps_needed <= static_cast<double>(kMaxSteps))) {
+    return absl::FailedPreconditionError(absl::StrFormat(
+        "solver.end_time %.6g s at a time step of %.4g s is %.4g MPM steps, more than the limit "
+        "of %d (cases/FORMAT.md): shorten end_time or raise the time step",
+        end, solver_->dt(), steps_needed, kMaxSteps));
+  }
+  const std::int64_t total_steps = static_cast<std::int64_t>(steps_needed);
   const Clock::time_point start = Clock::now();
   const double rve_start = rve_seconds_;
   const std::int64_t evals_start = pool_->evaluations();
@@ -516,9 +563,18 @@ absl::StatusOr<RunSummary> Simulation::Run() {
     if (step % o.frame_every == 0 || last) {
       if (absl::Status s = WriteFrame(); !s.ok()) return s;
     }
-    const bool stopping = options_.stop_after_steps > 0 && sum.steps >= options_.stop_after_steps;
-    if (o.checkpoint_every > 0 && (step % o.checkpoint_every == 0 || last || stopping)) {
+    // Where --stop-after stops there is always a checkpoint, checkpoints on
+    // or not: stopping is for resuming later.
+    const bool stopping =
+        !last && options_.stop_after_steps > 0 && sum.steps >= options_.stop_after_steps;
+    if ((o.checkpoint_every > 0 && (step % o.checkpoint_every == 0 || last)) || stopping) {
       if (absl::Status s = WriteCheckpoint(); !s.ok()) return s;
+    }
+    if (stopping) {
+      const std::string path = options_.out_dir + "/checkpoint.h5";
+      Log(absl::StrFormat("stopped at step %d (--stop-after=%d); checkpoint written to %s "
+                          "(continue with: mpm_client resume %s)",
+                          step, options_.stop_after_steps, path, path));
     }
     output_time += Clock::now() - t_out;
     if (options_.progress && (step % o.progress_every == 0 || last)) {

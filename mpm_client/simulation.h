@@ -30,11 +30,14 @@ struct RunOptions {
   // Prepared templates are cached here; empty: <out_dir>/templates.
   std::string template_cache_dir;
   // Stop after this many MPM steps of this invocation (0: run to the end),
-  // writing a checkpoint there when checkpoints are on (tests, interruptions).
+  // writing a checkpoint there (checkpoints on or not) to resume from.
   std::int64_t stop_after_steps = 0;
   bool progress = true;                         // progress lines on stderr
   std::function<void(const std::string&)> log;  // default: stderr
 };
+
+// MPM steps a run may take at most (end_time / Δt).
+inline constexpr std::int64_t kMaxSteps = 1'000'000'000;
 
 struct RunSummary {
   std::int64_t steps = 0;  // MPM steps taken in this invocation

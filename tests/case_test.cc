@@ -426,8 +426,11 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
       // Unbounded DEM work per increment.
       {"/rve/min_steps", 1e15, "/rve/min_steps: must be an integer in 0..100000"},
       {"/rve/max_inertial_number", 0.5, "/rve/max_inertial_number: must be in [0, 0.1], got 0.5"},
-      {"/solver/end_time", 0, "/solver/end_time: must be > 0, got 0"},
-      {"/solver/time_step", -1e-3, "/solver/time_step: must be >= 0, got -0.001"},
+      {"/solver/end_time", 0, "/solver/end_time: must be in (0, 1000000], got 0"},
+      {"/solver/gravity", Json::array({0, -1e13}),
+       "/solver/gravity/1: must be at most 1e+12 in magnitude, got -1e+13"},
+      {"/grid/cell_size", 1e13, "/grid/cell_size: must be at most 1e+12 in magnitude, got 1e+13"},
+      {"/solver/time_step", -1e-3, "/solver/time_step: must be in [0, 1000000], got -0.001"},
       {"/solver/thickness", 0, "/solver/thickness: must be > 0, got 0"},
       {"/grid/cell_size", -0.5, "/grid/cell_size: must be > 0, got -0.5"},
       {"/regions/0/points_per_cell_side", 0,
@@ -575,6 +578,65 @@ TEST(ShippedCases, ParseAndRoundTrip) {
     ExpectSameSpec(*spec, *again);
   }
   EXPECT_GT(count, 0);
+}
+
+TEST(CaseOverride, ParsesPointerAndDottedPaths) {
+  absl::StatusOr<CaseOverride> pointer = ParseOverride("/rve/min_steps=4");
+  ASSERT_TRUE(pointer.ok()) << pointer.status();
+  EXPECT_EQ(pointer->pointer, "/rve/min_steps");
+  EXPECT_EQ(pointer->value, "4");
+  absl::StatusOr<CaseOverride> dotted = ParseOverride("regions.0.density=1.6e3");
+  ASSERT_TRUE(dotted.ok()) << dotted.status();
+  EXPECT_EQ(dotted->pointer, "/regions/0/density");
+  EXPECT_EQ(dotted->value, "1.6e3");
+  // Only the first "=" splits: values may hold more.
+  absl::StatusOr<CaseOverride> equals = ParseOverride("description=a=b");
+  ASSERT_TRUE(equals.ok()) << equals.status();
+  EXPECT_EQ(equals->pointer, "/description");
+  EXPECT_EQ(equals->value, "a=b");
+  for (const char* bad : {"rve.min_steps", "=4", ""}) {
+    absl::StatusOr<CaseOverride> o = ParseOverride(bad);
+    EXPECT_FALSE(o.ok()) << bad;
+    EXPECT_TRUE(MessageStartsWith(o.status(), "--set needs PATH=VALUE")) << o.status();
+  }
+}
+
+TEST_F(CaseTest, OverridesApplyBeforeValidation) {
+  const std::vector<CaseOverride> ok = {{"/solver/end_time", "2.5"},
+                                        {"/regions/0/points_per_cell_side", "3"},
+                                        {"/name", "sweep"}};
+  absl::StatusOr<CaseSpec> spec = ParseCase(kMinimalCase, dir_.string(), ok);
+  ASSERT_TRUE(spec.ok()) << spec.status();
+  EXPECT_EQ(spec->solver.end_time, 2.5);
+  EXPECT_EQ(spec->regions[0].points_per_cell_side, 3);
+  EXPECT_EQ(spec->name, "sweep");
+  const std::vector<CaseOverride> bad = {{"/solver/end_time", "-1"}};
+  absl::StatusOr<CaseSpec> refused = ParseCase(kMinimalCase, dir_.string(), bad);
+  EXPECT_TRUE(MessageStartsWith(refused.status(), "/solver/end_time: must be in (0, 1000000]"))
+      << refused.status();
+  // A new key is checked like one in the file.
+  const std::vector<CaseOverride> typo = {{"/solver/end_tme", "1"}};
+  EXPECT_TRUE(MessageStartsWith(ParseCase(kMinimalCase, dir_.string(), typo).status(),
+                                "/solver/end_tme: unknown key"));
+}
+
+TEST_F(CaseTest, MemoryEstimateBoundsTheCase) {
+  absl::StatusOr<CaseSpec> spec = Parse(kMinimalCase);
+  ASSERT_TRUE(spec.ok()) << spec.status();
+  const CaseSize size = EstimateSize(*spec);
+  EXPECT_EQ(size.nodes, (spec->grid.nx + 1) * (spec->grid.ny + 1));
+  EXPECT_EQ(size.points, 2 * 1 * 4);  // 2 × 1 cells of 0.5 m, 2 × 2 points each
+  EXPECT_NEAR(size.bytes,
+              kBytesPerNode * size.nodes + size.points * (kBytesPerPoint + 400 * kRveBytesPerDisc),
+              1e-6);
+  // 10^4 × 10^4 cells filled with points: ~5e3 GiB, refused naming the grid.
+  Json doc = Json::parse(kMinimalCase);
+  doc["grid"]["cells"] = {10000, 10000};
+  doc["regions"][0]["upper"] = {5000, 5000};
+  absl::StatusOr<CaseSpec> huge = Parse(doc.dump());
+  ASSERT_FALSE(huge.ok());
+  EXPECT_TRUE(MessageStartsWith(huge.status(), "/grid: the case needs about ")) << huge.status();
+  EXPECT_TRUE(MessageHas(huge.status(), "more than the limit of 32 GiB")) << huge.status();
 }
 
 TEST_F(CaseTest, LoadCaseOnAMissingFileIsNotFound) {

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <sstream>
@@ -24,6 +25,7 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
 #include "gtest/gtest.h"
+#include "nlohmann/json.hpp"
 #include "rve_server/client/channel.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
 #include "tests/process_util.h"
@@ -51,9 +53,11 @@ std::string TempPath(const std::string& name) {
   return absl::StrCat(testing::TempDir(), "/cli_test_", getpid(), "_", name);
 }
 
-const char* const kCommands[] = {"element-test", "prepare",         "materials",  "info",
-                                 "get",          "upload-template", "checkpoint", "restore"};
-const char* const kServerCommands[] = {"info", "get", "upload-template", "checkpoint", "restore"};
+const char* const kCommands[] = {"element-test", "prepare",    "materials", "info",
+                                 "get",          "upload-template", "checkpoint", "restore",
+                                 "list-runs",    "drop"};
+const char* const kServerCommands[] = {"info",    "get",       "upload-template", "checkpoint",
+                                       "restore", "list-runs", "drop"};
 
 TEST(CliTest, HelpPrintsTheUsageAndExitsZero) {
   const Result r = RunCli("--help");
@@ -123,13 +127,92 @@ TEST(CliTest, UnknownMaterialFailsWithTheKnownNames) {
   EXPECT_FALSE(std::ifstream(csv).good());
 }
 
+// rve_server and mpm_client answer --help like rve_cli: usage on stdout,
+// exit 0, no build paths (absl's own --help exits 1 and prints them).
+TEST(CliTest, EveryBinaryHelpExitsZeroWithoutBuildPaths) {
+  for (const std::string& binary : {std::string(RVE_SERVER_PATH), std::string(MPM_CLIENT_PATH),
+                                    std::string(RVE_CLI_PATH)}) {
+    for (const char* flag : {"--help", "-h"}) {
+      const testing_util::CommandResult r =
+          testing_util::RunCommand(absl::StrCat("'", binary, "' ", flag, " 2>&1"));
+      EXPECT_EQ(r.exit_code, 0) << binary << " " << flag << ": " << r.out;
+      EXPECT_TRUE(absl::StrContains(r.out, "Usage")) << binary << ": " << r.out;
+      EXPECT_FALSE(absl::StrContains(r.out, RVEHUB_SOURCE_DIR)) << binary << ": " << r.out;
+      EXPECT_FALSE(absl::StrContains(r.out, ".cc")) << binary << ": " << r.out;
+    }
+  }
+  const testing_util::CommandResult server =
+      testing_util::RunCommand(absl::StrCat("'", RVE_SERVER_PATH, "' --help"));
+  for (const char* flag : {"--listen=127.0.0.1:50051", "--threads=0", "--checkpoint_dir=",
+                           "--auth_token_file=", "--tls_cert=", "--drain_seconds=30"}) {
+    EXPECT_TRUE(absl::StrContains(server.out, flag)) << flag << " in\n" << server.out;
+  }
+}
+
+// A template file that cannot be written (a file size limit, as a full
+// disk) fails with the file named, exit 1, and no crash at exit.
+TEST(CliTest, FailedWriteExitsOneWithoutCrashing) {
+  const std::string file = TempPath("too_big.h5");
+  // SIGXFSZ ignored: writes past 40 blocks of 512 bytes fail with EFBIG.
+  const testing_util::CommandResult r = testing_util::RunCommand(
+      absl::StrCat("trap '' XFSZ; ulimit -f 40; '", RVE_CLI_PATH, "' prepare --out='", file,
+                   "' 2>&1"));
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_TRUE(absl::StrContains(r.out, absl::StrCat("writing ", file))) << r.out;
+  EXPECT_FALSE(std::ifstream(file).good());
+}
+
+// rve_server whose checkpoint on SIGTERM cannot be written (a file size
+// limit, as a full disk) exits 1 rather than crashing in HDF5's cleanup.
+TEST(CliTest, ServerWithAFailedCheckpointExitsOne) {
+  const std::string dir = TempPath("server_checkpoint");
+  std::filesystem::create_directories(dir);
+  // The limit applies to the server only, through a wrapper that execs it.
+  const std::string wrapper = TempPath("limited_server.sh");
+  std::ofstream(wrapper) << "#!/bin/sh\ntrap '' XFSZ\nulimit -f 40\nexec '" << RVE_SERVER_PATH
+                         << "' \"$@\"\n";
+  std::filesystem::permissions(wrapper, std::filesystem::perms::owner_all);
+  testing_util::ServerProcess server(wrapper, TempPath("limited_server.log"),
+                                     {absl::StrCat("--checkpoint_dir=", dir)});
+  ASSERT_FALSE(server.address().empty()) << server.Log();
+  // A template (66 KB) to checkpoint: upload one prepared here.
+  const std::string file = TempPath("limited_template.h5");
+  ASSERT_EQ(RunCli(absl::StrCat("prepare --out='", file, "'")).exit_code, 0);
+  const Result upload = RunCli(absl::StrCat("upload-template --server=", server.address(),
+                                            " --file='", file, "'"));
+  ASSERT_EQ(upload.exit_code, 0) << upload.output;
+  EXPECT_EQ(server.Stop(), 1) << server.Log();
+  EXPECT_TRUE(absl::StrContains(server.Log(), "templates.h5")) << server.Log();
+  std::filesystem::remove_all(dir);
+  std::remove(file.c_str());
+  std::remove(wrapper.c_str());
+}
+
+// A header and one line per set with its parameters (cases/REFERENCE.md).
 TEST(CliTest, MaterialsListsTheParameterSets) {
   const Result r = RunCli("materials");
   EXPECT_EQ(r.exit_code, 0);
   const std::vector<std::string> lines = absl::StrSplit(r.output, '\n', absl::SkipEmpty());
-  EXPECT_EQ(lines.size(), 9u) << r.output;
-  EXPECT_TRUE(absl::StrContains(r.output, "SET-dense\n"));
-  EXPECT_TRUE(absl::StrContains(r.output, "footing-soft\n"));
+  ASSERT_EQ(lines.size(), 10u) << r.output;
+  EXPECT_TRUE(lines[0].starts_with("NAME ")) << lines[0];
+  for (const char* column : {" E_MPA ", " MU ", " RMIN_MM ", " P0_KPA ", " E0 "}) {
+    EXPECT_TRUE(absl::StrContains(lines[0], column)) << column << " in " << lines[0];
+  }
+  // SET-dense: linear contacts, E = 600 MPa, μ = 0.5452, 400 discs of 3-7 mm,
+  // p0 = 100 kPa, e0 = 0.177; footing-soft: E = 80 MPa, rolling η = 0.02.
+  std::vector<std::string> dense = absl::StrSplit(lines[1], ' ', absl::SkipEmpty());
+  EXPECT_EQ(dense, (std::vector<std::string>{"SET-dense", "linear", "2650", "600", "0.8", "0.25",
+                                             "0.5452", "0", "0", "0", "0.1", "0.1", "400", "3",
+                                             "7", "100", "0.177", "0.001"}))
+      << lines[1];
+  std::string soft;
+  for (const std::string& line : lines) {
+    if (line.starts_with("footing-soft ")) soft = line;
+  }
+  std::vector<std::string> soft_fields = absl::StrSplit(soft, ' ', absl::SkipEmpty());
+  ASSERT_EQ(soft_fields.size(), 18u) << soft;
+  EXPECT_EQ(soft_fields[3], "80");
+  EXPECT_EQ(soft_fields[8], "0.02");
 }
 
 // Reads the CSV as rows of numbers (header dropped).
@@ -435,19 +518,70 @@ TEST(CliServerTest, ElementTestOnTheServerMatchesTheLocalRun) {
   EXPECT_EQ(server.Stop(), 0) << server.Log();
 }
 
-// A number in a one-line JSON object: the text after "\"key\": ".
-double JsonField(const std::string& json, const std::string& key) {
-  const std::string tag = absl::StrCat("\"", key, "\": ");
-  const std::size_t at = json.find(tag);
-  if (at == std::string::npos) {
-    ADD_FAILURE() << "no " << key << " in " << json;
-    return NAN;
-  }
-  const std::size_t begin = at + tag.size();
-  const std::size_t end = json.find_first_of(",}", begin);
-  double v = NAN;
-  EXPECT_TRUE(absl::SimpleAtod(json.substr(begin, end - begin), &v)) << key;
-  return v;
+// list-runs shows what a server hosts; drop frees one RVE or a whole run.
+TEST(CliServerTest, ListRunsAndDrop) {
+  Server server;
+  ASSERT_FALSE(server.address().empty());
+  const std::string name = PrepareAndUpload(server, 2);
+  CreateRves(server, "keep", name, {1});
+  CreateRves(server, "gone", name, {5, 6});
+  Compress(server, "gone", 1, {5});
+  const std::string list = absl::StrCat("list-runs ", server.server_flag());
+  const Result before = RunCli(list, true);
+  ASSERT_EQ(before.exit_code, 0) << before.output;
+  EXPECT_EQ(before.output, "RUN\tRVES\tMIN_STEP\tMAX_STEP\ngone\t2\t0\t1\nkeep\t1\t0\t0\n");
+
+  const Result one = RunCli(absl::StrCat("drop ", server.server_flag(), " --run=gone --id=5"), true);
+  ASSERT_EQ(one.exit_code, 0) << one.output;
+  EXPECT_EQ(one.output, absl::StrCat("dropped 1 RVEs of run gone on ", server.address(), "\n"));
+  EXPECT_EQ(RunCli(list, true).output,
+            "RUN\tRVES\tMIN_STEP\tMAX_STEP\ngone\t1\t0\t0\nkeep\t1\t0\t0\n");
+  const Result all = RunCli(absl::StrCat("drop ", server.server_flag(), " --run=gone"), true);
+  ASSERT_EQ(all.exit_code, 0) << all.output;
+  EXPECT_TRUE(all.output.starts_with("dropped 1 RVEs of run gone")) << all.output;
+  EXPECT_EQ(RunCli(list, true).output, "RUN\tRVES\tMIN_STEP\tMAX_STEP\nkeep\t1\t0\t0\n");
+
+  const Result unknown = RunCli(absl::StrCat("drop ", server.server_flag(), " --run=gone"));
+  EXPECT_EQ(unknown.exit_code, 1) << unknown.output;
+  EXPECT_TRUE(absl::StrContains(unknown.output, "NOT_FOUND: ")) << unknown.output;
+  const Result no_run = RunCli(absl::StrCat("drop ", server.server_flag()));
+  EXPECT_EQ(no_run.exit_code, 2) << no_run.output;
+  EXPECT_TRUE(absl::StrContains(no_run.output, "--run=RUN is required")) << no_run.output;
+  EXPECT_EQ(server.Stop(), 0) << server.Log();
+}
+
+// A file of another kind says which command reads it: an mpm_client
+// checkpoint is resumed, not restored; a template file is uploaded.
+TEST(CliTest, RestoreOfAnotherKindOfFileSaysWhatToDo) {
+  const std::string dir = TempPath("mpm_run");
+  testing_util::CommandResult run = testing_util::RunCommand(absl::StrCat(
+      "'", MPM_CLIENT_PATH, "' run '", RVEHUB_SOURCE_DIR,
+      "/cases/single-element-biaxial.json' --out='", dir, "' --template-cache='",
+      TempPath("templates"), "' --stop-after=1 --quiet --threads=1 2>&1"));
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const std::string checkpoint = dir + "/checkpoint.h5";
+  const Result restore = RunCli(absl::StrCat("restore --server=127.0.0.1:1 --file='", checkpoint, "'"));
+  EXPECT_EQ(restore.exit_code, 1) << restore.output;
+  EXPECT_TRUE(absl::StrContains(restore.output,
+                                absl::StrCat(checkpoint, " is an mpm_client checkpoint")))
+      << restore.output;
+  EXPECT_TRUE(absl::StrContains(restore.output, absl::StrCat("`mpm_client resume ", checkpoint, "`")))
+      << restore.output;
+  EXPECT_FALSE(absl::StrContains(restore.output, "ReadSimCheckpoint")) << restore.output;
+  const Result upload =
+      RunCli(absl::StrCat("upload-template --server=127.0.0.1:1 --file='", checkpoint, "'"));
+  EXPECT_EQ(upload.exit_code, 1) << upload.output;
+  EXPECT_TRUE(absl::StrContains(upload.output, "`mpm_client resume ")) << upload.output;
+
+  const std::string templates = TempPath("templates") + "/SET-dense-seed1.h5";
+  const Result restore_template =
+      RunCli(absl::StrCat("restore --server=127.0.0.1:1 --file='", templates, "'"));
+  EXPECT_EQ(restore_template.exit_code, 1) << restore_template.output;
+  EXPECT_TRUE(absl::StrContains(restore_template.output,
+                                absl::StrCat("`rve_cli upload-template --file=", templates, "`")))
+      << restore_template.output;
+  std::filesystem::remove_all(dir);
+  std::filesystem::remove_all(TempPath("templates"));
 }
 
 TEST(CliServerTest, GetPrintsOneRve) {
@@ -480,13 +614,15 @@ TEST(CliServerTest, GetPrintsOneRve) {
 
   const Result json = RunCli(absl::StrCat(get, " --format=json --tangent"), true);
   ASSERT_EQ(json.exit_code, 0) << json.output;
-  EXPECT_TRUE(json.output.starts_with("{\"run_id\": \"g\", \"id\": 5, \"step\": 1, "))
-      << json.output;
-  EXPECT_TRUE(json.output.ends_with("]]}\n")) << json.output;
   EXPECT_EQ(std::count(json.output.begin(), json.output.end(), '\n'), 1);
-  EXPECT_EQ(std::count(json.output.begin(), json.output.end(), '['),
-            std::count(json.output.begin(), json.output.end(), ']'));
-  // %.17g round-trips: the numbers are the server's, bit for bit.
+  const nlohmann::json j = nlohmann::json::parse(json.output, nullptr, /*allow_exceptions=*/false);
+  ASSERT_TRUE(j.is_object()) << json.output;
+  // The rvehub.v1 RveState field order, run and id first.
+  EXPECT_TRUE(json.output.starts_with("{\"run_id\":\"g\",\"id\":5,\"step\":1,")) << json.output;
+  EXPECT_EQ(j["run_id"], "g");
+  EXPECT_EQ(j["id"], 5);
+  EXPECT_EQ(j["step"], 1);
+  // The numbers are the server's, bit for bit.
   for (const auto& [key, value] :
        {std::pair<const char*, double>{"mean_pressure", state.mean_pressure()},
         {"deviator_stress", state.deviator_stress()},
@@ -494,19 +630,23 @@ TEST(CliServerTest, GetPrintsOneRve) {
         {"coordination", state.coordination()},
         {"permeability", state.permeability()},
         {"fabric_anisotropy", state.fabric_anisotropy()}}) {
-    const double got = JsonField(json.output, key);
+    ASSERT_TRUE(j[key].is_number()) << key;
+    const double got = j[key].get<double>();
     EXPECT_EQ(std::memcmp(&got, &value, sizeof(double)), 0)
         << key << ": " << got << " vs " << value;
   }
-  EXPECT_TRUE(absl::StrContains(
-      json.output, absl::StrCat("\"stress\": [[", absl::StrFormat("%.17g", state.stress(0)), ", ")))
-      << json.output;
-  EXPECT_TRUE(absl::StrContains(json.output, "\"tangent\": [[")) << json.output;
+  ASSERT_EQ(j["stress"].size(), 3u);
+  const double sxx = j["stress"][0][0].get<double>();
+  const double expected_sxx = state.stress(0);
+  EXPECT_EQ(std::memcmp(&sxx, &expected_sxx, sizeof(double)), 0);
+  ASSERT_EQ(j["tangent"].size(), 9u);
+  EXPECT_EQ(j["tangent"][8].size(), 9u);
   const Result json_step0 =
       RunCli(absl::StrCat("get ", server.server_flag(), " --run=g --id=6 --format=json"), true);
   ASSERT_EQ(json_step0.exit_code, 0) << json_step0.output;
-  EXPECT_TRUE(absl::StrContains(json_step0.output, "\"step\": 0,")) << json_step0.output;
-  EXPECT_FALSE(absl::StrContains(json_step0.output, "tangent")) << json_step0.output;
+  const nlohmann::json j0 = nlohmann::json::parse(json_step0.output, nullptr, false);
+  EXPECT_EQ(j0["step"], 0) << json_step0.output;
+  EXPECT_FALSE(j0.contains("tangent")) << json_step0.output;
 
   const Result unknown_run = RunCli(absl::StrCat("get ", server.server_flag(), " --run=x --id=5"));
   EXPECT_EQ(unknown_run.exit_code, 1) << unknown_run.output;

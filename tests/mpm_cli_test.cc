@@ -216,8 +216,8 @@ TEST(MpmCliTest, HelpDocumentsEveryCommandAndOption) {
        {"mpm_client run CASE.json --out=DIR", "mpm_client resume CHECKPOINT.h5",
         "mpm_client check CASE.json", "--out=DIR", "--servers=H:P,...", "--threads=N",
         "--token-file=FILE", "--tls-ca=FILE", "--timeout=SECONDS", "--template-cache=DIR",
-        "--stop-after=N", "--quiet", "results.h5", "results.xdmf", "timeseries.csv", "plot.png",
-        "checkpoint.h5", "Exit status"}) {
+        "--stop-after=N", "--quiet", "--set=PATH=VALUE", "results.h5", "results.xdmf",
+        "timeseries.csv", "plot.png", "run.json", "checkpoint.h5", "Exit status"}) {
     EXPECT_TRUE(absl::StrContains(r.out, text)) << "no " << text << " in\n" << r.out;
   }
   EXPECT_EQ(RunClient("-h").out, r.out);
@@ -254,6 +254,9 @@ TEST(MpmCliTest, UsageErrorsExitTwoWithAMessage) {
            {absl::StrCat("run ", case_path, out, " --quiet=no"), "--quiet takes no value"},
            {absl::StrCat("resume x.h5 --stop-after=-3"), "--stop-after must be"},
            {absl::StrCat("check ", case_path, out), "check takes no options (got --out)"},
+           {absl::StrCat("run ", case_path, out, " --set=rve.min_steps"), "--set needs PATH=VALUE"},
+           {absl::StrCat("run ", case_path, out, " --set"), "--set needs a value"},
+           {"resume x.h5 --set=/rve/min_steps=4", "resume takes no --set"},
        }) {
     const Result r = RunClient(c.args);
     EXPECT_EQ(r.exit_code, 2) << c.args << ": " << r;
@@ -452,6 +455,179 @@ TEST(MpmCliTest, StopAndResumeMatchesTheUninterruptedRun) {
   const Result missing = RunClient(absl::StrCat("resume ", Quote(TempPath("none.h5"))));
   EXPECT_EQ(missing.exit_code, 1) << missing;
   EXPECT_TRUE(absl::StrContains(missing.err, TempPath("none.h5"))) << missing.err;
+}
+
+// --set overrides case fields before validation: check prints the result,
+// and a bad value gets the file's message for its JSON pointer.
+TEST(MpmCliTest, SetOverridesCaseFieldsValidatedLikeTheFile) {
+  const std::string path = Quote(WriteCase("set", SmallCase()));
+  const Result r = RunClient(absl::StrCat("check ", path,
+                                          " --set=/solver/end_time=0.05 --set=solver.shape=linear"
+                                          " --set=name=sweep-1 --set=regions.0.points_per_cell_side=1"
+                                          " --set=/solver/gravity=[0,-9.81]"));
+  ASSERT_EQ(r.exit_code, 0) << r;
+  const Json c = Json::parse(r.out, nullptr, /*allow_exceptions=*/false);
+  ASSERT_FALSE(c.is_discarded()) << r.out;
+  EXPECT_EQ(c["solver"]["end_time"], 0.05);
+  EXPECT_EQ(c["solver"]["shape"], "linear");
+  EXPECT_EQ(c["name"], "sweep-1");  // a bare word is a string
+  EXPECT_EQ(c["regions"][0]["points_per_cell_side"], 1);
+  EXPECT_EQ(c["solver"]["gravity"], Json::array({0.0, -9.81}));
+  // Later overrides win.
+  const Result twice =
+      RunClient(absl::StrCat("check ", path, " --set=rve.min_steps=3 --set=/rve/min_steps=5"));
+  ASSERT_EQ(twice.exit_code, 0) << twice;
+  EXPECT_EQ(Json::parse(twice.out)["rve"]["min_steps"], 5);
+
+  struct Case {
+    std::string set, message;
+  };
+  for (const Case& bad : std::vector<Case>{
+           {"/solver/pic_fraction=2", "/solver/pic_fraction: must be in [0, 1], got 2"},
+           {"solver.pic_fracton=0.1", "/solver/pic_fracton: unknown key"},
+           {"/solver/shape=\"cubic\"", "/solver/shape: unknown shape function \"cubic\""},
+           {"/nope/x=1", "--set /nope/x: /nope is not in the case"},
+           {"/walls/99/kind=fixed", "--set /walls/99/kind: /walls/99 is not in the case"},
+           {"/walls/99={}", "--set /walls/99: /walls has 2 elements"},
+           {"/name/x=1", "--set /name/x: /name is not an object or array"},
+           {"/bad~pointer=1", "--set /bad~pointer: not a JSON pointer"},
+           {"bad~key=1", "/bad~0key: unknown key"},  // dotted: escaped as a key
+       }) {
+    const Result rejected = RunClient(absl::StrCat("check ", path, " '--set=", bad.set, "'"));
+    EXPECT_EQ(rejected.exit_code, 1) << bad.set << ": " << rejected;
+    EXPECT_TRUE(absl::StrContains(rejected.err, absl::StrCat(": ", bad.message)))
+        << bad.set << ": " << rejected.err;
+    EXPECT_EQ(rejected.out, "");
+  }
+}
+
+// --stop-after always leaves a checkpoint where it stops, even when the
+// case writes none, and says where; resuming it finishes the run with the
+// uninterrupted run's timeseries. run.json records each invocation.
+TEST(MpmCliTest, StopAfterWritesACheckpointEvenWithCheckpointsOff) {
+  const RunOutput& reference = ReferenceRun();
+  ASSERT_EQ(reference.result.exit_code, 0) << reference.result;
+  const std::string dir = TempPath("stop_no_checkpoints");
+  const Result stopped =
+      RunClient(absl::StrCat("run ", Quote(WriteCase("stop_no_checkpoints", SmallCase())),
+                             " --out=", Quote(dir), " --stop-after=10", CommonFlags()));
+  ASSERT_EQ(stopped.exit_code, 0) << stopped;
+  const std::string checkpoint = dir + "/checkpoint.h5";
+  EXPECT_TRUE(fs::exists(checkpoint));
+  EXPECT_TRUE(absl::StrContains(stopped.err, absl::StrCat("checkpoint written to ", checkpoint)))
+      << stopped.err;
+  EXPECT_TRUE(absl::StrContains(stopped.err, absl::StrCat("mpm_client resume ", checkpoint)))
+      << stopped.err;
+  const Json first = Json::parse(ReadFile(dir + "/run.json"));
+  EXPECT_EQ(first["outcome"], "stopped");
+  EXPECT_EQ(first["final_step"], 10);
+
+  const Result resumed = RunClient(absl::StrCat("resume ", Quote(checkpoint), " --quiet --threads=2"));
+  ASSERT_EQ(resumed.exit_code, 0) << resumed;
+  EXPECT_TRUE(absl::StrContains(resumed.err, "mpm_client: finished at step 35")) << resumed.err;
+  EXPECT_EQ(WithoutWallTime(ReadFile(dir + "/timeseries.csv")),
+            WithoutWallTime(ReadFile(reference.dir + "/timeseries.csv")));
+  const Json second = Json::parse(ReadFile(dir + "/run.json"));
+  EXPECT_EQ(second["command"], "resume");
+  EXPECT_EQ(second["outcome"], "finished");
+  ASSERT_EQ(second["previous"].size(), 1u) << second.dump(2);
+  EXPECT_EQ(second["previous"][0]["outcome"], "stopped");
+  EXPECT_EQ(second["previous"][0]["command"], "run");
+}
+
+TEST(MpmCliTest, RunJsonRecordsTheRun) {
+  const RunOutput& run = ReferenceRun();
+  ASSERT_EQ(run.result.exit_code, 0) << run.result;
+  const Json r = Json::parse(ReadFile(run.dir + "/run.json"), nullptr, false);
+  ASSERT_TRUE(r.is_object()) << ReadFile(run.dir + "/run.json");
+  EXPECT_EQ(r["program"], "mpm_client");
+  EXPECT_FALSE(r["version"].get<std::string>().empty());
+  EXPECT_EQ(r["command"], "run");
+  ASSERT_TRUE(r["command_line"].is_array());
+  EXPECT_EQ(r["command_line"][1], "run");
+  EXPECT_EQ(r["command_line"][3], absl::StrCat("--out=", run.dir));
+  EXPECT_FALSE(r["host"].get<std::string>().empty());
+  // ISO 8601 UTC, the end not before the start (same format: compares as text).
+  const std::string start = r["start"], end = r["end"];
+  EXPECT_EQ(start.size(), 24u) << start;
+  EXPECT_TRUE(start.ends_with("Z")) << start;
+  EXPECT_LE(start, end);
+  EXPECT_EQ(r["outcome"], "finished");
+  EXPECT_EQ(r["final_step"], 35);
+  // The case as run, in canonical form: what `check` prints.
+  const Result check = RunClient(absl::StrCat("check ", Quote(TempPath("reference.json"))));
+  ASSERT_EQ(check.exit_code, 0) << check;
+  EXPECT_EQ(r["case"], Json::parse(check.out));
+}
+
+// Values that used to hang, overflow or run out of memory are refused with
+// the field named, by check and by run before any work.
+TEST(MpmCliTest, OutOfRangeCaseValuesFailCleanly) {
+  struct Case {
+    std::string name;
+    std::function<void(Json&)> edit;
+    std::string message;
+  };
+  for (const Case& c : std::vector<Case>{
+           {"end_time", [](Json& j) { j["solver"]["end_time"] = 1e308; },
+            "/solver/end_time: must be in (0, 1000000], got 1e+308"},
+           {"min_steps", [](Json& j) { j["rve"] = {{"min_steps", 1e15}}; },
+            "/rve/min_steps: must be an integer in 0..100000, got 1e+15"},
+           {"memory",
+            [](Json& j) {
+              j["grid"]["cells"] = {10000, 10000};
+              j["regions"][0]["upper"] = {10000, 10000};
+            },
+            "/grid: the case needs about "},
+       }) {
+    Json j = SmallCase();
+    c.edit(j);
+    const std::string path = WriteCase(absl::StrCat("bound_", c.name), j);
+    const Result check = RunClient(absl::StrCat("check ", Quote(path)));
+    EXPECT_EQ(check.exit_code, 1) << c.name << ": " << check;
+    EXPECT_TRUE(check.err.starts_with(absl::StrCat("mpm_client: ", path, ": ", c.message)))
+        << c.name << ": " << check.err;
+    const std::string out_dir = TempPath(absl::StrCat("bound_", c.name, "_out"));
+    const Result run =
+        RunClient(absl::StrCat("run ", Quote(path), " --out=", Quote(out_dir), CommonFlags()));
+    EXPECT_EQ(run.exit_code, 1) << c.name << ": " << run;
+    EXPECT_EQ(run.err, check.err) << c.name;
+  }
+  const Result memory = RunClient(absl::StrCat("check ", Quote(TempPath("bound_memory.json"))));
+  EXPECT_TRUE(absl::StrContains(memory.err, "more than the limit of 32 GiB")) << memory.err;
+
+  // A step count beyond the limit, known only once Δt is: refused at the start.
+  Json j = SmallCase();
+  j["solver"]["time_step"] = 1e-9;
+  j["solver"]["end_time"] = 1e3;  // 1e12 steps
+  const Result steps = RunClient(absl::StrCat("run ", Quote(WriteCase("bound_steps", j)),
+                                              " --quiet --out=", Quote(TempPath("bound_steps_out")),
+                                              CommonFlags()));
+  EXPECT_EQ(steps.exit_code, 1) << steps;
+  EXPECT_TRUE(absl::StrContains(steps.err, "MPM steps, more than the limit of 1000000000"))
+      << steps.err;
+}
+
+// A checkpoint that cannot be written (here: a file size limit, as a full
+// disk would) fails the run with the file named, exit 1, no crash at exit.
+TEST(MpmCliTest, FailedCheckpointWriteExitsOneWithoutCrashing) {
+  ASSERT_EQ(ReferenceRun().result.exit_code, 0);  // the template is cached
+  Json c = SmallCase();
+  c["output"]["checkpoint_every"] = 10;
+  const std::string dir = TempPath("full_disk");
+  WriteCase("full_disk", c);
+  // 150 blocks of 512 bytes hold frame 0 and 10 but not the checkpoint;
+  // SIGXFSZ ignored: writes past the limit fail with EFBIG, as with ENOSPC.
+  testing_util::CommandResult run = testing_util::RunCommand(absl::StrCat(
+      "trap '' XFSZ; ulimit -f 150; ", Quote(MPM_CLIENT_PATH), " run ",
+      Quote(TempPath("full_disk.json")), " --out=", Quote(dir), " --quiet", CommonFlags(),
+      " 2>&1"));
+  EXPECT_EQ(run.exit_code, 1) << run.out;
+  EXPECT_TRUE(absl::StrContains(run.out, absl::StrCat("writing ", dir, "/checkpoint.h5")))
+      << run.out;
+  EXPECT_FALSE(fs::exists(dir + "/checkpoint.h5"));
+  const Json record = Json::parse(ReadFile(dir + "/run.json"), nullptr, false);
+  EXPECT_EQ(record["outcome"], "failed") << record;
 }
 
 // ---------------------------------------------------------------------------

@@ -8,7 +8,7 @@
 //   rve_cli prepare --material=SET-dense --seed=1 [--out=dense.h5]
 //   rve_cli upload-template --server=HOST:PORT --file=dense.h5
 //   rve_cli element-test --server=HOST:PORT --template=SET-dense-seed1 ...
-//   rve_cli info | get | checkpoint | restore --server=HOST:PORT ...
+//   rve_cli info | get | checkpoint | restore | list-runs | drop --server=HOST:PORT ...
 //   rve_cli materials
 //
 // Exit status: 0 success, 1 failure, 2 usage error.
@@ -19,6 +19,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <limits>
 #include <memory>
@@ -32,12 +33,16 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/cord.h"
+#include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/string_view.h"
+#include "absl/flags/flag.h"
+#include "nlohmann/json.hpp"
 #include "rve_server/cli/element_test_io.h"
+#include "rve_server/cli/flags.h"
 #include "rve_server/client/channel.h"
 #include "rve_server/client/record_stream.h"
 #include "rve_server/engine/element_test.h"
@@ -49,6 +54,35 @@
 #include "rvehub/v1/rve_service.grpc.pb.h"
 #include "store/checkpoint.h"
 #include "store/record.h"
+
+// The options of every command. A command reads an option only when it is
+// given (cli::Args), so the defaults live in the commands and their help
+// texts, not here.
+ABSL_FLAG(std::string, test, "", "element test");
+ABSL_FLAG(std::string, material, "", "parameter set");
+ABSL_FLAG(uint64_t, seed, 1, "packing seed");
+ABSL_FLAG(double, confining, 0, "confining stress, Pa");
+ABSL_FLAG(double, strain, 0, "strain to stop at");
+ABSL_FLAG(std::string, out, "", "output file");
+ABSL_FLAG(std::string, plot, "", "plot file");
+ABSL_FLAG(int, rows, 0, "rows recorded");
+ABSL_FLAG(double, inertial_number, 0, "inertial number");
+ABSL_FLAG(std::string, cyclic_control, "", "strain or stress");
+ABSL_FLAG(double, amplitude, 0, "cyclic amplitude");
+ABSL_FLAG(int, cycles, 0, "cycles");
+ABSL_FLAG(std::string, template, "", "template name on the server");
+ABSL_FLAG(std::string, name, "", "template name");
+ABSL_FLAG(std::string, run, "", "run id");
+ABSL_FLAG(int64_t, id, 0, "material-point id");
+ABSL_FLAG(bool, tangent, false, "include the tangent");
+ABSL_FLAG(std::string, format, "", "text or json");
+ABSL_FLAG(std::string, file, "", "input file");
+ABSL_FLAG(bool, replace, false, "replace templates of the same name");
+ABSL_FLAG(bool, all, false, "every run");
+ABSL_FLAG(std::string, server, "", "HOST:PORT");
+ABSL_FLAG(std::string, token_file, "", "bearer token file");
+ABSL_FLAG(std::string, tls_ca, "", "CA certificate");
+ABSL_FLAG(double, timeout, 600, "deadline of each call, s");
 
 namespace rvehub::cli {
 namespace {
@@ -66,14 +100,17 @@ Commands:
                    PNG); with --server, on a template hosted by an rve_server
   prepare          prepare an RVE and print its initial state; --out saves it as a
                    template file
-  materials        list the parameter sets (shared/reference/README.md)
+  materials        the parameter sets and their parameters (cases/REFERENCE.md)
   info             a server's version, limits, load, runs and templates
   get              one hosted RVE's homogenised state (text or JSON)
   upload-template  upload the templates of a template file (from prepare --out)
   checkpoint       export hosted RVEs (one run or all) into an HDF5 file
   restore          import RVEs from a checkpoint file into a server
+  list-runs        the runs a server hosts (RVEs, steps)
+  drop             free a run's RVEs (or one of them) on a server
 
-Server options (info, get, upload-template, checkpoint, restore, element-test --server):
+Server options (info, get, upload-template, checkpoint, restore, list-runs, drop,
+element-test --server):
   --server=HOST:PORT   the rve_server to talk to
   --token-file=FILE    file holding the bearer token of a server started with
                        --auth_token_file
@@ -135,9 +172,16 @@ Options:
   --name=NAME        template name, [A-Za-z0-9._-]{1,128} (default MATERIAL-seedN)
 )";
 
-constexpr char kMaterialsHelp[] = R"(rve_cli materials — list the parameter sets
+constexpr char kMaterialsHelp[] = R"(rve_cli materials — the parameter sets and their parameters
 
   rve_cli materials
+
+One line per set: contact law, particle density RHO (kg/m3), contact
+modulus E (MPa), KT/KN (linear law), Poisson ratio NU (Hertz–Mindlin),
+friction MU, rolling BETA and ETA, bond cohesion C (kPa), local damping,
+disc thickness T (m); then the packing: N discs, radii RMIN..RMAX (mm),
+pressure P0 (kPa), target void ratio E0 and permeability K0 (m/s).
+Sources: cases/REFERENCE.md.
 )";
 
 constexpr char kInfoHelp[] = R"(rve_cli info — a server's version, limits, load, runs and templates
@@ -201,6 +245,28 @@ Options:
   --run=RUN          only the records of this run
 )";
 
+constexpr char kListRunsHelp[] = R"(rve_cli list-runs — the runs a server hosts
+
+  rve_cli list-runs --server=HOST:PORT
+
+One line per run, tab-separated: run id, RVEs, smallest and largest committed
+step (after a header line RUN, RVES, MIN_STEP, MAX_STEP).
+)";
+
+constexpr char kDropHelp[] = R"(rve_cli drop — free a run's RVEs on a server
+
+  rve_cli drop --server=HOST:PORT --run=RUN [--id=N]
+
+Drops every RVE of run RUN (or only material point N) and prints how many.
+A run that a crashed or killed mpm_client left behind stays on the server
+until it is dropped (`rve_cli list-runs` shows it). NOT_FOUND for an unknown
+run.
+
+Options:
+  --run=RUN          run id
+  --id=N             only this material-point id
+)";
+
 // ---------------------------------------------------------------------------
 // Errors and flags.
 
@@ -220,55 +286,39 @@ bool IsUsageError(const absl::Status& s) { return s.GetPayload(kUsagePayload).ha
     if (absl::Status s_ = (expr); !s_.ok()) return s_; \
   } while (false)
 
-using Flags = absl::flat_hash_map<std::string, std::string>;
+using Flags = Args;
 
 absl::StatusOr<Flags> ParseFlags(int argc, char** argv, int first,
                                  const std::vector<std::string>& known) {
-  Flags flags;
-  for (int i = first; i < argc; ++i) {
-    std::string arg = argv[i];
-    if (!arg.starts_with("--")) return UsageError(absl::StrCat("unexpected argument '", arg, "'"));
-    const std::size_t eq = arg.find('=');
-    std::string key = arg.substr(2, eq == std::string::npos ? std::string::npos : eq - 2);
-    std::string value = eq == std::string::npos ? "" : arg.substr(eq + 1);
-    if (std::find(known.begin(), known.end(), key) == known.end()) {
-      return UsageError(absl::StrCat("unknown option --", key, " (see --help)"));
-    }
-    flags[key] = value;
-  }
+  ArgSpec spec;
+  spec.allowed = {known.begin(), known.end()};
+  spec.positional = false;
+  absl::StatusOr<Flags> flags = ParseArgs(argc, argv, first, spec);
+  if (!flags.ok()) return UsageError(flags.status().message());
   return flags;
 }
 
-// Reads --key into `out` when present (absent: `out` keeps its default).
+// Reads --key into `out` when given (absent: `out` keeps the command's
+// default, which its help text states).
 template <typename T>
 absl::Status Get(const Flags& flags, const std::string& key, T* out) {
-  auto it = flags.find(key);
-  if (it == flags.end()) return absl::OkStatus();
-  bool ok;
-  if constexpr (std::is_same_v<T, double>) {
-    ok = absl::SimpleAtod(it->second, out) && std::isfinite(*out);
-  } else if constexpr (std::is_same_v<T, std::string>) {
-    *out = it->second;
-    ok = !out->empty();
-  } else {
-    ok = absl::SimpleAtoi(it->second, out);
+  auto it = flags.text.find(key);
+  if (it == flags.text.end()) return absl::OkStatus();
+  absl::optional<T> value = FlagValue<T>(key);
+  if (!value.has_value()) {
+    return absl::InternalError(absl::StrCat("--", key, " is not read as its flag's type"));
   }
+  bool ok = true;
+  if constexpr (std::is_same_v<T, double>) ok = std::isfinite(*value);
+  if constexpr (std::is_same_v<T, std::string>) ok = !value->empty();
   if (!ok) return UsageError(absl::StrCat("bad value for --", key, ": '", it->second, "'"));
+  *out = *std::move(value);
   return absl::OkStatus();
 }
 
 // A switch: --key, --key=true or --key=false.
 absl::Status GetBool(const Flags& flags, const std::string& key, bool* out) {
-  auto it = flags.find(key);
-  if (it == flags.end()) return absl::OkStatus();
-  if (it->second.empty() || it->second == "true" || it->second == "1") {
-    *out = true;
-  } else if (it->second == "false" || it->second == "0") {
-    *out = false;
-  } else {
-    return UsageError(absl::StrCat("bad value for --", key, ": '", it->second, "'"));
-  }
-  return absl::OkStatus();
+  return Get(flags, key, out);
 }
 
 absl::Status Require(const Flags& flags, const std::string& key, absl::string_view form,
@@ -371,43 +421,20 @@ class ProgressLine {
   int last_percent_ = -1;
 };
 
-// %.17g round-trips a double; JSON has no NaN or infinity.
-std::string JsonNumber(double v) { return std::isfinite(v) ? absl::StrFormat("%.17g", v) : "null"; }
-
-std::string JsonString(absl::string_view s) {
-  std::string out = "\"";
-  for (const char c : s) {
-    switch (c) {
-      case '"':
-        out += "\\\"";
-        break;
-      case '\\':
-        out += "\\\\";
-        break;
-      case '\n':
-        out += "\\n";
-        break;
-      default:
-        if (static_cast<unsigned char>(c) < 0x20) {
-          absl::StrAppendFormat(&out, "\\u%04x", c);
-        } else {
-          out += c;
-        }
-    }
-  }
-  return out + "\"";
-}
+// Field order as in rvehub.v1.RveState (nlohmann writes doubles so that they
+// read back bit for bit, and NaN or infinity as null).
+using Json = nlohmann::ordered_json;
 
 // A row-major n×n matrix of a repeated field as nested JSON arrays.
-std::string JsonMatrix(const google::protobuf::RepeatedField<double>& v, int n) {
-  if (v.size() != n * n) return "null";
-  std::vector<std::string> rows;
+Json JsonMatrix(const google::protobuf::RepeatedField<double>& v, int n) {
+  if (v.size() != n * n) return nullptr;
+  Json rows = Json::array();
   for (int r = 0; r < n; ++r) {
-    std::vector<std::string> row;
-    for (int c = 0; c < n; ++c) row.push_back(JsonNumber(v[n * r + c]));
-    rows.push_back(absl::StrCat("[", absl::StrJoin(row, ", "), "]"));
+    Json row = Json::array();
+    for (int c = 0; c < n; ++c) row.push_back(v[n * r + c]);
+    rows.push_back(std::move(row));
   }
-  return absl::StrCat("[", absl::StrJoin(rows, ", "), "]");
+  return rows;
 }
 
 constexpr int kKeyWidth = 26;
@@ -613,9 +640,55 @@ absl::Status PrepareCommand(const Flags& flags) {
   return absl::OkStatus();
 }
 
+// One line per set: its contact law and particle parameters, then how its
+// packings are prepared (the units are in the header).
 absl::Status MaterialsCommand(const Flags&) {
-  std::printf("%s\n", absl::StrJoin(dem::ParameterSetNames(), "\n").c_str());
+  std::printf("%-20s %-13s %7s %9s %6s %5s %6s %5s %5s %7s %5s %5s %5s %7s %7s %8s %6s %7s\n",
+              "NAME", "CONTACT", "RHO", "E_MPA", "KT/KN", "NU", "MU", "BETA", "ETA",
+              "C_KPA", "DAMP", "T_M", "N", "RMIN_MM", "RMAX_MM", "P0_KPA", "E0", "K0_M/S");
+  for (const std::string& name : dem::ParameterSetNames()) {
+    absl::StatusOr<dem::ParameterSet> set = dem::FindParameterSet(name);
+    if (!set.ok()) return set.status();
+    const dem::Material& m = set->material;
+    const dem::PreparationSpec& p = set->preparation;
+    std::printf(
+        "%-20s %-13s %7.0f %9.4g %6.3g %5.3g %6.4g %5.3g %5.3g %7.4g %5.3g %5.3g %5d %7.3g %7.3g "
+        "%8.4g %6.4g %7.3g\n",
+        name.c_str(), m.model == dem::ContactModel::kLinear ? "linear" : "hertz-mindlin",
+        m.density, m.young_modulus * 1e-6, m.stiffness_ratio, m.poisson_ratio, m.friction,
+        m.rolling_beta, m.rolling_eta, m.bond_cohesion * 1e-3, m.damping, m.thickness,
+        p.num_particles, p.radius_min * 1e3, p.radius_max * 1e3, p.pressure * 1e-3,
+        p.target_void_ratio, p.initial_permeability);
+  }
   return absl::OkStatus();
+}
+
+// A store file of the wrong kind says which tool reads it. The store names
+// its kind in the message ("... holds 'simulation', not 'rves' ..."); a
+// test pins that text.
+absl::Status ExplainFileKind(const absl::Status& s, const std::string& file) {
+  if (!absl::IsInvalidArgument(s)) return s;
+  const absl::string_view m = s.message();
+  if (absl::StrContains(m, "holds 'simulation'")) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        file, " is an mpm_client checkpoint (a whole MPM simulation), not RVEs of a server: "
+              "continue it with `mpm_client resume ",
+        file, "`"));
+  }
+  if (absl::StrContains(m, "holds 'templates'")) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        file, " is a template file: upload it with `rve_cli upload-template --file=", file, "`"));
+  }
+  if (absl::StrContains(m, "holds 'rves'")) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        file, " is a checkpoint of server RVEs: import it with `rve_cli restore --file=", file,
+        "`"));
+  }
+  if (absl::StrContains(m, "holds 'results'")) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        file, " holds the results of an mpm_client run (open results.xdmf in ParaView)"));
+  }
+  return s;
 }
 
 // ---------------------------------------------------------------------------
@@ -716,35 +789,35 @@ void PrintStateText(const std::string& run, const v1::RveResult& r) {
 
 void PrintStateJson(const std::string& run, const v1::RveResult& r) {
   const v1::RveState& s = r.state();
-  std::vector<std::string> fields = {
-      absl::StrCat("\"run_id\": ", JsonString(run)),
-      absl::StrCat("\"id\": ", r.id()),
-      absl::StrCat("\"step\": ", r.step()),
-      absl::StrCat("\"stress\": ", JsonMatrix(s.stress(), 3)),
-      absl::StrCat("\"mean_pressure\": ", JsonNumber(s.mean_pressure())),
-      absl::StrCat("\"deviator_stress\": ", JsonNumber(s.deviator_stress())),
-      absl::StrCat("\"void_ratio\": ", JsonNumber(s.void_ratio())),
-      absl::StrCat("\"porosity\": ", JsonNumber(s.porosity())),
-      absl::StrCat("\"coordination\": ", JsonNumber(s.coordination())),
-      absl::StrCat("\"mechanical_coordination\": ", JsonNumber(s.mechanical_coordination())),
-      absl::StrCat("\"num_contacts\": ", s.num_contacts()),
-      absl::StrCat("\"fabric_defined\": ", s.fabric_defined() ? "true" : "false"),
-      absl::StrCat("\"fabric\": ", JsonMatrix(s.fabric(), 3)),
-      absl::StrCat("\"fabric_anisotropy_tensor\": ", JsonMatrix(s.fabric_anisotropy_tensor(), 3)),
-      absl::StrCat("\"fabric_anisotropy\": ", JsonNumber(s.fabric_anisotropy())),
-      absl::StrCat("\"permeability\": ", JsonNumber(s.permeability())),
-      absl::StrCat("\"deformation_gradient\": ", JsonMatrix(s.deformation_gradient(), 3)),
-      absl::StrCat("\"mean_rotation\": ", JsonNumber(s.mean_rotation())),
-      absl::StrCat("\"kinetic_energy\": ", JsonNumber(s.kinetic_energy())),
-      absl::StrCat("\"unbalanced_force_ratio\": ", JsonNumber(s.unbalanced_force_ratio())),
-      absl::StrCat("\"volume\": ", JsonNumber(s.volume())),
-      absl::StrCat("\"steps\": ", s.steps()),
-      absl::StrCat("\"time_step\": ", JsonNumber(s.time_step())),
-      absl::StrCat("\"mass_scale\": ", JsonNumber(s.mass_scale())),
+  Json j = {
+      {"run_id", run},
+      {"id", r.id()},
+      {"step", r.step()},
+      {"stress", JsonMatrix(s.stress(), 3)},
+      {"mean_pressure", s.mean_pressure()},
+      {"deviator_stress", s.deviator_stress()},
+      {"void_ratio", s.void_ratio()},
+      {"porosity", s.porosity()},
+      {"coordination", s.coordination()},
+      {"mechanical_coordination", s.mechanical_coordination()},
+      {"num_contacts", s.num_contacts()},
+      {"fabric_defined", s.fabric_defined()},
+      {"fabric", JsonMatrix(s.fabric(), 3)},
+      {"fabric_anisotropy_tensor", JsonMatrix(s.fabric_anisotropy_tensor(), 3)},
+      {"fabric_anisotropy", s.fabric_anisotropy()},
+      {"permeability", s.permeability()},
+      {"deformation_gradient", JsonMatrix(s.deformation_gradient(), 3)},
+      {"mean_rotation", s.mean_rotation()},
+      {"kinetic_energy", s.kinetic_energy()},
+      {"unbalanced_force_ratio", s.unbalanced_force_ratio()},
+      {"volume", s.volume()},
+      {"steps", s.steps()},
+      {"time_step", s.time_step()},
+      {"mass_scale", s.mass_scale()},
   };
-  if (s.tangent_size() > 0)
-    fields.push_back(absl::StrCat("\"tangent\": ", JsonMatrix(s.tangent(), 9)));
-  std::printf("{%s}\n", absl::StrJoin(fields, ", ").c_str());
+  if (s.tangent_size() > 0) j["tangent"] = JsonMatrix(s.tangent(), 9);
+  // Invalid UTF-8 in a run id is replaced rather than thrown about.
+  std::printf("%s\n", j.dump(-1, ' ', false, Json::error_handler_t::replace).c_str());
 }
 
 absl::Status GetCommand(const Flags& flags) {
@@ -787,7 +860,7 @@ absl::Status UploadTemplateCommand(const Flags& flags) {
   absl::StatusOr<Remote> remote = Connect(flags);
   if (!remote.ok()) return remote.status();
   absl::StatusOr<std::vector<store::TemplateRecord>> templates = store::ReadTemplates(file);
-  if (!templates.ok()) return templates.status();
+  if (!templates.ok()) return ExplainFileKind(templates.status(), file);
   if (templates->empty()) {
     return absl::FailedPreconditionError(absl::StrCat("'", file, "' holds no templates"));
   }
@@ -864,7 +937,7 @@ absl::Status RestoreCommand(const Flags& flags) {
   if (!remote.ok()) return remote.status();
   const auto start = std::chrono::steady_clock::now();
   absl::StatusOr<std::vector<store::RveRecord>> all = store::ReadRves(file);
-  if (!all.ok()) return all.status();
+  if (!all.ok()) return ExplainFileKind(all.status(), file);
   std::vector<const store::RveRecord*> records;
   for (const store::RveRecord& r : *all) {
     if (run.empty() || r.run_id == run) records.push_back(&r);
@@ -900,6 +973,42 @@ absl::Status RestoreCommand(const Flags& flags) {
   return absl::OkStatus();
 }
 
+// The runs a server hosts: one line each (tab-separated, for scripts).
+absl::Status ListRunsCommand(const Flags& flags) {
+  absl::StatusOr<Remote> remote = Connect(flags);
+  if (!remote.ok()) return remote.status();
+  v1::ListRunsResponse runs;
+  RETURN_IF_ERROR(
+      remote->Call("ListRuns", &v1::RveService::Stub::ListRuns, v1::ListRunsRequest(), &runs));
+  std::printf("RUN\tRVES\tMIN_STEP\tMAX_STEP\n");
+  for (const v1::RunInfo& r : runs.runs()) {
+    std::printf("%s\t%lld\t%lld\t%lld\n", r.run_id().c_str(),
+                static_cast<long long>(r.num_rves()), static_cast<long long>(r.min_step()),
+                static_cast<long long>(r.max_step()));
+  }
+  return absl::OkStatus();
+}
+
+// Frees a run's RVEs on a server (all of them, or the ids of --id).
+absl::Status DropCommand(const Flags& flags) {
+  std::string run;
+  RETURN_IF_ERROR(Require(flags, "run", "RUN", &run));
+  v1::DropRequest request;
+  request.set_run_id(run);
+  if (flags.contains("id")) {
+    std::int64_t id = 0;
+    RETURN_IF_ERROR(Get(flags, "id", &id));
+    request.add_ids(id);
+  }
+  absl::StatusOr<Remote> remote = Connect(flags);
+  if (!remote.ok()) return remote.status();
+  v1::DropResponse response;
+  RETURN_IF_ERROR(remote->Call("Drop", &v1::RveService::Stub::Drop, request, &response));
+  std::printf("dropped %lld RVEs of run %s on %s\n", static_cast<long long>(response.dropped()),
+              run.c_str(), remote->target.c_str());
+  return absl::OkStatus();
+}
+
 // ---------------------------------------------------------------------------
 // Dispatch.
 
@@ -926,6 +1035,8 @@ const std::vector<Command>& Commands() {
       {"upload-template", kUploadTemplateHelp, true, {"file", "replace"}, &UploadTemplateCommand},
       {"checkpoint", kCheckpointHelp, true, {"out", "run"}, &CheckpointCommand},
       {"restore", kRestoreHelp, true, {"file", "run"}, &RestoreCommand},
+      {"list-runs", kListRunsHelp, true, {}, &ListRunsCommand},
+      {"drop", kDropHelp, true, {"run", "id"}, &DropCommand},
   };
   return *commands;
 }
@@ -980,4 +1091,13 @@ int Main(int argc, char** argv) {
 }  // namespace
 }  // namespace rvehub::cli
 
-int main(int argc, char** argv) { return rvehub::cli::Main(argc, argv); }
+int main(int argc, char** argv) {
+  const int code = rvehub::cli::Main(argc, argv);
+  if (code != 0) {
+    // As in mpm_client: after a store write failed part-way (ENOSPC, EFBIG)
+    // HDF5's exit-time cleanup crashes on the file whose close failed.
+    std::fflush(nullptr);
+    std::_Exit(code);
+  }
+  return code;
+}

@@ -1,0 +1,68 @@
+// RvePool::Create sends the RVEs' consolidations in calls of whole groups of
+// equal initial stress (mpm_client's progress lines count them): progress is
+// reported after each call, and the RVEs are bit for bit those of one call.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "mpm_client/rve_backend.h"
+#include "mpm_client/rve_pool.h"
+#include "rve_server/service/registry.h"
+#include "tests/test_util.h"
+
+namespace rvehub::mpm {
+namespace {
+
+bool SameBits(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
+  return std::memcmp(a.data(), b.data(), sizeof(double) * 9) == 0;
+}
+
+TEST(CreateProgressTest, ReportsEachCallAndMatchesOneCall) {
+  dem::Packing packing = dem::testing_util::Prepared("SET-dense");
+  const store::TemplateRecord record{"t", "SET-dense seed 1", packing};
+  // 9 distinct stresses over 12 points (points 9..11 repeat 0..2); one
+  // worker: calls of 2, 2, 2, 2 and 1 consolidations.
+  constexpr int kPoints = 12;
+  std::vector<service::InitialStress> initial(kPoints);
+  std::vector<std::int64_t> ids;
+  for (int p = 0; p < kPoints; ++p) {
+    initial[p].kind = service::InitialStress::Kind::kIsotropic;
+    initial[p].pressure = 100e3 * (1 + 0.01 * (p % 9));
+    ids.push_back(p);
+  }
+  service::RegistryOptions options;
+  options.threads = 1;
+  std::vector<std::unique_ptr<RveEndpoint>> endpoints;
+  endpoints.push_back(MakeEmbeddedEndpoint(std::make_shared<service::Registry>(options)));
+  RvePool pool(std::move(endpoints), "run");
+  ASSERT_TRUE(pool.UploadTemplates(std::vector<store::TemplateRecord>{record}).ok());
+  std::vector<std::pair<std::int64_t, std::int64_t>> reports;
+  absl::StatusOr<std::vector<dem::RveState>> states =
+      pool.Create(std::vector<std::string>(kPoints, "t"), initial, {},
+                  [&](std::int64_t done, std::int64_t total) { reports.emplace_back(done, total); });
+  ASSERT_TRUE(states.ok()) << states.status();
+  EXPECT_EQ(reports, (std::vector<std::pair<std::int64_t, std::int64_t>>{{0, 9}, {2, 9}, {4, 9}, {6, 9}, {8, 9}, {9, 9}}));
+
+  // The same RVEs created in one registry call.
+  service::Registry registry(options);
+  ASSERT_TRUE(registry.PutTemplate(record, /*replace=*/false).ok());
+  absl::StatusOr<std::vector<service::RveOutcome>> one =
+      registry.Create("run", "t", ids, initial, std::nullopt, /*want_state=*/true);
+  ASSERT_TRUE(one.ok()) << one.status();
+  ASSERT_EQ(one->size(), static_cast<std::size_t>(kPoints));
+  for (int p = 0; p < kPoints; ++p) {
+    ASSERT_TRUE((*one)[p].status.ok()) << (*one)[p].status;
+    EXPECT_TRUE(SameBits((*states)[p].stress, (*one)[p].state.stress)) << "point " << p;
+    EXPECT_EQ((*states)[p].void_ratio, (*one)[p].state.void_ratio) << "point " << p;
+  }
+  // Equal stresses still share one consolidation.
+  EXPECT_TRUE(SameBits((*states)[9].stress, (*states)[0].stress));
+}
+
+}  // namespace
+}  // namespace rvehub::mpm
