@@ -27,7 +27,7 @@
 #include "absl/time/time.h"
 #include "mpm_client/case.h"
 #include "mpm_client/simulation.h"
-#include "rve_server/cli/flags.h"
+#include "rve_server/common/flags.h"
 #include "nlohmann/json.hpp"
 #include "rve_server/client/channel.h"
 #include "rve_server/common/text_file.h"

@@ -42,7 +42,7 @@
 #include "absl/flags/flag.h"
 #include "nlohmann/json.hpp"
 #include "rve_server/cli/element_test_io.h"
-#include "rve_server/cli/flags.h"
+#include "rve_server/common/flags.h"
 #include "rve_server/client/channel.h"
 #include "rve_server/client/record_stream.h"
 #include "rve_server/engine/element_test.h"

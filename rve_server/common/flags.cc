@@ -1,4 +1,4 @@
-#include "rve_server/cli/flags.h"
+#include "rve_server/common/flags.h"
 
 #include <algorithm>
 

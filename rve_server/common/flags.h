@@ -6,8 +6,8 @@
 // text, exit 0), accepts only the options a command names, spells names with
 // hyphens (--stop-after reads FLAGS_stop_after) and can collect every value
 // of a repeatable option.
-#ifndef RVEHUB_RVE_SERVER_CLI_FLAGS_H_
-#define RVEHUB_RVE_SERVER_CLI_FLAGS_H_
+#ifndef RVEHUB_RVE_SERVER_COMMON_FLAGS_H_
+#define RVEHUB_RVE_SERVER_COMMON_FLAGS_H_
 
 #include <map>
 #include <set>
@@ -65,4 +65,4 @@ absl::optional<T> FlagValue(absl::string_view name) {
 
 }  // namespace rvehub::cli
 
-#endif  // RVEHUB_RVE_SERVER_CLI_FLAGS_H_
+#endif  // RVEHUB_RVE_SERVER_COMMON_FLAGS_H_
