@@ -31,7 +31,7 @@
 #include "nlohmann/json.hpp"
 #include "rve_server/client/channel.h"
 #include "rve_server/common/text_file.h"
-#include "rve_server/service/server.h"
+#include "rve_server/common/version.h"
 
 // The options (kUsage documents them); cli::ParseArgs reads them with
 // hyphens (--stop-after).
@@ -221,7 +221,7 @@ class RunRecord {
   RunRecord(int argc, char** argv, const std::string& command) {
     json_["program"] = "mpm_client";
     json_["version"] = RVEHUB_GIT_DESCRIBE;
-    json_["api_version"] = service::kServerVersion;
+    json_["api_version"] = kVersion;
     json_["command_line"] = std::vector<std::string>(argv, argv + argc);
     json_["command"] = command;
     json_["host"] = HostName();

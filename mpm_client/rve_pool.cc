@@ -14,6 +14,8 @@
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/synchronization/mutex.h"
+#include "absl/time/clock.h"
+#include "rve_server/common/status_macros.h"
 
 namespace rvehub::mpm {
 namespace {
@@ -45,7 +47,7 @@ bool IsTransient(const absl::Status& status) {
   }
 }
 
-RvePool::RvePool(std::vector<std::unique_ptr<RveEndpoint>> endpoints, std::string run_id,
+RvePool::RvePool(std::vector<std::unique_ptr<client::RveEndpoint>> endpoints, std::string run_id,
                  PoolOptions options)
     : endpoints_(std::move(endpoints)),
       run_id_(std::move(run_id)),
@@ -58,8 +60,10 @@ absl::Status RvePool::ForEachEndpoint(const std::function<absl::Status(int)>& fn
   if (endpoints_.size() == 1) {
     status[0] = fn(0);
   } else {
-    // A thread per endpoint for the call: an endpoint's call mostly waits
-    // (on the network or on the registry's own workers).
+    // Setup and checkpoint calls only (templates, creation, export, import,
+    // drop: a few per run, not per step): a thread per endpoint for the
+    // call, which mostly waits on the network or the registry's workers.
+    // The per-step Apply needs none (asynchronous calls).
     std::vector<std::thread> threads;
     threads.reserve(endpoints_.size());
     for (int k = 0; k < num_endpoints(); ++k)
@@ -115,22 +119,21 @@ absl::Status RvePool::CallError(int k, const absl::Status& s, absl::string_view 
   return absl::Status(s.code(), absl::StrCat(what, ": ", label, ": ", s.message()));
 }
 
-absl::Status RvePool::PointError(int k, const service::RveOutcome& o,
-                                 absl::string_view what) const {
+absl::Status RvePool::PointError(int k, const client::RveOutcome& o, absl::string_view what) const {
   return absl::Status(o.status.code(),
                       absl::StrCat(what, ": ", endpoints_[k]->label(), ": material point ", o.id,
                                    ": ", o.status.message()));
 }
 
 absl::Status RvePool::Collect(int k, std::span<const std::int64_t> ids,
-                              std::vector<service::RveOutcome>& outcomes, absl::string_view what,
+                              std::vector<client::RveOutcome>& outcomes, absl::string_view what,
                               std::vector<dem::RveState>& out) const {
   if (outcomes.size() != ids.size()) {
     return absl::DataLossError(absl::StrCat(what, ": ", endpoints_[k]->label(), " answered ",
                                             outcomes.size(), " RVEs of ", ids.size()));
   }
   for (std::size_t i = 0; i < ids.size(); ++i) {
-    const service::RveOutcome& o = outcomes[i];
+    const client::RveOutcome& o = outcomes[i];
     if (!o.status.ok()) return PointError(k, o, what);
     if (o.id != ids[i]) {
       return absl::DataLossError(absl::StrCat(what, ": ", endpoints_[k]->label(),
@@ -156,7 +159,7 @@ namespace {
 // The registry consolidates each distinct initial stress of a call once
 // (bitwise equal targets); the same key here keeps them in one call.
 using StressKey = std::tuple<int, std::uint64_t, std::uint64_t, std::uint64_t>;
-StressKey KeyOf(const service::InitialStress& s) {
+StressKey KeyOf(const client::InitialStress& s) {
   return {static_cast<int>(s.kind), absl::bit_cast<std::uint64_t>(s.pressure),
           absl::bit_cast<std::uint64_t>(s.vertical_compression),
           absl::bit_cast<std::uint64_t>(s.k0)};
@@ -166,7 +169,7 @@ StressKey KeyOf(const service::InitialStress& s) {
 // one per id) and the distinct stresses among them.
 struct CreateCall {
   std::vector<std::int64_t> ids;
-  std::vector<service::InitialStress> initial;
+  std::vector<client::InitialStress> initial;
   std::int64_t consolidations = 1;
 };
 
@@ -175,7 +178,7 @@ struct CreateCall {
 // each stress is still consolidated once and the workers stay busy, while
 // progress is seen every few consolidations.
 std::vector<CreateCall> SplitCreate(const std::vector<std::int64_t>& ids,
-                                    std::span<const service::InitialStress> initial_per_point,
+                                    std::span<const client::InitialStress> initial_per_point,
                                     std::int64_t per_call) {
   std::vector<CreateCall> calls;
   if (initial_per_point.size() <= 1) {
@@ -207,7 +210,7 @@ std::vector<CreateCall> SplitCreate(const std::vector<std::int64_t>& ids,
 
 absl::StatusOr<std::vector<dem::RveState>> RvePool::Create(
     std::span<const std::string> template_per_point,
-    std::span<const service::InitialStress> initial_per_point,
+    std::span<const client::InitialStress> initial_per_point,
     const std::map<std::string, dem::Controls>& controls, const CreateProgress& progress) {
   if (endpoints_.empty()) return NoEndpoints();
   if (assignment_.empty()) Assign(std::vector<double>(template_per_point.size(), 1.0));
@@ -252,7 +255,7 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Create(
       const std::string what = absl::StrCat("creating RVEs of template \"", t.name, "\"");
       auto own = controls.find(t.name);
       for (const CreateCall& c : t.calls) {
-        absl::StatusOr<std::vector<service::RveOutcome>> r = endpoints_[k]->Create(
+        absl::StatusOr<std::vector<client::RveOutcome>> r = endpoints_[k]->Create(
             run_id_, t.name, c.ids, c.initial,
             own == controls.end() ? std::nullopt : std::optional<dem::Controls>(own->second));
         if (!r.ok()) return CallError(k, r.status(), what);
@@ -296,57 +299,41 @@ ApplyStats ApplyStats::Since(const ApplyStats& start) const {
 
 int RvePool::total_workers() const {
   int n = 0;
-  for (const std::unique_ptr<RveEndpoint>& e : endpoints_) n += e->workers();
+  for (const std::unique_ptr<client::RveEndpoint>& e : endpoints_) n += e->workers();
   return std::max(1, n);
 }
 
-absl::Status RvePool::ApplyOn(int k, std::int64_t step, std::span<const Eigen::Matrix3d> delta_f,
-                              std::vector<dem::RveState>& out, ApplyStats& stats) {
+absl::Status RvePool::Judge(int k, std::int64_t step,
+                            absl::StatusOr<std::vector<client::RveOutcome>>& result,
+                            std::vector<dem::RveState>& out, ApplyStats& stats,
+                            bool& transient) const {
   const std::vector<std::int64_t>& ids = points_[k];
-  if (ids.empty()) return absl::OkStatus();
-  std::vector<service::Increment> increments(ids.size());
-  for (std::size_t i = 0; i < ids.size(); ++i) increments[i] = {ids[i], delta_f[ids[i]]};
   const std::string what = absl::StrCat("step ", step);
-  const int attempts = std::max(1, options_.max_attempts);
-  absl::Duration backoff = options_.backoff;
-  for (int attempt = 1;; ++attempt) {
-    absl::StatusOr<std::vector<service::RveOutcome>> r = endpoints_[k]->Apply(
-        run_id_, step, increments, options_.apply_options, options_.apply_deadline);
-    absl::Status failed;
-    if (r.ok()) {
-      // A per-RVE failure of its own (a refused ΔF, a wrong step) is final;
-      // RVEs skipped because the deadline passed are completed by a retry.
-      const service::RveOutcome* transient = nullptr;
-      for (const service::RveOutcome& o : *r) {
-        if (o.status.ok()) continue;
-        if (!IsTransient(o.status)) return PointError(k, o, what);
-        if (transient == nullptr) transient = &o;
-      }
-      if (transient == nullptr) {
-        absl::Status c = Collect(k, ids, *r, what, out);
-        if (c.ok()) {
-          for (const service::RveOutcome& o : *r) {
-            ++stats.increments;
-            stats.dem_steps += o.state.steps;
-            stats.engine_seconds += o.engine_seconds;
-            ++stats.histogram[ApplyStats::Bin(o.state.steps)];
-          }
-        }
-        return c;
-      }
-      failed = PointError(k, *transient, what);
-    } else {
-      if (!IsTransient(r.status())) return CallError(k, r.status(), what);
-      failed = CallError(k, r.status(), what);
-    }
-    if (attempt >= attempts) {
-      return absl::Status(failed.code(),
-                          absl::StrCat(failed.message(), " (gave up after ", attempts,
-                                       attempts == 1 ? " attempt)" : " attempts)"));
-    }
-    absl::SleepFor(backoff);
-    backoff *= 2;
+  transient = false;
+  if (!result.ok()) {
+    transient = IsTransient(result.status());
+    return CallError(k, result.status(), what);
   }
+  // A per-RVE failure of its own (a refused ΔF, a wrong step) is final;
+  // RVEs skipped because the deadline passed are completed by a retry.
+  const client::RveOutcome* retry = nullptr;
+  for (const client::RveOutcome& o : *result) {
+    if (o.status.ok()) continue;
+    if (!IsTransient(o.status)) return PointError(k, o, what);
+    if (retry == nullptr) retry = &o;
+  }
+  if (retry != nullptr) {
+    transient = true;
+    return PointError(k, *retry, what);
+  }
+  RETURN_IF_ERROR(Collect(k, ids, *result, what, out));
+  for (const client::RveOutcome& o : *result) {
+    ++stats.increments;
+    stats.dem_steps += o.state.steps;
+    stats.engine_seconds += o.engine_seconds;
+    ++stats.histogram[ApplyStats::Bin(o.state.steps)];
+  }
+  return absl::OkStatus();
 }
 
 absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(
@@ -361,18 +348,74 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(
   std::vector<dem::RveState> out(n);
   std::vector<ApplyStats> stats(endpoints_.size());
   std::fill(last_apply_seconds_.begin(), last_apply_seconds_.end(), 0.0);
-  absl::Status s = ForEachEndpoint([&](int k) {
-    const auto endpoint_start = std::chrono::steady_clock::now();
-    absl::Status a = ApplyOn(k, step, delta_f, out, stats[k]);
-    last_apply_seconds_[k] = SecondsSince(endpoint_start);
-    return a;
-  });
+
+  // One batch per endpoint, all in flight at once without a thread each:
+  // remote endpoints' calls go out first (gRPC callbacks), then the
+  // in-process ones run on their registries' workers, then the caller
+  // collects. A batch failing transiently is sent again as it was (the
+  // server answers RVEs already committed from memory), after a backoff
+  // that doubles per attempt.
+  struct Batch {
+    std::vector<client::Increment> increments;
+    std::unique_ptr<client::PendingApply> call;
+    int attempts = 0;
+    bool done = false;
+    absl::Status status;
+  };
+  std::vector<Batch> batches(endpoints_.size());
+  for (int k = 0; k < num_endpoints(); ++k) {
+    const std::vector<std::int64_t>& ids = points_[k];
+    batches[k].done = ids.empty();
+    batches[k].increments.resize(ids.size());
+    for (std::size_t i = 0; i < ids.size(); ++i) {
+      batches[k].increments[i] = {ids[i], delta_f[ids[i]]};
+    }
+  }
+  const int max_attempts = std::max(1, options_.max_attempts);
+  absl::Duration backoff = options_.backoff;
+  for (bool pending = true; pending;) {
+    for (bool in_process : {false, true}) {
+      for (int k = 0; k < num_endpoints(); ++k) {
+        Batch& b = batches[k];
+        if (b.done || endpoints_[k]->in_process() != in_process) continue;
+        ++b.attempts;
+        b.call = endpoints_[k]->StartApply(run_id_, step, b.increments, options_.apply_options,
+                                           options_.apply_deadline);
+      }
+    }
+    pending = false;
+    for (int k = 0; k < num_endpoints(); ++k) {
+      Batch& b = batches[k];
+      if (b.done) continue;
+      absl::StatusOr<std::vector<client::RveOutcome>> result = b.call->Finish();
+      last_apply_seconds_[k] += b.call->seconds();
+      b.call.reset();
+      bool transient = false;
+      b.status = Judge(k, step, result, out, stats[k], transient);
+      if (b.status.ok() || !transient) {
+        b.done = true;
+      } else if (b.attempts >= max_attempts) {
+        b.done = true;
+        b.status = absl::Status(b.status.code(),
+                                absl::StrCat(b.status.message(), " (gave up after ", max_attempts,
+                                             max_attempts == 1 ? " attempt)" : " attempts)"));
+      } else {
+        pending = true;
+      }
+    }
+    if (pending) {
+      absl::SleepFor(backoff);
+      backoff *= 2;
+    }
+  }
   for (const ApplyStats& st : stats) {
     evaluations_ += st.increments;
     stats_.Add(st);
   }
   total_apply_seconds_ += SecondsSince(start);
-  if (!s.ok()) return s;
+  for (const Batch& b : batches) {
+    if (!b.status.ok()) return b.status;  // the first error by endpoint index
+  }
   return out;
 }
 
@@ -382,7 +425,7 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Get(bool want_tangent) {
   absl::Status s = ForEachEndpoint([&](int k) -> absl::Status {
     const std::vector<std::int64_t>& ids = points_[k];
     if (ids.empty()) return absl::OkStatus();
-    absl::StatusOr<std::vector<service::RveOutcome>> r =
+    absl::StatusOr<std::vector<client::RveOutcome>> r =
         endpoints_[k]->Get(run_id_, ids, want_tangent);
     if (!r.ok()) return CallError(k, r.status(), "getting states");
     return Collect(k, ids, *r, "getting states", out);

@@ -22,10 +22,9 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/time/time.h"
-#include "mpm_client/rve_backend.h"
+#include "rve_server/client/endpoint.h"
 #include "rve_server/engine/packing.h"
 #include "rve_server/engine/rve.h"
-#include "rve_server/service/registry.h"
 #include "store/record.h"
 
 namespace rvehub::mpm {
@@ -63,13 +62,13 @@ bool IsTransient(const absl::Status& status);
 
 class RvePool {
  public:
-  RvePool(std::vector<std::unique_ptr<RveEndpoint>> endpoints, std::string run_id,
+  RvePool(std::vector<std::unique_ptr<client::RveEndpoint>> endpoints, std::string run_id,
           PoolOptions options = {});
   RvePool(const RvePool&) = delete;
   RvePool& operator=(const RvePool&) = delete;
 
   int num_endpoints() const { return static_cast<int>(endpoints_.size()); }
-  RveEndpoint& endpoint(int k) { return *endpoints_[k]; }
+  client::RveEndpoint& endpoint(int k) { return *endpoints_[k]; }
   const std::string& run_id() const { return run_id_; }
   const PoolOptions& options() const { return options_; }
   // E.g. to ask for tangents from some step on.
@@ -107,7 +106,7 @@ class RvePool {
   using CreateProgress = std::function<void(std::int64_t done, std::int64_t total)>;
   absl::StatusOr<std::vector<dem::RveState>> Create(
       std::span<const std::string> template_per_point,
-      std::span<const service::InitialStress> initial_per_point = {},
+      std::span<const client::InitialStress> initial_per_point = {},
       const std::map<std::string, dem::Controls>& controls = {},
       const CreateProgress& progress = {});
 
@@ -146,21 +145,24 @@ class RvePool {
   // Runs fn(k) for every endpoint k, concurrently when there are several;
   // the first error by endpoint index.
   absl::Status ForEachEndpoint(const std::function<absl::Status(int)>& fn);
-  // One endpoint's batch of a step, with retries; states into `out`.
-  absl::Status ApplyOn(int k, std::int64_t step, std::span<const Eigen::Matrix3d> delta_f,
-                       std::vector<dem::RveState>& out, ApplyStats& stats);
+  // The result of endpoint k's batch of a step: OK with states into `out`
+  // and counts into `stats`, or the error, `transient` when a retry of the
+  // same batch may cure it.
+  absl::Status Judge(int k, std::int64_t step,
+                     absl::StatusOr<std::vector<client::RveOutcome>>& result,
+                     std::vector<dem::RveState>& out, ApplyStats& stats, bool& transient) const;
   // A whole-call error of endpoint k, with what was being done and the
   // endpoint named (endpoints name themselves; a wrapper might not).
   absl::Status CallError(int k, const absl::Status& s, absl::string_view what) const;
   // The error for a failed outcome on endpoint k, naming the point.
-  absl::Status PointError(int k, const service::RveOutcome& o, absl::string_view what) const;
+  absl::Status PointError(int k, const client::RveOutcome& o, absl::string_view what) const;
   // States into `out` (point order) from the outcomes for `ids` on endpoint
   // k; the first failed outcome (in `ids` order) is the error.
   absl::Status Collect(int k, std::span<const std::int64_t> ids,
-                       std::vector<service::RveOutcome>& outcomes, absl::string_view what,
+                       std::vector<client::RveOutcome>& outcomes, absl::string_view what,
                        std::vector<dem::RveState>& out) const;
 
-  std::vector<std::unique_ptr<RveEndpoint>> endpoints_;
+  std::vector<std::unique_ptr<client::RveEndpoint>> endpoints_;
   const std::string run_id_;
   PoolOptions options_;
   std::vector<int> assignment_;                    // point → endpoint

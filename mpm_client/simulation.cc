@@ -18,9 +18,8 @@
 #include "absl/time/time.h"
 #include "mpm_client/case.h"
 #include "mpm_client/output.h"
-#include "mpm_client/rve_backend.h"
+#include "rve_server/client/endpoint.h"
 #include "mpm_client/templates.h"
-#include "rve_server/service/registry.h"
 #include "store/results.h"
 
 namespace rvehub::mpm {
@@ -127,16 +126,16 @@ absl::Status Simulation::UploadTemplates() {
 }
 
 absl::Status Simulation::Connect() {
-  std::vector<std::unique_ptr<RveEndpoint>> endpoints;
+  std::vector<std::unique_ptr<client::RveEndpoint>> endpoints;
   if (options_.servers.empty()) {
-    service::RegistryOptions ro;
-    ro.threads = options_.threads > 0
-                     ? options_.threads
-                     : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-    endpoints.push_back(MakeEmbeddedEndpoint(std::make_shared<service::Registry>(ro)));
+    client::EmbeddedOptions embedded;
+    embedded.threads = options_.threads > 0
+                           ? options_.threads
+                           : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+    endpoints.push_back(client::MakeEmbeddedEndpoint(embedded));
   } else {
     for (const std::string& address : options_.servers) {
-      absl::StatusOr<std::unique_ptr<RveEndpoint>> e = MakeRemoteEndpoint(address, options_.client);
+      absl::StatusOr<std::unique_ptr<client::RveEndpoint>> e = client::MakeRemoteEndpoint(address, options_.client);
       if (!e.ok()) return e.status();
       endpoints.push_back(*std::move(e));
     }
@@ -374,7 +373,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   // when the region asks for it (σv = ρ·|g|·depth + surcharge).
   const double g = spec.solver.gravity.norm();
   std::vector<std::string> template_of(n);
-  std::vector<service::InitialStress> initial(n);
+  std::vector<client::InitialStress> initial(n);
   std::vector<double> cost(n);
   for (std::size_t p = 0; p < n; ++p) {
     const MaterialRegion& r = spec.regions[points->region[p]];
@@ -383,16 +382,16 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
     const double depth = std::max(0.0, r.surface_y - points->position[p].y());
     const double sv =
         std::max(r.minimum_stress, density[points->region[p]] * g * depth + r.surcharge);
-    service::InitialStress& s = initial[p];
+    client::InitialStress& s = initial[p];
     switch (r.initial_stress) {
       case InitialStressKind::kTemplate:
         break;
       case InitialStressKind::kGeostaticIsotropic:
-        s.kind = service::InitialStress::Kind::kIsotropic;
+        s.kind = client::InitialStress::Kind::kIsotropic;
         s.pressure = sv;
         break;
       case InitialStressKind::kGeostaticK0:
-        s.kind = service::InitialStress::Kind::kK0;
+        s.kind = client::InitialStress::Kind::kK0;
         s.vertical_compression = sv;
         s.k0 = r.k0;
         break;

@@ -10,9 +10,8 @@
 #include <utility>
 #include <vector>
 
-#include "mpm_client/rve_backend.h"
 #include "mpm_client/rve_pool.h"
-#include "rve_server/service/registry.h"
+#include "rve_server/client/endpoint.h"
 #include "tests/test_util.h"
 
 namespace rvehub::mpm {
@@ -28,31 +27,32 @@ TEST(CreateProgressTest, ReportsEachCallAndMatchesOneCall) {
   // 9 distinct stresses over 12 points (points 9..11 repeat 0..2); one
   // worker: calls of 2, 2, 2, 2 and 1 consolidations.
   constexpr int kPoints = 12;
-  std::vector<service::InitialStress> initial(kPoints);
+  std::vector<client::InitialStress> initial(kPoints);
   std::vector<std::int64_t> ids;
   for (int p = 0; p < kPoints; ++p) {
-    initial[p].kind = service::InitialStress::Kind::kIsotropic;
+    initial[p].kind = client::InitialStress::Kind::kIsotropic;
     initial[p].pressure = 100e3 * (1 + 0.01 * (p % 9));
     ids.push_back(p);
   }
-  service::RegistryOptions options;
+  client::EmbeddedOptions options;
   options.threads = 1;
-  std::vector<std::unique_ptr<RveEndpoint>> endpoints;
-  endpoints.push_back(MakeEmbeddedEndpoint(std::make_shared<service::Registry>(options)));
+  std::vector<std::unique_ptr<client::RveEndpoint>> endpoints;
+  endpoints.push_back(client::MakeEmbeddedEndpoint(options));
   RvePool pool(std::move(endpoints), "run");
   ASSERT_TRUE(pool.UploadTemplates(std::vector<store::TemplateRecord>{record}).ok());
   std::vector<std::pair<std::int64_t, std::int64_t>> reports;
-  absl::StatusOr<std::vector<dem::RveState>> states =
-      pool.Create(std::vector<std::string>(kPoints, "t"), initial, {},
-                  [&](std::int64_t done, std::int64_t total) { reports.emplace_back(done, total); });
+  absl::StatusOr<std::vector<dem::RveState>> states = pool.Create(
+      std::vector<std::string>(kPoints, "t"), initial, {},
+      [&](std::int64_t done, std::int64_t total) { reports.emplace_back(done, total); });
   ASSERT_TRUE(states.ok()) << states.status();
-  EXPECT_EQ(reports, (std::vector<std::pair<std::int64_t, std::int64_t>>{{0, 9}, {2, 9}, {4, 9}, {6, 9}, {8, 9}, {9, 9}}));
+  EXPECT_EQ(reports, (std::vector<std::pair<std::int64_t, std::int64_t>>{
+                         {0, 9}, {2, 9}, {4, 9}, {6, 9}, {8, 9}, {9, 9}}));
 
-  // The same RVEs created in one registry call.
-  service::Registry registry(options);
-  ASSERT_TRUE(registry.PutTemplate(record, /*replace=*/false).ok());
-  absl::StatusOr<std::vector<service::RveOutcome>> one =
-      registry.Create("run", "t", ids, initial, std::nullopt, /*want_state=*/true);
+  // The same RVEs created in one call.
+  std::unique_ptr<client::RveEndpoint> single = client::MakeEmbeddedEndpoint(options);
+  ASSERT_TRUE(single->PutTemplate(record).ok());
+  absl::StatusOr<std::vector<client::RveOutcome>> one =
+      single->Create("run", "t", ids, initial, std::nullopt);
   ASSERT_TRUE(one.ok()) << one.status();
   ASSERT_EQ(one->size(), static_cast<std::size_t>(kPoints));
   for (int p = 0; p < kPoints; ++p) {

@@ -20,7 +20,8 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
-#include "mpm_client/rve_backend.h"
+#include "rve_server/client/embedded_endpoint.h"
+#include "rve_server/client/endpoint.h"
 #include "rve_server/service/log.h"
 #include "rve_server/service/server.h"
 #include "tests/test_util.h"
@@ -118,22 +119,22 @@ class Servers {
   std::vector<std::unique_ptr<service::RveServer>> servers_;
 };
 
-std::unique_ptr<RveEndpoint> Remote(const std::string& address, const RemoteOptions& remote = {}) {
-  absl::StatusOr<std::unique_ptr<RveEndpoint>> e = MakeRemoteEndpoint(address, {}, remote);
+std::unique_ptr<client::RveEndpoint> Remote(const std::string& address, const client::RemoteOptions& remote = {}) {
+  absl::StatusOr<std::unique_ptr<client::RveEndpoint>> e = client::MakeRemoteEndpoint(address, {}, remote);
   EXPECT_TRUE(e.ok()) << e.status();
   return e.ok() ? *std::move(e) : nullptr;
 }
 
-std::vector<std::unique_ptr<RveEndpoint>> RemoteEndpoints(const Servers& servers,
-                                                          const RemoteOptions& remote = {}) {
-  std::vector<std::unique_ptr<RveEndpoint>> e;
+std::vector<std::unique_ptr<client::RveEndpoint>> RemoteEndpoints(const Servers& servers,
+                                                          const client::RemoteOptions& remote = {}) {
+  std::vector<std::unique_ptr<client::RveEndpoint>> e;
   for (int k = 0; k < servers.size(); ++k) e.push_back(Remote(servers.address(k), remote));
   return e;
 }
 
-std::vector<std::unique_ptr<RveEndpoint>> EmbeddedEndpoints(int n) {
-  std::vector<std::unique_ptr<RveEndpoint>> e;
-  for (int k = 0; k < n; ++k) e.push_back(MakeEmbeddedEndpoint(NewRegistry()));
+std::vector<std::unique_ptr<client::RveEndpoint>> EmbeddedEndpoints(int n) {
+  std::vector<std::unique_ptr<client::RveEndpoint>> e;
+  for (int k = 0; k < n; ++k) e.push_back(client::MakeEmbeddedEndpoint(NewRegistry()));
   return e;
 }
 
@@ -192,15 +193,29 @@ int ClosedPort() {
   return ntohs(addr.sin_port);
 }
 
+// A finished Apply with a given result.
+class DoneApply final : public client::PendingApply {
+ public:
+  explicit DoneApply(absl::StatusOr<std::vector<client::RveOutcome>> r) : r_(std::move(r)) {}
+  absl::StatusOr<std::vector<client::RveOutcome>> Finish() override { return std::move(r_); }
+  double seconds() const override { return 0.0; }
+
+ private:
+  absl::StatusOr<std::vector<client::RveOutcome>> r_;
+};
+std::unique_ptr<client::PendingApply> Done(absl::StatusOr<std::vector<client::RveOutcome>> r) {
+  return std::make_unique<DoneApply>(std::move(r));
+}
+
 // Wraps an endpoint and fails Apply calls on purpose.
-class FaultyEndpoint final : public RveEndpoint {
+class FaultyEndpoint final : public client::RveEndpoint {
  public:
   enum class Fault {
     kLoseFirstReply,  // the first Apply commits, then its reply is "lost"
     kAlwaysUnavailable,
     kRefuse,  // InvalidArgument, as for a malformed request
   };
-  FaultyEndpoint(std::unique_ptr<RveEndpoint> inner, Fault fault)
+  FaultyEndpoint(std::unique_ptr<client::RveEndpoint> inner, Fault fault)
       : inner_(std::move(inner)), fault_(fault) {}
 
   int apply_calls() const { return apply_calls_; }
@@ -211,37 +226,38 @@ class FaultyEndpoint final : public RveEndpoint {
   absl::Status PutTemplate(const store::TemplateRecord& r) override {
     return inner_->PutTemplate(r);
   }
-  absl::StatusOr<std::vector<service::RveOutcome>> Create(
+  absl::StatusOr<std::vector<client::RveOutcome>> Create(
       absl::string_view run, absl::string_view t, std::span<const std::int64_t> ids,
-      std::span<const service::InitialStress> initial,
+      std::span<const client::InitialStress> initial,
       const std::optional<dem::Controls>& controls) override {
     return inner_->Create(run, t, ids, initial, controls);
   }
-  absl::StatusOr<std::vector<service::RveOutcome>> Apply(
-      absl::string_view run, std::int64_t step, std::span<const service::Increment> increments,
-      const dem::ApplyOptions& options, absl::Duration deadline) override {
+  std::unique_ptr<client::PendingApply> StartApply(absl::string_view run, std::int64_t step,
+                                                   std::span<const client::Increment> increments,
+                                                   const dem::ApplyOptions& options,
+                                                   absl::Duration deadline) override {
     const int call = ++apply_calls_;
     switch (fault_) {
       case Fault::kLoseFirstReply: {
-        absl::StatusOr<std::vector<service::RveOutcome>> r =
+        absl::StatusOr<std::vector<client::RveOutcome>> r =
             inner_->Apply(run, step, increments, options, deadline);
-        if (call == 1) return absl::UnavailableError("connection reset by peer");
-        return r;
+        if (call == 1) return Done(absl::UnavailableError("connection reset by peer"));
+        return Done(std::move(r));
       }
       case Fault::kAlwaysUnavailable:
-        return absl::UnavailableError("connection refused");
+        return Done(absl::UnavailableError("connection refused"));
       case Fault::kRefuse:
-        return absl::InvalidArgumentError("malformed request");
+        return Done(absl::InvalidArgumentError("malformed request"));
     }
-    return absl::InternalError("unreachable");
+    return Done(absl::InternalError("unreachable"));
   }
-  absl::StatusOr<std::vector<service::RveOutcome>> Get(absl::string_view run,
+  absl::StatusOr<std::vector<client::RveOutcome>> Get(absl::string_view run,
                                                        std::span<const std::int64_t> ids,
                                                        bool want_tangent) override {
     return inner_->Get(run, ids, want_tangent);
   }
   absl::Status Export(absl::string_view run, std::span<const std::int64_t> ids,
-                      const RecordSink& sink) override {
+                      const client::RecordSink& sink) override {
     return inner_->Export(run, ids, sink);
   }
   absl::Status Import(std::vector<store::RveRecord> records) override {
@@ -250,7 +266,7 @@ class FaultyEndpoint final : public RveEndpoint {
   absl::Status Drop(absl::string_view run) override { return inner_->Drop(run); }
 
  private:
-  std::unique_ptr<RveEndpoint> inner_;
+  std::unique_ptr<client::RveEndpoint> inner_;
   const Fault fault_;
   std::atomic<int> apply_calls_{0};
 };
@@ -313,18 +329,18 @@ TEST(RvePoolTest, EmbeddedAndRemotePoolsAgreeBitForBit) {
 TEST(RvePoolTest, GeostaticStartsInSmallMessagesAgreeBitForBit) {
   Servers servers(2);
   ASSERT_EQ(servers.size(), 2);
-  RemoteOptions small;
+  client::RemoteOptions small;
   small.max_batch = 2;  // 3 points per server: two messages per call
   RvePool embedded(EmbeddedEndpoints(1), kRun);
   RvePool remote(RemoteEndpoints(servers, small), kRun);
   // One initial stress per point: isotropic or K0 with depth.
-  std::vector<service::InitialStress> initial(kPoints);
+  std::vector<client::InitialStress> initial(kPoints);
   for (int p = 0; p < kPoints; ++p) {
     if (p % 2 == 0) {
-      initial[p].kind = service::InitialStress::Kind::kIsotropic;
+      initial[p].kind = client::InitialStress::Kind::kIsotropic;
       initial[p].pressure = 100e3 * (1 + 0.02 * p);
     } else {
-      initial[p].kind = service::InitialStress::Kind::kK0;
+      initial[p].kind = client::InitialStress::Kind::kK0;
       initial[p].vertical_compression = 100e3 * (1 + 0.02 * p);
       initial[p].k0 = 0.9;
     }
@@ -373,8 +389,8 @@ TEST(RvePoolTest, AssignmentIsGreedyLongestProcessingTime) {
 
 TEST(RvePoolTest, RetriesALostReplyButNotABadRequest) {
   RvePool plain(EmbeddedEndpoints(1), kRun);
-  std::vector<std::unique_ptr<RveEndpoint>> faulty_endpoints;
-  auto faulty = std::make_unique<FaultyEndpoint>(MakeEmbeddedEndpoint(NewRegistry()),
+  std::vector<std::unique_ptr<client::RveEndpoint>> faulty_endpoints;
+  auto faulty = std::make_unique<FaultyEndpoint>(client::MakeEmbeddedEndpoint(NewRegistry()),
                                                  FaultyEndpoint::Fault::kLoseFirstReply);
   FaultyEndpoint* lossy = faulty.get();
   faulty_endpoints.push_back(std::move(faulty));
@@ -390,8 +406,8 @@ TEST(RvePoolTest, RetriesALostReplyButNotABadRequest) {
   for (auto [fault, code, calls] :
        {std::tuple{FaultyEndpoint::Fault::kRefuse, absl::StatusCode::kInvalidArgument, 1},
         std::tuple{FaultyEndpoint::Fault::kAlwaysUnavailable, absl::StatusCode::kUnavailable, 4}}) {
-    std::vector<std::unique_ptr<RveEndpoint>> e;
-    auto f = std::make_unique<FaultyEndpoint>(MakeEmbeddedEndpoint(NewRegistry()), fault);
+    std::vector<std::unique_ptr<client::RveEndpoint>> e;
+    auto f = std::make_unique<FaultyEndpoint>(client::MakeEmbeddedEndpoint(NewRegistry()), fault);
     FaultyEndpoint* raw = f.get();
     e.push_back(std::move(f));
     RvePool pool(std::move(e), kRun, QuickRetries());
@@ -418,9 +434,9 @@ TEST(RvePoolTest, RvesSkippedAtTheDeadlineAreRetried) {
 
 TEST(RvePoolTest, UnreachableServerIsUnavailableNamingTheAddress) {
   const std::string address = absl::StrCat("127.0.0.1:", ClosedPort());
-  RemoteOptions remote;
+  client::RemoteOptions remote;
   remote.connect_timeout = absl::Seconds(2);
-  absl::StatusOr<std::unique_ptr<RveEndpoint>> e = MakeRemoteEndpoint(address, {}, remote);
+  absl::StatusOr<std::unique_ptr<client::RveEndpoint>> e = client::MakeRemoteEndpoint(address, {}, remote);
   ASSERT_FALSE(e.ok());
   EXPECT_TRUE(absl::IsUnavailable(e.status())) << e.status();
   ExpectContains(e.status().message(), absl::StrCat("RVE server ", address, " is unreachable"));
@@ -468,7 +484,7 @@ TEST(RvePoolTest, ExportImportOntoOtherEndpointsContinuesBitIdentically) {
   ASSERT_EQ(saved->size(), static_cast<std::size_t>(kPoints));
 
   // Three endpoints, one remote, uneven costs, another run id.
-  std::vector<std::unique_ptr<RveEndpoint>> endpoints = EmbeddedEndpoints(2);
+  std::vector<std::unique_ptr<client::RveEndpoint>> endpoints = EmbeddedEndpoints(2);
   endpoints.push_back(Remote(servers.address(0)));
   RvePool resumed(std::move(endpoints), "resumed-run");
   resumed.Assign(std::vector<double>{1, 2, 3, 4, 5, 6});
@@ -544,9 +560,9 @@ TEST(RvePoolTest, ControlsPerTemplate) {
 // are identical, and equal to one consolidated on its own.
 TEST(RvePoolTest, PointsWithTheSameInitialStressGetIdenticalRves) {
   const std::vector<store::TemplateRecord> templates = Templates();
-  std::vector<service::InitialStress> initial(kPoints);
+  std::vector<client::InitialStress> initial(kPoints);
   for (int p = 0; p < kPoints; ++p) {
-    initial[p].kind = service::InitialStress::Kind::kIsotropic;
+    initial[p].kind = client::InitialStress::Kind::kIsotropic;
     initial[p].pressure = p % 2 == 0 ? 60e3 : 80e3;
   }
   RvePool pool(EmbeddedEndpoints(1), kRun);
@@ -556,7 +572,7 @@ TEST(RvePoolTest, PointsWithTheSameInitialStressGetIdenticalRves) {
   absl::StatusOr<std::vector<store::RveRecord>> all = pool.ExportAll();
   ASSERT_TRUE(all.ok()) << all.status();
 
-  const std::vector<service::InitialStress> just_one = {initial[1]};
+  const std::vector<client::InitialStress> just_one = {initial[1]};
   RvePool single(EmbeddedEndpoints(1), kRun);
   ASSERT_TRUE(single.UploadTemplates(templates).ok());
   single.Assign(std::vector<double>{1.0});

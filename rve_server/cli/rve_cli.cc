@@ -43,6 +43,7 @@
 #include "nlohmann/json.hpp"
 #include "rve_server/cli/element_test_io.h"
 #include "rve_server/common/flags.h"
+#include "rve_server/common/version.h"
 #include "rve_server/client/channel.h"
 #include "rve_server/client/record_stream.h"
 #include "rve_server/engine/element_test.h"
@@ -332,7 +333,7 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-std::string CreatedBy() { return absl::StrCat("rve_cli ", service::kServerVersion); }
+std::string CreatedBy() { return absl::StrCat("rve_cli ", kVersion); }
 
 // ---------------------------------------------------------------------------
 // Talking to a server.

@@ -46,11 +46,14 @@ absl::Status Prefixed(absl::string_view prefix, const absl::Status& s) {
 // An Apply already done inside StartApply.
 class DoneApply final : public PendingApply {
  public:
-  explicit DoneApply(absl::StatusOr<std::vector<RveOutcome>> result) : result_(std::move(result)) {}
+  DoneApply(absl::StatusOr<std::vector<RveOutcome>> result, double seconds)
+      : result_(std::move(result)), seconds_(seconds) {}
   absl::StatusOr<std::vector<RveOutcome>> Finish() override { return std::move(result_); }
+  double seconds() const override { return seconds_; }
 
  private:
   absl::StatusOr<std::vector<RveOutcome>> result_;
+  double seconds_;
 };
 
 class EmbeddedEndpoint final : public RveEndpoint {
@@ -60,6 +63,7 @@ class EmbeddedEndpoint final : public RveEndpoint {
 
   std::string name() const override { return "embedded"; }
   int workers() const override { return registry_->options().threads; }
+  bool in_process() const override { return true; }
   std::string label() const override { return "embedded RVE registry"; }
 
   absl::Status PutTemplate(const store::TemplateRecord& record) override {
@@ -83,6 +87,7 @@ class EmbeddedEndpoint final : public RveEndpoint {
                                            std::span<const Increment> increments,
                                            const dem::ApplyOptions& options,
                                            absl::Duration deadline) override {
+    const absl::Time start = absl::Now();
     service::CancelFn cancelled;
     if (deadline != absl::InfiniteDuration()) {
       const absl::Time end = absl::Now() + deadline;
@@ -98,8 +103,9 @@ class EmbeddedEndpoint final : public RveEndpoint {
     }
     absl::StatusOr<std::vector<service::RveOutcome>> out =
         registry_->Apply(run, step, service::ApplyMode::kCommit, options, batch, cancelled);
-    if (!out.ok()) return std::make_unique<DoneApply>(Error(out.status()));
-    return std::make_unique<DoneApply>(FromRegistry(*std::move(out)));
+    const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
+    if (!out.ok()) return std::make_unique<DoneApply>(Error(out.status()), seconds);
+    return std::make_unique<DoneApply>(FromRegistry(*std::move(out)), seconds);
   }
 
   absl::StatusOr<std::vector<RveOutcome>> Get(absl::string_view run,

@@ -30,6 +30,8 @@ class PendingApply {
   virtual ~PendingApply() = default;
   // Waits for the call to end: its outcomes, or the whole-call error. Once.
   virtual absl::StatusOr<std::vector<RveOutcome>> Finish() = 0;
+  // Wall time from the start of the call to its end, s (after Finish).
+  virtual double seconds() const = 0;
 };
 
 // Whole-call errors come back as the status of a call; per-RVE results as
@@ -45,6 +47,9 @@ class RveEndpoint {
   virtual std::string label() const = 0;
   // Worker threads evaluating a batch (the server's --threads).
   virtual int workers() const = 0;
+  // True when calls run in the caller's process and thread (StartApply does
+  // the work before it returns): callers start remote calls first.
+  virtual bool in_process() const { return false; }
 
   // Uploads a template, replacing one of the same name.
   virtual absl::Status PutTemplate(const store::TemplateRecord& record) = 0;

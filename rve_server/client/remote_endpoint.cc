@@ -144,7 +144,7 @@ class RemoteApply final : public PendingApply {
     std::vector<std::int64_t> ids;  // the request's, in order
   };
 
-  explicit RemoteApply(std::string label) : label_(std::move(label)) {}
+  explicit RemoteApply(std::string label) : label_(std::move(label)), start_(absl::Now()) {}
   // Waits for callbacks still pending (they refer to this call).
   ~RemoteApply() override {
     bool pending;
@@ -173,9 +173,14 @@ class RemoteApply final : public PendingApply {
                           [this, message](grpc::Status status) {
                             absl::MutexLock lock(&mu_);
                             message->status = std::move(status);
-                            --pending_;
+                            if (--pending_ == 0) end_ = absl::Now();
                           });
     }
+  }
+
+  double seconds() const override {
+    absl::MutexLock lock(&mu_);
+    return absl::ToDoubleSeconds(end_ - start_);
   }
 
   absl::StatusOr<std::vector<RveOutcome>> Finish() override {
@@ -197,9 +202,11 @@ class RemoteApply final : public PendingApply {
   bool Done() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) { return pending_ == 0; }
 
   const std::string label_;
+  const absl::Time start_;
   std::vector<std::unique_ptr<Message>> messages_;
-  absl::Mutex mu_;
+  mutable absl::Mutex mu_;
   int pending_ ABSL_GUARDED_BY(mu_) = 0;
+  absl::Time end_ ABSL_GUARDED_BY(mu_);
 };
 
 class RemoteEndpoint final : public RveEndpoint {

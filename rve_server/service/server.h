@@ -12,12 +12,13 @@
 #include <string>
 
 #include "absl/status/statusor.h"
+#include "rve_server/common/version.h"
 #include "rve_server/service/registry.h"
 #include "rve_server/service/rve_service.h"
 
 namespace rvehub::service {
 
-inline constexpr char kServerVersion[] = "0.3.0";
+inline constexpr const char* kServerVersion = kVersion;
 
 struct ServerConfig {
   std::string listen = "127.0.0.1:50051";  // HOST:PORT; port 0 picks a free one
