@@ -39,7 +39,7 @@ namespace mpm = rvehub::mpm;
 struct Row {
   std::string name;
   double setup_s = 0.0;  // Simulation::Start: templates, RVE creation, Δt, outputs
-  mpm::RunSummary sum;
+  mpm::SimulationSummary sum;
 };
 
 bool RunCase(const std::string& path, const std::vector<std::string>& servers, int threads,
@@ -52,7 +52,7 @@ bool RunCase(const std::string& path, const std::vector<std::string>& servers, i
   spec->output.checkpoint_every = 0;
   spec->output.frame_every = 1 << 30;  // frames at start and end only
   if (baseline) spec->rve.min_steps = 20;
-  mpm::RunOptions o;
+  mpm::SimulationOptions o;
   o.out_dir = (std::filesystem::temp_directory_path() /
                ("bench_mpm_" + spec->name + (baseline ? "_baseline" : "")))
                   .string();
@@ -70,7 +70,7 @@ bool RunCase(const std::string& path, const std::vector<std::string>& servers, i
     std::fprintf(stderr, "%s: %s\n", path.c_str(), std::string(sim.status().message()).c_str());
     return false;
   }
-  absl::StatusOr<mpm::RunSummary> sum = (*sim)->Run();
+  absl::StatusOr<mpm::SimulationSummary> sum = (*sim)->StepToEnd();
   if (!sum.ok()) {
     std::fprintf(stderr, "%s: %s\n", path.c_str(), std::string(sum.status().message()).c_str());
     return false;

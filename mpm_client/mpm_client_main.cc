@@ -156,8 +156,8 @@ absl::StatusOr<std::vector<CaseOverride>> Overrides(const Args& a) {
 
 // The run options from the flags; usage errors only (files are read by
 // LoadClientOptions).
-absl::StatusOr<RunOptions> Options(const Args& a) {
-  RunOptions o;
+absl::StatusOr<SimulationOptions> Options(const Args& a) {
+  SimulationOptions o;
   if (a.contains("out")) {
     o.out_dir = absl::GetFlag(FLAGS_out);
     if (o.out_dir.empty()) return absl::InvalidArgumentError("--out=DIR needs a directory");
@@ -251,7 +251,7 @@ class RunRecord {
     Write();
   }
 
-  void Finished(const absl::StatusOr<RunSummary>& summary) {
+  void Finished(const absl::StatusOr<SimulationSummary>& summary) {
     json_["end"] = Now();
     if (!summary.ok()) {
       json_["outcome"] = "failed";
@@ -305,7 +305,7 @@ int Main(int argc, char** argv) {
     std::printf("%s\n", ToJson(*spec).c_str());
     return 0;
   }
-  absl::StatusOr<RunOptions> options = Options(command->args);
+  absl::StatusOr<SimulationOptions> options = Options(command->args);
   if (!options.ok()) return Fail(options.status(), 2);
   if (command->name == "run" && !command->args.contains("out")) {
     return Fail(absl::InvalidArgumentError("--out=DIR is required"), 2);
@@ -330,7 +330,7 @@ int Main(int argc, char** argv) {
   }
   if (!sim.ok()) return Fail(sim.status(), 1);
   record.Started(options->out_dir, (*sim)->spec(), command->name == "resume");
-  absl::StatusOr<RunSummary> summary = (*sim)->Run();
+  absl::StatusOr<SimulationSummary> summary = (*sim)->StepToEnd();
   record.Finished(summary);
   if (!summary.ok()) return Fail(summary.status(), 1);
   std::fprintf(stderr,

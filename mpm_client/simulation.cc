@@ -310,7 +310,7 @@ absl::Status Simulation::WriteCheckpoint() {
   return store::WriteSimCheckpoint(options_.out_dir + "/checkpoint.h5", *c, info);
 }
 
-std::string FormatTimeSplit(const RunSummary& s) {
+std::string FormatTimeSplit(const SimulationSummary& s) {
   const double wall = std::max(s.wall_s, 1e-12);
   const double engine = std::min(s.rve_s, s.rve_stats.engine_seconds / std::max(1, s.rve_workers));
   const double service = s.rve_s - engine;
@@ -342,7 +342,7 @@ std::string FormatTimeSplit(const RunSummary& s) {
 }
 
 absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& spec,
-                                                              const RunOptions& options) {
+                                                              const SimulationOptions& options) {
   std::unique_ptr<Simulation> sim(new Simulation());
   sim->spec_ = spec;
   sim->case_json_ = ToJson(spec);
@@ -488,7 +488,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
 }
 
 absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string& checkpoint_path,
-                                                               const RunOptions& options) {
+                                                               const SimulationOptions& options) {
   if (absl::Status s = MakeOutputDir(options.out_dir); !s.ok()) return s;
   absl::StatusOr<store::SimCheckpoint> c = store::ReadSimCheckpoint(checkpoint_path);
   if (!c.ok()) return c.status();
@@ -523,8 +523,8 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
   return sim;
 }
 
-absl::StatusOr<RunSummary> Simulation::Run() {
-  RunSummary sum;
+absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
+  SimulationSummary sum;
   const OutputSpec& o = spec_.output;
   const double end = spec_.solver.end_time;
   // Bounded before the cast: a step count beyond int64 was undefined (and

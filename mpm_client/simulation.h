@@ -21,7 +21,7 @@
 
 namespace rvehub::mpm {
 
-struct RunOptions {
+struct SimulationOptions {
   std::string out_dir = "out";
   std::vector<std::string> servers;  // HOST:PORT each; empty: one embedded server
   int threads = 0;                   // embedded server's workers; 0: all cores
@@ -39,7 +39,7 @@ struct RunOptions {
 // MPM steps a run may take at most (end_time / Δt).
 inline constexpr std::int64_t kMaxSteps = 1'000'000'000;
 
-struct RunSummary {
+struct SimulationSummary {
   std::int64_t steps = 0;  // MPM steps taken in this invocation
   std::int64_t final_step = 0;
   double final_time = 0.0;  // s, simulated
@@ -58,7 +58,7 @@ struct RunSummary {
 // time over the workers), service/transport/idle workers (the rest of the
 // RVE calls), grid (the MPM step itself) and output; then DEM steps per
 // increment, mean and histogram.
-std::string FormatTimeSplit(const RunSummary& summary);
+std::string FormatTimeSplit(const SimulationSummary& summary);
 
 class Simulation {
  public:
@@ -66,15 +66,15 @@ class Simulation {
   // RVEs created (and consolidated to their geostatic stresses) on the
   // servers, the time step, and the output files with frame 0.
   static absl::StatusOr<std::unique_ptr<Simulation>> Start(const CaseSpec& spec,
-                                                           const RunOptions& options);
+                                                           const SimulationOptions& options);
   // Continues from a checkpoint written by a run (its case, MPM state and
   // RVEs), rewriting outputs after the checkpoint's step.
   static absl::StatusOr<std::unique_ptr<Simulation>> Resume(const std::string& checkpoint_path,
-                                                            const RunOptions& options);
+                                                            const SimulationOptions& options);
   ~Simulation();
 
-  // Steps to the end time (or RunOptions::stop_after_steps).
-  absl::StatusOr<RunSummary> Run();
+  // Steps to the end time (or SimulationOptions::stop_after_steps).
+  absl::StatusOr<SimulationSummary> StepToEnd();
 
   const CaseSpec& spec() const { return spec_; }
   const Solver& solver() const { return *solver_; }
@@ -97,7 +97,7 @@ class Simulation {
 
   CaseSpec spec_;
   std::string case_json_;
-  RunOptions options_;
+  SimulationOptions options_;
   std::string run_id_;
   std::vector<store::TemplateRecord> templates_;
   std::unique_ptr<RvePool> pool_;

@@ -38,8 +38,8 @@ std::string FreshDir(const std::string& name) {
   return dir.string();
 }
 
-RunOptions Options(const std::string& out) {
-  RunOptions o;
+SimulationOptions Options(const std::string& out) {
+  SimulationOptions o;
   o.out_dir = out;
   o.template_cache_dir = TemplateCache();
   o.threads = 2;
@@ -54,7 +54,7 @@ CaseSpec LoadOrDie(const std::string& name) {
   return spec.ok() ? *spec : CaseSpec{};
 }
 
-std::unique_ptr<Simulation> StartOrDie(const CaseSpec& spec, const RunOptions& o) {
+std::unique_ptr<Simulation> StartOrDie(const CaseSpec& spec, const SimulationOptions& o) {
   absl::StatusOr<std::unique_ptr<Simulation>> sim = Simulation::Start(spec, o);
   EXPECT_TRUE(sim.ok()) << sim.status();
   return sim.ok() ? *std::move(sim) : nullptr;
@@ -94,7 +94,7 @@ TEST(SimulationTest, SingleElementMatchesElementTestUpToPeak) {
   const std::string out = FreshDir("single_element");
   std::unique_ptr<Simulation> sim = StartOrDie(spec, Options(out));
   ASSERT_NE(sim, nullptr);
-  absl::StatusOr<RunSummary> sum = sim->Run();
+  absl::StatusOr<SimulationSummary> sum = sim->StepToEnd();
   ASSERT_TRUE(sum.ok()) << sum.status();
   ASSERT_TRUE(sum->finished);
 
@@ -173,7 +173,7 @@ TEST(SimulationTest, ResumeFromCheckpointIsBitIdentical) {
   // Uninterrupted.
   std::unique_ptr<Simulation> a = StartOrDie(spec, Options(FreshDir("resume_a")));
   ASSERT_NE(a, nullptr);
-  ASSERT_TRUE(a->Run().ok());
+  ASSERT_TRUE(a->StepToEnd().ok());
   absl::StatusOr<store::SimCheckpoint> end_a = a->Snapshot();
   ASSERT_TRUE(end_a.ok()) << end_a.status();
 
@@ -181,12 +181,12 @@ TEST(SimulationTest, ResumeFromCheckpointIsBitIdentical) {
   CaseSpec with_checkpoints = spec;
   with_checkpoints.output.checkpoint_every = 10;
   const std::string out_b = FreshDir("resume_b");
-  RunOptions ob = Options(out_b);
+  SimulationOptions ob = Options(out_b);
   ob.stop_after_steps = 25;
   {
     std::unique_ptr<Simulation> b = StartOrDie(with_checkpoints, ob);
     ASSERT_NE(b, nullptr);
-    absl::StatusOr<RunSummary> s = b->Run();
+    absl::StatusOr<SimulationSummary> s = b->StepToEnd();
     ASSERT_TRUE(s.ok()) << s.status();
     EXPECT_FALSE(s->finished);
     EXPECT_EQ(s->final_step, 25);
@@ -195,7 +195,7 @@ TEST(SimulationTest, ResumeFromCheckpointIsBitIdentical) {
   absl::StatusOr<std::unique_ptr<Simulation>> c = Simulation::Resume(out_b + "/checkpoint.h5", ob);
   ASSERT_TRUE(c.ok()) << c.status();
   EXPECT_EQ((*c)->solver().step(), 25);
-  absl::StatusOr<RunSummary> s = (*c)->Run();
+  absl::StatusOr<SimulationSummary> s = (*c)->StepToEnd();
   ASSERT_TRUE(s.ok()) << s.status();
   EXPECT_TRUE(s->finished);
   absl::StatusOr<store::SimCheckpoint> end_c = (*c)->Snapshot();
@@ -220,12 +220,12 @@ TEST(SimulationTest, TwoServersOnLoopbackGiveTheSameResultAsOneEmbedded) {
   const CaseSpec spec = ShortCase(20);
   std::unique_ptr<Simulation> embedded = StartOrDie(spec, Options(FreshDir("one")));
   ASSERT_NE(embedded, nullptr);
-  ASSERT_TRUE(embedded->Run().ok());
+  ASSERT_TRUE(embedded->StepToEnd().ok());
   absl::StatusOr<store::SimCheckpoint> one = embedded->Snapshot();
   ASSERT_TRUE(one.ok()) << one.status();
 
   std::vector<std::unique_ptr<service::RveServer>> servers;
-  RunOptions o = Options(FreshDir("two"));
+  SimulationOptions o = Options(FreshDir("two"));
   for (int i = 0; i < 2; ++i) {
     service::ServerConfig config;
     config.listen = "127.0.0.1:0";
@@ -238,7 +238,7 @@ TEST(SimulationTest, TwoServersOnLoopbackGiveTheSameResultAsOneEmbedded) {
   {
     std::unique_ptr<Simulation> remote = StartOrDie(spec, o);
     ASSERT_NE(remote, nullptr);
-    ASSERT_TRUE(remote->Run().ok());
+    ASSERT_TRUE(remote->StepToEnd().ok());
     // Both servers did work.
     for (auto& s : servers) EXPECT_GT(s->registry().Stats().num_rves, 0);
     absl::StatusOr<store::SimCheckpoint> two = remote->Snapshot();
@@ -250,7 +250,7 @@ TEST(SimulationTest, TwoServersOnLoopbackGiveTheSameResultAsOneEmbedded) {
 
 TEST(SimulationTest, UnreachableServerIsNamed) {
   const CaseSpec spec = ShortCase(2);
-  RunOptions o = Options(FreshDir("unreachable"));
+  SimulationOptions o = Options(FreshDir("unreachable"));
   o.servers = {"127.0.0.1:1"};
   absl::StatusOr<std::unique_ptr<Simulation>> sim = Simulation::Start(spec, o);
   ASSERT_FALSE(sim.ok());
