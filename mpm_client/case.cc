@@ -499,8 +499,8 @@ struct CellBox {
 
 constexpr Table<InitialStressKind> kInitialStresses = {
     {"template", InitialStressKind::kTemplate},
-    {"geostatic_isotropic", InitialStressKind::kGeostaticIsotropic},
-    {"geostatic_k0", InitialStressKind::kGeostaticK0}};
+    {"geostatic_isotropic", InitialStressKind::kIsotropic},
+    {"geostatic_k0", InitialStressKind::kK0}};
 
 absl::Status ParseInitialStress(const Json& j, const std::string& ptr, const SolverSpec& solver,
                                 MaterialRegion* r) {
@@ -509,7 +509,7 @@ absl::Status ParseInitialStress(const Json& j, const std::string& ptr, const Sol
   if (!o.ok()) return o.status();
   RETURN_IF_ERROR(GetEnum(*o, "kind", Need::kRequired, "initial stress kind", kInitialStresses,
                           &r->initial_stress));
-  if (r->initial_stress != InitialStressKind::kGeostaticK0) {
+  if (r->initial_stress != InitialStressKind::kK0) {
     RETURN_IF_ERROR(Forbid(*o, "k0", "only for kind \"geostatic_k0\""));
   }
   if (r->initial_stress == InitialStressKind::kTemplate) {
@@ -1177,10 +1177,10 @@ std::string ToJson(const CaseSpec& spec) {
       case InitialStressKind::kTemplate:
         stress["kind"] = "template";
         break;
-      case InitialStressKind::kGeostaticIsotropic:
+      case InitialStressKind::kIsotropic:
         stress["kind"] = "geostatic_isotropic";
         break;
-      case InitialStressKind::kGeostaticK0:
+      case InitialStressKind::kK0:
         stress["kind"] = "geostatic_k0";
         stress["k0"] = r.k0;
         break;

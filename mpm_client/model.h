@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include "rve_server/client/types.h"
+
 namespace rvehub::mpm {
 
 inline constexpr double kNever = std::numeric_limits<double>::infinity();
@@ -42,12 +44,11 @@ struct SolverSpec {
   double thickness = 1.0;  // out-of-plane thickness of the macro domain, m
 };
 
-// Where the initial stress of a region's RVEs comes from.
-enum class InitialStressKind {
-  kTemplate,            // the template's own state (e.g. isotropic p0)
-  kGeostaticIsotropic,  // p = σv at the point's depth (+ surcharge)
-  kGeostaticK0,         // σyy = σv, σxx = K0·σv
-};
+// Where the initial stress of a region's RVEs comes from: the client's one
+// initial-stress kind, its stresses taken from each point's depth —
+// kTemplate: the template's own state (e.g. isotropic p0); kIsotropic:
+// p = σv at the point's depth (+ surcharge); kK0: σyy = σv, σxx = K0·σv.
+using InitialStressKind = client::InitialStress::Kind;
 
 // A rectangle filled with material points on a regular pattern:
 // points_per_cell_side² points per cell, at the cell's Gauss-like sub-centres.
@@ -61,7 +62,7 @@ struct MaterialRegion {
   // (solid density over one plus the 2-D void ratio).
   double density = 0.0;
   InitialStressKind initial_stress = InitialStressKind::kTemplate;
-  double k0 = 0.5;              // σxx/σyy for kGeostaticK0, [-]
+  double k0 = 0.5;              // σxx/σyy for kK0, [-]
   double surface_y = 0.0;       // m, ground surface for the depth of geostatic starts
   double surcharge = 0.0;       // Pa, compression +, added to σv at every depth
   double minimum_stress = 0.0;  // Pa, compression +: floor on σv (RVEs need p > 0)

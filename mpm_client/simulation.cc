@@ -383,15 +383,14 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
     const double sv =
         std::max(r.minimum_stress, density[points->region[p]] * g * depth + r.surcharge);
     client::InitialStress& s = initial[p];
+    s.kind = r.initial_stress;
     switch (r.initial_stress) {
       case InitialStressKind::kTemplate:
         break;
-      case InitialStressKind::kGeostaticIsotropic:
-        s.kind = client::InitialStress::Kind::kIsotropic;
+      case InitialStressKind::kIsotropic:
         s.pressure = sv;
         break;
-      case InitialStressKind::kGeostaticK0:
-        s.kind = client::InitialStress::Kind::kK0;
+      case InitialStressKind::kK0:
         s.vertical_compression = sv;
         s.k0 = r.k0;
         break;

@@ -160,7 +160,7 @@ TEST_F(CaseTest, FullCaseParsesIntoExpectedSpec) {
   EXPECT_EQ(soil.points_per_cell_side, 3);
   EXPECT_EQ(soil.rve_template, "dense");
   EXPECT_EQ(soil.density, 1800);
-  EXPECT_EQ(soil.initial_stress, InitialStressKind::kGeostaticK0);
+  EXPECT_EQ(soil.initial_stress, InitialStressKind::kK0);
   EXPECT_EQ(soil.k0, 0.45);
   EXPECT_EQ(soil.surface_y, 1.5);
   EXPECT_EQ(soil.surcharge, 20e3);  // compression +, as model.h keeps it
@@ -168,7 +168,7 @@ TEST_F(CaseTest, FullCaseParsesIntoExpectedSpec) {
   const MaterialRegion& top = spec->regions[1];
   EXPECT_EQ(top.points_per_cell_side, 2);
   EXPECT_EQ(top.density, 0.0);
-  EXPECT_EQ(top.initial_stress, InitialStressKind::kGeostaticIsotropic);
+  EXPECT_EQ(top.initial_stress, InitialStressKind::kIsotropic);
   EXPECT_EQ(top.surface_y, 1.5);  // defaults to the region's top
 
   ASSERT_EQ(spec->walls.size(), 3u);
