@@ -349,15 +349,4 @@ int Main(int argc, char** argv) {
 }  // namespace
 }  // namespace rvehub::mpm
 
-int main(int argc, char** argv) {
-  const int code = rvehub::mpm::Main(argc, argv);
-  if (code != 0) {
-    // A store write that failed part-way (ENOSPC, EFBIG) can leave HDF5
-    // holding a file whose close failed, and HDF5's exit-time cleanup then
-    // crashes on it (H5F__close_cb). Main has closed or given up every file
-    // by now, so a failed run leaves without the exit handlers.
-    std::fflush(nullptr);
-    std::_Exit(code);
-  }
-  return code;
-}
+int main(int argc, char** argv) { return rvehub::mpm::Main(argc, argv); }

@@ -71,6 +71,17 @@ bool Failed(herr_t result) { return result < 0; }
 
 }  // namespace
 
+// HDF5 1.10 closes every file still registered at process exit
+// (H5_term_library). A file whose close failed (a full disk: ENOSPC, EFBIG)
+// stays registered half-closed, and closing it again there crashes
+// (H5F__close_cb). Every file here is closed by its owner before the call
+// that opened it returns, so the exit hook has nothing left to do but crash:
+// it is turned off before the library starts (at static initialisation).
+[[maybe_unused]] const bool kNoExitHook = [] {
+  H5dont_atexit();
+  return true;
+}();
+
 void SilenceErrorPrinting() {
   thread_local bool silenced = false;
   if (!silenced) {

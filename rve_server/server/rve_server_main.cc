@@ -135,12 +135,5 @@ int main(int argc, char** argv) {
   rvehub::service::Log("info", "signal", {{"signal", signal == SIGTERM ? "SIGTERM" : "SIGINT"}});
   const absl::Status stopped =
       (*server)->Stop(std::chrono::seconds(absl::GetFlag(FLAGS_drain_seconds)));
-  if (!stopped.ok()) {
-    // A checkpoint write that failed part-way (ENOSPC, EFBIG) can leave HDF5
-    // holding a file whose close failed; its exit-time cleanup then crashes
-    // (H5F__close_cb). The server is stopped and logged: leave without it.
-    std::fflush(nullptr);
-    std::_Exit(1);
-  }
-  return 0;
+  return stopped.ok() ? 0 : 1;
 }
