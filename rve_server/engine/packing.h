@@ -56,6 +56,13 @@ struct Packing {
   std::int64_t total_steps = 0;           // DEM steps since creation
 };
 
+// Ranges (see also rve_service.proto): time_step_factor (0, 1],
+// max_inertial_number [1e-6, 1], pressure_floor [1, 1e9] Pa, min_steps
+// [0, 1e6], max_stretch (0, 10], max_rotation (0, π/2] rad, mass_scale ≥ 1,
+// skin (0, 2]. They bound the DEM steps one increment may take.
+inline constexpr double kMinPressureFloor = 1.0;   // Pa
+inline constexpr double kMaxPressure = 1e9;        // Pa, any stress target or floor
+inline constexpr std::int64_t kMaxMinSteps = 1'000'000;
 absl::Status Validate(const Controls& c);
 
 }  // namespace rvehub::dem

@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <numbers>
+#include <optional>
 #include <type_traits>
 #include <utility>
 
@@ -94,11 +95,15 @@ absl::Status Validate(const Controls& c) {
   for (const absl::Status& s : {
            check(c.time_step_factor > 0 && c.time_step_factor <= 1, "time_step_factor",
                  c.time_step_factor, "must lie in (0, 1]"),
-           check(c.max_inertial_number > 0, "max_inertial_number", c.max_inertial_number,
-                 "must be > 0"),
-           check(c.pressure_floor > 0, "pressure_floor", c.pressure_floor, "must be > 0 Pa"),
-           check(c.min_steps >= 0, "min_steps", static_cast<double>(c.min_steps), "must be >= 0"),
-           check(c.max_stretch > 0, "max_stretch", c.max_stretch, "must be > 0"),
+           check(c.max_inertial_number >= kMinInertialNumber &&
+                     c.max_inertial_number <= kMaxInertialNumber,
+                 "max_inertial_number", c.max_inertial_number, "must lie in [1e-6, 1]"),
+           check(c.pressure_floor >= kMinPressureFloor && c.pressure_floor <= kMaxPressure,
+                 "pressure_floor", c.pressure_floor, "must lie in [1, 1e9] Pa"),
+           check(c.min_steps >= 0 && c.min_steps <= kMaxMinSteps, "min_steps",
+                 static_cast<double>(c.min_steps), "must lie in [0, 1e6]"),
+           check(c.max_stretch > 0 && c.max_stretch <= 10, "max_stretch", c.max_stretch,
+                 "must lie in (0, 10]"),
            check(c.max_rotation > 0 && c.max_rotation <= kPi / 2, "max_rotation", c.max_rotation,
                  "must lie in (0, π/2] rad"),
            check(c.mass_scale >= 1, "mass_scale", c.mass_scale, "must be >= 1"),
@@ -145,13 +150,40 @@ Rve::Rve(Packing packing) : p_(std::move(packing)) {
   Rebuild(history);
 }
 
-absl::StatusOr<Rve> Rve::Create(Packing p) {
+namespace {
+
+// Cells of the neighbour search's grid for a cell of heights `heights` (m)
+// and a pair cutoff (m); as a double, so that a huge cell cannot overflow.
+double GridCells(const Eigen::Vector2d& heights, double cutoff) {
+  return std::floor(heights.x() / cutoff) * std::floor(heights.y() / cutoff);
+}
+
+// The most grid cells a packing of n particles may need.
+double MaxGridCells(std::size_t n) {
+  return std::max(kMinGridCells, kMaxGridCellsPerParticle * static_cast<double>(n));
+}
+
+}  // namespace
+
+absl::Status ValidatePacking(const Packing& p) {
   if (absl::Status s = Validate(p.material); !s.ok()) return s;
+  if (p.material.name.size() > kMaxNameBytes) {
+    return absl::InvalidArgumentError(absl::StrCat("material name has ", p.material.name.size(),
+                                                   " bytes; at most ", kMaxNameBytes));
+  }
+  for (char c : p.material.name) {
+    if (c < 0x20 || c > 0x7e) {
+      return absl::InvalidArgumentError("material name must be printable ASCII");
+    }
+  }
   if (absl::Status s = Validate(p.controls); !s.ok()) return s;
   const std::size_t n = p.radius.size();
   if (n < 2)
     return absl::InvalidArgumentError(absl::StrCat("packing has ", n, " particles; needs >= 2"));
-  if (n > (1u << 30)) return absl::InvalidArgumentError("packing has too many particles");
+  if (n > kMaxParticles) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("packing has ", n, " particles; at most ", kMaxParticles));
+  }
   for (auto [vec, name] : {std::pair{&p.sx, "sx"},
                            {&p.sy, "sy"},
                            {&p.vx, "vx"},
@@ -219,6 +251,24 @@ absl::StatusOr<Rve> Rve::Create(Packing p) {
     return absl::InvalidArgumentError(absl::StrCat(
         "permeability_coefficient = ", p.permeability_coefficient, " must be finite and >= 0 m/s"));
   }
+  if (p.total_steps < 0) {
+    return absl::InvalidArgumentError(absl::StrCat("total_steps = ", p.total_steps, " < 0"));
+  }
+  // The neighbour search bins the cell by the cutoff: a cell far larger than
+  // its particles (1000 m for 1 mm discs) would need billions of bins.
+  const double grid = GridCells(CellHeights(p.cell), cutoff);
+  if (!(grid <= MaxGridCells(n))) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "cell is too large for its particles: ", CellHeights(p.cell).maxCoeff(),
+        " m across with a pair cutoff of ", cutoff, " m needs ", grid,
+        " neighbour-grid cells; at most ", MaxGridCells(n), " for ", n,
+        " particles (solid fraction too low)"));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<Rve> Rve::Create(Packing p) {
+  if (absl::Status s = ValidatePacking(p); !s.ok()) return s;
   Rve rve(std::move(p));
   // Discs with (nearly) coincident centres have no contact normal.
   const double min_distance = 1e-6 * rve.radius_min_;
@@ -965,8 +1015,30 @@ absl::Status ValidateDeltaF(const Eigen::Matrix3d& delta_f) {
   return absl::OkStatus();
 }
 
-absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyOptions& options) {
+absl::Status Validate(const ApplyOptions& o) {
+  if (!(o.relax_tolerance >= kMinRelaxTolerance && o.relax_tolerance <= 1)) {
+    return absl::InvalidArgumentError(absl::StrCat("relax_tolerance = ", o.relax_tolerance,
+                                                   " is invalid: must lie in [",
+                                                   kMinRelaxTolerance, ", 1]"));
+  }
+  if (o.relax_max_steps < 0 || o.relax_max_steps > kMaxRelaxSteps) {
+    return absl::InvalidArgumentError(absl::StrCat("relax_max_steps = ", o.relax_max_steps,
+                                                   " is invalid: must lie in [0, ",
+                                                   kMaxRelaxSteps, "]"));
+  }
+  if (!(o.max_inertial_number == 0 || (o.max_inertial_number >= kMinInertialNumber &&
+                                       o.max_inertial_number <= kMaxInertialNumber))) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "max_inertial_number = ", o.max_inertial_number, " is invalid: must be 0 or lie in [",
+        kMinInertialNumber, ", ", kMaxInertialNumber, "]"));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyOptions& options,
+                                    const Interrupt& interrupt) {
   if (absl::Status valid = ValidateDeltaF(delta_f); !valid.ok()) return valid;
+  if (absl::Status valid = Validate(options); !valid.ok()) return valid;
   const Eigen::Matrix2d f = delta_f.topLeftCorner<2, 2>();
   // Polar split ΔF = V·R: rotate rigidly (exact, objective), then stretch.
   const double angle = std::atan2(f(1, 0) - f(0, 1), f(0, 0) + f(1, 1));
@@ -986,22 +1058,44 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
     return absl::FailedPreconditionError(
         "ΔF would make the periodic cell thinner than twice the pair cutoff");
   }
+  if (!(GridCells(CellHeights(f * p_.cell), Cutoff()) <= MaxGridCells(p_.radius.size()))) {
+    return absl::FailedPreconditionError(
+        "ΔF would make the periodic cell too large for its particles (neighbour-grid limit)");
+  }
 
   // p before the rotation (which leaves it unchanged): after an increment
   // it is known from that increment's last step.
   const double pressure = MeanPressure();
-  ApplyRigidRotation(angle);
-  Eigen::Matrix2d start = p_.cell;
-  const Eigen::Matrix2d identity = Eigen::Matrix2d::Identity();
   const double inertial_number =
       options.max_inertial_number > 0
           ? std::min(options.max_inertial_number, p_.controls.max_inertial_number)
           : p_.controls.max_inertial_number;
   const double rate = QuasiStaticStrainRate(inertial_number, pressure);
   const double steps_needed = std::ceil(stretch / (rate * dt_));
-  const std::int64_t steps =
+  // Sized before anything changes (the cast below needs it in range, too).
+  if (!(steps_needed <= static_cast<double>(kMaxStepsPerApply))) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "the increment would take ", steps_needed, " DEM steps at inertial number ",
+        inertial_number, "; at most ", kMaxStepsPerApply,
+        " per call: split ΔF into smaller increments"));
+  }
+  // Only a long call can be interrupted, and only a long call pays for the
+  // copy that undoes it (a short one ends soon anyway).
+  std::optional<Rve> before;
+  const std::int64_t planned =
       std::max<std::int64_t>(p_.controls.min_steps, static_cast<std::int64_t>(steps_needed));
+  if (interrupt && (planned > kInterruptCheckSteps || options.relax)) before.emplace(*this);
+  ApplyRigidRotation(angle);
+  Eigen::Matrix2d start = p_.cell;
+  const Eigen::Matrix2d identity = Eigen::Matrix2d::Identity();
+  const std::int64_t steps = planned;
   for (std::int64_t k = 0; k < steps; ++k) {
+    if (before && k > 0 && k % kInterruptCheckSteps == 0) {
+      if (absl::Status stop = interrupt(); !stop.ok()) {
+        *this = *std::move(before);
+        return stop;
+      }
+    }
     const double tau = static_cast<double>(k + 1) / static_cast<double>(steps);
     const Eigen::Matrix2d next = (identity + (v - identity) * tau) * start;
     const Eigen::Matrix2d l = (next - p_.cell) * p_.cell.inverse() / dt_;
@@ -1010,13 +1104,36 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
     if (p_.cell != next) start = start * (next.inverse() * p_.cell).array().round().matrix();
   }
   std::int64_t used = steps;
-  if (options.relax) used += Relax(options.relax_tolerance, options.relax_max_steps).steps;
+  if (options.relax) {
+    absl::Status stopped;
+    used += RelaxSteps(options.relax_tolerance, options.relax_max_steps,
+                       before ? &interrupt : nullptr, stopped)
+                .steps;
+    if (!stopped.ok()) {
+      *this = *std::move(before);
+      return stopped;
+    }
+  }
   RveState s = Observe(options.want_tangent);
   s.steps = used;
   return s;
 }
 
 RveState Rve::Run(CellControl& control, std::int64_t steps) {
+  absl::Status stopped;
+  return RunSteps(control, steps, nullptr, stopped);
+}
+
+absl::StatusOr<RveState> Rve::Run(CellControl& control, std::int64_t steps,
+                                  const Interrupt& interrupt) {
+  absl::Status stopped;
+  RveState s = RunSteps(control, steps, interrupt ? &interrupt : nullptr, stopped);
+  if (!stopped.ok()) return stopped;
+  return s;
+}
+
+RveState Rve::RunSteps(CellControl& control, std::int64_t steps, const Interrupt* interrupt,
+                       absl::Status& stopped) {
   Eigen::Matrix2d stress = DefinitionStress();
   Eigen::Vector2d stiffness = Eigen::Vector2d::Zero();
   const double cap = control.max_strain_rate;
@@ -1038,6 +1155,10 @@ RveState Rve::Run(CellControl& control, std::int64_t steps) {
                         control.yy.mode == ControlMode::kStress ||
                         control.xy.mode == ControlMode::kStress;
   for (std::int64_t k = 0; k < steps; ++k) {
+    if (interrupt != nullptr && k > 0 && k % kInterruptCheckSteps == 0) {
+      stopped = (*interrupt)();
+      if (!stopped.ok()) return RveState{};
+    }
     Eigen::Matrix2d l = Eigen::Matrix2d::Zero();
     l(0, 0) = servo(control.xx, stress(0, 0), stiffness.x(), integral[0]);
     l(1, 1) = servo(control.yy, stress(1, 1), stiffness.y(), integral[1]);
@@ -1054,11 +1175,32 @@ RveState Rve::Run(CellControl& control, std::int64_t steps) {
 }
 
 RveState Rve::Relax(double tolerance, std::int64_t max_steps) {
+  absl::Status stopped;
+  return RelaxSteps(tolerance, max_steps, nullptr, stopped);
+}
+
+absl::StatusOr<RveState> Rve::Relax(double tolerance, std::int64_t max_steps,
+                                    const Interrupt& interrupt) {
+  absl::Status stopped;
+  RveState s = RelaxSteps(tolerance, max_steps, interrupt ? &interrupt : nullptr, stopped);
+  if (!stopped.ok()) return stopped;
+  return s;
+}
+
+RveState Rve::RelaxSteps(double tolerance, std::int64_t max_steps, const Interrupt* interrupt,
+                         absl::Status& stopped) {
   constexpr std::int64_t kCheckEvery = 50;
   std::int64_t done = 0;
+  std::int64_t since_asked = 0;  // steps since `interrupt` was last asked
   RveState s = Observe();
   while (done < max_steps && !(s.unbalanced_force_ratio < tolerance && s.num_contacts > 0)) {
+    if (interrupt != nullptr && since_asked >= kInterruptCheckSteps) {
+      since_asked = 0;
+      stopped = (*interrupt)();
+      if (!stopped.ok()) return s;
+    }
     const std::int64_t chunk = std::min(kCheckEvery, max_steps - done);
+    since_asked += chunk;
     for (std::int64_t k = 0; k < chunk; ++k)
       Step(Eigen::Matrix2d::Zero(), p_.cell, /*measure=*/false);
     done += chunk;

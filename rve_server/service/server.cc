@@ -5,8 +5,10 @@
 #include <grpcpp/support/server_interceptor.h>
 
 #include <filesystem>
+#include <thread>
 
 #include "absl/strings/str_cat.h"
+#include "absl/synchronization/notification.h"
 #include "rve_server/service/log.h"
 #include "store/checkpoint.h"
 
@@ -20,6 +22,10 @@ constexpr char kTemplatesFile[] = "templates.h5";
 // without the token the reply is replaced by an empty message and the status
 // by UNAUTHENTICATED. (Our service also refuses such calls before doing
 // anything; grpc's services only read, so replacing their reply suffices.)
+// A denied call that streams replies (health Watch) is cancelled at once, as
+// it would otherwise stay open without ever sending its status.
+// Also turns gRPC's INTERNAL for a request that does not parse into
+// INVALID_ARGUMENT: bad input is the client's error, not the server's.
 class AuthInterceptor final : public grpc::experimental::Interceptor {
  public:
   AuthInterceptor(grpc::experimental::ServerRpcInfo* info, const std::string* token)
@@ -29,6 +35,20 @@ class AuthInterceptor final : public grpc::experimental::Interceptor {
     using grpc::experimental::InterceptionHookPoints;
     if (methods->QueryInterceptionHookPoint(InterceptionHookPoints::POST_RECV_INITIAL_METADATA)) {
       denied_ = !Authorized(*methods->GetRecvInitialMetadata(), *token_);
+      if (denied_ && info_->type() == grpc::experimental::ServerRpcInfo::Type::SERVER_STREAMING &&
+          info_->server_context() != nullptr) {
+        info_->server_context()->TryCancel();
+      }
+    }
+    if (methods->QueryInterceptionHookPoint(InterceptionHookPoints::POST_RECV_MESSAGE) &&
+        methods->GetRecvMessage() == nullptr) {
+      unparsed_ = true;
+    }
+    if (!denied_ && unparsed_ &&
+        methods->QueryInterceptionHookPoint(InterceptionHookPoints::PRE_SEND_STATUS)) {
+      methods->ModifySendStatus(grpc::Status(
+          grpc::StatusCode::INVALID_ARGUMENT,
+          absl::StrCat(info_->method(), ": the request is not a valid message of its type")));
     }
     if (denied_ && methods->QueryInterceptionHookPoint(InterceptionHookPoints::PRE_SEND_MESSAGE)) {
       grpc::ByteBuffer* buffer = methods->GetSerializedSendMessage();
@@ -49,6 +69,7 @@ class AuthInterceptor final : public grpc::experimental::Interceptor {
   grpc::experimental::ServerRpcInfo* info_;
   const std::string* token_;
   bool denied_ = false;
+  bool unparsed_ = false;  // the request message did not parse
 };
 
 class AuthInterceptorFactory final : public grpc::experimental::ServerInterceptorFactoryInterface {
@@ -108,7 +129,7 @@ absl::StatusOr<std::unique_ptr<RveServer>> RveServer::Start(const ServerConfig& 
   builder.RegisterService(s->service_.get());
   builder.SetMaxReceiveMessageSize(static_cast<int>(config.max_message_bytes));
   builder.SetMaxSendMessageSize(static_cast<int>(config.max_message_bytes));
-  if (!config.auth_token.empty()) {
+  {  // also without a token: it maps unparseable requests (see AuthInterceptor)
     std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> f;
     f.push_back(std::make_unique<AuthInterceptorFactory>(config.auth_token));
     builder.experimental().SetInterceptorCreators(std::move(f));
@@ -151,12 +172,32 @@ absl::Status RveServer::Stop(std::chrono::milliseconds grace) {
   stopped_ = true;
   Log("info", "draining", {{"grace_ms", absl::StrCat(grace.count())}});
   server_->GetHealthCheckService()->SetServingStatus(false);
+  // gRPC cancels the calls still running when the grace ends; calls busy in
+  // the engine also stop at their next check (CancelAll), so that the drain
+  // ends about when the grace does.
+  absl::Notification drained;
+  std::thread enforcer([&] {
+    if (!drained.WaitForNotificationWithTimeout(absl::FromChrono(grace))) service_->CancelAll();
+  });
   server_->Shutdown(std::chrono::system_clock::now() + grace);
   server_->Wait();
-  absl::Status saved = absl::OkStatus();
-  if (!config_.checkpoint_dir.empty()) saved = SaveCheckpoint(config_.checkpoint_dir);
+  drained.Notify();
+  enforcer.join();
+  const RegistryStats stats = registry_->Stats();
+  if (config_.checkpoint_dir.empty()) {
+    // Nothing is saved: say so, with what is lost.
+    Log(stats.num_rves > 0 || stats.num_templates > 0 ? "warn" : "info", "stopped",
+        {{"checkpoint", "none (no checkpoint directory)"},
+         {"dropped_rves", absl::StrCat(stats.num_rves)},
+         {"dropped_templates", absl::StrCat(stats.num_templates)}});
+    return absl::OkStatus();
+  }
+  const absl::Status saved = SaveCheckpoint(config_.checkpoint_dir);
   Log(saved.ok() ? "info" : "error", "stopped",
-      {{"checkpoint", saved.ok() ? "ok" : std::string(saved.message())}});
+      {{"checkpoint", saved.ok() ? absl::StrCat("saved to ", config_.checkpoint_dir)
+                                 : std::string(saved.message())},
+       {"rves", absl::StrCat(stats.num_rves)},
+       {"templates", absl::StrCat(stats.num_templates)}});
   return saved;
 }
 
