@@ -473,6 +473,7 @@ TEST_F(ServiceTest, BadInputGetsSpecificCodeAndChangesNothing) {
       return w->Finish();
     };
     v1::RveChunk c1;
+    c1.set_total_records(2);
     *c1.add_records() = good;
     *c1.add_records() = bad;
     c1.mutable_records(1)->set_id(2);
@@ -482,6 +483,7 @@ TEST_F(ServiceTest, BadInputGetsSpecificCodeAndChangesNothing) {
     *c2.add_records() = good;
     ExpectError(import({c2}), grpc::StatusCode::INVALID_ARGUMENT, "declared 3");
     v1::RveChunk c3;
+    c3.set_total_records(1);
     *c3.add_records() = h_.ExportOne("r", 1);  // (r, 1) is hosted already
     ExpectError(import({c3}), grpc::StatusCode::ALREADY_EXISTS, "already has material point 1");
     v1::GetStatesRequest get;

@@ -40,12 +40,17 @@ class AuthInterceptor final : public grpc::experimental::Interceptor {
         info_->server_context()->TryCancel();
       }
     }
+    // Only a request read before the handler runs (unary, server streaming):
+    // a client stream's end also reads no message.
     if (methods->QueryInterceptionHookPoint(InterceptionHookPoints::POST_RECV_MESSAGE) &&
-        methods->GetRecvMessage() == nullptr) {
+        methods->GetRecvMessage() == nullptr &&
+        (info_->type() == grpc::experimental::ServerRpcInfo::Type::UNARY ||
+         info_->type() == grpc::experimental::ServerRpcInfo::Type::SERVER_STREAMING)) {
       unparsed_ = true;
     }
     if (!denied_ && unparsed_ &&
-        methods->QueryInterceptionHookPoint(InterceptionHookPoints::PRE_SEND_STATUS)) {
+        methods->QueryInterceptionHookPoint(InterceptionHookPoints::PRE_SEND_STATUS) &&
+        methods->GetSendStatus().error_code() == grpc::StatusCode::INTERNAL) {
       methods->ModifySendStatus(grpc::Status(
           grpc::StatusCode::INVALID_ARGUMENT,
           absl::StrCat(info_->method(), ": the request is not a valid message of its type")));
