@@ -66,7 +66,17 @@ std::int64_t MaxResultBytes(bool want_tangent) {
   dem::RveState state;
   state.has_tangent = want_tangent;
   ToProto(state, Eigen::Matrix3d::Identity(), with_state.mutable_state());
+  // Zero scalars are not serialised: set every one.
   v1::RveState* st = with_state.mutable_state();
+  for (auto set : {&v1::RveState::set_fabric_anisotropy, &v1::RveState::set_void_ratio,
+                   &v1::RveState::set_porosity, &v1::RveState::set_coordination,
+                   &v1::RveState::set_mechanical_coordination, &v1::RveState::set_permeability,
+                   &v1::RveState::set_mean_rotation, &v1::RveState::set_kinetic_energy,
+                   &v1::RveState::set_unbalanced_force_ratio, &v1::RveState::set_volume,
+                   &v1::RveState::set_time_step, &v1::RveState::set_mass_scale,
+                   &v1::RveState::set_mean_pressure, &v1::RveState::set_deviator_stress}) {
+    (st->*set)(1.0);
+  }
   st->set_num_contacts(-1);
   st->set_steps(-1);
   st->set_fabric_defined(true);
