@@ -412,7 +412,17 @@ grpc::Status RveServiceImpl::ImportBytes(grpc::ServerContext* ctx,
   grpc::ByteBuffer bytes;
   std::int64_t declared = 0;
   int chunks = 0;
+  // What the stream has carried, bytes: held until the end (all or nothing),
+  // so bounded by the server's memory limit for RVEs.
+  std::int64_t received = 0;
+  const std::int64_t max_bytes = registry_.options().max_memory_bytes;
   while (reader->Read(&bytes)) {
+    received += static_cast<std::int64_t>(bytes.Length());
+    if (received > max_bytes) {
+      return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                          absl::StrCat("the import stream exceeds the server's memory limit of ",
+                                       max_bytes, " bytes; nothing imported"));
+    }
     v1::RveChunk chunk;
     if (!grpc::SerializationTraits<v1::RveChunk>::Deserialize(&bytes, &chunk).ok()) {
       return malformed(absl::StrCat("chunk ", chunks, " is not a valid RveChunk message"));

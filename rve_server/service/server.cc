@@ -2,6 +2,8 @@
 
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/health_check_service_interface.h>
+#include <grpcpp/impl/codegen/method_handler.h>
+#include <grpcpp/impl/codegen/rpc_service_method.h>
 #include <grpcpp/support/server_interceptor.h>
 
 #include <filesystem>
@@ -89,6 +91,62 @@ class AuthInterceptorFactory final : public grpc::experimental::ServerIntercepto
   const std::string token_;
 };
 
+// grpc.reflection.v1, which current tools ask for first. This gRPC (1.51)
+// ships only v1alpha (libgrpc++_reflection exports no v1 symbols), and the
+// two protocols' messages are the same on the wire (same fields, same
+// numbers), so each v1 stream is forwarded, bytes as they are, to the
+// v1alpha service over the server's in-process channel (with the caller's
+// token, which the interceptor checks there too).
+class ReflectionV1Proxy final : public grpc::Service {
+ public:
+  ReflectionV1Proxy() {
+    using Handler = grpc::internal::BidiStreamingHandler<ReflectionV1Proxy, grpc::ByteBuffer,
+                                                         grpc::ByteBuffer>;
+    AddMethod(new grpc::internal::RpcServiceMethod(
+        "/grpc.reflection.v1.ServerReflection/ServerReflectionInfo",
+        grpc::internal::RpcMethod::BIDI_STREAMING,
+        new Handler(
+            [](ReflectionV1Proxy* self, grpc::ServerContext* ctx,
+               grpc::ServerReaderWriter<grpc::ByteBuffer, grpc::ByteBuffer>* stream) {
+              return self->Forward(ctx, stream);
+            },
+            this)));
+  }
+  void set_server(grpc::Server* server) { server_.store(server); }
+
+ private:
+  grpc::Status Forward(grpc::ServerContext* ctx,
+                       grpc::ServerReaderWriter<grpc::ByteBuffer, grpc::ByteBuffer>* stream) {
+    grpc::Server* server = server_.load();
+    if (server == nullptr) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "starting up");
+    std::shared_ptr<grpc::Channel> channel = server->InProcessChannel(grpc::ChannelArguments());
+    grpc::ClientContext upstream_ctx;
+    upstream_ctx.set_deadline(ctx->deadline());
+    auto auth = ctx->client_metadata().find("authorization");
+    if (auth != ctx->client_metadata().end()) {
+      upstream_ctx.AddMetadata("authorization",
+                               std::string(auth->second.data(), auth->second.size()));
+    }
+    std::unique_ptr<grpc::ClientReaderWriter<grpc::ByteBuffer, grpc::ByteBuffer>> upstream(
+        grpc::internal::ClientReaderWriterFactory<grpc::ByteBuffer, grpc::ByteBuffer>::Create(
+            channel.get(),
+            grpc::internal::RpcMethod(
+                "/grpc.reflection.v1alpha.ServerReflection/ServerReflectionInfo",
+                grpc::internal::RpcMethod::BIDI_STREAMING),
+            &upstream_ctx));
+    // The reflection protocol answers each request with one response.
+    grpc::ByteBuffer request, response;
+    while (stream->Read(&request)) {
+      if (!upstream->Write(request) || !upstream->Read(&response)) break;
+      if (!stream->Write(response)) break;
+    }
+    upstream->WritesDone();
+    return upstream->Finish();
+  }
+
+  std::atomic<grpc::Server*> server_{nullptr};
+};
+
 std::string NowUtc() {
   return absl::FormatTime("%Y-%m-%dT%H:%M:%SZ", absl::Now(), absl::UTCTimeZone());
 }
@@ -132,6 +190,10 @@ absl::StatusOr<std::unique_ptr<RveServer>> RveServer::Start(const ServerConfig& 
   }
   builder.AddListeningPort(config.listen, creds, &s->port_);
   builder.RegisterService(s->service_.get());
+  auto reflection_v1 = std::make_unique<ReflectionV1Proxy>();
+  ReflectionV1Proxy* reflection_v1_proxy = reflection_v1.get();
+  s->reflection_v1_ = std::move(reflection_v1);  // outlives the server (member order)
+  builder.RegisterService(reflection_v1_proxy);
   builder.SetMaxReceiveMessageSize(static_cast<int>(config.max_message_bytes));
   builder.SetMaxSendMessageSize(static_cast<int>(config.max_message_bytes));
   {  // also without a token: it maps unparseable requests (see AuthInterceptor)
@@ -144,6 +206,7 @@ absl::StatusOr<std::unique_ptr<RveServer>> RveServer::Start(const ServerConfig& 
     return absl::UnavailableError(
         absl::StrCat("cannot listen on ", config.listen, " (address in use or not local?)"));
   }
+  reflection_v1_proxy->set_server(s->server_.get());
   // Health by service name too, so that probes may ask for ours.
   s->server_->GetHealthCheckService()->SetServingStatus(v1::RveService::service_full_name(), true);
   s->server_->GetHealthCheckService()->SetServingStatus(true);
