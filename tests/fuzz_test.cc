@@ -93,8 +93,7 @@ class Fuzzer {
     for (int k = 0; k < d->field_count(); ++k) {
       const FieldDescriptor* f = d->field(k);
       if (!Chance(0.4)) continue;
-      const int count = f->is_repeated() ? static_cast<int>(Chance(0.1) ? Below(40) : Below(4))
-                                         : 1;
+      const int count = f->is_repeated() ? static_cast<int>(Chance(0.1) ? Below(40) : Below(4)) : 1;
       for (int n = 0; n < count; ++n) SetOne(m, r, f, depth);
     }
   }
@@ -259,7 +258,7 @@ grpc::Status Call(grpc::Channel& channel, const Rpc& rpc, const std::vector<std:
       grpc::ByteBuffer request(&slice, 1), reply;
       std::unique_ptr<grpc::ClientReader<grpc::ByteBuffer>> reader(
           grpc::internal::ClientReaderFactory<grpc::ByteBuffer>::Create(&channel, method, &ctx,
-                                                                         request));
+                                                                        request));
       for (int k = 0; k < 100'000 && reader->Read(&reply); ++k) {
       }
       return reader->Finish();
@@ -314,7 +313,8 @@ TEST(Fuzz, EveryRpcSurvivesRandomAndMutatedRequests) {
   }
   for (const auto& [path, by_code] : codes) {
     std::string line = path + ":";
-    for (const auto& [code, n] : by_code) line += " " + std::to_string(code) + "×" + std::to_string(n);
+    for (const auto& [code, n] : by_code)
+      line += " " + std::to_string(code) + "×" + std::to_string(n);
     std::printf("%s\n", line.c_str());
   }
 
@@ -325,10 +325,10 @@ TEST(Fuzz, EveryRpcSurvivesRandomAndMutatedRequests) {
   EXPECT_EQ(hresp.status(), grpc::health::v1::HealthCheckResponse::SERVING);
   ASSERT_TRUE(h.Create("after-fuzz", {1}).ok());
   v1::ApplyResponse resp;
-  ASSERT_TRUE(h.stub()
-                  .Apply(h.Context().get(), Harness::Commit("after-fuzz", 1, {1}, Compress(1e-4)),
-                         &resp)
-                  .ok());
+  ASSERT_TRUE(
+      h.stub()
+          .Apply(h.Context().get(), Harness::Commit("after-fuzz", 1, {1}, Compress(1e-4)), &resp)
+          .ok());
   EXPECT_EQ(resp.failed(), 0);
   EXPECT_EQ(resp.results(0).step(), 1);
 }

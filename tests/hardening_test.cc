@@ -113,16 +113,16 @@ TEST_F(HardeningTest, UnboundedWorkIsRefusedWithTheFieldNamed) {
   v1::ApplyRequest relax = Harness::Commit("keep", 1, {1}, Compress(1e-4));
   relax.mutable_options()->set_relax(true);
   relax.mutable_options()->set_relax_tolerance(1e-300);
-  ExpectError(h_.stub().Apply(h_.Context().get(), relax, &resp),
-              grpc::StatusCode::INVALID_ARGUMENT, "relax_tolerance");
+  ExpectError(h_.stub().Apply(h_.Context().get(), relax, &resp), grpc::StatusCode::INVALID_ARGUMENT,
+              "relax_tolerance");
   relax.mutable_options()->set_relax_tolerance(1e-4);
   relax.mutable_options()->set_relax_max_steps(std::int64_t{1} << 62);
-  ExpectError(h_.stub().Apply(h_.Context().get(), relax, &resp),
-              grpc::StatusCode::INVALID_ARGUMENT, "relax_max_steps");
+  ExpectError(h_.stub().Apply(h_.Context().get(), relax, &resp), grpc::StatusCode::INVALID_ARGUMENT,
+              "relax_max_steps");
   relax.mutable_options()->set_relax_max_steps(0);
   relax.mutable_options()->set_max_inertial_number(1e-42);
-  ExpectError(h_.stub().Apply(h_.Context().get(), relax, &resp),
-              grpc::StatusCode::INVALID_ARGUMENT, "max_inertial_number");
+  ExpectError(h_.stub().Apply(h_.Context().get(), relax, &resp), grpc::StatusCode::INVALID_ARGUMENT,
+              "max_inertial_number");
 
   v1::ElementTestRequest test;
   test.set_template_name(kTemplate);
@@ -162,11 +162,10 @@ TEST(HardeningDeadline, LongRelaxationStopsAtTheDeadlineAndChangesNothing) {
   ExpectError(h.stub().Apply(h.Context(std::chrono::milliseconds(500)).get(), req, &resp),
               grpc::StatusCode::DEADLINE_EXCEEDED, "");
   // The next call needs the only worker: it gets it within moments.
-  ASSERT_TRUE(
-      h.stub()
-          .Apply(h.Context(std::chrono::seconds(20)).get(),
-                 Harness::Commit("r", 1, {2}, Compress(1e-4)), &resp)
-          .ok());
+  ASSERT_TRUE(h.stub()
+                  .Apply(h.Context(std::chrono::seconds(20)).get(),
+                         Harness::Commit("r", 1, {2}, Compress(1e-4)), &resp)
+                  .ok());
   EXPECT_EQ(resp.failed(), 0);
   EXPECT_LT(Seconds(t0), 10.0) << "the stopped relaxation kept the worker";
   EXPECT_EQ(h.ExportBytes("r", 1), before) << "a stopped increment must leave the RVE as it was";
@@ -266,9 +265,9 @@ TEST_F(HardeningTest, MalformedImportStreamsImportNothing) {
   }
   // The same stream, well formed, imports both (and bit for bit).
   v1::ImportResponse resp;
-  ASSERT_TRUE(RawImport(*h_.channel(), *h_.Context(), {chunk(2, "imp", 1), chunk(0, "imp", 2)},
-                        &resp)
-                  .ok());
+  ASSERT_TRUE(
+      RawImport(*h_.channel(), *h_.Context(), {chunk(2, "imp", 1), chunk(0, "imp", 2)}, &resp)
+          .ok());
   EXPECT_EQ(resp.imported(), 2);
   v1::RveChunk back;
   ASSERT_TRUE(back.ParseFromString(h_.ExportBytes("imp", 2)));
@@ -349,8 +348,8 @@ TEST_F(HardeningTest, LongIdsAreRefusedWithoutBeingEchoed) {
   }
   {
     v1::ApplyResponse resp;
-    expect_short(h_.stub().Apply(h_.Context().get(), Harness::Commit(long_id, 1, {1}, Compress(1e-4)),
-                                 &resp),
+    expect_short(h_.stub().Apply(h_.Context().get(),
+                                 Harness::Commit(long_id, 1, {1}, Compress(1e-4)), &resp),
                  "Apply");
   }
   {

@@ -4,8 +4,8 @@
 #define RVEHUB_TESTS_SERVICE_HARNESS_H_
 
 #include <grpcpp/generic/generic_stub.h>
-#include <grpcpp/impl/client_unary_call.h>
 #include <grpcpp/grpcpp.h>
+#include <grpcpp/impl/client_unary_call.h>
 #include <gtest/gtest.h>
 
 #include <chrono>

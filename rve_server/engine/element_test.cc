@@ -130,9 +130,9 @@ absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
   // Sized before the first step (llround needs it in range, too).
   const double row_steps = row_strain / (rate * rve.time_step());
   if (!(row_steps * spec.rows <= static_cast<double>(kMaxElementTestSteps))) {
-    return absl::ResourceExhaustedError(absl::StrCat(
-        "the test would take about ", row_steps * spec.rows, " DEM steps; at most ",
-        kMaxElementTestSteps, " (raise inertial_number or lower max_strain)"));
+    return absl::ResourceExhaustedError(
+        absl::StrCat("the test would take about ", row_steps * spec.rows, " DEM steps; at most ",
+                     kMaxElementTestSteps, " (raise inertial_number or lower max_strain)"));
   }
   const std::int64_t steps_per_row = std::max<std::int64_t>(1, std::llround(row_steps));
   // Cyclic tests end on the response; this bounds them whatever it does.

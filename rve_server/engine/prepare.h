@@ -37,8 +37,7 @@ absl::StatusOr<RveState> ConsolidateIsotropic(Rve& rve, double p, double balance
 // vertical): σxx, σyy in Pa, compression +; p and the deviator error
 // sqrt(¼((σxx − σyy) − (target difference))² + σxy²) within 1 % of p.
 absl::StatusOr<RveState> ConsolidateToStress(Rve& rve, double sxx, double syy,
-                                             double balance = 1e-4,
-                                             std::int64_t* steps = nullptr,
+                                             double balance = 1e-4, std::int64_t* steps = nullptr,
                                              const Interrupt& interrupt = {});
 
 // Random discs, placed without overlap in a loose square cell (seeded,

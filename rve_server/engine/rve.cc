@@ -258,11 +258,11 @@ absl::Status ValidatePacking(const Packing& p) {
   // its particles (1000 m for 1 mm discs) would need billions of bins.
   const double grid = GridCells(CellHeights(p.cell), cutoff);
   if (!(grid <= MaxGridCells(n))) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "cell is too large for its particles: ", CellHeights(p.cell).maxCoeff(),
-        " m across with a pair cutoff of ", cutoff, " m needs ", grid,
-        " neighbour-grid cells; at most ", MaxGridCells(n), " for ", n,
-        " particles (solid fraction too low)"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("cell is too large for its particles: ", CellHeights(p.cell).maxCoeff(),
+                     " m across with a pair cutoff of ", cutoff, " m needs ", grid,
+                     " neighbour-grid cells; at most ", MaxGridCells(n), " for ", n,
+                     " particles (solid fraction too low)"));
   }
   return absl::OkStatus();
 }
@@ -1018,13 +1018,13 @@ absl::Status ValidateDeltaF(const Eigen::Matrix3d& delta_f) {
 absl::Status Validate(const ApplyOptions& o) {
   if (!(o.relax_tolerance >= kMinRelaxTolerance && o.relax_tolerance <= 1)) {
     return absl::InvalidArgumentError(absl::StrCat("relax_tolerance = ", o.relax_tolerance,
-                                                   " is invalid: must lie in [",
-                                                   kMinRelaxTolerance, ", 1]"));
+                                                   " is invalid: must lie in [", kMinRelaxTolerance,
+                                                   ", 1]"));
   }
   if (o.relax_max_steps < 0 || o.relax_max_steps > kMaxRelaxSteps) {
     return absl::InvalidArgumentError(absl::StrCat("relax_max_steps = ", o.relax_max_steps,
-                                                   " is invalid: must lie in [0, ",
-                                                   kMaxRelaxSteps, "]"));
+                                                   " is invalid: must lie in [0, ", kMaxRelaxSteps,
+                                                   "]"));
   }
   if (!(o.max_inertial_number == 0 || (o.max_inertial_number >= kMinInertialNumber &&
                                        o.max_inertial_number <= kMaxInertialNumber))) {
@@ -1074,10 +1074,10 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
   const double steps_needed = std::ceil(stretch / (rate * dt_));
   // Sized before anything changes (the cast below needs it in range, too).
   if (!(steps_needed <= static_cast<double>(kMaxStepsPerApply))) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "the increment would take ", steps_needed, " DEM steps at inertial number ",
-        inertial_number, "; at most ", kMaxStepsPerApply,
-        " per call: split ΔF into smaller increments"));
+    return absl::InvalidArgumentError(absl::StrCat("the increment would take ", steps_needed,
+                                                   " DEM steps at inertial number ",
+                                                   inertial_number, "; at most ", kMaxStepsPerApply,
+                                                   " per call: split ΔF into smaller increments"));
   }
   // Only a long call can be interrupted, and only a long call pays for the
   // copy that undoes it (a short one ends soon anyway).

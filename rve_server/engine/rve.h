@@ -80,8 +80,8 @@ inline constexpr std::int64_t kInterruptCheckSteps = 256;
 // ranges of the wire contract, see rve_service.proto).
 inline constexpr std::int64_t kMaxStepsPerApply = 100'000'000;  // DEM steps of one increment
 inline constexpr std::int64_t kMaxRelaxSteps = 10'000'000;      // ApplyOptions::relax_max_steps
-inline constexpr double kMinRelaxTolerance = 1e-12;            // ApplyOptions::relax_tolerance
-inline constexpr double kMinInertialNumber = 1e-6;             // any inertial number bound, [-]
+inline constexpr double kMinRelaxTolerance = 1e-12;             // ApplyOptions::relax_tolerance
+inline constexpr double kMinInertialNumber = 1e-6;              // any inertial number bound, [-]
 inline constexpr double kMaxInertialNumber = 1.0;
 
 // Ranges of ApplyOptions (relax_tolerance in [1e-12, 1], relax_max_steps in

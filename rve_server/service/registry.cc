@@ -6,8 +6,8 @@
 #include <map>
 #include <new>
 #include <optional>
-#include <stdexcept>
 #include <set>
+#include <stdexcept>
 #include <tuple>
 #include <utility>
 
@@ -121,13 +121,13 @@ absl::Status Validate(const InitialStress& initial) {
       }
       return absl::OkStatus();
     case InitialStress::Kind::kK0:
-      if (!(initial.vertical_compression > 0 &&
-            initial.vertical_compression <= dem::kMaxPressure && initial.k0 > 0 &&
-            initial.k0 <= kMaxK0 && initial.k0 * initial.vertical_compression <= dem::kMaxPressure)) {
-        return absl::InvalidArgumentError(absl::StrCat(
-            "K0 state needs a vertical stress in (0, ", dem::kMaxPressure,
-            "] Pa (compression +) and K0 in (0, ", kMaxK0, "], got σv = ",
-            initial.vertical_compression, " Pa, K0 = ", initial.k0));
+      if (!(initial.vertical_compression > 0 && initial.vertical_compression <= dem::kMaxPressure &&
+            initial.k0 > 0 && initial.k0 <= kMaxK0 &&
+            initial.k0 * initial.vertical_compression <= dem::kMaxPressure)) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("K0 state needs a vertical stress in (0, ", dem::kMaxPressure,
+                         "] Pa (compression +) and K0 in (0, ", kMaxK0,
+                         "], got σv = ", initial.vertical_compression, " Pa, K0 = ", initial.k0));
       }
       return absl::OkStatus();
   }
@@ -136,8 +136,8 @@ absl::Status Validate(const InitialStress& initial) {
 
 absl::Status ValidateName(absl::string_view what, absl::string_view name) {
   if (name.empty() || name.size() > kMaxNameLength) {
-    return absl::InvalidArgumentError(absl::StrCat(what, " must have 1 to ", kMaxNameLength,
-                                                   " characters, got ", name.size()));
+    return absl::InvalidArgumentError(
+        absl::StrCat(what, " must have 1 to ", kMaxNameLength, " characters, got ", name.size()));
   }
   for (char c : name) {
     const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
@@ -156,8 +156,8 @@ absl::StatusOr<TemplateSummary> Registry::PutTemplate(store::TemplateRecord reco
   if (absl::Status s = ValidateName("template name", record.name); !s.ok()) return s;
   if (record.description.size() > kMaxDescriptionBytes) {
     return absl::InvalidArgumentError(absl::StrCat("template description has ",
-                                                   record.description.size(),
-                                                   " bytes; at most ", kMaxDescriptionBytes));
+                                                   record.description.size(), " bytes; at most ",
+                                                   kMaxDescriptionBytes));
   }
   // Creating an RVE validates every field and array of the packing.
   absl::StatusOr<dem::Rve> rve = absl::InvalidArgumentError("not built");
@@ -175,8 +175,8 @@ absl::StatusOr<TemplateSummary> Registry::PutTemplate(store::TemplateRecord reco
   const TemplateSummary summary = Summarise(record, rve->Observe());
   absl::MutexLock lock(&mu_);
   if (!replace && templates_.contains(record.name)) {
-    return absl::AlreadyExistsError(
-        absl::StrCat("template ", Quoted(record.name), " exists; upload with replace to overwrite it"));
+    return absl::AlreadyExistsError(absl::StrCat("template ", Quoted(record.name),
+                                                 " exists; upload with replace to overwrite it"));
   }
   std::string name = record.name;
   templates_.insert_or_assign(std::move(name), Template{std::move(record), summary});
@@ -202,8 +202,9 @@ absl::StatusOr<store::TemplateRecord> Registry::FindTemplate(absl::string_view n
   absl::MutexLock lock(&mu_);
   auto t = templates_.find(name);
   if (t == templates_.end()) {
-    return absl::NotFoundError(absl::StrCat("unknown template ", Quoted(name),
-                                            "; upload it first (ListTemplates shows the known ones)"));
+    return absl::NotFoundError(
+        absl::StrCat("unknown template ", Quoted(name),
+                     "; upload it first (ListTemplates shows the known ones)"));
   }
   return t->second.record;
 }
@@ -307,7 +308,7 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
   }
   std::vector<std::optional<dem::Rve>> consolidated(distinct.size());
   std::vector<absl::Status> status(distinct.size());
-  pool_.ParallelFor(distinct.size(), [&](std::size_t u) {
+  auto consolidate_one = [&](std::size_t u) {
     if (absl::Status c = CheckCancelled(cancelled); !c.ok()) {
       status[u] = c;
       return;
@@ -331,6 +332,13 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
     }
     rve.ResetReference();  // F is measured from the consolidated state
     consolidated[u].emplace(std::move(rve));
+  };
+  pool_.ParallelFor(distinct.size(), [&](std::size_t u) {
+    const absl::Status guarded = NoThrow([&] {
+      consolidate_one(u);
+      return absl::OkStatus();
+    });
+    if (!guarded.ok()) status[u] = guarded;
   });
   for (std::size_t u = 0; u < distinct.size(); ++u) {
     if (!status[u].ok()) {
@@ -385,7 +393,8 @@ absl::StatusOr<std::vector<std::pair<std::int64_t, Registry::EntryPtr>>> Registr
     }
   }
   if (!missing.empty()) {
-    return absl::NotFoundError(absl::StrCat("run ", Quoted(run_id), " has no material points ", ListIds(missing)));
+    return absl::NotFoundError(
+        absl::StrCat("run ", Quoted(run_id), " has no material points ", ListIds(missing)));
   }
   return out;
 }
@@ -532,16 +541,16 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Get(absl::string_view run_id,
     RveOutcome& o = out[k];
     o.id = entries[k].first;
     o.status = NoThrow([&] {
-    if (entries[k].second == nullptr) {
-      return absl::NotFoundError(
-          absl::StrCat("run ", Quoted(run_id), " has no material point ", o.id));
-    }
-    Entry& e = *entries[k].second;
-    absl::MutexLock lock(&e.mu);
-    o.step = e.step;
-    o.state = e.rve.Observe(want_tangent);
-    o.deformation_gradient.topLeftCorner<2, 2>() = e.rve.DeformationGradient();
-    return absl::OkStatus();
+      if (entries[k].second == nullptr) {
+        return absl::NotFoundError(
+            absl::StrCat("run ", Quoted(run_id), " has no material point ", o.id));
+      }
+      Entry& e = *entries[k].second;
+      absl::MutexLock lock(&e.mu);
+      o.step = e.step;
+      o.state = e.rve.Observe(want_tangent);
+      o.deformation_gradient.topLeftCorner<2, 2>() = e.rve.DeformationGradient();
+      return absl::OkStatus();
     });
   });
   return out;
@@ -588,7 +597,7 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<store::RveRecord> reco
   // Validate and build every RVE before touching the registry.
   std::vector<std::optional<dem::Rve>> made(records.size());
   std::vector<absl::Status> status(records.size());
-  pool_.ParallelFor(records.size(), [&](std::size_t k) {
+  auto build_one = [&](std::size_t k) {
     const store::RveRecord& r = records[k];
     absl::Status s = ValidateName("run id", r.run_id);
     if (s.ok() && r.step < 0) s = absl::InvalidArgumentError(absl::StrCat("step ", r.step, " < 0"));
@@ -606,9 +615,16 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<store::RveRecord> reco
       const absl::StatusCode code = absl::IsResourceExhausted(s)
                                         ? absl::StatusCode::kResourceExhausted
                                         : absl::StatusCode::kInvalidArgument;
-      status[k] = absl::Status(code, absl::StrCat(
-          "record ", k, " (run ", Quoted(r.run_id), ", material point ", r.id, "): ", s.message()));
+      status[k] = absl::Status(code, absl::StrCat("record ", k, " (run ", Quoted(r.run_id),
+                                                  ", material point ", r.id, "): ", s.message()));
     }
+  };
+  pool_.ParallelFor(records.size(), [&](std::size_t k) {
+    const absl::Status guarded = NoThrow([&] {
+      build_one(k);
+      return absl::OkStatus();
+    });
+    if (!guarded.ok()) status[k] = guarded;
   });
   for (const absl::Status& s : status)
     if (!s.ok()) return s;
@@ -616,7 +632,8 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<store::RveRecord> reco
   std::int64_t bytes = 0;
   for (std::size_t k = 0; k < records.size(); ++k) {
     if (!seen.emplace(records[k].run_id, records[k].id).second) {
-      return absl::AlreadyExistsError(absl::StrCat("run ", Quoted(records[k].run_id), ", material point ", records[k].id,
+      return absl::AlreadyExistsError(absl::StrCat("run ", Quoted(records[k].run_id),
+                                                   ", material point ", records[k].id,
                                                    " appears twice in the import"));
     }
     bytes += static_cast<std::int64_t>(made[k]->MemoryBytes());
@@ -626,7 +643,8 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<store::RveRecord> reco
   for (const store::RveRecord& r : records) {
     auto run = runs_.find(r.run_id);
     if (run != runs_.end() && run->second.contains(r.id)) {
-      return absl::AlreadyExistsError(absl::StrCat("run ", Quoted(r.run_id), " already has material point ", r.id,
+      return absl::AlreadyExistsError(absl::StrCat("run ", Quoted(r.run_id),
+                                                   " already has material point ", r.id,
                                                    "; drop it before importing"));
     }
   }
@@ -659,7 +677,8 @@ absl::StatusOr<std::int64_t> Registry::Drop(absl::string_view run_id,
   for (std::int64_t id : ids)
     if (!run->second.contains(id)) missing.push_back(id);
   if (!missing.empty()) {
-    return absl::NotFoundError(absl::StrCat("run ", Quoted(run_id), " has no material points ", ListIds(missing)));
+    return absl::NotFoundError(
+        absl::StrCat("run ", Quoted(run_id), " has no material points ", ListIds(missing)));
   }
   std::int64_t dropped = 0;
   auto drop = [&](Run::iterator it) {

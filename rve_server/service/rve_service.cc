@@ -47,8 +47,9 @@ grpc::Status GuardHandler(const char* method, F&& body) {
   } catch (const std::length_error&) {
     Log("error", "array too large", {{"method", method}});
     return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                        absl::StrCat(method, ": the request needs a larger array than the server "
-                                             "allows"));
+                        absl::StrCat(method,
+                                     ": the request needs a larger array than the server "
+                                     "allows"));
   }
 }
 
@@ -135,8 +136,7 @@ grpc::Status RveServiceImpl::CheckReplySize(std::int64_t count, bool want_tangen
       absl::StrCat(what, ": the reply for ", count, " RVEs", want_tangent ? " with tangents" : "",
                    " could take ", count * each, " bytes, over the server's message limit of ",
                    options_.max_message_bytes, " bytes; ask for at most ",
-                   std::max<std::int64_t>(1, budget / each),
-                   " per call. Nothing was changed"));
+                   std::max<std::int64_t>(1, budget / each), " per call. Nothing was changed"));
 }
 
 grpc::Status ToGrpc(const absl::Status& s) {
@@ -168,8 +168,7 @@ RveServiceImpl::RveServiceImpl(Registry& registry, ServiceOptions options)
                                                  v1::ImportResponse>(
           [](RveServiceImpl* service, grpc::ServerContext* ctx,
              grpc::ServerReader<grpc::ByteBuffer>* reader, v1::ImportResponse* resp) {
-            return GuardHandler("Import",
-                                [&] { return service->ImportBytes(ctx, reader, resp); });
+            return GuardHandler("Import", [&] { return service->ImportBytes(ctx, reader, resp); });
           },
           this));
 }
@@ -298,8 +297,8 @@ grpc::Status RveServiceImpl::DoApply(grpc::ServerContext* ctx, const v1::ApplyRe
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
   // Sized before anything is computed: a COMMIT that could not be answered
   // would commit and fail on every retry.
-  if (grpc::Status r = CheckReplySize(req->increments_size(), req->options().want_tangent(),
-                                      "Apply");
+  if (grpc::Status r =
+          CheckReplySize(req->increments_size(), req->options().want_tangent(), "Apply");
       !r.ok()) {
     return r;
   }
@@ -343,14 +342,13 @@ grpc::Status RveServiceImpl::DoApply(grpc::ServerContext* ctx, const v1::ApplyRe
   return grpc::Status::OK;
 }
 
-grpc::Status RveServiceImpl::DoGetStates(grpc::ServerContext* ctx,
-                                         const v1::GetStatesRequest* req,
+grpc::Status RveServiceImpl::DoGetStates(grpc::ServerContext* ctx, const v1::GetStatesRequest* req,
                                          v1::GetStatesResponse* resp) {
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
   if (absl::Status n = ValidateName("run id", req->run_id()); !n.ok()) return ToGrpc(n);
   const std::vector<std::int64_t> ids = Ids(req->ids());
-  const std::int64_t count = ids.empty() ? registry_.CountRves(req->run_id())
-                                         : static_cast<std::int64_t>(ids.size());
+  const std::int64_t count =
+      ids.empty() ? registry_.CountRves(req->run_id()) : static_cast<std::int64_t>(ids.size());
   if (grpc::Status r = CheckReplySize(count, req->want_tangent(), "GetStates"); !r.ok()) return r;
   absl::StatusOr<std::vector<RveOutcome>> out =
       registry_.Get(req->run_id(), ids, req->want_tangent());
@@ -430,13 +428,12 @@ grpc::Status RveServiceImpl::ImportBytes(grpc::ServerContext* ctx,
     if (chunks == 0) {
       declared = chunk.total_records();
       if (declared < 1 || declared > max_records) {
-        return malformed(absl::StrCat("the first chunk must set total_records to 1..",
-                                      max_records, ", got ", declared));
+        return malformed(absl::StrCat("the first chunk must set total_records to 1..", max_records,
+                                      ", got ", declared));
       }
     } else if (chunk.total_records() != 0 && chunk.total_records() != declared) {
       return malformed(absl::StrCat("chunk ", chunks, " declares total_records ",
-                                    chunk.total_records(), " after the first declared ",
-                                    declared));
+                                    chunk.total_records(), " after the first declared ", declared));
     }
     if (chunk.records_size() == 0) {
       return malformed(absl::StrCat("chunk ", chunks, " carries no records"));
@@ -461,8 +458,8 @@ grpc::Status RveServiceImpl::ImportBytes(grpc::ServerContext* ctx,
   }
   if (chunks == 0) return malformed("no chunks");
   if (declared != static_cast<std::int64_t>(records.size())) {
-    return malformed(absl::StrCat("it declared ", declared, " records but carried ",
-                                  records.size(), " (truncated stream?)"));
+    return malformed(absl::StrCat("it declared ", declared, " records but carried ", records.size(),
+                                  " (truncated stream?)"));
   }
   absl::StatusOr<std::int64_t> n = registry_.Import(std::move(records));
   if (!n.ok()) return ToGrpc(n.status());
@@ -518,9 +515,9 @@ grpc::Status RveServiceImpl::GetServerInfo(grpc::ServerContext* ctx, const v1::S
   return grpc::Status::OK;
 }
 
-grpc::Status RveServiceImpl::DoRunElementTest(
-    grpc::ServerContext* ctx, const v1::ElementTestRequest* req,
-    grpc::ServerWriter<v1::ElementTestUpdate>* writer) {
+grpc::Status RveServiceImpl::DoRunElementTest(grpc::ServerContext* ctx,
+                                              const v1::ElementTestRequest* req,
+                                              grpc::ServerWriter<v1::ElementTestUpdate>* writer) {
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
   absl::StatusOr<dem::ElementTestSpec> spec = FromProto(*req);
   if (!spec.ok()) return ToGrpc(spec.status());
@@ -532,8 +529,9 @@ grpc::Status RveServiceImpl::DoRunElementTest(
   // test is one long sequential run). Progress goes out every 5 %.
   double last_sent = -1.0;
   bool client_gone = false;
-  absl::StatusOr<std::vector<dem::ElementTestRow>> rows =
-      dem::RunElementTest(*rve, *spec, [&](double fraction) {
+  absl::StatusOr<std::vector<dem::ElementTestRow>> rows = dem::RunElementTest(
+      *rve, *spec,
+      [&](double fraction) {
         if (client_gone || fraction - last_sent < 0.05) return;
         v1::ElementTestUpdate u;
         u.set_progress(fraction);

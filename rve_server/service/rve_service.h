@@ -78,8 +78,7 @@ class RveServiceImpl final : public v1::RveService::Service {
   // the end of the stream (a typed reader reports both as "no more").
   grpc::Status ImportBytes(grpc::ServerContext* ctx, grpc::ServerReader<grpc::ByteBuffer>* reader,
                            v1::ImportResponse* resp);
-  grpc::Status DoDrop(grpc::ServerContext* ctx, const v1::DropRequest* req,
-                      v1::DropResponse* resp);
+  grpc::Status DoDrop(grpc::ServerContext* ctx, const v1::DropRequest* req, v1::DropResponse* resp);
   grpc::Status DoRunElementTest(grpc::ServerContext* ctx, const v1::ElementTestRequest* req,
                                 grpc::ServerWriter<v1::ElementTestUpdate>* writer);
   // The call's deadline and cancellation, and CancelAll, as a CancelFn.

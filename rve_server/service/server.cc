@@ -100,8 +100,8 @@ class AuthInterceptorFactory final : public grpc::experimental::ServerIntercepto
 class ReflectionV1Proxy final : public grpc::Service {
  public:
   ReflectionV1Proxy() {
-    using Handler = grpc::internal::BidiStreamingHandler<ReflectionV1Proxy, grpc::ByteBuffer,
-                                                         grpc::ByteBuffer>;
+    using Handler =
+        grpc::internal::BidiStreamingHandler<ReflectionV1Proxy, grpc::ByteBuffer, grpc::ByteBuffer>;
     AddMethod(new grpc::internal::RpcServiceMethod(
         "/grpc.reflection.v1.ServerReflection/ServerReflectionInfo",
         grpc::internal::RpcMethod::BIDI_STREAMING,

@@ -29,7 +29,6 @@ struct ServerConfig {
   std::string checkpoint_dir;  // set: load on start, save on Stop
 };
 
-
 class RveServer {
  public:
   // Loads the checkpoint directory's files when present, then listens.
