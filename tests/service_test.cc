@@ -710,7 +710,12 @@ TEST(ServiceDeadline, UnfinishedRvesStayCommittedAndARetryCompletes) {
   {
     grpc::ClientContext ctx;
     ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(30));
-    EXPECT_EQ(h.stub().Apply(&ctx, req, &resp).error_code(), grpc::StatusCode::DEADLINE_EXCEEDED);
+    // On a loaded machine the server may see the deadline pass early and
+    // answer before the client gives up, the RVEs not reached skipped.
+    const grpc::Status s = h.stub().Apply(&ctx, req, &resp);
+    EXPECT_TRUE(s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED ||
+                (s.ok() && resp.failed() > 0))
+        << s.error_code() << " " << s.error_message() << " failed " << resp.failed();
   }
   // Let the server finish the call (RVEs in progress complete; the rest are skipped).
   v1::ListRunsResponse runs;
