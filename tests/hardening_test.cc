@@ -330,6 +330,21 @@ TEST(HardeningAuth, HealthWatchNeedsTheToken) {
   }
 }
 
+// 6. Our own streaming methods still answer UNAUTHENTICATED without the token.
+TEST(HardeningAuth, StreamingMethodsSayUnauthenticated) {
+  ServerConfig config;
+  config.auth_token = "s3cret-token";
+  Harness h(config);
+  grpc::ClientContext ctx;
+  ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+  v1::ExportRequest req;
+  req.set_run_id("r");
+  auto reader = h.stub().Export(&ctx, req);
+  v1::RveChunk chunk;
+  EXPECT_FALSE(reader->Read(&chunk));
+  ExpectError(reader->Finish(), grpc::StatusCode::UNAUTHENTICATED, "Bearer");
+}
+
 // 7. Ids and names have bounded lengths, and errors never echo them whole.
 TEST_F(HardeningTest, LongIdsAreRefusedWithoutBeingEchoed) {
   const std::string long_id(10'000, 'a');

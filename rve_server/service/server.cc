@@ -7,6 +7,7 @@
 #include <grpcpp/support/server_interceptor.h>
 
 #include <filesystem>
+#include <string_view>
 #include <thread>
 
 #include "absl/strings/str_cat.h"
@@ -24,8 +25,9 @@ constexpr char kTemplatesFile[] = "templates.h5";
 // without the token the reply is replaced by an empty message and the status
 // by UNAUTHENTICATED. (Our service also refuses such calls before doing
 // anything; grpc's services only read, so replacing their reply suffices.)
-// A denied call that streams replies (health Watch) is cancelled at once, as
-// it would otherwise stay open without ever sending its status.
+// A denied health Watch is cancelled at once (the client sees CANCELLED): it
+// would otherwise stay open, sending empty messages, and never end with the
+// UNAUTHENTICATED status.
 // Also turns gRPC's INTERNAL for a request that does not parse into
 // INVALID_ARGUMENT: bad input is the client's error, not the server's.
 class AuthInterceptor final : public grpc::experimental::Interceptor {
@@ -37,7 +39,8 @@ class AuthInterceptor final : public grpc::experimental::Interceptor {
     using grpc::experimental::InterceptionHookPoints;
     if (methods->QueryInterceptionHookPoint(InterceptionHookPoints::POST_RECV_INITIAL_METADATA)) {
       denied_ = !Authorized(*methods->GetRecvInitialMetadata(), *token_);
-      if (denied_ && info_->type() == grpc::experimental::ServerRpcInfo::Type::SERVER_STREAMING &&
+      // Only Watch: our own streaming methods refuse with UNAUTHENTICATED.
+      if (denied_ && std::string_view(info_->method()) == "/grpc.health.v1.Health/Watch" &&
           info_->server_context() != nullptr) {
         info_->server_context()->TryCancel();
       }
