@@ -10,15 +10,18 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <future>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "health_probe.grpc.pb.h"
 #include "reflection_probe.grpc.pb.h"
+#include "reflection_v1_probe.grpc.pb.h"
 #include "rve_server/service/convert.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
 #include "tests/rpc_test_util.h"
@@ -84,6 +87,22 @@ class ServerProcess {
     waitpid(pid_, &status, 0);
     pid_ = -1;
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+
+  // SIGTERM, then the exit status if it exits within `limit` (−1 when it
+  // did not exit normally, −2 when it is still running: then it is killed).
+  int TerminateWithin(std::chrono::milliseconds limit) {
+    kill(pid_, SIGTERM);
+    const auto end = std::chrono::steady_clock::now() + limit;
+    int status = 0;
+    while (std::chrono::steady_clock::now() < end) {
+      if (waitpid(pid_, &status, WNOHANG) == pid_) {
+        pid_ = -1;
+        return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return -2;
   }
 
   v1::RveService::Stub& stub() { return *stub_; }
@@ -159,6 +178,25 @@ TEST(ServerProcess, HealthAndReflectionRespond) {
   for (const auto& s : rresp.list_services_response().service()) names.push_back(s.name());
   EXPECT_NE(std::find(names.begin(), names.end(), "rvehub.v1.RveService"), names.end());
   EXPECT_NE(std::find(names.begin(), names.end(), "grpc.health.v1.Health"), names.end());
+
+  // Reflection v1 too (forwarded to v1alpha, whose messages it shares).
+  auto reflection_v1 = grpc::reflection::v1::ServerReflection::NewStub(server.channel());
+  auto ctx_v1 = Ctx();
+  auto stream_v1 = reflection_v1->ServerReflectionInfo(ctx_v1.get());
+  grpc::reflection::v1::ServerReflectionRequest req_v1;
+  req_v1.set_list_services("*");
+  grpc::reflection::v1::ServerReflectionResponse resp_v1;
+  for (int k = 0; k < 2; ++k) {  // two requests on one stream, two answers
+    ASSERT_TRUE(stream_v1->Write(req_v1));
+    ASSERT_TRUE(stream_v1->Read(&resp_v1));
+  }
+  stream_v1->WritesDone();
+  EXPECT_TRUE(stream_v1->Finish().ok());
+  names.clear();
+  for (const auto& s : resp_v1.list_services_response().service()) names.push_back(s.name());
+  EXPECT_NE(std::find(names.begin(), names.end(), "rvehub.v1.RveService"), names.end());
+  EXPECT_NE(std::find(names.begin(), names.end(), "grpc.reflection.v1.ServerReflection"),
+            names.end());
   EXPECT_EQ(server.Terminate(), 0);
 }
 
@@ -261,6 +299,32 @@ TEST(ServerProcess, SigtermDrainsCheckpointsAndRestartContinues) {
   EXPECT_NE(text.find("rves.h5"), std::string::npos) << text;
   EXPECT_NE(text.find("level=error"), std::string::npos) << text;
   fs::remove_all(dir);
+}
+
+// Issue 10: a call busy in the engine (a relaxation to a tolerance it never
+// reaches, no client deadline) no longer keeps a SIGTERM with a 2 s drain
+// from ending the process.
+TEST(ServerProcess, SigtermWithShortDrainEndsDespiteALongCall) {
+  ServerProcess server({"--listen=127.0.0.1:0", "--threads=1", "--drain_seconds=2"});
+  ASSERT_TRUE(CreateRun(server.stub(), 1).ok());
+  v1::ApplyRequest req = Increments(1, 1, 1e-4);
+  req.mutable_options()->set_relax(true);
+  req.mutable_options()->set_relax_tolerance(1e-12);
+  req.mutable_options()->set_relax_max_steps(10'000'000);
+  grpc::Status long_call;
+  std::thread client([&] {
+    grpc::ClientContext ctx;  // no deadline: only the drain can end it
+    v1::ApplyResponse resp;
+    long_call = server.stub().Apply(&ctx, req, &resp);
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the call is in the engine
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_EQ(server.TerminateWithin(std::chrono::seconds(20)), 0);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_LT(seconds, 8.0) << "the drain should end about when its 2 s grace does";
+  client.join();
+  EXPECT_FALSE(long_call.ok());
 }
 
 TEST(ServerProcess, BadFlagsFailToStart) {

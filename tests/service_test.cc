@@ -473,6 +473,7 @@ TEST_F(ServiceTest, BadInputGetsSpecificCodeAndChangesNothing) {
       return w->Finish();
     };
     v1::RveChunk c1;
+    c1.set_total_records(2);
     *c1.add_records() = good;
     *c1.add_records() = bad;
     c1.mutable_records(1)->set_id(2);
@@ -482,6 +483,7 @@ TEST_F(ServiceTest, BadInputGetsSpecificCodeAndChangesNothing) {
     *c2.add_records() = good;
     ExpectError(import({c2}), grpc::StatusCode::INVALID_ARGUMENT, "declared 3");
     v1::RveChunk c3;
+    c3.set_total_records(1);
     *c3.add_records() = h_.ExportOne("r", 1);  // (r, 1) is hosted already
     ExpectError(import({c3}), grpc::StatusCode::ALREADY_EXISTS, "already has material point 1");
     v1::GetStatesRequest get;
@@ -708,7 +710,12 @@ TEST(ServiceDeadline, UnfinishedRvesStayCommittedAndARetryCompletes) {
   {
     grpc::ClientContext ctx;
     ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(30));
-    EXPECT_EQ(h.stub().Apply(&ctx, req, &resp).error_code(), grpc::StatusCode::DEADLINE_EXCEEDED);
+    // On a loaded machine the server may see the deadline pass early and
+    // answer before the client gives up, the RVEs not reached skipped.
+    const grpc::Status s = h.stub().Apply(&ctx, req, &resp);
+    EXPECT_TRUE(s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED ||
+                (s.ok() && resp.failed() > 0))
+        << s.error_code() << " " << s.error_message() << " failed " << resp.failed();
   }
   // Let the server finish the call (RVEs in progress complete; the rest are skipped).
   v1::ListRunsResponse runs;

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -14,6 +15,8 @@
 namespace rvehub::dem {
 
 using internal::CellHeights;
+using internal::GridCells;
+using internal::MaxGridCells;
 using internal::Rotation;
 using internal::Sign;
 
@@ -23,8 +26,10 @@ double Rve::QuasiStaticStrainRate(double inertial_number, double pressure) const
   return inertial_number / (2.0 * radius_mean_ * std::sqrt(rho / p));  // I = γ̇ d sqrt(ρ/p)
 }
 
-absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyOptions& options) {
+absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyOptions& options,
+                                    const Interrupt& interrupt) {
   if (absl::Status valid = ValidateDeltaF(delta_f); !valid.ok()) return valid;
+  if (absl::Status valid = Validate(options); !valid.ok()) return valid;
   const Eigen::Matrix2d f = delta_f.topLeftCorner<2, 2>();
   // Polar split ΔF = V·R: rotate rigidly (exact, objective), then stretch.
   const double angle = std::atan2(f(1, 0) - f(0, 1), f(0, 0) + f(1, 1));
@@ -44,22 +49,44 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
     return absl::FailedPreconditionError(
         "ΔF would make the periodic cell thinner than twice the pair cutoff");
   }
+  if (!(GridCells(CellHeights(f * p_.cell), Cutoff()) <= MaxGridCells(p_.radius.size()))) {
+    return absl::FailedPreconditionError(
+        "ΔF would make the periodic cell too large for its particles (neighbour-grid limit)");
+  }
 
   // p before the rotation (which leaves it unchanged): after an increment
   // it is known from that increment's last step.
   const double pressure = MeanPressure();
-  ApplyRigidRotation(angle);
-  Eigen::Matrix2d start = p_.cell;
-  const Eigen::Matrix2d identity = Eigen::Matrix2d::Identity();
   const double inertial_number =
       options.max_inertial_number > 0
           ? std::min(options.max_inertial_number, p_.controls.max_inertial_number)
           : p_.controls.max_inertial_number;
   const double rate = QuasiStaticStrainRate(inertial_number, pressure);
   const double steps_needed = std::ceil(stretch / (rate * dt_));
-  const std::int64_t steps =
+  // Sized before anything changes (the cast below needs it in range, too).
+  if (!(steps_needed <= static_cast<double>(kMaxStepsPerApply))) {
+    return absl::InvalidArgumentError(absl::StrCat("the increment would take ", steps_needed,
+                                                   " DEM steps at inertial number ",
+                                                   inertial_number, "; at most ", kMaxStepsPerApply,
+                                                   " per call: split ΔF into smaller increments"));
+  }
+  // Only a long call can be interrupted, and only a long call pays for the
+  // copy that undoes it (a short one ends soon anyway).
+  std::optional<Rve> before;
+  const std::int64_t planned =
       std::max<std::int64_t>(p_.controls.min_steps, static_cast<std::int64_t>(steps_needed));
+  if (interrupt && (planned > kInterruptCheckSteps || options.relax)) before.emplace(*this);
+  ApplyRigidRotation(angle);
+  Eigen::Matrix2d start = p_.cell;
+  const Eigen::Matrix2d identity = Eigen::Matrix2d::Identity();
+  const std::int64_t steps = planned;
   for (std::int64_t k = 0; k < steps; ++k) {
+    if (before && k > 0 && k % kInterruptCheckSteps == 0) {
+      if (absl::Status stop = interrupt(); !stop.ok()) {
+        *this = *std::move(before);
+        return stop;
+      }
+    }
     const double tau = static_cast<double>(k + 1) / static_cast<double>(steps);
     const Eigen::Matrix2d next = (identity + (v - identity) * tau) * start;
     const Eigen::Matrix2d l = (next - p_.cell) * p_.cell.inverse() / dt_;
@@ -68,13 +95,36 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
     if (p_.cell != next) start = start * (next.inverse() * p_.cell).array().round().matrix();
   }
   std::int64_t used = steps;
-  if (options.relax) used += Relax(options.relax_tolerance, options.relax_max_steps).steps;
+  if (options.relax) {
+    absl::Status stopped;
+    used += RelaxSteps(options.relax_tolerance, options.relax_max_steps,
+                       before ? &interrupt : nullptr, stopped)
+                .steps;
+    if (!stopped.ok()) {
+      *this = *std::move(before);
+      return stopped;
+    }
+  }
   RveState s = Observe(options.want_tangent);
   s.steps = used;
   return s;
 }
 
 RveState Rve::Run(CellControl& control, std::int64_t steps) {
+  absl::Status stopped;
+  return RunSteps(control, steps, nullptr, stopped);
+}
+
+absl::StatusOr<RveState> Rve::Run(CellControl& control, std::int64_t steps,
+                                  const Interrupt& interrupt) {
+  absl::Status stopped;
+  RveState s = RunSteps(control, steps, interrupt ? &interrupt : nullptr, stopped);
+  if (!stopped.ok()) return stopped;
+  return s;
+}
+
+RveState Rve::RunSteps(CellControl& control, std::int64_t steps, const Interrupt* interrupt,
+                       absl::Status& stopped) {
   Eigen::Matrix2d stress = DefinitionStress();
   Eigen::Vector2d stiffness = Eigen::Vector2d::Zero();
   const double cap = control.max_strain_rate;
@@ -96,6 +146,10 @@ RveState Rve::Run(CellControl& control, std::int64_t steps) {
                         control.yy.mode == ControlMode::kStress ||
                         control.xy.mode == ControlMode::kStress;
   for (std::int64_t k = 0; k < steps; ++k) {
+    if (interrupt != nullptr && k > 0 && k % kInterruptCheckSteps == 0) {
+      stopped = (*interrupt)();
+      if (!stopped.ok()) return RveState{};
+    }
     Eigen::Matrix2d l = Eigen::Matrix2d::Zero();
     l(0, 0) = servo(control.xx, stress(0, 0), stiffness.x(), integral[0]);
     l(1, 1) = servo(control.yy, stress(1, 1), stiffness.y(), integral[1]);
@@ -112,11 +166,32 @@ RveState Rve::Run(CellControl& control, std::int64_t steps) {
 }
 
 RveState Rve::Relax(double tolerance, std::int64_t max_steps) {
+  absl::Status stopped;
+  return RelaxSteps(tolerance, max_steps, nullptr, stopped);
+}
+
+absl::StatusOr<RveState> Rve::Relax(double tolerance, std::int64_t max_steps,
+                                    const Interrupt& interrupt) {
+  absl::Status stopped;
+  RveState s = RelaxSteps(tolerance, max_steps, interrupt ? &interrupt : nullptr, stopped);
+  if (!stopped.ok()) return stopped;
+  return s;
+}
+
+RveState Rve::RelaxSteps(double tolerance, std::int64_t max_steps, const Interrupt* interrupt,
+                         absl::Status& stopped) {
   constexpr std::int64_t kCheckEvery = 50;
   std::int64_t done = 0;
+  std::int64_t since_asked = 0;  // steps since `interrupt` was last asked
   RveState s = Observe();
   while (done < max_steps && !(s.unbalanced_force_ratio < tolerance && s.num_contacts > 0)) {
+    if (interrupt != nullptr && since_asked >= kInterruptCheckSteps) {
+      since_asked = 0;
+      stopped = (*interrupt)();
+      if (!stopped.ok()) return s;
+    }
     const std::int64_t chunk = std::min(kCheckEvery, max_steps - done);
+    since_asked += chunk;
     for (std::int64_t k = 0; k < chunk; ++k)
       Step(Eigen::Matrix2d::Zero(), p_.cell, /*measure=*/false);
     done += chunk;

@@ -52,8 +52,8 @@ absl::Status CheckSpec(const ElementTestSpec& spec) {
   auto bad = [](absl::string_view field, double v, absl::string_view rule) {
     return absl::InvalidArgumentError(absl::StrCat(field, " = ", v, " is invalid: ", rule));
   };
-  if (!(spec.confining > 0) || !std::isfinite(spec.confining))
-    return bad("confining", spec.confining, "must be > 0 Pa");
+  if (!(spec.confining > 0 && spec.confining <= kMaxPressure))
+    return bad("confining", spec.confining, "must lie in (0, 1e9] Pa");
   const bool shear = spec.kind == ElementTestKind::kUndrainedSimpleShear ||
                      spec.kind == ElementTestKind::kCyclicSimpleShear;
   // Compression beyond 50 % would crush the cell; shear is unlimited thanks
@@ -61,12 +61,13 @@ absl::Status CheckSpec(const ElementTestSpec& spec) {
   const double strain_limit = shear ? 10.0 : 0.5;
   if (!(spec.max_strain > 0 && spec.max_strain < strain_limit))
     return bad("max_strain", spec.max_strain, absl::StrCat("must lie in (0, ", strain_limit, ")"));
-  if (!(spec.inertial_number > 0 && spec.inertial_number <= 0.1))
-    return bad("inertial_number", spec.inertial_number, "must lie in (0, 0.1]");
+  if (!(spec.inertial_number >= kMinInertialNumber && spec.inertial_number <= 0.1))
+    return bad("inertial_number", spec.inertial_number, "must lie in [1e-6, 0.1]");
   if (spec.rows < 2 || spec.rows > 1000000) return bad("rows", spec.rows, "must lie in [2, 1e6]");
   if (spec.kind == ElementTestKind::kCyclicSimpleShear) {
-    if (!(spec.amplitude > 0) || !std::isfinite(spec.amplitude))
-      return bad("amplitude", spec.amplitude, "must be > 0");
+    if (!(spec.amplitude > 0) || !std::isfinite(spec.amplitude) ||
+        (spec.cyclic_control == CyclicControl::kStress && spec.amplitude > kMaxPressure))
+      return bad("amplitude", spec.amplitude, "must be > 0 (a stress at most 1e9 Pa)");
     if (spec.cyclic_control == CyclicControl::kStrain && spec.amplitude >= spec.max_strain)
       return bad("amplitude", spec.amplitude, "a strain amplitude must be below max_strain");
     if (spec.cycles < 1 || spec.cycles > 10000)
@@ -88,9 +89,11 @@ absl::StatusOr<ElementTestKind> ParseElementTestKind(absl::string_view name) {
 }
 
 absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
-    Rve& rve, const ElementTestSpec& spec, const std::function<void(double)>& progress) {
+    Rve& rve, const ElementTestSpec& spec, const std::function<void(double)>& progress,
+    const Interrupt& interrupt) {
   if (absl::Status s = CheckSpec(spec); !s.ok()) return s;
-  absl::StatusOr<RveState> start = ConsolidateIsotropic(rve, spec.confining);
+  absl::StatusOr<RveState> start =
+      ConsolidateIsotropic(rve, spec.confining, 1e-4, nullptr, interrupt);
   if (!start.ok()) return start.status();
   // Strains count from the consolidated state.
   const Eigen::Matrix2d f0_inv = rve.DeformationGradient().inverse();
@@ -124,8 +127,17 @@ absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
                                           ? 4.0 * spec.amplitude * spec.cycles / spec.rows
                                           : spec.max_strain / spec.rows)
                                    : spec.max_strain / spec.rows;
-  const std::int64_t steps_per_row =
-      std::max<std::int64_t>(1, std::llround(row_strain / (rate * rve.time_step())));
+  // Sized before the first step (llround needs it in range, too).
+  const double row_steps = row_strain / (rate * rve.time_step());
+  if (!(row_steps * spec.rows <= static_cast<double>(kMaxElementTestSteps))) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat("the test would take about ", row_steps * spec.rows, " DEM steps; at most ",
+                     kMaxElementTestSteps, " (raise inertial_number or lower max_strain)"));
+  }
+  const std::int64_t steps_per_row = std::max<std::int64_t>(1, std::llround(row_steps));
+  // Cyclic tests end on the response; this bounds them whatever it does.
+  const std::int64_t max_rows = std::min<std::int64_t>(
+      kMaxElementTestRows, std::max<std::int64_t>(1, kMaxElementTestSteps / steps_per_row));
   // Progress measure and stop rule per test: the row's strain of its kind.
   auto measure = [&](const ElementTestRow& r) {
     switch (spec.kind) {
@@ -146,7 +158,20 @@ absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
   const int target_half_cycles = 2 * spec.cycles;
   double direction = 1.0;
   for (;;) {
-    const RveState s = rve.Run(control, steps_per_row);
+    if (static_cast<std::int64_t>(rows.size()) > max_rows) {
+      return absl::ResourceExhaustedError(
+          absl::StrCat("the test did not end within ", max_rows, " rows of ", steps_per_row,
+                       " DEM steps (lower rows, cycles or max_strain)"));
+    }
+    RveState s;
+    if (interrupt) {
+      if (absl::Status stop = interrupt(); !stop.ok()) return stop;
+      absl::StatusOr<RveState> run = rve.Run(control, steps_per_row, interrupt);
+      if (!run.ok()) return run.status();
+      s = *run;
+    } else {
+      s = rve.Run(control, steps_per_row);
+    }
     step += steps_per_row;
     rows.push_back(MakeRow(s, strain_f(), step));
     const ElementTestRow& r = rows.back();

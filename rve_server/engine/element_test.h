@@ -50,9 +50,16 @@ struct ElementTestRow {
 absl::StatusOr<ElementTestKind> ParseElementTestKind(absl::string_view name);
 
 // Consolidates to spec.confining, then runs the test. `progress` receives
-// the fraction done in [0, 1].
+// the fraction done in [0, 1]. `interrupt` (optional) is asked between DEM
+// steps; its status ends the test. Ranges: confining (0, 1e9] Pa,
+// inertial_number [1e-6, 0.1], rows [2, 1e6], cycles [1, 1e4]; a test that
+// would take more than kMaxElementTestSteps DEM steps is refused up front
+// (monotonic) or stopped there (cyclic) with ResourceExhausted.
+inline constexpr std::int64_t kMaxElementTestSteps = 1'000'000'000;
+inline constexpr std::int64_t kMaxElementTestRows = 2'000'000;  // rows recorded at most
 absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
-    Rve& rve, const ElementTestSpec& spec, const std::function<void(double)>& progress = {});
+    Rve& rve, const ElementTestSpec& spec, const std::function<void(double)>& progress = {},
+    const Interrupt& interrupt = {});
 
 }  // namespace rvehub::dem
 

@@ -17,11 +17,11 @@ struct Controls {
   double time_step_factor = 0.5;      // Δt = factor·sqrt(m_min/kn_max), [-]
   double max_inertial_number = 1e-3;  // I = γ̇·d_mean·sqrt(ρ/p) bound for Apply, [-]
   double pressure_floor = 1e3;        // Pa; p used in I when the RVE is looser than this
-  std::int64_t min_steps = 20;        // DEM steps per Apply at least (0: an identity ΔF takes none)
-  double max_stretch = 0.05;          // per-Apply bound on |V − I| (Frobenius), [-]
-  double max_rotation = 0.5;          // per-Apply bound on the rigid rotation, rad
-  double mass_scale = 1.0;            // density scaling λ ≥ 1 for quasi-static work, [-]
-  double skin = 0.25;                 // Verlet skin as a fraction of the smallest radius, [-]
+  std::int64_t min_steps = 20;  // DEM steps per Apply at least (0: an identity ΔF takes none)
+  double max_stretch = 0.05;    // per-Apply bound on |V − I| (Frobenius), [-]
+  double max_rotation = 0.5;    // per-Apply bound on the rigid rotation, rad
+  double mass_scale = 1.0;      // density scaling λ ≥ 1 for quasi-static work, [-]
+  double skin = 0.25;           // Verlet skin as a fraction of the smallest radius, [-]
 };
 
 // History of one contact (or bonded pair), keyed by particle indices i < j.
@@ -56,6 +56,13 @@ struct Packing {
   std::int64_t total_steps = 0;           // DEM steps since creation
 };
 
+// Ranges (see also rve_service.proto): time_step_factor (0, 1],
+// max_inertial_number [1e-6, 1], pressure_floor [1, 1e9] Pa, min_steps
+// [0, 1e6], max_stretch (0, 10], max_rotation (0, π/2] rad, mass_scale ≥ 1,
+// skin (0, 2]. They bound the DEM steps one increment may take.
+inline constexpr double kMinPressureFloor = 1.0;  // Pa
+inline constexpr double kMaxPressure = 1e9;       // Pa, any stress target or floor
+inline constexpr std::int64_t kMaxMinSteps = 1'000'000;
 absl::Status Validate(const Controls& c);
 
 }  // namespace rvehub::dem

@@ -31,16 +31,16 @@ constexpr int kMaxTrials = 7;
 }  // namespace
 
 absl::StatusOr<RveState> ConsolidateIsotropic(Rve& rve, double p, double balance,
-                                              std::int64_t* steps) {
-  return ConsolidateToStress(rve, p, p, balance, steps);
+                                              std::int64_t* steps, const Interrupt& interrupt) {
+  return ConsolidateToStress(rve, p, p, balance, steps, interrupt);
 }
 
 absl::StatusOr<RveState> ConsolidateToStress(Rve& rve, double sxx, double syy, double balance,
-                                             std::int64_t* steps) {
-  if (!(std::isfinite(sxx) && std::isfinite(syy) && sxx > 0 && syy > 0)) {
-    return absl::InvalidArgumentError(absl::StrCat("consolidation stresses σxx = ", sxx,
-                                                   " Pa, σyy = ", syy,
-                                                   " Pa (compression +) must be finite and > 0"));
+                                             std::int64_t* steps, const Interrupt& interrupt) {
+  if (!(sxx > 0 && syy > 0 && sxx <= kMaxPressure && syy <= kMaxPressure)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("consolidation stresses σxx = ", sxx, " Pa, σyy = ", syy,
+                     " Pa (compression +) must lie in (0, ", kMaxPressure, "] Pa"));
   }
   const double p = 0.5 * (sxx + syy);
   CellControl control;
@@ -60,10 +60,19 @@ absl::StatusOr<RveState> ConsolidateToStress(Rve& rve, double sxx, double syy, d
   for (int round = 0; round < kMaxRounds; ++round) {
     RveState s = rve.Observe();
     while (!(close(s) && s.unbalanced_force_ratio < kServoBalance) && done < kMaxSteps) {
+      if (interrupt) {
+        if (absl::Status stop = interrupt(); !stop.ok()) return stop;
+      }
       s = rve.Run(control, kChunk);
       done += kChunk;
     }
-    s = rve.Relax(balance, kMaxSteps / 4);
+    if (interrupt) {
+      absl::StatusOr<RveState> relaxed = rve.Relax(balance, kMaxSteps / 4, interrupt);
+      if (!relaxed.ok()) return relaxed.status();
+      s = *relaxed;
+    } else {
+      s = rve.Relax(balance, kMaxSteps / 4);
+    }
     done += s.steps;
     if (close(s) && s.unbalanced_force_ratio < balance) {
       if (steps != nullptr) *steps += done;

@@ -26,15 +26,19 @@ struct PreparationReport {
 // relaxes at fixed cell (a moving servo keeps stirring the packing) until the
 // unbalanced-force ratio < balance, repeating while relaxing moved p or the
 // deviator q = sqrt(¼(σxx − σyy)² + σxy²) out of 1 % of p.
+// Stresses lie in (0, 1e9] Pa (kMaxPressure). `interrupt` (optional) is
+// asked between DEM steps; its status stops the consolidation (the RVE is
+// left part-way).
 absl::StatusOr<RveState> ConsolidateIsotropic(Rve& rve, double p, double balance = 1e-4,
-                                              std::int64_t* steps = nullptr);
+                                              std::int64_t* steps = nullptr,
+                                              const Interrupt& interrupt = {});
 
 // Same for an anisotropic state with principal axes x, y (e.g. K0 with y
 // vertical): σxx, σyy in Pa, compression +; p and the deviator error
 // sqrt(¼((σxx − σyy) − (target difference))² + σxy²) within 1 % of p.
 absl::StatusOr<RveState> ConsolidateToStress(Rve& rve, double sxx, double syy,
-                                             double balance = 1e-4,
-                                             std::int64_t* steps = nullptr);
+                                             double balance = 1e-4, std::int64_t* steps = nullptr,
+                                             const Interrupt& interrupt = {});
 
 // Random discs, placed without overlap in a loose square cell (seeded,
 // platform-independent random numbers).

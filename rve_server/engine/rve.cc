@@ -18,7 +18,9 @@
 namespace rvehub::dem {
 
 using internal::CellHeights;
+using internal::GridCells;
 using internal::kPi;
+using internal::MaxGridCells;
 
 namespace {
 
@@ -71,13 +73,25 @@ Rve::Rve(Packing packing) : p_(std::move(packing)) {
   Rebuild(history);
 }
 
-absl::StatusOr<Rve> Rve::Create(Packing p) {
+absl::Status ValidatePacking(const Packing& p) {
   if (absl::Status s = Validate(p.material); !s.ok()) return s;
+  if (p.material.name.size() > kMaxNameBytes) {
+    return absl::InvalidArgumentError(absl::StrCat("material name has ", p.material.name.size(),
+                                                   " bytes; at most ", kMaxNameBytes));
+  }
+  for (char c : p.material.name) {
+    if (c < 0x20 || c > 0x7e) {
+      return absl::InvalidArgumentError("material name must be printable ASCII");
+    }
+  }
   if (absl::Status s = Validate(p.controls); !s.ok()) return s;
   const std::size_t n = p.radius.size();
   if (n < 2)
     return absl::InvalidArgumentError(absl::StrCat("packing has ", n, " particles; needs >= 2"));
-  if (n > (1u << 30)) return absl::InvalidArgumentError("packing has too many particles");
+  if (n > kMaxParticles) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("packing has ", n, " particles; at most ", kMaxParticles));
+  }
   for (auto [vec, name] : {std::pair{&p.sx, "sx"},
                            {&p.sy, "sy"},
                            {&p.vx, "vx"},
@@ -145,6 +159,24 @@ absl::StatusOr<Rve> Rve::Create(Packing p) {
     return absl::InvalidArgumentError(absl::StrCat(
         "permeability_coefficient = ", p.permeability_coefficient, " must be finite and >= 0 m/s"));
   }
+  if (p.total_steps < 0) {
+    return absl::InvalidArgumentError(absl::StrCat("total_steps = ", p.total_steps, " < 0"));
+  }
+  // The neighbour search bins the cell by the cutoff: a cell far larger than
+  // its particles (1000 m for 1 mm discs) would need billions of bins.
+  const double grid = GridCells(CellHeights(p.cell), cutoff);
+  if (!(grid <= MaxGridCells(n))) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("cell is too large for its particles: ", CellHeights(p.cell).maxCoeff(),
+                     " m across with a pair cutoff of ", cutoff, " m needs ", grid,
+                     " neighbour-grid cells; at most ", MaxGridCells(n), " for ", n,
+                     " particles (solid fraction too low)"));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<Rve> Rve::Create(Packing p) {
+  if (absl::Status s = ValidatePacking(p); !s.ok()) return s;
   Rve rve(std::move(p));
   // Discs with (nearly) coincident centres have no contact normal.
   const double min_distance = 1e-6 * rve.radius_min_;
@@ -191,6 +223,26 @@ absl::Status ValidateDeltaF(const Eigen::Matrix3d& delta_f) {
   const double det = delta_f.topLeftCorner<2, 2>().determinant();
   if (!(det > 0)) {
     return absl::InvalidArgumentError(absl::StrCat("det ΔF = ", det, " must be > 0"));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status Validate(const ApplyOptions& o) {
+  if (!(o.relax_tolerance >= kMinRelaxTolerance && o.relax_tolerance <= 1)) {
+    return absl::InvalidArgumentError(absl::StrCat("relax_tolerance = ", o.relax_tolerance,
+                                                   " is invalid: must lie in [", kMinRelaxTolerance,
+                                                   ", 1]"));
+  }
+  if (o.relax_max_steps < 0 || o.relax_max_steps > kMaxRelaxSteps) {
+    return absl::InvalidArgumentError(absl::StrCat("relax_max_steps = ", o.relax_max_steps,
+                                                   " is invalid: must lie in [0, ", kMaxRelaxSteps,
+                                                   "]"));
+  }
+  if (!(o.max_inertial_number == 0 || (o.max_inertial_number >= kMinInertialNumber &&
+                                       o.max_inertial_number <= kMaxInertialNumber))) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "max_inertial_number = ", o.max_inertial_number, " is invalid: must be 0 or lie in [",
+        kMinInertialNumber, ", ", kMaxInertialNumber, "]"));
   }
   return absl::OkStatus();
 }

@@ -7,6 +7,7 @@
 #include <Eigen/Dense>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "absl/status/statusor.h"
@@ -67,6 +68,26 @@ struct ApplyOptions {
   double max_inertial_number = 0.0;
 };
 
+// Asked between DEM steps by the engine's long loops (Apply, Relax, Run,
+// consolidation, element tests), every kInterruptCheckSteps steps: OK to go
+// on; any other status (a passed deadline, a cancelled call, a server
+// shutting down) stops the loop, which returns that status. Lets a caller
+// bound work it cannot size beforehand; it never touches the arithmetic.
+using Interrupt = std::function<absl::Status()>;
+inline constexpr std::int64_t kInterruptCheckSteps = 256;
+
+// Limits on one call's work, checked before anything changes (the documented
+// ranges of the wire contract, see rve_service.proto).
+inline constexpr std::int64_t kMaxStepsPerApply = 100'000'000;  // DEM steps of one increment
+inline constexpr std::int64_t kMaxRelaxSteps = 10'000'000;      // ApplyOptions::relax_max_steps
+inline constexpr double kMinRelaxTolerance = 1e-12;             // ApplyOptions::relax_tolerance
+inline constexpr double kMinInertialNumber = 1e-6;              // any inertial number bound, [-]
+inline constexpr double kMaxInertialNumber = 1.0;
+
+// Ranges of ApplyOptions (relax_tolerance in [1e-12, 1], relax_max_steps in
+// [0, 1e7], max_inertial_number 0 or in [1e-6, 1]).
+absl::Status Validate(const ApplyOptions& options);
+
 // The checks Apply makes on ΔF before touching anything: 9 finite values,
 // plane strain (ΔF_zz = 1, no out-of-plane coupling) and det ΔF > 0.
 absl::Status ValidateDeltaF(const Eigen::Matrix3d& delta_f);
@@ -113,7 +134,7 @@ struct StepEnergy {
 
 class Rve {
  public:
-  // Checks the packing (sizes, finiteness, cell, contacts) and builds caches.
+  // Checks the packing (ValidatePacking) and builds caches.
   static absl::StatusOr<Rve> Create(Packing packing);
 
   // The full state, contact history included (what Create restores exactly).
@@ -134,14 +155,26 @@ class Rve {
   // coupling). Rejects non-finite ΔF, det ≤ 0, or a stretch/rotation beyond
   // the controls' limits with InvalidArgument, and a ΔF that would make the
   // cell thinner than twice the pair cutoff with FailedPrecondition, leaving
-  // the RVE untouched.
-  absl::StatusOr<RveState> Apply(const Eigen::Matrix3d& delta_f, const ApplyOptions& options = {});
+  // the RVE untouched. InvalidArgument too, before anything changes, when
+  // the increment would take more than kMaxStepsPerApply DEM steps or the
+  // options are out of range. `interrupt` (optional) is asked between steps;
+  // when it stops the increment, the RVE is restored to its state before
+  // the call and that status is returned.
+  absl::StatusOr<RveState> Apply(const Eigen::Matrix3d& delta_f, const ApplyOptions& options = {},
+                                 const Interrupt& interrupt = {});
 
   // Runs `steps` DEM steps under mixed control and returns the state
   // afterwards; updates control.servo_integral (the servo's memory).
   RveState Run(CellControl& control, std::int64_t steps);
+  // The same, asking `interrupt` between steps; when it stops the run, its
+  // status is returned and the RVE is left where the run stopped.
+  absl::StatusOr<RveState> Run(CellControl& control, std::int64_t steps,
+                               const Interrupt& interrupt);
   // Relaxes at fixed cell until the unbalanced-force ratio < tolerance or the cap.
   RveState Relax(double tolerance, std::int64_t max_steps);
+  // The same, asking `interrupt` between steps (see Run).
+  absl::StatusOr<RveState> Relax(double tolerance, std::int64_t max_steps,
+                                 const Interrupt& interrupt);
 
   // Homogenised state of the current configuration. Changes no state: after
   // an increment it reads the sums of the increment's last DEM step; else
@@ -176,6 +209,11 @@ class Rve {
 
  private:
   explicit Rve(Packing packing);
+  // Run and Relax; a null interrupt is never asked. `stopped` gets its status.
+  RveState RunSteps(CellControl& control, std::int64_t steps, const Interrupt* interrupt,
+                    absl::Status& stopped);
+  RveState RelaxSteps(double tolerance, std::int64_t max_steps, const Interrupt* interrupt,
+                      absl::Status& stopped);
   struct StepResult {
     Eigen::Matrix2d stress = Eigen::Matrix2d::Zero();  // Pa, this step's contact stress
     Eigen::Vector2d stiffness = Eigen::Vector2d::Zero();  // Pa, (1/V)Σ kn d⁴ n_x⁴ … for the servo
@@ -265,6 +303,20 @@ class Rve {
 };
 
 double SolidArea(const std::vector<double>& radius);  // Σ π r², m²
+
+// Limits on a packing's size, so that a malformed or hostile packing cannot
+// ask for unbounded memory or time (the neighbour grid grows with the cell
+// area over the squared particle size).
+inline constexpr std::size_t kMaxParticles = 1'000'000;
+inline constexpr double kMaxGridCellsPerParticle = 1000;  // ≈ solid fraction ≥ 6e-4
+inline constexpr double kMinGridCells = 1e4;
+inline constexpr std::size_t kMaxNameBytes = 128;  // material name, printable ASCII
+
+// Every check a packing must pass before an RVE is built from it, on every
+// path (templates, imports, checkpoints): material and controls, array
+// sizes, finiteness, particle count, cell against particle size and the
+// neighbour-grid size, contacts. InvalidArgument naming the first problem.
+absl::Status ValidatePacking(const Packing& p);
 
 }  // namespace rvehub::dem
 

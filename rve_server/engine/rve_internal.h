@@ -79,6 +79,17 @@ inline Scratch& ThreadScratch() {
   return scratch;
 }
 
+// Cells of the neighbour search's grid for a cell of heights `heights` (m)
+// and a pair cutoff (m); as a double, so that a huge cell cannot overflow.
+inline double GridCells(const Eigen::Vector2d& heights, double cutoff) {
+  return std::floor(heights.x() / cutoff) * std::floor(heights.y() / cutoff);
+}
+
+// The most grid cells a packing of n particles may need.
+inline double MaxGridCells(std::size_t n) {
+  return std::max(kMinGridCells, kMaxGridCellsPerParticle * static_cast<double>(n));
+}
+
 }  // namespace internal
 
 template <typename F>

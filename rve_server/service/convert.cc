@@ -259,7 +259,7 @@ void ToProto(const RveOutcome& o, v1::RveResult* out) {
   if (o.status.ok()) {
     ToProto(o.state, o.deformation_gradient, out->mutable_state());
   } else {
-    out->set_message(std::string(o.status.message()));
+    out->set_message(std::string(o.status.message().substr(0, kMaxResultMessageBytes)));
   }
 }
 

@@ -36,6 +36,8 @@ absl::StatusOr<store::RveRecord> FromProto(const v1::RveRecord& r);
 
 void ToProto(const dem::RveState& s, const Eigen::Matrix3d& deformation_gradient,
              v1::RveState* out);
+// Bytes of a per-RVE message kept in an RveResult (longer ones are cut).
+inline constexpr std::size_t kMaxResultMessageBytes = 512;
 // RveOutcome → RveResult (code from the absl status).
 void ToProto(const RveOutcome& o, v1::RveResult* out);
 

@@ -4,12 +4,15 @@
 #include <chrono>
 #include <cstdint>
 #include <map>
+#include <new>
 #include <optional>
 #include <set>
+#include <stdexcept>
 #include <tuple>
 #include <utility>
 
 #include "absl/base/casts.h"
+#include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "rve_server/engine/prepare.h"
@@ -18,7 +21,20 @@ namespace rvehub::service {
 namespace {
 
 constexpr std::size_t kMaxNameLength = 128;
+constexpr std::size_t kMaxDescriptionBytes = 4096;
 constexpr int kMaxListedIds = 8;  // ids named in one error message at most
+constexpr double kMaxK0 = 10.0;   // σh/σv of a K0 state at most, [-]
+
+}  // namespace
+
+std::string Quoted(absl::string_view name) {
+  constexpr std::size_t kShown = 64;
+  std::string s = absl::StrCat("\"", absl::CHexEscape(name.substr(0, kShown)), "\"");
+  if (name.size() > kShown) absl::StrAppend(&s, "... (", name.size(), " bytes)");
+  return s;
+}
+
+namespace {
 
 // "1, 2, 3 and 5 more" for error messages.
 std::string ListIds(const std::vector<std::int64_t>& ids) {
@@ -26,10 +42,6 @@ std::string ListIds(const std::vector<std::int64_t>& ids) {
   std::string s = absl::StrJoin(ids.begin(), ids.begin() + shown, ", ");
   if (ids.size() > shown) absl::StrAppend(&s, " and ", ids.size() - shown, " more");
   return s;
-}
-
-absl::Status UnknownRun(absl::string_view run_id) {
-  return absl::NotFoundError(absl::StrCat("unknown run \"", run_id, "\""));
 }
 
 // Duplicates among ids, sorted.
@@ -42,6 +54,38 @@ std::vector<std::int64_t> Repeated(std::span<const std::int64_t> ids) {
       repeated.push_back(sorted[k]);
   }
   return repeated;
+}
+
+absl::Status UnknownRun(absl::string_view run_id) {
+  return absl::NotFoundError(absl::StrCat("unknown run ", Quoted(run_id)));
+}
+
+// Runs fn, turning an allocation failure into ResourceExhausted. A last line
+// of defence only (validation refuses what would need that much): an
+// exception escaping a worker thread would end the process and every RVE.
+template <typename F>
+absl::Status NoThrow(F&& fn) {
+  try {
+    return fn();
+  } catch (const std::bad_alloc&) {
+    return absl::ResourceExhaustedError("the server ran out of memory for this request");
+  } catch (const std::length_error&) {
+    return absl::ResourceExhaustedError("the request needs a larger array than the server allows");
+  }
+}
+
+// InvalidArgument for too many ids in one request or an id given twice
+// (repeats would multiply the reply).
+absl::Status CheckIdList(std::span<const std::int64_t> ids, std::int64_t max_batch) {
+  if (static_cast<std::int64_t>(ids.size()) > max_batch) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        ids.size(), " ids in one request exceed the server's max batch of ", max_batch));
+  }
+  if (std::vector<std::int64_t> rep = Repeated(ids); !rep.empty()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("material-point ids repeated in the request: ", ListIds(rep)));
+  }
+  return absl::OkStatus();
 }
 
 // Why an RVE was not computed, or OK to go on.
@@ -70,17 +114,20 @@ absl::Status Validate(const InitialStress& initial) {
     case InitialStress::Kind::kTemplate:
       return absl::OkStatus();
     case InitialStress::Kind::kIsotropic:
-      if (!(std::isfinite(initial.pressure) && initial.pressure > 0)) {
-        return absl::InvalidArgumentError(absl::StrCat(
-            "initial pressure ", initial.pressure, " Pa must be finite and > 0 (compression +)"));
+      if (!(initial.pressure > 0 && initial.pressure <= dem::kMaxPressure)) {
+        return absl::InvalidArgumentError(absl::StrCat("initial pressure ", initial.pressure,
+                                                       " Pa must lie in (0, ", dem::kMaxPressure,
+                                                       "] Pa (compression +)"));
       }
       return absl::OkStatus();
     case InitialStress::Kind::kK0:
-      if (!(std::isfinite(initial.vertical_compression) && initial.vertical_compression > 0 &&
-            std::isfinite(initial.k0) && initial.k0 > 0)) {
-        return absl::InvalidArgumentError(absl::StrCat(
-            "K0 state needs a finite vertical stress > 0 (compression +) and K0 > 0, got σv = ",
-            initial.vertical_compression, " Pa, K0 = ", initial.k0));
+      if (!(initial.vertical_compression > 0 && initial.vertical_compression <= dem::kMaxPressure &&
+            initial.k0 > 0 && initial.k0 <= kMaxK0 &&
+            initial.k0 * initial.vertical_compression <= dem::kMaxPressure)) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("K0 state needs a vertical stress in (0, ", dem::kMaxPressure,
+                         "] Pa (compression +) and K0 in (0, ", kMaxK0,
+                         "], got σv = ", initial.vertical_compression, " Pa, K0 = ", initial.k0));
       }
       return absl::OkStatus();
   }
@@ -96,8 +143,8 @@ absl::Status ValidateName(absl::string_view what, absl::string_view name) {
     const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
                     c == '.' || c == '_' || c == '-';
     if (!ok) {
-      return absl::InvalidArgumentError(
-          absl::StrCat(what, " \"", name, "\" may contain only letters, digits, '.', '_' and '-'"));
+      return absl::InvalidArgumentError(absl::StrCat(
+          what, " ", Quoted(name), " may contain only letters, digits, '.', '_' and '-'"));
     }
   }
   return absl::OkStatus();
@@ -107,17 +154,29 @@ Registry::Registry(const RegistryOptions& options) : options_(options), pool_(op
 
 absl::StatusOr<TemplateSummary> Registry::PutTemplate(store::TemplateRecord record, bool replace) {
   if (absl::Status s = ValidateName("template name", record.name); !s.ok()) return s;
+  if (record.description.size() > kMaxDescriptionBytes) {
+    return absl::InvalidArgumentError(absl::StrCat("template description has ",
+                                                   record.description.size(), " bytes; at most ",
+                                                   kMaxDescriptionBytes));
+  }
   // Creating an RVE validates every field and array of the packing.
-  absl::StatusOr<dem::Rve> rve = dem::Rve::Create(record.packing);
+  absl::StatusOr<dem::Rve> rve = absl::InvalidArgumentError("not built");
+  if (absl::Status made = NoThrow([&] {
+        rve = dem::Rve::Create(record.packing);
+        return absl::OkStatus();
+      });
+      !made.ok()) {
+    return made;
+  }
   if (!rve.ok()) {
     return absl::InvalidArgumentError(
-        absl::StrCat("template \"", record.name, "\": ", rve.status().message()));
+        absl::StrCat("template ", Quoted(record.name), ": ", rve.status().message()));
   }
   const TemplateSummary summary = Summarise(record, rve->Observe());
   absl::MutexLock lock(&mu_);
   if (!replace && templates_.contains(record.name)) {
-    return absl::AlreadyExistsError(
-        absl::StrCat("template \"", record.name, "\" exists; upload with replace to overwrite it"));
+    return absl::AlreadyExistsError(absl::StrCat("template ", Quoted(record.name),
+                                                 " exists; upload with replace to overwrite it"));
   }
   std::string name = record.name;
   templates_.insert_or_assign(std::move(name), Template{std::move(record), summary});
@@ -139,11 +198,13 @@ std::vector<store::TemplateRecord> Registry::AllTemplates() const {
 }
 
 absl::StatusOr<store::TemplateRecord> Registry::FindTemplate(absl::string_view name) const {
+  if (absl::Status s = ValidateName("template name", name); !s.ok()) return s;
   absl::MutexLock lock(&mu_);
   auto t = templates_.find(name);
   if (t == templates_.end()) {
-    return absl::NotFoundError(absl::StrCat(
-        "unknown template \"", name, "\"; upload it first (ListTemplates shows the known ones)"));
+    return absl::NotFoundError(
+        absl::StrCat("unknown template ", Quoted(name),
+                     "; upload it first (ListTemplates shows the known ones)"));
   }
   return t->second.record;
 }
@@ -157,7 +218,7 @@ absl::Status Registry::CheckRoom(absl::string_view run_id, std::span<const std::
       if (run->second.contains(id)) taken.push_back(id);
     if (!taken.empty()) {
       return absl::AlreadyExistsError(
-          absl::StrCat("run \"", run_id, "\" already has material points ", ListIds(taken)));
+          absl::StrCat("run ", Quoted(run_id), " already has material points ", ListIds(taken)));
     }
   }
   return CheckCapacity(static_cast<std::int64_t>(ids.size()), bytes);
@@ -247,7 +308,7 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
   }
   std::vector<std::optional<dem::Rve>> consolidated(distinct.size());
   std::vector<absl::Status> status(distinct.size());
-  pool_.ParallelFor(distinct.size(), [&](std::size_t u) {
+  auto consolidate_one = [&](std::size_t u) {
     if (absl::Status c = CheckCancelled(cancelled); !c.ok()) {
       status[u] = c;
       return;
@@ -255,18 +316,29 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
     dem::Rve rve = *prototype;
     absl::StatusOr<dem::RveState> s = dem::RveState{};
     const InitialStress& target = target_of(distinct[u]);
-    if (target.kind == InitialStress::Kind::kIsotropic) {
-      s = dem::ConsolidateIsotropic(rve, target.pressure);
-    } else if (target.kind == InitialStress::Kind::kK0) {
-      s = dem::ConsolidateToStress(rve, target.k0 * target.vertical_compression,
-                                   target.vertical_compression);
-    }
+    const absl::Status guarded = NoThrow([&] {
+      if (target.kind == InitialStress::Kind::kIsotropic) {
+        s = dem::ConsolidateIsotropic(rve, target.pressure, 1e-4, nullptr, cancelled);
+      } else if (target.kind == InitialStress::Kind::kK0) {
+        s = dem::ConsolidateToStress(rve, target.k0 * target.vertical_compression,
+                                     target.vertical_compression, 1e-4, nullptr, cancelled);
+      }
+      return absl::OkStatus();
+    });
+    if (!guarded.ok()) s = guarded;
     if (!s.ok()) {
       status[u] = s.status();
       return;
     }
     rve.ResetReference();  // F is measured from the consolidated state
     consolidated[u].emplace(std::move(rve));
+  };
+  pool_.ParallelFor(distinct.size(), [&](std::size_t u) {
+    const absl::Status guarded = NoThrow([&] {
+      consolidate_one(u);
+      return absl::OkStatus();
+    });
+    if (!guarded.ok()) status[u] = guarded;
   });
   for (std::size_t u = 0; u < distinct.size(); ++u) {
     if (!status[u].ok()) {
@@ -321,8 +393,8 @@ absl::StatusOr<std::vector<std::pair<std::int64_t, Registry::EntryPtr>>> Registr
     }
   }
   if (!missing.empty()) {
-    return absl::NotFoundError(absl::StrCat("run \"", std::string(run_id),
-                                            "\" has no material points ", ListIds(missing)));
+    return absl::NotFoundError(
+        absl::StrCat("run ", Quoted(run_id), " has no material points ", ListIds(missing)));
   }
   return out;
 }
@@ -338,13 +410,10 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
                                                    " increments exceeds the server's max batch of ",
                                                    options_.max_batch));
   }
+  if (absl::Status s = ValidateName("run id", run_id); !s.ok()) return s;
   if (step < 1) return absl::InvalidArgumentError(absl::StrCat("step ", step, " must be >= 1"));
-  if (!(options.max_inertial_number >= 0 && std::isfinite(options.max_inertial_number)) ||
-      !(options.relax_tolerance > 0 && std::isfinite(options.relax_tolerance)) ||
-      options.relax_max_steps < 0) {
-    return absl::InvalidArgumentError(
-        "apply options: max inertial number must be finite and >= 0, relax tolerance finite and "
-        "> 0, relax max steps >= 0");
+  if (absl::Status s = dem::Validate(options); !s.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat("apply options: ", s.message()));
   }
   std::vector<std::int64_t> ids;
   ids.reserve(increments.size());
@@ -362,7 +431,7 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
   if (!entries.ok()) return entries.status();
 
   std::vector<RveOutcome> out(increments.size());
-  pool_.ParallelFor(increments.size(), [&](std::size_t k) {
+  auto apply_one = [&](std::size_t k) {
     const Increment& inc = increments[k];
     Entry& e = *(*entries)[k].second;
     RveOutcome& o = out[k];
@@ -396,13 +465,24 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
       o.status = c;
       return;
     }
+    // Asked between DEM steps of a long increment; the engine undoes it.
+    dem::Interrupt interrupt;
+    if (cancelled) {
+      interrupt = [&cancelled]() -> absl::Status {
+        absl::Status s = cancelled();
+        if (s.ok()) return s;
+        return absl::Status(s.code(), absl::StrCat(s.message(),
+                                                   ": this RVE was stopped part-way and stays at "
+                                                   "its committed step"));
+      };
+    }
     const auto engine_start = std::chrono::steady_clock::now();
     auto engine_seconds = [&] {
       return std::chrono::duration<double>(std::chrono::steady_clock::now() - engine_start).count();
     };
     if (mode == ApplyMode::kTrial) {
       dem::Rve trial = e.rve;  // the committed state stays as it is
-      absl::StatusOr<dem::RveState> s = trial.Apply(inc.delta_f, options);
+      absl::StatusOr<dem::RveState> s = trial.Apply(inc.delta_f, options, interrupt);
       o.engine_seconds = engine_seconds();
       if (!s.ok()) {
         o.status = s.status();
@@ -412,7 +492,7 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
       o.deformation_gradient.topLeftCorner<2, 2>() = trial.DeformationGradient();
       return;
     }
-    absl::StatusOr<dem::RveState> s = e.rve.Apply(inc.delta_f, options);
+    absl::StatusOr<dem::RveState> s = e.rve.Apply(inc.delta_f, options, interrupt);
     o.engine_seconds = engine_seconds();
     if (!s.ok()) {  // the engine leaves the RVE untouched on error
       o.status = s.status();
@@ -424,6 +504,13 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
     o.step = step;
     o.state = *std::move(s);
     o.deformation_gradient.topLeftCorner<2, 2>() = e.rve.DeformationGradient();
+  };
+  pool_.ParallelFor(increments.size(), [&](std::size_t k) {
+    absl::Status guarded = NoThrow([&] {
+      apply_one(k);
+      return absl::OkStatus();
+    });
+    if (!guarded.ok()) out[k].status = guarded;
   });
   return out;
 }
@@ -431,6 +518,8 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
 absl::StatusOr<std::vector<RveOutcome>> Registry::Get(absl::string_view run_id,
                                                       std::span<const std::int64_t> ids,
                                                       bool want_tangent) const {
+  if (absl::Status s = ValidateName("run id", run_id); !s.ok()) return s;
+  if (absl::Status s = CheckIdList(ids, options_.max_batch); !s.ok()) return s;
   std::vector<std::pair<std::int64_t, EntryPtr>> entries;
   {
     absl::MutexLock lock(&mu_);
@@ -451,22 +540,26 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Get(absl::string_view run_id,
   pool_.ParallelFor(entries.size(), [&](std::size_t k) {
     RveOutcome& o = out[k];
     o.id = entries[k].first;
-    if (entries[k].second == nullptr) {
-      o.status = absl::NotFoundError(
-          absl::StrCat("run \"", std::string(run_id), "\" has no material point ", o.id));
-      return;
-    }
-    Entry& e = *entries[k].second;
-    absl::MutexLock lock(&e.mu);
-    o.step = e.step;
-    o.state = e.rve.Observe(want_tangent);
-    o.deformation_gradient.topLeftCorner<2, 2>() = e.rve.DeformationGradient();
+    o.status = NoThrow([&] {
+      if (entries[k].second == nullptr) {
+        return absl::NotFoundError(
+            absl::StrCat("run ", Quoted(run_id), " has no material point ", o.id));
+      }
+      Entry& e = *entries[k].second;
+      absl::MutexLock lock(&e.mu);
+      o.step = e.step;
+      o.state = e.rve.Observe(want_tangent);
+      o.deformation_gradient.topLeftCorner<2, 2>() = e.rve.DeformationGradient();
+      return absl::OkStatus();
+    });
   });
   return out;
 }
 
 absl::Status Registry::Export(absl::string_view run_id, std::span<const std::int64_t> ids,
                               const std::function<absl::Status(store::RveRecord&&)>& sink) const {
+  if (absl::Status s = ValidateName("run id", run_id); !s.ok()) return s;
+  if (absl::Status s = CheckIdList(ids, options_.max_batch); !s.ok()) return s;
   absl::StatusOr<std::vector<std::pair<std::int64_t, EntryPtr>>> entries = Lookup(run_id, ids);
   if (!entries.ok()) return entries.status();
   for (const auto& [id, e] : *entries) {
@@ -504,24 +597,34 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<store::RveRecord> reco
   // Validate and build every RVE before touching the registry.
   std::vector<std::optional<dem::Rve>> made(records.size());
   std::vector<absl::Status> status(records.size());
-  pool_.ParallelFor(records.size(), [&](std::size_t k) {
+  auto build_one = [&](std::size_t k) {
     const store::RveRecord& r = records[k];
     absl::Status s = ValidateName("run id", r.run_id);
     if (s.ok() && r.step < 0) s = absl::InvalidArgumentError(absl::StrCat("step ", r.step, " < 0"));
     if (s.ok() && !r.last_delta_f.allFinite())
       s = absl::InvalidArgumentError("last ΔF is not finite");
     if (s.ok()) {
-      absl::StatusOr<dem::Rve> rve = dem::Rve::Create(r.packing);
-      if (rve.ok()) {
+      s = NoThrow([&] {
+        absl::StatusOr<dem::Rve> rve = dem::Rve::Create(r.packing);
+        if (!rve.ok()) return rve.status();
         made[k].emplace(*std::move(rve));
-      } else {
-        s = rve.status();
-      }
+        return absl::OkStatus();
+      });
     }
     if (!s.ok()) {
-      status[k] = absl::InvalidArgumentError(absl::StrCat(
-          "record ", k, " (run \"", r.run_id, "\", material point ", r.id, "): ", s.message()));
+      const absl::StatusCode code = absl::IsResourceExhausted(s)
+                                        ? absl::StatusCode::kResourceExhausted
+                                        : absl::StatusCode::kInvalidArgument;
+      status[k] = absl::Status(code, absl::StrCat("record ", k, " (run ", Quoted(r.run_id),
+                                                  ", material point ", r.id, "): ", s.message()));
     }
+  };
+  pool_.ParallelFor(records.size(), [&](std::size_t k) {
+    const absl::Status guarded = NoThrow([&] {
+      build_one(k);
+      return absl::OkStatus();
+    });
+    if (!guarded.ok()) status[k] = guarded;
   });
   for (const absl::Status& s : status)
     if (!s.ok()) return s;
@@ -529,8 +632,8 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<store::RveRecord> reco
   std::int64_t bytes = 0;
   for (std::size_t k = 0; k < records.size(); ++k) {
     if (!seen.emplace(records[k].run_id, records[k].id).second) {
-      return absl::AlreadyExistsError(absl::StrCat("run \"", records[k].run_id,
-                                                   "\", material point ", records[k].id,
+      return absl::AlreadyExistsError(absl::StrCat("run ", Quoted(records[k].run_id),
+                                                   ", material point ", records[k].id,
                                                    " appears twice in the import"));
     }
     bytes += static_cast<std::int64_t>(made[k]->MemoryBytes());
@@ -540,8 +643,8 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<store::RveRecord> reco
   for (const store::RveRecord& r : records) {
     auto run = runs_.find(r.run_id);
     if (run != runs_.end() && run->second.contains(r.id)) {
-      return absl::AlreadyExistsError(absl::StrCat("run \"", r.run_id,
-                                                   "\" already has material point ", r.id,
+      return absl::AlreadyExistsError(absl::StrCat("run ", Quoted(r.run_id),
+                                                   " already has material point ", r.id,
                                                    "; drop it before importing"));
     }
   }
@@ -563,6 +666,8 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<store::RveRecord> reco
 
 absl::StatusOr<std::int64_t> Registry::Drop(absl::string_view run_id,
                                             std::span<const std::int64_t> ids) {
+  if (absl::Status s = ValidateName("run id", run_id); !s.ok()) return s;
+  if (absl::Status s = CheckIdList(ids, options_.max_batch); !s.ok()) return s;
   absl::MutexLock lock(&mu_);
   auto run = runs_.find(run_id);
   if (run == runs_.end()) {
@@ -572,8 +677,8 @@ absl::StatusOr<std::int64_t> Registry::Drop(absl::string_view run_id,
   for (std::int64_t id : ids)
     if (!run->second.contains(id)) missing.push_back(id);
   if (!missing.empty()) {
-    return absl::NotFoundError(absl::StrCat("run \"", std::string(run_id),
-                                            "\" has no material points ", ListIds(missing)));
+    return absl::NotFoundError(
+        absl::StrCat("run ", Quoted(run_id), " has no material points ", ListIds(missing)));
   }
   std::int64_t dropped = 0;
   auto drop = [&](Run::iterator it) {
@@ -587,7 +692,7 @@ absl::StatusOr<std::int64_t> Registry::Drop(absl::string_view run_id,
   } else {
     for (std::int64_t id : ids) {
       auto it = run->second.find(id);
-      if (it != run->second.end()) drop(it);  // an id repeated in `ids` is gone already
+      if (it != run->second.end()) drop(it);
     }
   }
   if (run->second.empty()) runs_.erase(run);

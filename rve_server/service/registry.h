@@ -86,14 +86,21 @@ struct RegistryStats {
 };
 
 // OK while the call goes on; DeadlineExceeded or Cancelled once the caller
-// gave up (then RVEs not yet started are skipped).
+// gave up (then RVEs not yet started are skipped, and the engine stops long
+// increments, consolidations and relaxations between DEM steps, undoing
+// them). The same type as dem::Interrupt.
 using CancelFn = std::function<absl::Status()>;
 
 // Finite positive stresses (and K0) for the kind; kTemplate is always valid.
 absl::Status Validate(const InitialStress& initial);
 
 // Checks a run id or template name: [A-Za-z0-9._-], 1..128 characters.
+// Its message quotes at most a bounded, escaped prefix of the name.
 absl::Status ValidateName(absl::string_view what, absl::string_view name);
+
+// A name for an error message: quoted, C-escaped, at most 64 bytes of it
+// and its length when longer (error messages never echo unbounded input).
+std::string Quoted(absl::string_view name);
 
 class Registry {
  public:
@@ -131,7 +138,9 @@ class Registry {
                                                 const CancelFn& cancelled = {});
 
   // Current states; empty ids: the whole run (sorted by id). Unknown ids get
-  // a NotFound outcome; an unknown run is NotFound for the call.
+  // a NotFound outcome; an unknown run is NotFound for the call. Ids given
+  // twice or more than max_batch ids are InvalidArgument (so for Export and
+  // Drop).
   absl::StatusOr<std::vector<RveOutcome>> Get(absl::string_view run_id,
                                               std::span<const std::int64_t> ids,
                                               bool want_tangent) const;

@@ -1,7 +1,12 @@
 #include "rve_server/service/rve_service.h"
 
+#include <grpcpp/impl/codegen/method_handler.h>
+
 #include <algorithm>
 #include <atomic>
+#include <functional>
+#include <new>
+#include <stdexcept>
 #include <utility>
 
 #include "absl/strings/match.h"
@@ -25,13 +30,78 @@ std::vector<std::int64_t> Ids(const google::protobuf::RepeatedField<std::int64_t
 // ~20 µs here), so that is done at most every kCancelPollInterval.
 constexpr auto kCancelPollInterval = std::chrono::milliseconds(5);
 
-CancelFn Canceller(grpc::ServerContext* ctx) {
+// Index of Import among the service's methods (the order of the proto).
+constexpr int kImportMethodIndex = 6;
+
+// A handler's body, with allocation failures turned into RESOURCE_EXHAUSTED:
+// a last line of defence only (validation refuses requests that would need
+// that much); gRPC would otherwise answer UNKNOWN.
+template <typename F>
+grpc::Status GuardHandler(const char* method, F&& body) {
+  try {
+    return body();
+  } catch (const std::bad_alloc&) {
+    Log("error", "out of memory", {{"method", method}});
+    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                        absl::StrCat(method, ": the server ran out of memory for this request"));
+  } catch (const std::length_error&) {
+    Log("error", "array too large", {{"method", method}});
+    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                        absl::StrCat(method,
+                                     ": the request needs a larger array than the server "
+                                     "allows"));
+  }
+}
+
+// Serialised bytes of one RveResult at most: every int64 at its widest, the
+// state with a tangent (or not) or a message of the longest kept length.
+std::int64_t MaxResultBytes(bool want_tangent) {
+  auto widest = [](v1::RveResult& r) {
+    r.set_id(-1);
+    r.set_code(-1);
+    r.set_step(-1);
+    r.set_engine_seconds(1.0);
+  };
+  v1::RveResult with_state;
+  widest(with_state);
+  dem::RveState state;
+  state.has_tangent = want_tangent;
+  ToProto(state, Eigen::Matrix3d::Identity(), with_state.mutable_state());
+  // Zero scalars are not serialised: set every one.
+  v1::RveState* st = with_state.mutable_state();
+  for (auto set : {&v1::RveState::set_fabric_anisotropy, &v1::RveState::set_void_ratio,
+                   &v1::RveState::set_porosity, &v1::RveState::set_coordination,
+                   &v1::RveState::set_mechanical_coordination, &v1::RveState::set_permeability,
+                   &v1::RveState::set_mean_rotation, &v1::RveState::set_kinetic_energy,
+                   &v1::RveState::set_unbalanced_force_ratio, &v1::RveState::set_volume,
+                   &v1::RveState::set_time_step, &v1::RveState::set_mass_scale,
+                   &v1::RveState::set_mean_pressure, &v1::RveState::set_deviator_stress}) {
+    (st->*set)(1.0);
+  }
+  st->set_num_contacts(-1);
+  st->set_steps(-1);
+  st->set_fabric_defined(true);
+  v1::RveResult with_message;
+  widest(with_message);
+  with_message.set_message(std::string(kMaxResultMessageBytes, 'x'));
+  return static_cast<std::int64_t>(
+             std::max(with_state.ByteSizeLong(), with_message.ByteSizeLong())) +
+         4;  // field tag and length of the repeated entry
+}
+
+}  // namespace
+
+CancelFn RveServiceImpl::Canceller(grpc::ServerContext* ctx) const {
   struct State {
     std::atomic<std::int64_t> next_poll_ns{0};
     std::atomic<bool> cancelled{false};
   };
   auto state = std::make_shared<State>();
-  return [ctx, state]() -> absl::Status {
+  const std::atomic<bool>* cancel_all = &cancel_all_;
+  return [ctx, state, cancel_all]() -> absl::Status {
+    if (cancel_all->load(std::memory_order_relaxed)) {
+      return absl::CancelledError("the server is shutting down and the drain time ran out");
+    }
     const auto now = std::chrono::steady_clock::now();
     if (std::chrono::system_clock::now() > ctx->deadline())
       return absl::DeadlineExceededError("the call's deadline passed");
@@ -48,9 +118,26 @@ CancelFn Canceller(grpc::ServerContext* ctx) {
   };
 }
 
+namespace {
+
 std::string Peer(grpc::ServerContext* ctx) { return ctx->peer(); }
 
 }  // namespace
+
+grpc::Status RveServiceImpl::CheckReplySize(std::int64_t count, bool want_tangent,
+                                            const char* what) const {
+  static const std::int64_t kWithTangent = MaxResultBytes(true);
+  static const std::int64_t kWithout = MaxResultBytes(false);
+  const std::int64_t each = want_tangent ? kWithTangent : kWithout;
+  const std::int64_t budget = options_.max_message_bytes - kChunkOverheadBytes;
+  if (count * each <= budget) return grpc::Status::OK;
+  return grpc::Status(
+      grpc::StatusCode::INVALID_ARGUMENT,
+      absl::StrCat(what, ": the reply for ", count, " RVEs", want_tangent ? " with tangents" : "",
+                   " could take ", count * each, " bytes, over the server's message limit of ",
+                   options_.max_message_bytes, " bytes; ask for at most ",
+                   std::max<std::int64_t>(1, budget / each), " per call. Nothing was changed"));
+}
 
 grpc::Status ToGrpc(const absl::Status& s) {
   if (s.ok()) return grpc::Status::OK;
@@ -74,7 +161,52 @@ bool Authorized(const std::multimap<grpc::string_ref, grpc::string_ref>& metadat
 RveServiceImpl::RveServiceImpl(Registry& registry, ServiceOptions options)
     : registry_(registry),
       options_(std::move(options)),
-      started_(std::chrono::steady_clock::now()) {}
+      started_(std::chrono::steady_clock::now()) {
+  MarkMethodStreamed(
+      kImportMethodIndex,
+      new grpc::internal::ClientStreamingHandler<RveServiceImpl, grpc::ByteBuffer,
+                                                 v1::ImportResponse>(
+          [](RveServiceImpl* service, grpc::ServerContext* ctx,
+             grpc::ServerReader<grpc::ByteBuffer>* reader, v1::ImportResponse* resp) {
+            return GuardHandler("Import", [&] { return service->ImportBytes(ctx, reader, resp); });
+          },
+          this));
+}
+
+grpc::Status RveServiceImpl::UploadTemplate(grpc::ServerContext* ctx,
+                                            const v1::UploadTemplateRequest* req,
+                                            v1::TemplateInfo* resp) {
+  return GuardHandler("UploadTemplate", [&] { return DoUploadTemplate(ctx, req, resp); });
+}
+grpc::Status RveServiceImpl::CreateRves(grpc::ServerContext* ctx, const v1::CreateRvesRequest* req,
+                                        v1::CreateRvesResponse* resp) {
+  return GuardHandler("CreateRves", [&] { return DoCreateRves(ctx, req, resp); });
+}
+grpc::Status RveServiceImpl::Apply(grpc::ServerContext* ctx, const v1::ApplyRequest* req,
+                                   v1::ApplyResponse* resp) {
+  return GuardHandler("Apply", [&] { return DoApply(ctx, req, resp); });
+}
+grpc::Status RveServiceImpl::GetStates(grpc::ServerContext* ctx, const v1::GetStatesRequest* req,
+                                       v1::GetStatesResponse* resp) {
+  return GuardHandler("GetStates", [&] { return DoGetStates(ctx, req, resp); });
+}
+grpc::Status RveServiceImpl::DoExport(grpc::ServerContext* ctx, const v1::ExportRequest* req,
+                                      grpc::ServerWriter<v1::RveChunk>* writer) {
+  return GuardHandler("Export", [&] { return DoExport(ctx, req, writer); });
+}
+grpc::Status RveServiceImpl::Import(grpc::ServerContext*, grpc::ServerReader<v1::RveChunk>*,
+                                    v1::ImportResponse*) {
+  return grpc::Status(grpc::StatusCode::INTERNAL, "Import is served by ImportBytes");
+}
+grpc::Status RveServiceImpl::Drop(grpc::ServerContext* ctx, const v1::DropRequest* req,
+                                  v1::DropResponse* resp) {
+  return GuardHandler("Drop", [&] { return DoDrop(ctx, req, resp); });
+}
+grpc::Status RveServiceImpl::RunElementTest(grpc::ServerContext* ctx,
+                                            const v1::ElementTestRequest* req,
+                                            grpc::ServerWriter<v1::ElementTestUpdate>* writer) {
+  return GuardHandler("RunElementTest", [&] { return DoRunElementTest(ctx, req, writer); });
+}
 
 grpc::Status RveServiceImpl::CheckAuth(grpc::ServerContext* ctx) const {
   if (Authorized(ctx->client_metadata(), options_.auth_token)) return grpc::Status::OK;
@@ -83,9 +215,9 @@ grpc::Status RveServiceImpl::CheckAuth(grpc::ServerContext* ctx) const {
                       "this server needs \"authorization: Bearer <token>\" metadata");
 }
 
-grpc::Status RveServiceImpl::UploadTemplate(grpc::ServerContext* ctx,
-                                            const v1::UploadTemplateRequest* req,
-                                            v1::TemplateInfo* resp) {
+grpc::Status RveServiceImpl::DoUploadTemplate(grpc::ServerContext* ctx,
+                                              const v1::UploadTemplateRequest* req,
+                                              v1::TemplateInfo* resp) {
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
   if (!req->has_entry()) {
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "entry (the template) is missing");
@@ -110,9 +242,13 @@ grpc::Status RveServiceImpl::ListTemplates(grpc::ServerContext* ctx,
   return grpc::Status::OK;
 }
 
-grpc::Status RveServiceImpl::CreateRves(grpc::ServerContext* ctx, const v1::CreateRvesRequest* req,
-                                        v1::CreateRvesResponse* resp) {
+grpc::Status RveServiceImpl::DoCreateRves(grpc::ServerContext* ctx,
+                                          const v1::CreateRvesRequest* req,
+                                          v1::CreateRvesResponse* resp) {
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
+  if (req->want_state()) {
+    if (grpc::Status r = CheckReplySize(req->ids_size(), false, "CreateRves"); !r.ok()) return r;
+  }
   if (req->has_initial_stress() && req->initial_stresses_size() > 0) {
     return grpc::Status(
         grpc::StatusCode::INVALID_ARGUMENT,
@@ -156,9 +292,16 @@ grpc::Status RveServiceImpl::CreateRves(grpc::ServerContext* ctx, const v1::Crea
   return grpc::Status::OK;
 }
 
-grpc::Status RveServiceImpl::Apply(grpc::ServerContext* ctx, const v1::ApplyRequest* req,
-                                   v1::ApplyResponse* resp) {
+grpc::Status RveServiceImpl::DoApply(grpc::ServerContext* ctx, const v1::ApplyRequest* req,
+                                     v1::ApplyResponse* resp) {
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
+  // Sized before anything is computed: a COMMIT that could not be answered
+  // would commit and fail on every retry.
+  if (grpc::Status r =
+          CheckReplySize(req->increments_size(), req->options().want_tangent(), "Apply");
+      !r.ok()) {
+    return r;
+  }
   ApplyMode mode;
   switch (req->mode()) {
     case v1::APPLY_MODE_COMMIT:
@@ -199,10 +342,14 @@ grpc::Status RveServiceImpl::Apply(grpc::ServerContext* ctx, const v1::ApplyRequ
   return grpc::Status::OK;
 }
 
-grpc::Status RveServiceImpl::GetStates(grpc::ServerContext* ctx, const v1::GetStatesRequest* req,
-                                       v1::GetStatesResponse* resp) {
+grpc::Status RveServiceImpl::DoGetStates(grpc::ServerContext* ctx, const v1::GetStatesRequest* req,
+                                         v1::GetStatesResponse* resp) {
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
+  if (absl::Status n = ValidateName("run id", req->run_id()); !n.ok()) return ToGrpc(n);
   const std::vector<std::int64_t> ids = Ids(req->ids());
+  const std::int64_t count =
+      ids.empty() ? registry_.CountRves(req->run_id()) : static_cast<std::int64_t>(ids.size());
+  if (grpc::Status r = CheckReplySize(count, req->want_tangent(), "GetStates"); !r.ok()) return r;
   absl::StatusOr<std::vector<RveOutcome>> out =
       registry_.Get(req->run_id(), ids, req->want_tangent());
   if (!out.ok()) return ToGrpc(out.status());
@@ -248,16 +395,53 @@ grpc::Status RveServiceImpl::Export(grpc::ServerContext* ctx, const v1::ExportRe
   return grpc::Status::OK;
 }
 
-grpc::Status RveServiceImpl::Import(grpc::ServerContext* ctx,
-                                    grpc::ServerReader<v1::RveChunk>* reader,
-                                    v1::ImportResponse* resp) {
+grpc::Status RveServiceImpl::ImportBytes(grpc::ServerContext* ctx,
+                                         grpc::ServerReader<grpc::ByteBuffer>* reader,
+                                         v1::ImportResponse* resp) {
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
+  // All or nothing: every rule below is checked before anything is hosted,
+  // and a stream that breaks one imports nothing.
+  auto malformed = [](const std::string& why) {
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                        absl::StrCat("malformed import stream: ", why, "; nothing imported"));
+  };
+  const std::int64_t max_records = registry_.options().max_rves;
   std::vector<store::RveRecord> records;
-  v1::RveChunk chunk;
-  std::int64_t declared = -1;
+  grpc::ByteBuffer bytes;
+  std::int64_t declared = 0;
   int chunks = 0;
-  while (reader->Read(&chunk)) {
-    if (chunks == 0 && chunk.total_records() > 0) declared = chunk.total_records();
+  // What the stream has carried, bytes: held until the end (all or nothing),
+  // so bounded by the server's memory limit for RVEs.
+  std::int64_t received = 0;
+  const std::int64_t max_bytes = registry_.options().max_memory_bytes;
+  while (reader->Read(&bytes)) {
+    received += static_cast<std::int64_t>(bytes.Length());
+    if (received > max_bytes) {
+      return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                          absl::StrCat("the import stream exceeds the server's memory limit of ",
+                                       max_bytes, " bytes; nothing imported"));
+    }
+    v1::RveChunk chunk;
+    if (!grpc::SerializationTraits<v1::RveChunk>::Deserialize(&bytes, &chunk).ok()) {
+      return malformed(absl::StrCat("chunk ", chunks, " is not a valid RveChunk message"));
+    }
+    if (chunks == 0) {
+      declared = chunk.total_records();
+      if (declared < 1 || declared > max_records) {
+        return malformed(absl::StrCat("the first chunk must set total_records to 1..", max_records,
+                                      ", got ", declared));
+      }
+    } else if (chunk.total_records() != 0 && chunk.total_records() != declared) {
+      return malformed(absl::StrCat("chunk ", chunks, " declares total_records ",
+                                    chunk.total_records(), " after the first declared ", declared));
+    }
+    if (chunk.records_size() == 0) {
+      return malformed(absl::StrCat("chunk ", chunks, " carries no records"));
+    }
+    if (static_cast<std::int64_t>(records.size()) + chunk.records_size() > declared) {
+      return malformed(absl::StrCat("the stream carries more than the ", declared,
+                                    " records it declared (chunk ", chunks, ")"));
+    }
     for (int k = 0; k < chunk.records_size(); ++k) {
       absl::StatusOr<store::RveRecord> r = FromProto(chunk.records(k));
       if (!r.ok()) {
@@ -269,11 +453,13 @@ grpc::Status RveServiceImpl::Import(grpc::ServerContext* ctx,
     }
     ++chunks;
   }
-  if (ctx->IsCancelled()) return grpc::Status(grpc::StatusCode::CANCELLED, "import cancelled");
-  if (declared >= 0 && declared != static_cast<std::int64_t>(records.size())) {
-    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                        absl::StrCat("import stream declared ", declared, " records but carried ",
-                                     records.size(), " (truncated stream?); nothing imported"));
+  if (ctx->IsCancelled()) {
+    return grpc::Status(grpc::StatusCode::CANCELLED, "import cancelled; nothing imported");
+  }
+  if (chunks == 0) return malformed("no chunks");
+  if (declared != static_cast<std::int64_t>(records.size())) {
+    return malformed(absl::StrCat("it declared ", declared, " records but carried ", records.size(),
+                                  " (truncated stream?)"));
   }
   absl::StatusOr<std::int64_t> n = registry_.Import(std::move(records));
   if (!n.ok()) return ToGrpc(n.status());
@@ -282,8 +468,8 @@ grpc::Status RveServiceImpl::Import(grpc::ServerContext* ctx,
   return grpc::Status::OK;
 }
 
-grpc::Status RveServiceImpl::Drop(grpc::ServerContext* ctx, const v1::DropRequest* req,
-                                  v1::DropResponse* resp) {
+grpc::Status RveServiceImpl::DoDrop(grpc::ServerContext* ctx, const v1::DropRequest* req,
+                                    v1::DropResponse* resp) {
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
   const std::vector<std::int64_t> ids = Ids(req->ids());
   absl::StatusOr<std::int64_t> n = registry_.Drop(req->run_id(), ids);
@@ -329,9 +515,9 @@ grpc::Status RveServiceImpl::GetServerInfo(grpc::ServerContext* ctx, const v1::S
   return grpc::Status::OK;
 }
 
-grpc::Status RveServiceImpl::RunElementTest(grpc::ServerContext* ctx,
-                                            const v1::ElementTestRequest* req,
-                                            grpc::ServerWriter<v1::ElementTestUpdate>* writer) {
+grpc::Status RveServiceImpl::DoRunElementTest(grpc::ServerContext* ctx,
+                                              const v1::ElementTestRequest* req,
+                                              grpc::ServerWriter<v1::ElementTestUpdate>* writer) {
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
   absl::StatusOr<dem::ElementTestSpec> spec = FromProto(*req);
   if (!spec.ok()) return ToGrpc(spec.status());
@@ -343,14 +529,16 @@ grpc::Status RveServiceImpl::RunElementTest(grpc::ServerContext* ctx,
   // test is one long sequential run). Progress goes out every 5 %.
   double last_sent = -1.0;
   bool client_gone = false;
-  absl::StatusOr<std::vector<dem::ElementTestRow>> rows =
-      dem::RunElementTest(*rve, *spec, [&](double fraction) {
+  absl::StatusOr<std::vector<dem::ElementTestRow>> rows = dem::RunElementTest(
+      *rve, *spec,
+      [&](double fraction) {
         if (client_gone || fraction - last_sent < 0.05) return;
         v1::ElementTestUpdate u;
         u.set_progress(fraction);
         client_gone = !writer->Write(u) || ctx->IsCancelled();
         last_sent = fraction;
-      });
+      },
+      Canceller(ctx));
   if (!rows.ok()) return ToGrpc(rows.status());
   if (client_gone) return grpc::Status(grpc::StatusCode::CANCELLED, "the client went away");
   constexpr int kRowsPerMessage = 1000;

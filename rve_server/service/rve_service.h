@@ -5,6 +5,7 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include <atomic>
 #include <chrono>
 #include <string>
 
@@ -45,6 +46,7 @@ class RveServiceImpl final : public v1::RveService::Service {
                          v1::GetStatesResponse* resp) override;
   grpc::Status Export(grpc::ServerContext* ctx, const v1::ExportRequest* req,
                       grpc::ServerWriter<v1::RveChunk>* writer) override;
+  // Not called: Import is served by ImportBytes (see the constructor).
   grpc::Status Import(grpc::ServerContext* ctx, grpc::ServerReader<v1::RveChunk>* reader,
                       v1::ImportResponse* resp) override;
   grpc::Status Drop(grpc::ServerContext* ctx, const v1::DropRequest* req,
@@ -56,13 +58,42 @@ class RveServiceImpl final : public v1::RveService::Service {
   grpc::Status RunElementTest(grpc::ServerContext* ctx, const v1::ElementTestRequest* req,
                               grpc::ServerWriter<v1::ElementTestUpdate>* writer) override;
 
+  // Makes every call in flight stop at its next cancellation check (between
+  // RVEs and between DEM steps) with CANCELLED: a drain whose grace ran out.
+  void CancelAll() { cancel_all_.store(true); }
+
  private:
+  // The handlers' bodies; the overrides run them behind GuardHandler.
+  grpc::Status DoUploadTemplate(grpc::ServerContext* ctx, const v1::UploadTemplateRequest* req,
+                                v1::TemplateInfo* resp);
+  grpc::Status DoCreateRves(grpc::ServerContext* ctx, const v1::CreateRvesRequest* req,
+                            v1::CreateRvesResponse* resp);
+  grpc::Status DoApply(grpc::ServerContext* ctx, const v1::ApplyRequest* req,
+                       v1::ApplyResponse* resp);
+  grpc::Status DoGetStates(grpc::ServerContext* ctx, const v1::GetStatesRequest* req,
+                           v1::GetStatesResponse* resp);
+  grpc::Status DoExport(grpc::ServerContext* ctx, const v1::ExportRequest* req,
+                        grpc::ServerWriter<v1::RveChunk>* writer);
+  // Import reads raw bytes so that an unparseable chunk is told apart from
+  // the end of the stream (a typed reader reports both as "no more").
+  grpc::Status ImportBytes(grpc::ServerContext* ctx, grpc::ServerReader<grpc::ByteBuffer>* reader,
+                           v1::ImportResponse* resp);
+  grpc::Status DoDrop(grpc::ServerContext* ctx, const v1::DropRequest* req, v1::DropResponse* resp);
+  grpc::Status DoRunElementTest(grpc::ServerContext* ctx, const v1::ElementTestRequest* req,
+                                grpc::ServerWriter<v1::ElementTestUpdate>* writer);
+  // The call's deadline and cancellation, and CancelAll, as a CancelFn.
+  CancelFn Canceller(grpc::ServerContext* ctx) const;
+  // INVALID_ARGUMENT when a reply of `count` RveResults (with tangents or
+  // not) could exceed the message limit: refused before anything changes.
+  grpc::Status CheckReplySize(std::int64_t count, bool want_tangent, const char* what) const;
+
   // UNAUTHENTICATED unless the call carries the token (when one is set).
   grpc::Status CheckAuth(grpc::ServerContext* ctx) const;
 
   Registry& registry_;
   const ServiceOptions options_;
   const std::chrono::steady_clock::time_point started_;
+  std::atomic<bool> cancel_all_{false};
 };
 
 }  // namespace rvehub::service

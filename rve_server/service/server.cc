@@ -2,11 +2,16 @@
 
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/health_check_service_interface.h>
+#include <grpcpp/impl/codegen/method_handler.h>
+#include <grpcpp/impl/codegen/rpc_service_method.h>
 #include <grpcpp/support/server_interceptor.h>
 
 #include <filesystem>
+#include <string_view>
+#include <thread>
 
 #include "absl/strings/str_cat.h"
+#include "absl/synchronization/notification.h"
 #include "rve_server/service/log.h"
 #include "store/checkpoint.h"
 
@@ -20,6 +25,11 @@ constexpr char kTemplatesFile[] = "templates.h5";
 // without the token the reply is replaced by an empty message and the status
 // by UNAUTHENTICATED. (Our service also refuses such calls before doing
 // anything; grpc's services only read, so replacing their reply suffices.)
+// A denied health Watch is cancelled at once (the client sees CANCELLED): it
+// would otherwise stay open, sending empty messages, and never end with the
+// UNAUTHENTICATED status.
+// Also turns gRPC's INTERNAL for a request that does not parse into
+// INVALID_ARGUMENT: bad input is the client's error, not the server's.
 class AuthInterceptor final : public grpc::experimental::Interceptor {
  public:
   AuthInterceptor(grpc::experimental::ServerRpcInfo* info, const std::string* token)
@@ -29,6 +39,26 @@ class AuthInterceptor final : public grpc::experimental::Interceptor {
     using grpc::experimental::InterceptionHookPoints;
     if (methods->QueryInterceptionHookPoint(InterceptionHookPoints::POST_RECV_INITIAL_METADATA)) {
       denied_ = !Authorized(*methods->GetRecvInitialMetadata(), *token_);
+      // Only Watch: our own streaming methods refuse with UNAUTHENTICATED.
+      if (denied_ && std::string_view(info_->method()) == "/grpc.health.v1.Health/Watch" &&
+          info_->server_context() != nullptr) {
+        info_->server_context()->TryCancel();
+      }
+    }
+    // Only a request read before the handler runs (unary, server streaming):
+    // a client stream's end also reads no message.
+    if (methods->QueryInterceptionHookPoint(InterceptionHookPoints::POST_RECV_MESSAGE) &&
+        methods->GetRecvMessage() == nullptr &&
+        (info_->type() == grpc::experimental::ServerRpcInfo::Type::UNARY ||
+         info_->type() == grpc::experimental::ServerRpcInfo::Type::SERVER_STREAMING)) {
+      unparsed_ = true;
+    }
+    if (!denied_ && unparsed_ &&
+        methods->QueryInterceptionHookPoint(InterceptionHookPoints::PRE_SEND_STATUS) &&
+        methods->GetSendStatus().error_code() == grpc::StatusCode::INTERNAL) {
+      methods->ModifySendStatus(grpc::Status(
+          grpc::StatusCode::INVALID_ARGUMENT,
+          absl::StrCat(info_->method(), ": the request is not a valid message of its type")));
     }
     if (denied_ && methods->QueryInterceptionHookPoint(InterceptionHookPoints::PRE_SEND_MESSAGE)) {
       grpc::ByteBuffer* buffer = methods->GetSerializedSendMessage();
@@ -49,6 +79,7 @@ class AuthInterceptor final : public grpc::experimental::Interceptor {
   grpc::experimental::ServerRpcInfo* info_;
   const std::string* token_;
   bool denied_ = false;
+  bool unparsed_ = false;  // the request message did not parse
 };
 
 class AuthInterceptorFactory final : public grpc::experimental::ServerInterceptorFactoryInterface {
@@ -61,6 +92,62 @@ class AuthInterceptorFactory final : public grpc::experimental::ServerIntercepto
 
  private:
   const std::string token_;
+};
+
+// grpc.reflection.v1, which current tools ask for first. This gRPC (1.51)
+// ships only v1alpha (libgrpc++_reflection exports no v1 symbols), and the
+// two protocols' messages are the same on the wire (same fields, same
+// numbers), so each v1 stream is forwarded, bytes as they are, to the
+// v1alpha service over the server's in-process channel (with the caller's
+// token, which the interceptor checks there too).
+class ReflectionV1Proxy final : public grpc::Service {
+ public:
+  ReflectionV1Proxy() {
+    using Handler =
+        grpc::internal::BidiStreamingHandler<ReflectionV1Proxy, grpc::ByteBuffer, grpc::ByteBuffer>;
+    AddMethod(new grpc::internal::RpcServiceMethod(
+        "/grpc.reflection.v1.ServerReflection/ServerReflectionInfo",
+        grpc::internal::RpcMethod::BIDI_STREAMING,
+        new Handler(
+            [](ReflectionV1Proxy* self, grpc::ServerContext* ctx,
+               grpc::ServerReaderWriter<grpc::ByteBuffer, grpc::ByteBuffer>* stream) {
+              return self->Forward(ctx, stream);
+            },
+            this)));
+  }
+  void set_server(grpc::Server* server) { server_.store(server); }
+
+ private:
+  grpc::Status Forward(grpc::ServerContext* ctx,
+                       grpc::ServerReaderWriter<grpc::ByteBuffer, grpc::ByteBuffer>* stream) {
+    grpc::Server* server = server_.load();
+    if (server == nullptr) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "starting up");
+    std::shared_ptr<grpc::Channel> channel = server->InProcessChannel(grpc::ChannelArguments());
+    grpc::ClientContext upstream_ctx;
+    upstream_ctx.set_deadline(ctx->deadline());
+    auto auth = ctx->client_metadata().find("authorization");
+    if (auth != ctx->client_metadata().end()) {
+      upstream_ctx.AddMetadata("authorization",
+                               std::string(auth->second.data(), auth->second.size()));
+    }
+    std::unique_ptr<grpc::ClientReaderWriter<grpc::ByteBuffer, grpc::ByteBuffer>> upstream(
+        grpc::internal::ClientReaderWriterFactory<grpc::ByteBuffer, grpc::ByteBuffer>::Create(
+            channel.get(),
+            grpc::internal::RpcMethod(
+                "/grpc.reflection.v1alpha.ServerReflection/ServerReflectionInfo",
+                grpc::internal::RpcMethod::BIDI_STREAMING),
+            &upstream_ctx));
+    // The reflection protocol answers each request with one response.
+    grpc::ByteBuffer request, response;
+    while (stream->Read(&request)) {
+      if (!upstream->Write(request) || !upstream->Read(&response)) break;
+      if (!stream->Write(response)) break;
+    }
+    upstream->WritesDone();
+    return upstream->Finish();
+  }
+
+  std::atomic<grpc::Server*> server_{nullptr};
 };
 
 std::string NowUtc() {
@@ -106,9 +193,13 @@ absl::StatusOr<std::unique_ptr<RveServer>> RveServer::Start(const ServerConfig& 
   }
   builder.AddListeningPort(config.listen, creds, &s->port_);
   builder.RegisterService(s->service_.get());
+  auto reflection_v1 = std::make_unique<ReflectionV1Proxy>();
+  ReflectionV1Proxy* reflection_v1_proxy = reflection_v1.get();
+  s->reflection_v1_ = std::move(reflection_v1);  // outlives the server (member order)
+  builder.RegisterService(reflection_v1_proxy);
   builder.SetMaxReceiveMessageSize(static_cast<int>(config.max_message_bytes));
   builder.SetMaxSendMessageSize(static_cast<int>(config.max_message_bytes));
-  if (!config.auth_token.empty()) {
+  {  // also without a token: it maps unparseable requests (see AuthInterceptor)
     std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> f;
     f.push_back(std::make_unique<AuthInterceptorFactory>(config.auth_token));
     builder.experimental().SetInterceptorCreators(std::move(f));
@@ -118,6 +209,7 @@ absl::StatusOr<std::unique_ptr<RveServer>> RveServer::Start(const ServerConfig& 
     return absl::UnavailableError(
         absl::StrCat("cannot listen on ", config.listen, " (address in use or not local?)"));
   }
+  reflection_v1_proxy->set_server(s->server_.get());
   // Health by service name too, so that probes may ask for ours.
   s->server_->GetHealthCheckService()->SetServingStatus(v1::RveService::service_full_name(), true);
   s->server_->GetHealthCheckService()->SetServingStatus(true);
@@ -151,12 +243,32 @@ absl::Status RveServer::Stop(std::chrono::milliseconds grace) {
   stopped_ = true;
   Log("info", "draining", {{"grace_ms", absl::StrCat(grace.count())}});
   server_->GetHealthCheckService()->SetServingStatus(false);
+  // gRPC cancels the calls still running when the grace ends; calls busy in
+  // the engine also stop at their next check (CancelAll), so that the drain
+  // ends about when the grace does.
+  absl::Notification drained;
+  std::thread enforcer([&] {
+    if (!drained.WaitForNotificationWithTimeout(absl::FromChrono(grace))) service_->CancelAll();
+  });
   server_->Shutdown(std::chrono::system_clock::now() + grace);
   server_->Wait();
-  absl::Status saved = absl::OkStatus();
-  if (!config_.checkpoint_dir.empty()) saved = SaveCheckpoint(config_.checkpoint_dir);
+  drained.Notify();
+  enforcer.join();
+  const RegistryStats stats = registry_->Stats();
+  if (config_.checkpoint_dir.empty()) {
+    // Nothing is saved: say so, with what is lost.
+    Log(stats.num_rves > 0 || stats.num_templates > 0 ? "warn" : "info", "stopped",
+        {{"checkpoint", "none (no checkpoint directory)"},
+         {"dropped_rves", absl::StrCat(stats.num_rves)},
+         {"dropped_templates", absl::StrCat(stats.num_templates)}});
+    return absl::OkStatus();
+  }
+  const absl::Status saved = SaveCheckpoint(config_.checkpoint_dir);
   Log(saved.ok() ? "info" : "error", "stopped",
-      {{"checkpoint", saved.ok() ? "ok" : std::string(saved.message())}});
+      {{"checkpoint", saved.ok() ? absl::StrCat("saved to ", config_.checkpoint_dir)
+                                 : std::string(saved.message())},
+       {"rves", absl::StrCat(stats.num_rves)},
+       {"templates", absl::StrCat(stats.num_templates)}});
   return saved;
 }
 

@@ -30,7 +30,6 @@ struct ServerConfig {
   std::string checkpoint_dir;  // set: load on start, save on Stop
 };
 
-
 class RveServer {
  public:
   // Loads the checkpoint directory's files when present, then listens.
@@ -60,6 +59,7 @@ class RveServer {
   ServerConfig config_;
   std::unique_ptr<Registry> registry_;
   std::unique_ptr<RveServiceImpl> service_;
+  std::unique_ptr<grpc::Service> reflection_v1_;  // grpc.reflection.v1, forwarded to v1alpha
   std::unique_ptr<grpc::Server> server_;
   int port_ = 0;
   bool stopped_ = false;
