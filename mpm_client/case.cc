@@ -21,16 +21,12 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
+#include "rve_server/common/status_macros.h"
 #include "rve_server/common/text_file.h"
 #include "rve_server/engine/material.h"
 
 namespace rvehub::mpm {
 namespace {
-
-#define RETURN_IF_ERROR(expr)                          \
-  do {                                                 \
-    if (absl::Status s_ = (expr); !s_.ok()) return s_; \
-  } while (false)
 
 using Json = nlohmann::json;
 using OrderedJson = nlohmann::ordered_json;
@@ -406,22 +402,21 @@ class GridLines {
 };
 
 absl::Status ParseGrid(const Json& j, const std::string& ptr, GridSpec* grid) {
-  absl::StatusOr<Object> o = Object::Open(j, ptr, {"origin", "cell_size", "cells"});
-  if (!o.ok()) return o.status();
-  RETURN_IF_ERROR(GetVec2(*o, "origin", Need::kOptional, kAny, &grid->origin));
-  RETURN_IF_ERROR(GetNumber(*o, "cell_size", Need::kRequired, kPositive, &grid->cell_size));
-  const Json* cells = o->Get("cells");
-  if (cells == nullptr) return o->Missing("cells");
+  ASSIGN_OR_RETURN(Object o, Object::Open(j, ptr, {"origin", "cell_size", "cells"}));
+  RETURN_IF_ERROR(GetVec2(o, "origin", Need::kOptional, kAny, &grid->origin));
+  RETURN_IF_ERROR(GetNumber(o, "cell_size", Need::kRequired, kPositive, &grid->cell_size));
+  const Json* cells = o.Get("cells");
+  if (cells == nullptr) return o.Missing("cells");
   if (!cells->is_array() || cells->size() != 2) {
-    return Bad(o->At("cells"), "must be an array of 2 integers [nx, ny], got ", Got(*cells));
+    return Bad(o.At("cells"), "must be an array of 2 integers [nx, ny], got ", Got(*cells));
   }
   // Bounded so that node and cell counts fit an int.
   constexpr int kMaxCells = 100000;
   constexpr std::int64_t kMaxTotalCells = 100000000;
-  RETURN_IF_ERROR(ReadInt((*cells)[0], Child(o->At("cells"), 0), 1, kMaxCells, &grid->nx));
-  RETURN_IF_ERROR(ReadInt((*cells)[1], Child(o->At("cells"), 1), 1, kMaxCells, &grid->ny));
+  RETURN_IF_ERROR(ReadInt((*cells)[0], Child(o.At("cells"), 0), 1, kMaxCells, &grid->nx));
+  RETURN_IF_ERROR(ReadInt((*cells)[1], Child(o.At("cells"), 1), 1, kMaxCells, &grid->ny));
   if (static_cast<std::int64_t>(grid->nx) * grid->ny > kMaxTotalCells) {
-    return Bad(o->At("cells"), "at most ", kMaxTotalCells, " cells, got ", grid->nx, " × ",
+    return Bad(o.At("cells"), "at most ", kMaxTotalCells, " cells, got ", grid->nx, " × ",
                grid->ny);
   }
   return absl::OkStatus();
@@ -430,54 +425,50 @@ absl::Status ParseGrid(const Json& j, const std::string& ptr, GridSpec* grid) {
 constexpr Table<ShapeKind> kShapes = {{"linear", ShapeKind::kLinear}, {"gimp", ShapeKind::kGimp}};
 
 absl::Status ParseSolver(const Json& j, const std::string& ptr, SolverSpec* solver) {
-  absl::StatusOr<Object> o = Object::Open(j, ptr,
+  ASSIGN_OR_RETURN(Object o, Object::Open(j, ptr,
                                           {"shape", "pic_fraction", "gravity", "time_step", "cfl",
-                                           "wave_modulus", "end_time", "thickness"});
-  if (!o.ok()) return o.status();
-  RETURN_IF_ERROR(GetEnum(*o, "shape", Need::kOptional, "shape function", kShapes, &solver->shape));
-  RETURN_IF_ERROR(GetNumber(*o, "pic_fraction", Need::kOptional, kUnit, &solver->pic_fraction));
-  RETURN_IF_ERROR(GetVec2(*o, "gravity", Need::kOptional, kAny, &solver->gravity));
-  RETURN_IF_ERROR(GetNumber(*o, "time_step", Need::kOptional, Range{0.0, kMaxEndTime},
-                            &solver->time_step));
+                                           "wave_modulus", "end_time", "thickness"}));
+  RETURN_IF_ERROR(GetEnum(o, "shape", Need::kOptional, "shape function", kShapes, &solver->shape));
+  RETURN_IF_ERROR(GetNumber(o, "pic_fraction", Need::kOptional, kUnit, &solver->pic_fraction));
+  RETURN_IF_ERROR(GetVec2(o, "gravity", Need::kOptional, kAny, &solver->gravity));
   RETURN_IF_ERROR(
-      GetNumber(*o, "cfl", Need::kOptional, Range{0.0, 1.0, true, false}, &solver->cfl));
+      GetNumber(o, "time_step", Need::kOptional, Range{0.0, kMaxEndTime}, &solver->time_step));
+  RETURN_IF_ERROR(GetNumber(o, "cfl", Need::kOptional, Range{0.0, 1.0, true, false}, &solver->cfl));
   RETURN_IF_ERROR(
-      GetNumber(*o, "wave_modulus", Need::kOptional, kNonNegative, &solver->wave_modulus));
+      GetNumber(o, "wave_modulus", Need::kOptional, kNonNegative, &solver->wave_modulus));
   // A bound that keeps end_time / Δt a step count (1e308 s overflowed it and
   // ended the run at step 0); the step count itself is bounded at the start.
-  RETURN_IF_ERROR(GetNumber(*o, "end_time", Need::kRequired, Range{0.0, kMaxEndTime, true, false},
+  RETURN_IF_ERROR(GetNumber(o, "end_time", Need::kRequired, Range{0.0, kMaxEndTime, true, false},
                             &solver->end_time));
-  RETURN_IF_ERROR(GetNumber(*o, "thickness", Need::kOptional, kPositive, &solver->thickness));
+  RETURN_IF_ERROR(GetNumber(o, "thickness", Need::kOptional, kPositive, &solver->thickness));
   return absl::OkStatus();
 }
 
 absl::Status ParseTemplate(const Json& j, const std::string& ptr, const std::string& base_dir,
                            TemplateSpec* t) {
-  absl::StatusOr<Object> o =
-      Object::Open(j, ptr, {"name", "parameter_set", "seed", "file", "template_name"});
-  if (!o.ok()) return o.status();
-  RETURN_IF_ERROR(GetName(*o, &t->name));
-  if (o->Has("file") == o->Has("parameter_set")) {
+  ASSIGN_OR_RETURN(
+      Object o, Object::Open(j, ptr, {"name", "parameter_set", "seed", "file", "template_name"}));
+  RETURN_IF_ERROR(GetName(o, &t->name));
+  if (o.Has("file") == o.Has("parameter_set")) {
     return Bad(ptr, "give exactly one of \"file\" (a template file) or \"parameter_set\" (prepare ",
                "from a named parameter set)");
   }
-  if (o->Has("parameter_set")) {
-    RETURN_IF_ERROR(Forbid(*o, "template_name", "only for templates read from a file"));
-    RETURN_IF_ERROR(GetString(*o, "parameter_set", Need::kRequired, true, &t->parameter_set));
+  if (o.Has("parameter_set")) {
+    RETURN_IF_ERROR(Forbid(o, "template_name", "only for templates read from a file"));
+    RETURN_IF_ERROR(GetString(o, "parameter_set", Need::kRequired, true, &t->parameter_set));
     if (!dem::FindParameterSet(t->parameter_set).ok()) {
-      return Bad(o->At("parameter_set"), "unknown parameter set ", Quote(t->parameter_set),
+      return Bad(o.At("parameter_set"), "unknown parameter set ", Quote(t->parameter_set),
                  " (known: ", absl::StrJoin(dem::ParameterSetNames(), ", "), ")");
     }
-    if (const Json* seed = o->Get("seed"))
-      RETURN_IF_ERROR(ReadSeed(*seed, o->At("seed"), &t->seed));
+    if (const Json* seed = o.Get("seed")) RETURN_IF_ERROR(ReadSeed(*seed, o.At("seed"), &t->seed));
     return absl::OkStatus();
   }
-  RETURN_IF_ERROR(Forbid(*o, "seed",
+  RETURN_IF_ERROR(Forbid(o, "seed",
                          "only for templates prepared from a parameter set (a file holds its own "
                          "packing)"));
   std::string file;
-  RETURN_IF_ERROR(GetString(*o, "file", Need::kRequired, true, &file));
-  RETURN_IF_ERROR(GetString(*o, "template_name", Need::kOptional, true, &t->template_name));
+  RETURN_IF_ERROR(GetString(o, "file", Need::kRequired, true, &file));
+  RETURN_IF_ERROR(GetString(o, "template_name", Need::kOptional, true, &t->template_name));
   std::filesystem::path path(file);
   if (path.is_relative()) path = std::filesystem::path(base_dir) / path;
   std::error_code error;
@@ -485,7 +476,7 @@ absl::Status ParseTemplate(const Json& j, const std::string& ptr, const std::str
   if (!error) path = absolute;
   path = path.lexically_normal();
   if (!std::filesystem::is_regular_file(path, error)) {
-    return Bad(o->At("file"), "no such file ", Quote(path.string()));
+    return Bad(o.At("file"), "no such file ", Quote(path.string()));
   }
   t->file = path.string();
   return absl::OkStatus();
@@ -504,27 +495,26 @@ constexpr Table<InitialStressKind> kInitialStresses = {
 
 absl::Status ParseInitialStress(const Json& j, const std::string& ptr, const SolverSpec& solver,
                                 MaterialRegion* r) {
-  absl::StatusOr<Object> o =
-      Object::Open(j, ptr, {"kind", "k0", "surface_y", "surcharge", "minimum"});
-  if (!o.ok()) return o.status();
-  RETURN_IF_ERROR(GetEnum(*o, "kind", Need::kRequired, "initial stress kind", kInitialStresses,
+  ASSIGN_OR_RETURN(Object o,
+                   Object::Open(j, ptr, {"kind", "k0", "surface_y", "surcharge", "minimum"}));
+  RETURN_IF_ERROR(GetEnum(o, "kind", Need::kRequired, "initial stress kind", kInitialStresses,
                           &r->initial_stress));
   if (r->initial_stress != InitialStressKind::kK0) {
-    RETURN_IF_ERROR(Forbid(*o, "k0", "only for kind \"geostatic_k0\""));
+    RETURN_IF_ERROR(Forbid(o, "k0", "only for kind \"geostatic_k0\""));
   }
   if (r->initial_stress == InitialStressKind::kTemplate) {
     for (absl::string_view key : {"surface_y", "surcharge", "minimum"}) {
-      RETURN_IF_ERROR(Forbid(*o, key, "only for the geostatic kinds"));
+      RETURN_IF_ERROR(Forbid(o, key, "only for the geostatic kinds"));
     }
   }
-  RETURN_IF_ERROR(GetNumber(*o, "k0", Need::kOptional, kPositive, &r->k0));
-  RETURN_IF_ERROR(GetNumber(*o, "surface_y", Need::kOptional, kAny, &r->surface_y));
-  RETURN_IF_ERROR(GetNumber(*o, "surcharge", Need::kOptional, kNonNegative, &r->surcharge));
-  RETURN_IF_ERROR(GetNumber(*o, "minimum", Need::kOptional, kNonNegative, &r->minimum_stress));
+  RETURN_IF_ERROR(GetNumber(o, "k0", Need::kOptional, kPositive, &r->k0));
+  RETURN_IF_ERROR(GetNumber(o, "surface_y", Need::kOptional, kAny, &r->surface_y));
+  RETURN_IF_ERROR(GetNumber(o, "surcharge", Need::kOptional, kNonNegative, &r->surcharge));
+  RETURN_IF_ERROR(GetNumber(o, "minimum", Need::kOptional, kNonNegative, &r->minimum_stress));
   // RVEs need p > 0: without gravity σv is the surcharge (or the minimum).
   if (r->initial_stress != InitialStressKind::kTemplate && solver.gravity.isZero(0.0) &&
       r->surcharge == 0.0 && r->minimum_stress == 0.0) {
-    return Bad(o->At("kind"), "a geostatic start without gravity needs a surcharge or a minimum ",
+    return Bad(o.At("kind"), "a geostatic start without gravity needs a surcharge or a minimum ",
                "> 0 (RVEs need p > 0)");
   }
   return absl::OkStatus();
@@ -533,37 +523,36 @@ absl::Status ParseInitialStress(const Json& j, const std::string& ptr, const Sol
 absl::Status ParseRegion(const Json& j, const std::string& ptr, const GridLines& lines,
                          const SolverSpec& solver, const std::vector<TemplateSpec>& templates,
                          MaterialRegion* r, CellBox* box) {
-  absl::StatusOr<Object> o = Object::Open(
-      j, ptr,
-      {"name", "lower", "upper", "points_per_cell_side", "template", "density", "initial_stress"});
-  if (!o.ok()) return o.status();
-  RETURN_IF_ERROR(GetName(*o, &r->name));
-  RETURN_IF_ERROR(GetVec2(*o, "lower", Need::kRequired, kAny, &r->lower));
-  RETURN_IF_ERROR(GetVec2(*o, "upper", Need::kRequired, kAny, &r->upper));
+  ASSIGN_OR_RETURN(Object o, Object::Open(j, ptr,
+                                          {"name", "lower", "upper", "points_per_cell_side",
+                                           "template", "density", "initial_stress"}));
+  RETURN_IF_ERROR(GetName(o, &r->name));
+  RETURN_IF_ERROR(GetVec2(o, "lower", Need::kRequired, kAny, &r->lower));
+  RETURN_IF_ERROR(GetVec2(o, "upper", Need::kRequired, kAny, &r->upper));
   for (int axis = 0; axis < 2; ++axis) {
-    RETURN_IF_ERROR(lines.Snap(r->lower[axis], axis, Child(o->At("lower"), axis), &box->lo[axis],
+    RETURN_IF_ERROR(lines.Snap(r->lower[axis], axis, Child(o.At("lower"), axis), &box->lo[axis],
                                &r->lower[axis]));
-    RETURN_IF_ERROR(lines.Snap(r->upper[axis], axis, Child(o->At("upper"), axis), &box->hi[axis],
+    RETURN_IF_ERROR(lines.Snap(r->upper[axis], axis, Child(o.At("upper"), axis), &box->hi[axis],
                                &r->upper[axis]));
     if (box->hi[axis] <= box->lo[axis]) {
-      return Bad(Child(o->At("upper"), axis), "upper ", kAxisName[axis], " = ", Num(r->upper[axis]),
+      return Bad(Child(o.At("upper"), axis), "upper ", kAxisName[axis], " = ", Num(r->upper[axis]),
                  " m must be above lower ", kAxisName[axis], " = ", Num(r->lower[axis]),
                  " m (a region spans at least one cell)");
     }
   }
-  if (const Json* v = o->Get("points_per_cell_side")) {
-    RETURN_IF_ERROR(ReadInt(*v, o->At("points_per_cell_side"), 1, 8, &r->points_per_cell_side));
+  if (const Json* v = o.Get("points_per_cell_side")) {
+    RETURN_IF_ERROR(ReadInt(*v, o.At("points_per_cell_side"), 1, 8, &r->points_per_cell_side));
   }
-  RETURN_IF_ERROR(GetString(*o, "template", Need::kRequired, true, &r->rve_template));
+  RETURN_IF_ERROR(GetString(o, "template", Need::kRequired, true, &r->rve_template));
   if (std::none_of(templates.begin(), templates.end(),
                    [&](const TemplateSpec& t) { return t.name == r->rve_template; })) {
-    return Bad(o->At("template"), "no template named ", Quote(r->rve_template),
+    return Bad(o.At("template"), "no template named ", Quote(r->rve_template),
                " (templates: ", absl::StrJoin(NamesOf(templates), ", "), ")");
   }
-  RETURN_IF_ERROR(GetNumber(*o, "density", Need::kOptional, kNonNegative, &r->density));
+  RETURN_IF_ERROR(GetNumber(o, "density", Need::kOptional, kNonNegative, &r->density));
   r->surface_y = r->upper.y();  // the region's top unless stated
-  if (const Json* v = o->Get("initial_stress")) {
-    RETURN_IF_ERROR(ParseInitialStress(*v, o->At("initial_stress"), solver, r));
+  if (const Json* v = o.Get("initial_stress")) {
+    RETURN_IF_ERROR(ParseInitialStress(*v, o.At("initial_stress"), solver, r));
   }
   return absl::OkStatus();
 }
@@ -613,18 +602,18 @@ absl::Status GetFriction(const Object& o, ContactKind kind, absl::string_view ki
 }
 
 absl::Status ParseWall(const Json& j, const std::string& ptr, const GridLines& lines, Wall* w) {
-  absl::StatusOr<Object> o =
-      Object::Open(j, ptr, {"name", "kind", "line", "position", "friction", "remove_time"});
-  if (!o.ok()) return o.status();
-  RETURN_IF_ERROR(GetName(*o, &w->name));
-  RETURN_IF_ERROR(GetEnum(*o, "kind", Need::kRequired, "wall kind", kWallKinds, &w->contact));
+  ASSIGN_OR_RETURN(
+      Object o,
+      Object::Open(j, ptr, {"name", "kind", "line", "position", "friction", "remove_time"}));
+  RETURN_IF_ERROR(GetName(o, &w->name));
+  RETURN_IF_ERROR(GetEnum(o, "kind", Need::kRequired, "wall kind", kWallKinds, &w->contact));
   RETURN_IF_ERROR(
-      GetEnum(*o, "line", Need::kRequired, "wall line", Table<int>{{"x", 0}, {"y", 1}}, &w->axis));
-  RETURN_IF_ERROR(GetNumber(*o, "position", Need::kRequired, kAny, &w->position));
+      GetEnum(o, "line", Need::kRequired, "wall line", Table<int>{{"x", 0}, {"y", 1}}, &w->axis));
+  RETURN_IF_ERROR(GetNumber(o, "position", Need::kRequired, kAny, &w->position));
   int index = 0;
-  RETURN_IF_ERROR(lines.Snap(w->position, w->axis, o->At("position"), &index, &w->position));
-  RETURN_IF_ERROR(GetFriction(*o, w->contact, "kind", &w->friction));
-  RETURN_IF_ERROR(GetNumber(*o, "remove_time", Need::kOptional, kNonNegative, &w->remove_time));
+  RETURN_IF_ERROR(lines.Snap(w->position, w->axis, o.At("position"), &index, &w->position));
+  RETURN_IF_ERROR(GetFriction(o, w->contact, "kind", &w->friction));
+  RETURN_IF_ERROR(GetNumber(o, "remove_time", Need::kOptional, kNonNegative, &w->remove_time));
   return absl::OkStatus();
 }
 
@@ -652,28 +641,27 @@ absl::Status ParseVelocity(const Json& j, const std::string& ptr,
 }
 
 absl::Status ParseBody(const Json& j, const std::string& ptr, RigidBody* b) {
-  absl::StatusOr<Object> o = Object::Open(
-      j, ptr,
-      {"name", "shape", "center", "half_size", "radius", "contact", "friction", "velocity"});
-  if (!o.ok()) return o.status();
-  RETURN_IF_ERROR(GetName(*o, &b->name));
-  RETURN_IF_ERROR(GetEnum(*o, "shape", Need::kRequired, "body shape",
+  ASSIGN_OR_RETURN(Object o, Object::Open(j, ptr,
+                                          {"name", "shape", "center", "half_size", "radius",
+                                           "contact", "friction", "velocity"}));
+  RETURN_IF_ERROR(GetName(o, &b->name));
+  RETURN_IF_ERROR(GetEnum(o, "shape", Need::kRequired, "body shape",
                           Table<RigidBody::Shape>{{"rectangle", RigidBody::Shape::kRectangle},
                                                   {"circle", RigidBody::Shape::kCircle}},
                           &b->shape));
-  RETURN_IF_ERROR(GetVec2(*o, "center", Need::kRequired, kAny, &b->center));
+  RETURN_IF_ERROR(GetVec2(o, "center", Need::kRequired, kAny, &b->center));
   if (b->shape == RigidBody::Shape::kRectangle) {
-    RETURN_IF_ERROR(Forbid(*o, "radius", "only for shape \"circle\""));
-    RETURN_IF_ERROR(GetVec2(*o, "half_size", Need::kRequired, kPositive, &b->half_size));
+    RETURN_IF_ERROR(Forbid(o, "radius", "only for shape \"circle\""));
+    RETURN_IF_ERROR(GetVec2(o, "half_size", Need::kRequired, kPositive, &b->half_size));
   } else {
-    RETURN_IF_ERROR(Forbid(*o, "half_size", "only for shape \"rectangle\""));
-    RETURN_IF_ERROR(GetNumber(*o, "radius", Need::kRequired, kPositive, &b->radius));
+    RETURN_IF_ERROR(Forbid(o, "half_size", "only for shape \"rectangle\""));
+    RETURN_IF_ERROR(GetNumber(o, "radius", Need::kRequired, kPositive, &b->radius));
   }
   RETURN_IF_ERROR(
-      GetEnum(*o, "contact", Need::kOptional, "body contact", kBodyContacts, &b->contact));
-  RETURN_IF_ERROR(GetFriction(*o, b->contact, "contact", &b->friction));
-  if (const Json* v = o->Get("velocity")) {
-    RETURN_IF_ERROR(ParseVelocity(*v, o->At("velocity"), &b->velocity));
+      GetEnum(o, "contact", Need::kOptional, "body contact", kBodyContacts, &b->contact));
+  RETURN_IF_ERROR(GetFriction(o, b->contact, "contact", &b->friction));
+  if (const Json* v = o.Get("velocity")) {
+    RETURN_IF_ERROR(ParseVelocity(*v, o.At("velocity"), &b->velocity));
   }
   return absl::OkStatus();
 }
@@ -693,39 +681,39 @@ absl::Status ParseTraction(const Json& j, const std::string& ptr,
                            const std::vector<MaterialRegion>& regions,
                            const std::vector<CellBox>& boxes, const std::string& regions_ptr,
                            SurfaceTraction* t) {
-  absl::StatusOr<Object> o = Object::Open(
-      j, ptr, {"name", "region", "surface", "pressure", "traction", "ramp_time", "from", "to"});
-  if (!o.ok()) return o.status();
-  RETURN_IF_ERROR(GetName(*o, &t->name));
-  RETURN_IF_ERROR(GetString(*o, "region", Need::kRequired, true, &t->region));
+  ASSIGN_OR_RETURN(Object o, Object::Open(j, ptr,
+                                          {"name", "region", "surface", "pressure", "traction",
+                                           "ramp_time", "from", "to"}));
+  RETURN_IF_ERROR(GetName(o, &t->name));
+  RETURN_IF_ERROR(GetString(o, "region", Need::kRequired, true, &t->region));
   auto region = std::find_if(regions.begin(), regions.end(),
                              [&](const MaterialRegion& r) { return r.name == t->region; });
   if (region == regions.end()) {
-    return Bad(o->At("region"), "no region named ", Quote(t->region),
+    return Bad(o.At("region"), "no region named ", Quote(t->region),
                " (regions: ", absl::StrJoin(NamesOf(regions), ", "), ")");
   }
   Surface surface{0, 1};
-  RETURN_IF_ERROR(GetEnum(*o, "surface", Need::kRequired, "surface", kSurfaces, &surface));
+  RETURN_IF_ERROR(GetEnum(o, "surface", Need::kRequired, "surface", kSurfaces, &surface));
   t->normal_axis = surface.axis;
   t->normal_sign = surface.sign;
-  if (o->Has("pressure") == o->Has("traction")) {
+  if (o.Has("pressure") == o.Has("traction")) {
     return Bad(ptr, "give exactly one of \"pressure\" (Pa, compression +) or \"traction\" ",
                "([tx, ty], Pa, tension +)");
   }
-  if (o->Has("pressure")) {
+  if (o.Has("pressure")) {
     double pressure = 0.0;
-    RETURN_IF_ERROR(GetNumber(*o, "pressure", Need::kRequired, kAny, &pressure));
+    RETURN_IF_ERROR(GetNumber(o, "pressure", Need::kRequired, kAny, &pressure));
     // A pressure pushes against the outward normal n: t = −p·n.
     t->traction = Eigen::Vector2d::Zero();
     t->traction[surface.axis] = -pressure * surface.sign;
   } else {
-    RETURN_IF_ERROR(GetVec2(*o, "traction", Need::kRequired, kAny, &t->traction));
+    RETURN_IF_ERROR(GetVec2(o, "traction", Need::kRequired, kAny, &t->traction));
   }
-  RETURN_IF_ERROR(GetNumber(*o, "ramp_time", Need::kOptional, kNonNegative, &t->ramp_time));
-  RETURN_IF_ERROR(GetNumber(*o, "from", Need::kOptional, kAny, &t->from));
-  RETURN_IF_ERROR(GetNumber(*o, "to", Need::kOptional, kAny, &t->to));
+  RETURN_IF_ERROR(GetNumber(o, "ramp_time", Need::kOptional, kNonNegative, &t->ramp_time));
+  RETURN_IF_ERROR(GetNumber(o, "from", Need::kOptional, kAny, &t->from));
+  RETURN_IF_ERROR(GetNumber(o, "to", Need::kOptional, kAny, &t->to));
   if (!(t->from < t->to)) {
-    return Bad(o->At("to"), "must be > from = ", Num(t->from), " m, got ", Num(t->to));
+    return Bad(o.At("to"), "must be > from = ", Num(t->from), " m, got ", Num(t->to));
   }
 
   // The loaded part of the face, [lo, hi] along the other axis, must exist
@@ -737,7 +725,7 @@ absl::Status ParseTraction(const Json& j, const std::string& ptr,
   const std::string face = absl::StrCat("the ", SurfaceName(surface.axis, surface.sign),
                                         " face of region ", Quote(region->name));
   if (!(face_lo < face_hi)) {
-    return Bad(o->At(o->Has("from") ? "from" : "to"), "[from, to] = [", Num(t->from), ", ",
+    return Bad(o.At(o.Has("from") ? "from" : "to"), "[from, to] = [", Num(t->from), ", ",
                Num(t->to), "] m misses ", face, ", ", kAxisName[along], " in [",
                Num(region->lower[along]), ", ", Num(region->upper[along]), "] m");
   }
@@ -750,7 +738,7 @@ absl::Status ParseTraction(const Json& j, const std::string& ptr,
     const double lo = std::max(face_lo, regions[k].lower[along]);
     const double hi = std::min(face_hi, regions[k].upper[along]);
     if (lo < hi) {
-      return Bad(o->At("surface"), face, " touches region ", Quote(regions[k].name), " (",
+      return Bad(o.At("surface"), face, " touches region ", Quote(regions[k].name), " (",
                  Child(regions_ptr, k), ") for ", kAxisName[along], " in [", Num(lo), ", ", Num(hi),
                  "] m: not a free surface (narrow the load with from/to)");
     }
@@ -759,46 +747,44 @@ absl::Status ParseTraction(const Json& j, const std::string& ptr,
 }
 
 absl::Status ParseRve(const Json& j, const std::string& ptr, RveSpec* rve) {
-  absl::StatusOr<Object> o = Object::Open(j, ptr, {"max_inertial_number", "min_steps"});
-  if (!o.ok()) return o.status();
+  ASSIGN_OR_RETURN(Object o, Object::Open(j, ptr, {"max_inertial_number", "min_steps"}));
   // I above 0.1 is a dense flow, not a quasi-static RVE; more than 10^5 DEM
   // steps per increment is a mistake, not a setting.
-  RETURN_IF_ERROR(GetNumber(*o, "max_inertial_number", Need::kOptional, Range{0.0, 0.1},
+  RETURN_IF_ERROR(GetNumber(o, "max_inertial_number", Need::kOptional, Range{0.0, 0.1},
                             &rve->max_inertial_number));
-  RETURN_IF_ERROR(GetInteger(*o, "min_steps", 0, 100000, &rve->min_steps));
+  RETURN_IF_ERROR(GetInteger(o, "min_steps", 0, 100000, &rve->min_steps));
   return absl::OkStatus();
 }
 
 absl::Status ParseOutput(const Json& j, const std::string& ptr,
                          const std::vector<RigidBody>& bodies, OutputSpec* out) {
-  absl::StatusOr<Object> o = Object::Open(j, ptr,
+  ASSIGN_OR_RETURN(Object o, Object::Open(j, ptr,
                                           {"frame_every", "timeseries_every", "checkpoint_every",
-                                           "progress_every", "plot", "plot_body", "plot_width"});
-  if (!o.ok()) return o.status();
+                                           "progress_every", "plot", "plot_body", "plot_width"}));
   constexpr std::int64_t kMax = std::numeric_limits<std::int64_t>::max();
-  RETURN_IF_ERROR(GetInteger(*o, "frame_every", 1, kMax, &out->frame_every));
-  RETURN_IF_ERROR(GetInteger(*o, "timeseries_every", 1, kMax, &out->timeseries_every));
-  RETURN_IF_ERROR(GetInteger(*o, "checkpoint_every", 0, kMax, &out->checkpoint_every));
-  RETURN_IF_ERROR(GetInteger(*o, "progress_every", 1, kMax, &out->progress_every));
+  RETURN_IF_ERROR(GetInteger(o, "frame_every", 1, kMax, &out->frame_every));
+  RETURN_IF_ERROR(GetInteger(o, "timeseries_every", 1, kMax, &out->timeseries_every));
+  RETURN_IF_ERROR(GetInteger(o, "checkpoint_every", 0, kMax, &out->checkpoint_every));
+  RETURN_IF_ERROR(GetInteger(o, "progress_every", 1, kMax, &out->progress_every));
   std::string plot = out->plot;
-  RETURN_IF_ERROR(GetEnum(*o, "plot", Need::kOptional, "plot",
+  RETURN_IF_ERROR(GetEnum(o, "plot", Need::kOptional, "plot",
                           Table<std::string>{{"stress-strain", "stress-strain"},
                                              {"load-settlement", "load-settlement"},
                                              {"none", "none"}},
                           &plot));
   out->plot = plot;
   if (out->plot != "load-settlement") {
-    RETURN_IF_ERROR(Forbid(*o, "plot_body", "only for plot \"load-settlement\""));
-    RETURN_IF_ERROR(Forbid(*o, "plot_width", "only for plot \"load-settlement\""));
+    RETURN_IF_ERROR(Forbid(o, "plot_body", "only for plot \"load-settlement\""));
+    RETURN_IF_ERROR(Forbid(o, "plot_width", "only for plot \"load-settlement\""));
     return absl::OkStatus();
   }
-  RETURN_IF_ERROR(GetString(*o, "plot_body", Need::kRequired, true, &out->plot_body));
+  RETURN_IF_ERROR(GetString(o, "plot_body", Need::kRequired, true, &out->plot_body));
   if (std::none_of(bodies.begin(), bodies.end(),
                    [&](const RigidBody& b) { return b.name == out->plot_body; })) {
-    return Bad(o->At("plot_body"), "no body named ", Quote(out->plot_body),
+    return Bad(o.At("plot_body"), "no body named ", Quote(out->plot_body),
                " (bodies: ", absl::StrJoin(NamesOf(bodies), ", "), ")");
   }
-  RETURN_IF_ERROR(GetNumber(*o, "plot_width", Need::kOptional, kPositive, &out->plot_width));
+  RETURN_IF_ERROR(GetNumber(o, "plot_width", Need::kOptional, kPositive, &out->plot_width));
   return absl::OkStatus();
 }
 
@@ -1052,59 +1038,58 @@ absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::strin
   }
   for (const CaseOverride& o : overrides) RETURN_IF_ERROR(ApplyOverride(o, doc));
 
-  absl::StatusOr<Object> root =
-      Object::Open(doc, "",
-                   {"name", "description", "expected_runtime_s", "grid", "solver", "templates",
-                    "regions", "walls", "bodies", "tractions", "rve", "output"});
-  if (!root.ok()) return root.status();
+  ASSIGN_OR_RETURN(Object root, Object::Open(doc, "",
+                                             {"name", "description", "expected_runtime_s", "grid",
+                                              "solver", "templates", "regions", "walls", "bodies",
+                                              "tractions", "rve", "output"}));
   CaseSpec spec;
-  RETURN_IF_ERROR(GetString(*root, "name", Need::kOptional, false, &spec.name));
-  RETURN_IF_ERROR(GetString(*root, "description", Need::kOptional, false, &spec.description));
-  RETURN_IF_ERROR(GetNumber(*root, "expected_runtime_s", Need::kOptional, kNonNegative,
+  RETURN_IF_ERROR(GetString(root, "name", Need::kOptional, false, &spec.name));
+  RETURN_IF_ERROR(GetString(root, "description", Need::kOptional, false, &spec.description));
+  RETURN_IF_ERROR(GetNumber(root, "expected_runtime_s", Need::kOptional, kNonNegative,
                             &spec.expected_runtime_s));
 
-  const Json* grid = root->Get("grid");
-  if (grid == nullptr) return root->Missing("grid");
-  RETURN_IF_ERROR(ParseGrid(*grid, root->At("grid"), &spec.grid));
+  const Json* grid = root.Get("grid");
+  if (grid == nullptr) return root.Missing("grid");
+  RETURN_IF_ERROR(ParseGrid(*grid, root.At("grid"), &spec.grid));
   const GridLines lines(spec.grid);
 
-  const Json* solver = root->Get("solver");
-  if (solver == nullptr) return root->Missing("solver");
-  RETURN_IF_ERROR(ParseSolver(*solver, root->At("solver"), &spec.solver));
+  const Json* solver = root.Get("solver");
+  if (solver == nullptr) return root.Missing("solver");
+  RETURN_IF_ERROR(ParseSolver(*solver, root.At("solver"), &spec.solver));
 
-  RETURN_IF_ERROR(ParseList(*root, "templates", Need::kRequired, "template", &spec.templates,
+  RETURN_IF_ERROR(ParseList(root, "templates", Need::kRequired, "template", &spec.templates,
                             [&](const Json& j, const std::string& ptr, size_t, TemplateSpec* t) {
                               return ParseTemplate(j, ptr, base_dir, t);
                             }));
 
   std::vector<CellBox> boxes;
-  RETURN_IF_ERROR(ParseList(*root, "regions", Need::kRequired, "region", &spec.regions,
+  RETURN_IF_ERROR(ParseList(root, "regions", Need::kRequired, "region", &spec.regions,
                             [&](const Json& j, const std::string& ptr, size_t, MaterialRegion* r) {
                               boxes.emplace_back();
                               return ParseRegion(j, ptr, lines, spec.solver, spec.templates, r,
                                                  &boxes.back());
                             }));
-  RETURN_IF_ERROR(CheckOverlaps(spec.regions, boxes, root->At("regions")));
+  RETURN_IF_ERROR(CheckOverlaps(spec.regions, boxes, root.At("regions")));
 
-  RETURN_IF_ERROR(ParseList(*root, "walls", Need::kOptional, "wall", &spec.walls,
+  RETURN_IF_ERROR(ParseList(root, "walls", Need::kOptional, "wall", &spec.walls,
                             [&](const Json& j, const std::string& ptr, size_t, Wall* w) {
                               return ParseWall(j, ptr, lines, w);
                             }));
-  RETURN_IF_ERROR(ParseList(*root, "bodies", Need::kOptional, "body", &spec.bodies,
+  RETURN_IF_ERROR(ParseList(root, "bodies", Need::kOptional, "body", &spec.bodies,
                             [&](const Json& j, const std::string& ptr, size_t, RigidBody* b) {
                               return ParseBody(j, ptr, b);
                             }));
-  RETURN_IF_ERROR(ParseList(*root, "tractions", Need::kOptional, "traction", &spec.tractions,
+  RETURN_IF_ERROR(ParseList(root, "tractions", Need::kOptional, "traction", &spec.tractions,
                             [&](const Json& j, const std::string& ptr, size_t, SurfaceTraction* t) {
-                              return ParseTraction(j, ptr, spec.regions, boxes, root->At("regions"),
+                              return ParseTraction(j, ptr, spec.regions, boxes, root.At("regions"),
                                                    t);
                             }));
 
-  if (const Json* rve = root->Get("rve")) {
-    RETURN_IF_ERROR(ParseRve(*rve, root->At("rve"), &spec.rve));
+  if (const Json* rve = root.Get("rve")) {
+    RETURN_IF_ERROR(ParseRve(*rve, root.At("rve"), &spec.rve));
   }
-  if (const Json* output = root->Get("output")) {
-    RETURN_IF_ERROR(ParseOutput(*output, root->At("output"), spec.bodies, &spec.output));
+  if (const Json* output = root.Get("output")) {
+    RETURN_IF_ERROR(ParseOutput(*output, root.At("output"), spec.bodies, &spec.output));
   }
   // Refused here rather than as std::bad_alloc an hour into setting up.
   if (const CaseSize size = EstimateSize(spec); size.bytes > kMaxCaseBytes) {
@@ -1124,11 +1109,10 @@ absl::StatusOr<CaseSpec> LoadCase(const std::string& path,
   if (std::filesystem::is_directory(path, error)) {
     return absl::InvalidArgumentError(absl::StrCat("case file '", path, "' is a directory"));
   }
-  absl::StatusOr<std::string> text = ReadTextFile(path, "case file");
-  if (!text.ok()) return text.status();
+  ASSIGN_OR_RETURN(std::string text, ReadTextFile(path, "case file"));
   const std::filesystem::path file(path);
   const std::string dir = file.has_parent_path() ? file.parent_path().string() : ".";
-  absl::StatusOr<CaseSpec> spec = ParseCase(*text, dir, overrides);
+  absl::StatusOr<CaseSpec> spec = ParseCase(text, dir, overrides);
   if (!spec.ok()) {
     return absl::Status(spec.status().code(), absl::StrCat(path, ": ", spec.status().message()));
   }

@@ -27,9 +27,10 @@
 #include "absl/time/time.h"
 #include "mpm_client/case.h"
 #include "mpm_client/simulation.h"
-#include "rve_server/common/flags.h"
 #include "nlohmann/json.hpp"
 #include "rve_server/client/channel.h"
+#include "rve_server/common/flags.h"
+#include "rve_server/common/status_macros.h"
 #include "rve_server/common/text_file.h"
 #include "rve_server/common/version.h"
 
@@ -111,9 +112,8 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
   spec.bare = {"quiet"};
   spec.rules = {{"threads", kThreadsRule}, {"timeout", kTimeoutRule},
                 {"stop-after", kStopAfterRule}};
-  absl::StatusOr<Args> args = cli::ParseArgs(argc, argv, 1, spec);
-  if (!args.ok()) return args.status();
-  c.args = *std::move(args);
+  ASSIGN_OR_RETURN(Args args, cli::ParseArgs(argc, argv, 1, spec));
+  c.args = std::move(args);
   std::vector<std::string>& positional = c.args.positional;
   if (positional.size() > 2) {
     return absl::InvalidArgumentError(absl::StrCat("unexpected argument '", positional[2], "'"));
@@ -147,9 +147,8 @@ absl::StatusOr<std::vector<CaseOverride>> Overrides(const Args& a) {
   auto it = a.repeated.find("set");
   if (it == a.repeated.end()) return out;
   for (const std::string& text : it->second) {
-    absl::StatusOr<CaseOverride> o = ParseOverride(text);
-    if (!o.ok()) return o.status();
-    out.push_back(*std::move(o));
+    ASSIGN_OR_RETURN(CaseOverride o, ParseOverride(text));
+    out.push_back(std::move(o));
   }
   return out;
 }

@@ -10,6 +10,7 @@
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
 #include "rve_server/common/plot.h"
+#include "rve_server/common/status_macros.h"
 
 namespace rvehub::mpm {
 namespace {
@@ -118,11 +119,10 @@ absl::Status WriteCasePlot(const CaseSpec& spec, const std::string& csv_path,
                            const std::string& png_path) {
   const OutputSpec& out = spec.output;
   if (out.plot == "none") return absl::OkStatus();
-  absl::StatusOr<std::map<std::string, std::vector<double>>> cols = ReadCsvColumns(csv_path);
-  if (!cols.ok()) return cols.status();
+  ASSIGN_OR_RETURN(auto cols, ReadCsvColumns(csv_path));
   auto column = [&](const std::string& name) -> absl::StatusOr<std::vector<double>> {
-    auto it = cols->find(name);
-    if (it == cols->end()) {
+    auto it = cols.find(name);
+    if (it == cols.end()) {
       return absl::InvalidArgumentError(absl::StrCat(csv_path, " has no column ", name));
     }
     return it->second;

@@ -259,7 +259,7 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Create(
             run_id_, t.name, c.ids, c.initial,
             own == controls.end() ? std::nullopt : std::optional<dem::Controls>(own->second));
         if (!r.ok()) return CallError(k, r.status(), what);
-        if (absl::Status e = Collect(k, c.ids, *r, what, out); !e.ok()) return e;
+        RETURN_IF_ERROR(Collect(k, c.ids, *r, what, out));
         if (progress) {
           absl::MutexLock lock(&mu);
           done += c.consolidations;

@@ -18,8 +18,9 @@
 #include "absl/time/time.h"
 #include "mpm_client/case.h"
 #include "mpm_client/output.h"
-#include "rve_server/client/endpoint.h"
 #include "mpm_client/templates.h"
+#include "rve_server/client/endpoint.h"
+#include "rve_server/common/status_macros.h"
 #include "store/results.h"
 
 namespace rvehub::mpm {
@@ -135,9 +136,9 @@ absl::Status Simulation::Connect() {
     endpoints.push_back(client::MakeEmbeddedEndpoint(embedded));
   } else {
     for (const std::string& address : options_.servers) {
-      absl::StatusOr<std::unique_ptr<client::RveEndpoint>> e = client::MakeRemoteEndpoint(address, options_.client);
-      if (!e.ok()) return e.status();
-      endpoints.push_back(*std::move(e));
+      ASSIGN_OR_RETURN(std::unique_ptr<client::RveEndpoint> e,
+                       client::MakeRemoteEndpoint(address, options_.client));
+      endpoints.push_back(std::move(e));
     }
   }
   PoolOptions po;
@@ -182,23 +183,21 @@ absl::Status Simulation::OpenOutputs(bool resume) {
   const std::string dir = options_.out_dir;
   const std::string h5 = dir + "/results.h5", xdmf = dir + "/results.xdmf";
   const std::string csv = dir + "/timeseries.csv";
-  absl::StatusOr<std::unique_ptr<store::ResultsWriter>> results =
-      resume && std::filesystem::exists(h5)
-          ? store::ResultsWriter::Open(h5, xdmf, "mpm_client", solver_->step())
-          : store::ResultsWriter::Create(h5, xdmf, "mpm_client");
-  if (!results.ok()) return results.status();
-  out_->results = *std::move(results);
-  absl::StatusOr<std::unique_ptr<TimeseriesWriter>> ts =
-      resume && std::filesystem::exists(csv)
-          ? TimeseriesWriter::Resume(csv, Columns(), solver_->step())
-          : TimeseriesWriter::Create(csv, Columns());
-  if (!ts.ok()) return ts.status();
-  out_->timeseries = *std::move(ts);
+  ASSIGN_OR_RETURN(std::unique_ptr<store::ResultsWriter> results,
+                   resume && std::filesystem::exists(h5)
+                       ? store::ResultsWriter::Open(h5, xdmf, "mpm_client", solver_->step())
+                       : store::ResultsWriter::Create(h5, xdmf, "mpm_client"));
+  out_->results = std::move(results);
+  ASSIGN_OR_RETURN(std::unique_ptr<TimeseriesWriter> ts,
+                   resume && std::filesystem::exists(csv)
+                       ? TimeseriesWriter::Resume(csv, Columns(), solver_->step())
+                       : TimeseriesWriter::Create(csv, Columns()));
+  out_->timeseries = std::move(ts);
   if (resume) {
     out_->last_frame_step = out_->last_row_step = solver_->step();
     return absl::OkStatus();
   }
-  if (absl::Status s = WriteFrame(); !s.ok()) return s;
+  RETURN_IF_ERROR(WriteFrame());
   return WriteRow(0.0);
 }
 
@@ -240,7 +239,7 @@ absl::Status Simulation::WriteFrame() {
   f.fields = {std::move(velocity), std::move(stress), std::move(p), std::move(q),
               std::move(eq),       std::move(ev),     std::move(e), std::move(fa),
               std::move(rot),      std::move(z),      std::move(id)};
-  if (absl::Status s = out_->results->Append(f); !s.ok()) return s;
+  RETURN_IF_ERROR(out_->results->Append(f));
   out_->last_frame_step = solver_->step();
   return absl::OkStatus();
 }
@@ -283,7 +282,7 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
               dem::InPlaneMeanPressure(sigma), dem::InPlaneDeviatorStress(sigma), e,
               solver_->KineticEnergy(), front_x, top_y, wall_per_step});
   for (double& v : row) v += 0.0;  // −0 (a negated zero) reads as 0
-  if (absl::Status s = out_->timeseries->Append(row); !s.ok()) return s;
+  RETURN_IF_ERROR(out_->timeseries->Append(row));
   out_->last_row_step = solver_->step();
   return absl::OkStatus();
 }
@@ -295,19 +294,17 @@ absl::StatusOr<store::SimCheckpoint> Simulation::Snapshot() {
   c.step = solver_->step();
   c.time = solver_->time();
   solver_->ExportState(c.doubles, c.ints);
-  absl::StatusOr<std::vector<store::RveRecord>> rves = pool_->ExportAll();
-  if (!rves.ok()) return rves.status();
-  c.rves = *std::move(rves);
+  ASSIGN_OR_RETURN(std::vector<store::RveRecord> rves, pool_->ExportAll());
+  c.rves = std::move(rves);
   c.templates = templates_;
   return c;
 }
 
 absl::Status Simulation::WriteCheckpoint() {
-  absl::StatusOr<store::SimCheckpoint> c = Snapshot();
-  if (!c.ok()) return c.status();
+  ASSIGN_OR_RETURN(store::SimCheckpoint c, Snapshot());
   store::FileInfo info;
   info.created_by = "mpm_client";
-  return store::WriteSimCheckpoint(options_.out_dir + "/checkpoint.h5", *c, info);
+  return store::WriteSimCheckpoint(options_.out_dir + "/checkpoint.h5", c, info);
 }
 
 std::string FormatTimeSplit(const SimulationSummary& s) {
@@ -348,15 +345,15 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   sim->case_json_ = ToJson(spec);
   sim->options_ = options;
   sim->run_id_ = MakeRunId(spec.name);
-  if (absl::Status s = MakeOutputDir(options.out_dir); !s.ok()) return s;
+  RETURN_IF_ERROR(MakeOutputDir(options.out_dir));
   const std::string cache = options.template_cache_dir.empty() ? options.out_dir + "/templates"
                                                                : options.template_cache_dir;
-  absl::StatusOr<std::vector<store::TemplateRecord>> templates =
-      ResolveTemplates(spec.templates, cache, [&](const std::string& l) { sim->Log(l); });
-  if (!templates.ok()) return templates.status();
-  sim->templates_ = *std::move(templates);
-  if (absl::Status s = sim->Connect(); !s.ok()) return s;
-  if (absl::Status s = sim->UploadTemplates(); !s.ok()) return s;
+  ASSIGN_OR_RETURN(
+      std::vector<store::TemplateRecord> templates,
+      ResolveTemplates(spec.templates, cache, [&](const std::string& l) { sim->Log(l); }));
+  sim->templates_ = std::move(templates);
+  RETURN_IF_ERROR(sim->Connect());
+  RETURN_IF_ERROR(sim->UploadTemplates());
 
   // Material points; the density of a region defaults to its template's.
   std::map<std::string, const store::TemplateRecord*> by_name;
@@ -365,9 +362,8 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   for (const MaterialRegion& r : spec.regions) {
     density.push_back(r.density > 0 ? r.density : BulkDensity(by_name.at(r.rve_template)->packing));
   }
-  absl::StatusOr<MaterialPoints> points = FillRegions(spec, density);
-  if (!points.ok()) return points.status();
-  const std::size_t n = points->size();
+  ASSIGN_OR_RETURN(MaterialPoints points, FillRegions(spec, density));
+  const std::size_t n = points.size();
 
   // RVEs: one per point, consolidated to the geostatic stress of its depth
   // when the region asks for it (σv = ρ·|g|·depth + surcharge).
@@ -376,12 +372,12 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   std::vector<client::InitialStress> initial(n);
   std::vector<double> cost(n);
   for (std::size_t p = 0; p < n; ++p) {
-    const MaterialRegion& r = spec.regions[points->region[p]];
+    const MaterialRegion& r = spec.regions[points.region[p]];
     template_of[p] = sim->ServerTemplateName(r.rve_template);
     cost[p] = static_cast<double>(by_name.at(r.rve_template)->packing.radius.size());
-    const double depth = std::max(0.0, r.surface_y - points->position[p].y());
+    const double depth = std::max(0.0, r.surface_y - points.position[p].y());
     const double sv =
-        std::max(r.minimum_stress, density[points->region[p]] * g * depth + r.surcharge);
+        std::max(r.minimum_stress, density[points.region[p]] * g * depth + r.surcharge);
     client::InitialStress& s = initial[p];
     s.kind = r.initial_stress;
     switch (r.initial_stress) {
@@ -452,8 +448,8 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   if (!states.ok()) return states.status();
   sim->Log(absl::StrFormat("created %d RVEs in %.1f s", n, Seconds(Clock::now() - create_start)));
   for (std::size_t p = 0; p < n; ++p) {
-    points->stress[p] = (*states)[p].stress;
-    points->response[p] = RveStressModel::ToResponse((*states)[p]);
+    points.stress[p] = (*states)[p].stress;
+    points.response[p] = RveStressModel::ToResponse((*states)[p]);
   }
 
   // Time step: fixed, or Δt = cfl·h/c with c = sqrt(M/ρ) from the stiffest
@@ -462,9 +458,8 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   if (dt <= 0) {
     double modulus = spec.solver.wave_modulus;
     if (modulus <= 0) {
-      absl::StatusOr<std::vector<dem::RveState>> tangent = sim->pool_->Get(/*want_tangent=*/true);
-      if (!tangent.ok()) return tangent.status();
-      for (const dem::RveState& s : *tangent) {
+      ASSIGN_OR_RETURN(std::vector<dem::RveState> tangent, sim->pool_->Get(/*want_tangent=*/true));
+      for (const dem::RveState& s : tangent) {
         modulus = std::max({modulus, s.tangent(0, 0), s.tangent(4, 4)});
       }
     }
@@ -478,47 +473,44 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
                              spec.solver.cfl, modulus * 1e-6, rho));
   }
   sim->model_ = std::make_unique<RveStressModel>(sim->pool_.get(), &sim->rve_seconds_);
-  absl::StatusOr<std::unique_ptr<Solver>> solver =
-      Solver::Create(spec, *std::move(points), sim->model_.get(), dt);
-  if (!solver.ok()) return solver.status();
-  sim->solver_ = *std::move(solver);
-  if (absl::Status s = sim->OpenOutputs(/*resume=*/false); !s.ok()) return s;
+  ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver,
+                   Solver::Create(spec, std::move(points), sim->model_.get(), dt));
+  sim->solver_ = std::move(solver);
+  RETURN_IF_ERROR(sim->OpenOutputs(/*resume=*/false));
   return sim;
 }
 
 absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string& checkpoint_path,
                                                                const SimulationOptions& options) {
-  if (absl::Status s = MakeOutputDir(options.out_dir); !s.ok()) return s;
-  absl::StatusOr<store::SimCheckpoint> c = store::ReadSimCheckpoint(checkpoint_path);
-  if (!c.ok()) return c.status();
-  absl::StatusOr<CaseSpec> spec = ParseCase(c->case_json, ".");
+  RETURN_IF_ERROR(MakeOutputDir(options.out_dir));
+  ASSIGN_OR_RETURN(store::SimCheckpoint c, store::ReadSimCheckpoint(checkpoint_path));
+  absl::StatusOr<CaseSpec> spec = ParseCase(c.case_json, ".");
   if (!spec.ok()) {
     return absl::DataLossError(
         absl::StrCat(checkpoint_path, ": its case does not parse: ", spec.status().message()));
   }
   std::unique_ptr<Simulation> sim(new Simulation());
   sim->spec_ = *std::move(spec);
-  sim->case_json_ = c->case_json;
+  sim->case_json_ = c.case_json;
   sim->options_ = options;
   sim->run_id_ = MakeRunId(sim->spec_.name);
-  sim->templates_ = std::move(c->templates);
-  if (absl::Status s = sim->Connect(); !s.ok()) return s;
-  if (absl::Status s = sim->UploadTemplates(); !s.ok()) return s;
+  sim->templates_ = std::move(c.templates);
+  RETURN_IF_ERROR(sim->Connect());
+  RETURN_IF_ERROR(sim->UploadTemplates());
   std::vector<double> cost;
-  for (store::RveRecord& r : c->rves) {
+  for (store::RveRecord& r : c.rves) {
     r.run_id = sim->run_id_;
     cost.push_back(static_cast<double>(r.packing.radius.size()));
   }
   sim->pool_->Assign(cost);
-  if (absl::Status s = sim->pool_->ImportAll(std::move(c->rves)); !s.ok()) return s;
+  RETURN_IF_ERROR(sim->pool_->ImportAll(std::move(c.rves)));
   sim->model_ = std::make_unique<RveStressModel>(sim->pool_.get(), &sim->rve_seconds_);
-  absl::StatusOr<std::unique_ptr<Solver>> solver =
-      Solver::FromState(sim->spec_, c->doubles, c->ints, sim->model_.get());
-  if (!solver.ok()) return solver.status();
-  sim->solver_ = *std::move(solver);
+  ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver,
+                   Solver::FromState(sim->spec_, c.doubles, c.ints, sim->model_.get()));
+  sim->solver_ = std::move(solver);
   sim->Log(absl::StrFormat("resumed %s at step %d, t = %.6g s", checkpoint_path,
                            sim->solver_->step(), sim->solver_->time()));
-  if (absl::Status s = sim->OpenOutputs(/*resume=*/true); !s.ok()) return s;
+  RETURN_IF_ERROR(sim->OpenOutputs(/*resume=*/true));
   return sim;
 }
 
@@ -554,19 +546,19 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
     const Clock::time_point t_out = Clock::now();
     if (step % o.timeseries_every == 0 || last) {
       const double per_step = Seconds(t_out - row_clock) / static_cast<double>(step - row_step);
-      if (absl::Status s = WriteRow(per_step); !s.ok()) return s;
+      RETURN_IF_ERROR(WriteRow(per_step));
       row_clock = t_out;
       row_step = step;
     }
     if (step % o.frame_every == 0 || last) {
-      if (absl::Status s = WriteFrame(); !s.ok()) return s;
+      RETURN_IF_ERROR(WriteFrame());
     }
     // Where --stop-after stops there is always a checkpoint, checkpoints on
     // or not: stopping is for resuming later.
     const bool stopping =
         !last && options_.stop_after_steps > 0 && sum.steps >= options_.stop_after_steps;
     if ((o.checkpoint_every > 0 && (step % o.checkpoint_every == 0 || last)) || stopping) {
-      if (absl::Status s = WriteCheckpoint(); !s.ok()) return s;
+      RETURN_IF_ERROR(WriteCheckpoint());
     }
     if (stopping) {
       const std::string path = options_.out_dir + "/checkpoint.h5";
@@ -593,7 +585,7 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
   sum.final_step = solver_->step();
   sum.final_time = solver_->time();
   sum.finished = solver_->step() >= total_steps;
-  if (absl::Status s = out_->results->Close(); !s.ok()) return s;
+  RETURN_IF_ERROR(out_->results->Close());
   if (sum.finished) {
     const std::string png = options_.out_dir + "/plot.png";
     if (absl::Status s = WriteCasePlot(spec_, options_.out_dir + "/timeseries.csv", png); !s.ok()) {

@@ -7,6 +7,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
+#include "rve_server/common/status_macros.h"
 
 namespace rvehub::mpm {
 namespace {
@@ -183,7 +184,7 @@ Eigen::Vector2d DisplacementAt(const std::vector<VelocityPoint>& history, double
 
 absl::StatusOr<MaterialPoints> FillRegions(const CaseSpec& spec, const RegionDensity& density) {
   const GridSpec& grid = spec.grid;
-  if (absl::Status s = ValidateGrid(grid); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidateGrid(grid));
   const double thickness = spec.solver.thickness;
   if (!(thickness > 0.0)) {
     return Invalid("solver", absl::StrCat("thickness = ", thickness, " must be > 0"));
@@ -213,9 +214,8 @@ absl::StatusOr<MaterialPoints> FillRegions(const CaseSpec& spec, const RegionDen
     double rho = region.density;
     if (rho == 0.0) {
       if (!density) return Invalid(what, "density 0 needs the template's density");
-      absl::StatusOr<double> d = density(static_cast<int>(r));
-      if (!d.ok()) return d.status();
-      rho = *d;
+      ASSIGN_OR_RETURN(double d, density(static_cast<int>(r)));
+      rho = d;
     }
     if (!(rho > 0.0) || !std::isfinite(rho)) {
       return Invalid(what, absl::StrCat("density = ", rho, " must be > 0"));
@@ -313,7 +313,7 @@ absl::Status ValidatePoints(const MaterialPoints& points, ShapeKind shape) {
 
 absl::StatusOr<std::unique_ptr<Solver>> Solver::Init(const CaseSpec& spec, StressModel* model) {
   if (model == nullptr) return absl::InvalidArgumentError("Solver needs a stress model");
-  if (absl::Status s = ValidateGrid(spec.grid); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidateGrid(spec.grid));
   const SolverSpec& sv = spec.solver;
   if (!(sv.pic_fraction >= 0.0 && sv.pic_fraction <= 1.0)) {
     return Invalid("solver",
@@ -359,7 +359,7 @@ absl::StatusOr<std::unique_ptr<Solver>> Solver::Init(const CaseSpec& spec, Stres
     if (!(body.friction >= 0.0) || !body.center.allFinite()) {
       return Invalid(what, "friction must be >= 0 and the centre finite");
     }
-    if (absl::Status s = ValidateHistory(what, body.velocity); !s.ok()) return s;
+    RETURN_IF_ERROR(ValidateHistory(what, body.velocity));
   }
   solver->reactions_.assign(spec.walls.size() + spec.bodies.size(), Vector2d::Zero());
   return solver;
@@ -367,10 +367,9 @@ absl::StatusOr<std::unique_ptr<Solver>> Solver::Init(const CaseSpec& spec, Stres
 
 absl::StatusOr<std::unique_ptr<Solver>> Solver::Create(const CaseSpec& spec, MaterialPoints initial,
                                                        StressModel* model, double dt) {
-  absl::StatusOr<std::unique_ptr<Solver>> solver = Init(spec, model);
-  if (!solver.ok()) return solver.status();
-  if (absl::Status s = ValidatePoints(initial, spec.solver.shape); !s.ok()) return s;
-  Solver& sv = **solver;
+  ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver, Init(spec, model));
+  RETURN_IF_ERROR(ValidatePoints(initial, spec.solver.shape));
+  Solver& sv = *solver;
   sv.points_ = std::move(initial);
   sv.Prepare();
   const std::size_t n = sv.points_.size();
@@ -390,9 +389,8 @@ absl::StatusOr<std::unique_ptr<Solver>> Solver::Create(const CaseSpec& spec, Mat
 absl::StatusOr<std::unique_ptr<Solver>> Solver::FromState(
     const CaseSpec& spec, const std::map<std::string, std::vector<double>>& doubles,
     const std::map<std::string, std::vector<std::int64_t>>& ints, StressModel* model) {
-  absl::StatusOr<std::unique_ptr<Solver>> solver = Init(spec, model);
-  if (!solver.ok()) return solver.status();
-  if (absl::Status s = (*solver)->ImportState(doubles, ints); !s.ok()) return s;
+  ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver, Init(spec, model));
+  RETURN_IF_ERROR((solver)->ImportState(doubles, ints));
   return solver;
 }
 
@@ -506,7 +504,7 @@ absl::Status Solver::Step() {
   if (shape_.size() != points_.size() || load_shape_.size() != points_.loads.size()) {
     return absl::FailedPreconditionError("the number of material points or loads changed");
   }
-  if (absl::Status s = EvaluateShapes(); !s.ok()) return s;
+  RETURN_IF_ERROR(EvaluateShapes());
   MaterialPoints& mp = points_;
   const std::size_t n = mp.size();
   const int nodes = NodeCount(grid_);
@@ -547,7 +545,7 @@ absl::Status Solver::Step() {
     delta_f_[p].setIdentity();
     delta_f_[p].topLeftCorner<2, 2>() = df;
   }
-  if (absl::Status s = model_->Update(step_ + 1, delta_f_, response_); !s.ok()) return s;
+  RETURN_IF_ERROR(model_->Update(step_ + 1, delta_f_, response_));
   for (std::size_t p = 0; p < n; ++p) {
     Matrix2d& f = mp.F[p];
     f = (delta_f_[p].topLeftCorner<2, 2>() * f).eval();
@@ -722,9 +720,8 @@ absl::Status Solver::ImportState(const std::map<std::string, std::vector<double>
       {"load_ramp_time", nl},
       {"reactions", 2 * reactions_.size()}};
   for (const auto& [key, size] : double_fields) {
-    absl::StatusOr<const std::vector<double>*> f = Field(doubles, key, size);
-    if (!f.ok()) return f.status();
-    d[key] = *f;
+    ASSIGN_OR_RETURN(const std::vector<double>* f, Field(doubles, key, size));
+    d[key] = f;
   }
   std::map<std::string, const std::vector<std::int64_t>*> i;
   const std::pair<const char*, std::size_t> int_fields[] = {{"step", 1},
@@ -733,9 +730,8 @@ absl::Status Solver::ImportState(const std::map<std::string, std::vector<double>
                                                             {"load_normal_axis", nl},
                                                             {"load_normal_sign", nl}};
   for (const auto& [key, size] : int_fields) {
-    absl::StatusOr<const std::vector<std::int64_t>*> f = Field(ints, key, size);
-    if (!f.ok()) return f.status();
-    i[key] = *f;
+    ASSIGN_OR_RETURN(const std::vector<std::int64_t>* f, Field(ints, key, size));
+    i[key] = f;
   }
   MaterialPoints mp;
   mp.Resize(n);
@@ -784,7 +780,7 @@ absl::Status Solver::ImportState(const std::map<std::string, std::vector<double>
       return absl::InvalidArgumentError(absl::StrCat("state load ", k, " has a bad normal"));
     }
   }
-  if (absl::Status s = ValidatePoints(mp, solver_.shape); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidatePoints(mp, solver_.shape));
   points_ = std::move(mp);
   for (std::size_t k = 0; k < reactions_.size(); ++k) reactions_[k] = vec2(*d["reactions"], k);
   time_ = (*d["time"])[0];

@@ -6,6 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "rve_server/common/status_macros.h"
 #include "rve_server/engine/material.h"
 #include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
@@ -47,15 +48,14 @@ absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
     // A damaged cache entry is prepared again (and overwritten) below.
     if (log) log(absl::StrCat("template cache ", path, " unusable, preparing again"));
   }
-  absl::StatusOr<dem::ParameterSet> set = dem::FindParameterSet(spec.parameter_set);
-  if (!set.ok()) return set.status();
-  set->preparation.seed = spec.seed;
+  ASSIGN_OR_RETURN(dem::ParameterSet set, dem::FindParameterSet(spec.parameter_set));
+  set.preparation.seed = spec.seed;
   if (log) {
     log(absl::StrFormat("preparing template %s (%s, seed %d, %d discs)...", spec.name,
-                        spec.parameter_set, spec.seed, set->preparation.num_particles));
+                        spec.parameter_set, spec.seed, set.preparation.num_particles));
   }
   dem::PreparationReport report;
-  absl::StatusOr<dem::Packing> packing = dem::PreparePacking(*set, {}, &report);
+  absl::StatusOr<dem::Packing> packing = dem::PreparePacking(set, {}, &report);
   if (!packing.ok()) {
     return absl::Status(packing.status().code(), absl::StrCat("preparing template '", spec.name,
                                                               "': ", packing.status().message()));
@@ -87,11 +87,10 @@ absl::StatusOr<std::vector<store::TemplateRecord>> ResolveTemplates(
   std::vector<store::TemplateRecord> out;
   out.reserve(specs.size());
   for (const TemplateSpec& spec : specs) {
-    absl::StatusOr<store::TemplateRecord> r =
-        spec.file.empty() ? Prepared(spec, cache_dir, log) : FromFile(spec);
-    if (!r.ok()) return r.status();
-    r->name = spec.name;
-    out.push_back(*std::move(r));
+    ASSIGN_OR_RETURN(store::TemplateRecord r,
+                     spec.file.empty() ? Prepared(spec, cache_dir, log) : FromFile(spec));
+    r.name = spec.name;
+    out.push_back(std::move(r));
   }
   return out;
 }

@@ -14,6 +14,7 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
+#include "rve_server/common/status_macros.h"
 
 namespace rvehub::plot {
 namespace {
@@ -267,7 +268,7 @@ absl::Status Validate(const std::vector<Panel>& panels, const Layout& layout) {
 
 absl::Status WritePng(const std::string& path, const std::vector<Panel>& panels,
                       const Layout& layout) {
-  if (absl::Status status = Validate(panels, layout); !status.ok()) return status;
+  RETURN_IF_ERROR(Validate(panels, layout));
   const int64_t n = static_cast<int64_t>(panels.size());
   const int64_t columns = std::min<int64_t>(layout.columns, n);
   const int64_t rows = (n + columns - 1) / columns;

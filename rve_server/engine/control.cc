@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "rve_server/common/status_macros.h"
 #include "rve_server/engine/rve.h"
 #include "rve_server/engine/rve_internal.h"
 
@@ -28,8 +29,8 @@ double Rve::QuasiStaticStrainRate(double inertial_number, double pressure) const
 
 absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyOptions& options,
                                     const Interrupt& interrupt) {
-  if (absl::Status valid = ValidateDeltaF(delta_f); !valid.ok()) return valid;
-  if (absl::Status valid = Validate(options); !valid.ok()) return valid;
+  RETURN_IF_ERROR(ValidateDeltaF(delta_f));
+  RETURN_IF_ERROR(Validate(options));
   const Eigen::Matrix2d f = delta_f.topLeftCorner<2, 2>();
   // Polar split ΔF = V·R: rotate rigidly (exact, objective), then stretch.
   const double angle = std::atan2(f(1, 0) - f(0, 1), f(0, 0) + f(1, 1));

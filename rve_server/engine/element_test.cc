@@ -5,6 +5,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "rve_server/common/status_macros.h"
 #include "rve_server/engine/prepare.h"
 
 namespace rvehub::dem {
@@ -91,10 +92,9 @@ absl::StatusOr<ElementTestKind> ParseElementTestKind(absl::string_view name) {
 absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
     Rve& rve, const ElementTestSpec& spec, const std::function<void(double)>& progress,
     const Interrupt& interrupt) {
-  if (absl::Status s = CheckSpec(spec); !s.ok()) return s;
-  absl::StatusOr<RveState> start =
-      ConsolidateIsotropic(rve, spec.confining, 1e-4, nullptr, interrupt);
-  if (!start.ok()) return start.status();
+  RETURN_IF_ERROR(CheckSpec(spec));
+  ASSIGN_OR_RETURN(RveState start,
+                   ConsolidateIsotropic(rve, spec.confining, 1e-4, nullptr, interrupt));
   // Strains count from the consolidated state.
   const Eigen::Matrix2d f0_inv = rve.DeformationGradient().inverse();
   auto strain_f = [&] { return Eigen::Matrix2d(rve.DeformationGradient() * f0_inv); };
@@ -153,7 +153,7 @@ absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
 
   std::vector<ElementTestRow> rows;
   std::int64_t step = 0;
-  rows.push_back(MakeRow(*start, strain_f(), step));
+  rows.push_back(MakeRow(start, strain_f(), step));
   int half_cycles = 0;  // reversals done (cyclic)
   const int target_half_cycles = 2 * spec.cycles;
   double direction = 1.0;
@@ -165,10 +165,9 @@ absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
     }
     RveState s;
     if (interrupt) {
-      if (absl::Status stop = interrupt(); !stop.ok()) return stop;
-      absl::StatusOr<RveState> run = rve.Run(control, steps_per_row, interrupt);
-      if (!run.ok()) return run.status();
-      s = *run;
+      RETURN_IF_ERROR(interrupt());
+      ASSIGN_OR_RETURN(RveState run, rve.Run(control, steps_per_row, interrupt));
+      s = run;
     } else {
       s = rve.Run(control, steps_per_row);
     }

@@ -8,6 +8,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "rve_server/common/status_macros.h"
 #include "rve_server/engine/rve.h"
 
 namespace rvehub::dem {
@@ -61,15 +62,14 @@ absl::StatusOr<RveState> ConsolidateToStress(Rve& rve, double sxx, double syy, d
     RveState s = rve.Observe();
     while (!(close(s) && s.unbalanced_force_ratio < kServoBalance) && done < kMaxSteps) {
       if (interrupt) {
-        if (absl::Status stop = interrupt(); !stop.ok()) return stop;
+        RETURN_IF_ERROR(interrupt());
       }
       s = rve.Run(control, kChunk);
       done += kChunk;
     }
     if (interrupt) {
-      absl::StatusOr<RveState> relaxed = rve.Relax(balance, kMaxSteps / 4, interrupt);
-      if (!relaxed.ok()) return relaxed.status();
-      s = *relaxed;
+      ASSIGN_OR_RETURN(RveState relaxed, rve.Relax(balance, kMaxSteps / 4, interrupt));
+      s = relaxed;
     } else {
       s = rve.Relax(balance, kMaxSteps / 4);
     }
@@ -142,9 +142,9 @@ Packing GenerateLoosePacking(const ParameterSet& set, const Controls& controls) 
 absl::StatusOr<Packing> PreparePacking(const ParameterSet& set, const Controls& controls,
                                        PreparationReport* report,
                                        const std::function<void(const std::string&)>& progress) {
-  if (absl::Status s = Validate(set.material); !s.ok()) return s;
-  if (absl::Status s = Validate(set.preparation); !s.ok()) return s;
-  if (absl::Status s = Validate(controls); !s.ok()) return s;
+  RETURN_IF_ERROR(Validate(set.material));
+  RETURN_IF_ERROR(Validate(set.preparation));
+  RETURN_IF_ERROR(Validate(controls));
   const double p0 = set.preparation.pressure;
   const double target = set.preparation.target_void_ratio;
   const Packing loose = GenerateLoosePacking(set, controls);
@@ -154,57 +154,50 @@ absl::StatusOr<Packing> PreparePacking(const ParameterSet& set, const Controls& 
   auto compact = [&](double friction) -> absl::StatusOr<Trial> {
     Packing start = loose;
     start.material.friction = friction;
-    absl::StatusOr<Rve> rve = Rve::Create(std::move(start));
-    if (!rve.ok()) return rve.status();
-    absl::StatusOr<RveState> s = ConsolidateIsotropic(*rve, p0, kCompactionBalance, &steps);
-    if (!s.ok()) return s.status();
+    ASSIGN_OR_RETURN(Rve rve, Rve::Create(std::move(start)));
+    ASSIGN_OR_RETURN(RveState s, ConsolidateIsotropic(rve, p0, kCompactionBalance, &steps));
     ++trials;
     if (progress) {
       progress(
           absl::StrFormat("compaction trial %d: friction %.4f -> e = %.4f (target %.4f), %d steps",
-                          trials, friction, s->void_ratio, target, steps));
+                          trials, friction, s.void_ratio, target, steps));
     }
-    return Trial{friction, s->void_ratio, rve->ToPacking()};
+    return Trial{friction, s.void_ratio, rve.ToPacking()};
   };
 
   // Steer e by the compaction friction: e grows with friction. Regula falsi
   // between μ = 0 (densest) and the material friction (loosest).
-  absl::StatusOr<Trial> lo = compact(0.0);
-  if (!lo.ok()) return lo.status();
-  Trial best = *lo;
-  if (target > 0 && lo->void_ratio < target - kVoidRatioTolerance) {
-    absl::StatusOr<Trial> hi = compact(set.material.friction);
-    if (!hi.ok()) return hi.status();
-    if (std::abs(hi->void_ratio - target) < std::abs(best.void_ratio - target)) best = *hi;
-    Trial a = *lo, b = *hi;
+  ASSIGN_OR_RETURN(Trial lo, compact(0.0));
+  Trial best = lo;
+  if (target > 0 && lo.void_ratio < target - kVoidRatioTolerance) {
+    ASSIGN_OR_RETURN(Trial hi, compact(set.material.friction));
+    if (std::abs(hi.void_ratio - target) < std::abs(best.void_ratio - target)) best = hi;
+    Trial a = lo, b = hi;
     while (b.void_ratio > target + kVoidRatioTolerance && trials < kMaxTrials &&
            std::abs(best.void_ratio - target) > kVoidRatioTolerance) {
       double w = (target - a.void_ratio) / (b.void_ratio - a.void_ratio);
       w = std::clamp(w, 0.1, 0.9);  // keep away from the ends: e(μ) is noisy
-      absl::StatusOr<Trial> mid = compact(a.friction + w * (b.friction - a.friction));
-      if (!mid.ok()) return mid.status();
-      if (std::abs(mid->void_ratio - target) < std::abs(best.void_ratio - target)) best = *mid;
-      (mid->void_ratio < target ? a : b) = *mid;
+      ASSIGN_OR_RETURN(Trial mid, compact(a.friction + w * (b.friction - a.friction)));
+      if (std::abs(mid.void_ratio - target) < std::abs(best.void_ratio - target)) best = mid;
+      (mid.void_ratio < target ? a : b) = mid;
     }
   }
 
   // Restore the material friction and stabilise at p0.
   best.packing.material.friction = set.material.friction;
-  absl::StatusOr<Rve> rve = Rve::Create(std::move(best.packing));
-  if (!rve.ok()) return rve.status();
-  rve->BondContacts();
-  absl::StatusOr<RveState> final_state = ConsolidateIsotropic(*rve, p0, kFinalBalance, &steps);
-  if (!final_state.ok()) return final_state.status();
+  ASSIGN_OR_RETURN(Rve rve, Rve::Create(std::move(best.packing)));
+  rve.BondContacts();
+  ASSIGN_OR_RETURN(RveState final_state, ConsolidateIsotropic(rve, p0, kFinalBalance, &steps));
 
-  Packing out = rve->ToPacking();
-  const double e0 = final_state->void_ratio;
+  Packing out = rve.ToPacking();
+  const double e0 = final_state.void_ratio;
   out.initial_void_ratio = e0;
   out.permeability_coefficient = set.preparation.initial_permeability * (1.0 + e0) / (e0 * e0 * e0);
   std::fill(out.theta.begin(), out.theta.end(), 0.0);  // rotations count from the prepared state
   out.total_steps = 0;
   out.reference_cell = out.cell;  // strains count from the prepared state
   if (report != nullptr) {
-    *report = {best.friction, trials, e0, final_state->MeanPressure(), final_state->coordination,
+    *report = {best.friction, trials, e0, final_state.MeanPressure(), final_state.coordination,
                steps};
   }
   return out;

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "rve_server/common/status_macros.h"
 #include "rve_server/engine/contact_law.h"
 #include "rve_server/engine/rve_internal.h"
 
@@ -74,7 +75,7 @@ Rve::Rve(Packing packing) : p_(std::move(packing)) {
 }
 
 absl::Status ValidatePacking(const Packing& p) {
-  if (absl::Status s = Validate(p.material); !s.ok()) return s;
+  RETURN_IF_ERROR(Validate(p.material));
   if (p.material.name.size() > kMaxNameBytes) {
     return absl::InvalidArgumentError(absl::StrCat("material name has ", p.material.name.size(),
                                                    " bytes; at most ", kMaxNameBytes));
@@ -84,7 +85,7 @@ absl::Status ValidatePacking(const Packing& p) {
       return absl::InvalidArgumentError("material name must be printable ASCII");
     }
   }
-  if (absl::Status s = Validate(p.controls); !s.ok()) return s;
+  RETURN_IF_ERROR(Validate(p.controls));
   const std::size_t n = p.radius.size();
   if (n < 2)
     return absl::InvalidArgumentError(absl::StrCat("packing has ", n, " particles; needs >= 2"));
@@ -103,7 +104,7 @@ absl::Status ValidatePacking(const Packing& p) {
           absl::StrCat("packing field ", name, " has ", vec->size(), " entries; radius has ", n));
     }
     for (std::size_t i = 0; i < n; ++i) {
-      if (absl::Status s = CheckFinite((*vec)[i], name, i); !s.ok()) return s;
+      RETURN_IF_ERROR(CheckFinite((*vec)[i], name, i));
     }
   }
   for (std::size_t i = 0; i < n; ++i) {
@@ -176,7 +177,7 @@ absl::Status ValidatePacking(const Packing& p) {
 }
 
 absl::StatusOr<Rve> Rve::Create(Packing p) {
-  if (absl::Status s = ValidatePacking(p); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidatePacking(p));
   Rve rve(std::move(p));
   // Discs with (nearly) coincident centres have no contact normal.
   const double min_distance = 1e-6 * rve.radius_min_;

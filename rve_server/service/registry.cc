@@ -15,6 +15,7 @@
 #include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "rve_server/common/status_macros.h"
 #include "rve_server/engine/prepare.h"
 
 namespace rvehub::service {
@@ -153,7 +154,7 @@ absl::Status ValidateName(absl::string_view what, absl::string_view name) {
 Registry::Registry(const RegistryOptions& options) : options_(options), pool_(options.threads) {}
 
 absl::StatusOr<TemplateSummary> Registry::PutTemplate(store::TemplateRecord record, bool replace) {
-  if (absl::Status s = ValidateName("template name", record.name); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidateName("template name", record.name));
   if (record.description.size() > kMaxDescriptionBytes) {
     return absl::InvalidArgumentError(absl::StrCat("template description has ",
                                                    record.description.size(), " bytes; at most ",
@@ -198,7 +199,7 @@ std::vector<store::TemplateRecord> Registry::AllTemplates() const {
 }
 
 absl::StatusOr<store::TemplateRecord> Registry::FindTemplate(absl::string_view name) const {
-  if (absl::Status s = ValidateName("template name", name); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidateName("template name", name));
   absl::MutexLock lock(&mu_);
   auto t = templates_.find(name);
   if (t == templates_.end()) {
@@ -243,7 +244,7 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
     absl::string_view run_id, absl::string_view template_name, std::span<const std::int64_t> ids,
     std::span<const InitialStress> initial, const std::optional<dem::Controls>& controls,
     bool want_state, const CancelFn& cancelled) {
-  if (absl::Status s = ValidateName("run id", run_id); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidateName("run id", run_id));
   if (ids.empty()) return absl::InvalidArgumentError("no material-point ids to create");
   if (static_cast<std::int64_t>(ids.size()) > options_.max_batch) {
     return absl::InvalidArgumentError(absl::StrCat(
@@ -265,21 +266,19 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
     }
   }
   if (controls.has_value()) {
-    if (absl::Status s = dem::Validate(*controls); !s.ok()) return s;
+    RETURN_IF_ERROR(dem::Validate(*controls));
   }
 
-  absl::StatusOr<store::TemplateRecord> found = FindTemplate(template_name);
-  if (!found.ok()) return found.status();
-  dem::Packing base = std::move(found->packing);
+  ASSIGN_OR_RETURN(store::TemplateRecord found, FindTemplate(template_name));
+  dem::Packing base = std::move(found.packing);
   std::int64_t bytes_each = 0;
   if (controls.has_value()) base.controls = *controls;
-  absl::StatusOr<dem::Rve> prototype = dem::Rve::Create(base);
-  if (!prototype.ok()) return prototype.status();
-  bytes_each = static_cast<std::int64_t>(prototype->MemoryBytes());
+  ASSIGN_OR_RETURN(dem::Rve prototype, dem::Rve::Create(base));
+  bytes_each = static_cast<std::int64_t>(prototype.MemoryBytes());
   const std::int64_t n = static_cast<std::int64_t>(ids.size());
   {
     absl::MutexLock lock(&mu_);
-    if (absl::Status s = CheckRoom(run_id, ids, n * bytes_each); !s.ok()) return s;
+    RETURN_IF_ERROR(CheckRoom(run_id, ids, n * bytes_each));
   }
 
   // Consolidation is the expensive part. Every new RVE starts from the same
@@ -313,7 +312,7 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
       status[u] = c;
       return;
     }
-    dem::Rve rve = *prototype;
+    dem::Rve rve = prototype;
     absl::StatusOr<dem::RveState> s = dem::RveState{};
     const InitialStress& target = target_of(distinct[u]);
     const absl::Status guarded = NoThrow([&] {
@@ -353,7 +352,7 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
     absl::MutexLock lock(&mu_);
     // Another call may have created some of these ids or used the capacity
     // while this one consolidated.
-    if (absl::Status s = CheckRoom(run_id, ids, n * bytes_each); !s.ok()) return s;
+    RETURN_IF_ERROR(CheckRoom(run_id, ids, n * bytes_each));
     Run& run = runs_[std::string(run_id)];
     for (std::size_t k = 0; k < ids.size(); ++k) {
       auto entry = std::make_shared<Entry>(*consolidated[unique_of[k]]);
@@ -410,7 +409,7 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
                                                    " increments exceeds the server's max batch of ",
                                                    options_.max_batch));
   }
-  if (absl::Status s = ValidateName("run id", run_id); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidateName("run id", run_id));
   if (step < 1) return absl::InvalidArgumentError(absl::StrCat("step ", step, " must be >= 1"));
   if (absl::Status s = dem::Validate(options); !s.ok()) {
     return absl::InvalidArgumentError(absl::StrCat("apply options: ", s.message()));
@@ -427,13 +426,12 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
     return absl::InvalidArgumentError(
         absl::StrCat("material-point ids repeated in the batch: ", ListIds(rep)));
   }
-  absl::StatusOr<std::vector<std::pair<std::int64_t, EntryPtr>>> entries = Lookup(run_id, ids);
-  if (!entries.ok()) return entries.status();
+  ASSIGN_OR_RETURN(auto entries, Lookup(run_id, ids));
 
   std::vector<RveOutcome> out(increments.size());
   auto apply_one = [&](std::size_t k) {
     const Increment& inc = increments[k];
-    Entry& e = *(*entries)[k].second;
+    Entry& e = *(entries)[k].second;
     RveOutcome& o = out[k];
     o.id = inc.id;
     absl::MutexLock lock(&e.mu);
@@ -518,8 +516,8 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
 absl::StatusOr<std::vector<RveOutcome>> Registry::Get(absl::string_view run_id,
                                                       std::span<const std::int64_t> ids,
                                                       bool want_tangent) const {
-  if (absl::Status s = ValidateName("run id", run_id); !s.ok()) return s;
-  if (absl::Status s = CheckIdList(ids, options_.max_batch); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidateName("run id", run_id));
+  RETURN_IF_ERROR(CheckIdList(ids, options_.max_batch));
   std::vector<std::pair<std::int64_t, EntryPtr>> entries;
   {
     absl::MutexLock lock(&mu_);
@@ -558,11 +556,10 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Get(absl::string_view run_id,
 
 absl::Status Registry::Export(absl::string_view run_id, std::span<const std::int64_t> ids,
                               const std::function<absl::Status(store::RveRecord&&)>& sink) const {
-  if (absl::Status s = ValidateName("run id", run_id); !s.ok()) return s;
-  if (absl::Status s = CheckIdList(ids, options_.max_batch); !s.ok()) return s;
-  absl::StatusOr<std::vector<std::pair<std::int64_t, EntryPtr>>> entries = Lookup(run_id, ids);
-  if (!entries.ok()) return entries.status();
-  for (const auto& [id, e] : *entries) {
+  RETURN_IF_ERROR(ValidateName("run id", run_id));
+  RETURN_IF_ERROR(CheckIdList(ids, options_.max_batch));
+  ASSIGN_OR_RETURN(auto entries, Lookup(run_id, ids));
+  for (const auto& [id, e] : entries) {
     store::RveRecord r;
     r.run_id = std::string(run_id);
     r.id = id;
@@ -572,7 +569,7 @@ absl::Status Registry::Export(absl::string_view run_id, std::span<const std::int
       r.last_delta_f = e->last_delta_f;
       r.packing = e->rve.ToPacking();
     }
-    if (absl::Status s = sink(std::move(r)); !s.ok()) return s;
+    RETURN_IF_ERROR(sink(std::move(r)));
   }
   return absl::OkStatus();
 }
@@ -605,9 +602,8 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<store::RveRecord> reco
       s = absl::InvalidArgumentError("last ΔF is not finite");
     if (s.ok()) {
       s = NoThrow([&] {
-        absl::StatusOr<dem::Rve> rve = dem::Rve::Create(r.packing);
-        if (!rve.ok()) return rve.status();
-        made[k].emplace(*std::move(rve));
+        ASSIGN_OR_RETURN(dem::Rve rve, dem::Rve::Create(r.packing));
+        made[k].emplace(std::move(rve));
         return absl::OkStatus();
       });
     }
@@ -648,7 +644,7 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<store::RveRecord> reco
                                                    "; drop it before importing"));
     }
   }
-  if (absl::Status s = CheckCapacity(n, bytes); !s.ok()) return s;
+  RETURN_IF_ERROR(CheckCapacity(n, bytes));
   for (std::size_t k = 0; k < records.size(); ++k) {
     auto entry = std::make_shared<Entry>(std::move(*made[k]));
     entry->memory_bytes = static_cast<std::int64_t>(entry->rve.MemoryBytes());
@@ -666,8 +662,8 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<store::RveRecord> reco
 
 absl::StatusOr<std::int64_t> Registry::Drop(absl::string_view run_id,
                                             std::span<const std::int64_t> ids) {
-  if (absl::Status s = ValidateName("run id", run_id); !s.ok()) return s;
-  if (absl::Status s = CheckIdList(ids, options_.max_batch); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidateName("run id", run_id));
+  RETURN_IF_ERROR(CheckIdList(ids, options_.max_batch));
   absl::MutexLock lock(&mu_);
   auto run = runs_.find(run_id);
   if (run == runs_.end()) {

@@ -11,6 +11,7 @@
 
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
+#include "rve_server/common/status_macros.h"
 #include "rve_server/engine/element_test.h"
 #include "rve_server/service/convert.h"
 #include "rve_server/service/log.h"
@@ -383,7 +384,7 @@ grpc::Status RveServiceImpl::Export(grpc::ServerContext* ctx, const v1::ExportRe
     ToProto(r, &record);
     const std::int64_t size = static_cast<std::int64_t>(record.ByteSizeLong());
     if (chunk.records_size() > 0 && chunk_bytes + size > budget) {
-      if (absl::Status f = flush(); !f.ok()) return f;
+      RETURN_IF_ERROR(flush());
     }
     chunk_bytes += size + 8;  // + field tag and length
     *chunk.add_records() = std::move(record);

@@ -12,6 +12,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/synchronization/notification.h"
+#include "rve_server/common/status_macros.h"
 #include "rve_server/service/log.h"
 #include "store/checkpoint.h"
 
@@ -171,7 +172,7 @@ absl::StatusOr<std::unique_ptr<RveServer>> RveServer::Start(const ServerConfig& 
   s->config_ = config;
   s->registry_ = std::make_unique<Registry>(config.registry);
   if (!config.checkpoint_dir.empty()) {
-    if (absl::Status l = s->LoadCheckpoint(config.checkpoint_dir); !l.ok()) return l;
+    RETURN_IF_ERROR(s->LoadCheckpoint(config.checkpoint_dir));
   }
   ServiceOptions options;
   options.version = kServerVersion;
@@ -314,19 +315,16 @@ absl::Status RveServer::LoadCheckpoint(const std::string& dir) {
   const std::string rves_path = (std::filesystem::path(dir) / kRvesFile).string();
   std::int64_t num_templates = 0, num_rves = 0;
   if (std::filesystem::exists(templates_path)) {
-    absl::StatusOr<std::vector<store::TemplateRecord>> t = store::ReadTemplates(templates_path);
-    if (!t.ok()) return t.status();
-    for (store::TemplateRecord& r : *t) {
-      absl::StatusOr<TemplateSummary> put = registry_->PutTemplate(std::move(r), true);
-      if (!put.ok()) return put.status();
+    ASSIGN_OR_RETURN(std::vector<store::TemplateRecord> t, store::ReadTemplates(templates_path));
+    for (store::TemplateRecord& r : t) {
+      ASSIGN_OR_RETURN(TemplateSummary put, registry_->PutTemplate(std::move(r), true));
       ++num_templates;
     }
   }
   if (std::filesystem::exists(rves_path)) {
-    absl::StatusOr<std::vector<store::RveRecord>> r = store::ReadRves(rves_path);
-    if (!r.ok()) return r.status();
-    if (!r->empty()) {
-      absl::StatusOr<std::int64_t> n = registry_->Import(*std::move(r));
+    ASSIGN_OR_RETURN(std::vector<store::RveRecord> r, store::ReadRves(rves_path));
+    if (!r.empty()) {
+      absl::StatusOr<std::int64_t> n = registry_->Import(std::move(r));
       if (!n.ok()) {
         return absl::Status(n.status().code(),
                             absl::StrCat("restoring ", rves_path, ": ", n.status().message()));
