@@ -48,14 +48,15 @@ absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
     // A damaged cache entry is prepared again (and overwritten) below.
     if (log) log(absl::StrCat("template cache ", path, " unusable, preparing again"));
   }
-  ASSIGN_OR_RETURN(dem::ParameterSet set, dem::FindParameterSet(spec.parameter_set));
-  set.preparation.seed = spec.seed;
-  if (log) {
-    log(absl::StrFormat("preparing template %s (%s, seed %d, %d discs)...", spec.name,
-                        spec.parameter_set, spec.seed, set.preparation.num_particles));
-  }
+  if (log) log(absl::StrFormat("preparing template %s (%s)...", spec.name, spec.parameter_set));
   dem::PreparationReport report;
-  absl::StatusOr<dem::Packing> packing = dem::PreparePacking(set, {}, &report);
+  // The first progress line ("N discs, seed S") is the one worth a log line.
+  bool announced = false;
+  absl::StatusOr<dem::Packing> packing =
+      dem::PrepareTemplate(spec.parameter_set, spec.seed, &report, [&](const std::string& line) {
+        if (log && !announced) log(absl::StrCat("  ", line));
+        announced = true;
+      });
   if (!packing.ok()) {
     return absl::Status(packing.status().code(), absl::StrCat("preparing template '", spec.name,
                                                               "': ", packing.status().message()));

@@ -203,4 +203,15 @@ absl::StatusOr<Packing> PreparePacking(const ParameterSet& set, const Controls& 
   return out;
 }
 
+absl::StatusOr<Packing> PrepareTemplate(absl::string_view parameter_set, std::uint64_t seed,
+                                        PreparationReport* report,
+                                        const std::function<void(const std::string&)>& progress) {
+  ASSIGN_OR_RETURN(ParameterSet set, FindParameterSet(parameter_set));
+  set.preparation.seed = seed;
+  if (progress) {
+    progress(absl::StrFormat("%d discs, seed %d", set.preparation.num_particles, seed));
+  }
+  return PreparePacking(set, {}, report, progress);
+}
+
 }  // namespace rvehub::dem

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
 #include "rve_server/engine/material.h"
 #include "rve_server/engine/packing.h"
 #include "rve_server/engine/rve.h"
@@ -50,6 +51,15 @@ Packing GenerateLoosePacking(const ParameterSet& set, const Controls& controls =
 // force ratio < 1e-4). `progress`, when set, receives one line per trial.
 absl::StatusOr<Packing> PreparePacking(
     const ParameterSet& set, const Controls& controls = {}, PreparationReport* report = nullptr,
+    const std::function<void(const std::string&)>& progress = {});
+
+// The one way to make a template from a named parameter set and a seed
+// (rve_cli prepare, mpm_client's case templates): the set's preparation with
+// its seed replaced, through PreparePacking. NotFound naming the known sets
+// for an unknown name. `progress`, when set, first receives "N discs, seed
+// S", then PreparePacking's lines.
+absl::StatusOr<Packing> PrepareTemplate(
+    absl::string_view parameter_set, std::uint64_t seed, PreparationReport* report = nullptr,
     const std::function<void(const std::string&)>& progress = {});
 
 }  // namespace rvehub::dem
