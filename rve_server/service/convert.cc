@@ -283,6 +283,30 @@ dem::ApplyOptions FromProto(const v1::ApplyOptions& o) {
   return out;
 }
 
+absl::StatusOr<ApplyMode> FromProto(v1::ApplyMode mode) {
+  switch (mode) {
+    case v1::APPLY_MODE_COMMIT:
+      return ApplyMode::kCommit;
+    case v1::APPLY_MODE_TRIAL:
+      return ApplyMode::kTrial;
+    default:
+      return absl::InvalidArgumentError("mode must be APPLY_MODE_COMMIT or APPLY_MODE_TRIAL");
+  }
+}
+
+absl::StatusOr<std::vector<Increment>> FromProto(
+    const google::protobuf::RepeatedPtrField<v1::Increment>& increments) {
+  std::vector<Increment> out(increments.size());
+  for (int k = 0; k < increments.size(); ++k) {
+    const v1::Increment& inc = increments[k];
+    absl::StatusOr<Eigen::Matrix3d> f = Matrix3FromProto(
+        inc.delta_f(), absl::StrCat("increments[", k, "] (id ", inc.id(), ").delta_f"));
+    if (!f.ok()) return f.status();
+    out[k] = {inc.id(), *f};
+  }
+  return out;
+}
+
 absl::StatusOr<InitialStress> FromProto(const v1::InitialStress& s) {
   InitialStress out;
   switch (s.kind_case()) {

@@ -5,6 +5,7 @@
 #define RVEHUB_RVE_SERVER_SERVICE_CONVERT_H_
 
 #include <Eigen/Dense>
+#include <vector>
 
 #include "absl/status/statusor.h"
 #include "rve_server/engine/element_test.h"
@@ -44,6 +45,11 @@ void ToProto(const RveOutcome& o, v1::RveResult* out);
 void ToProto(const TemplateSummary& t, v1::TemplateInfo* out);
 
 dem::ApplyOptions FromProto(const v1::ApplyOptions& o);
+// InvalidArgument unless COMMIT or TRIAL.
+absl::StatusOr<ApplyMode> FromProto(v1::ApplyMode mode);
+// ΔF of every increment checked (9 finite values), the field named.
+absl::StatusOr<std::vector<Increment>> FromProto(
+    const google::protobuf::RepeatedPtrField<v1::Increment>& increments);
 // InvalidArgument when neither pressure nor k0 is set.
 absl::StatusOr<InitialStress> FromProto(const v1::InitialStress& s);
 absl::StatusOr<dem::ElementTestSpec> FromProto(const v1::ElementTestRequest& r);

@@ -303,29 +303,13 @@ grpc::Status RveServiceImpl::DoApply(grpc::ServerContext* ctx, const v1::ApplyRe
       !r.ok()) {
     return r;
   }
-  ApplyMode mode;
-  switch (req->mode()) {
-    case v1::APPLY_MODE_COMMIT:
-      mode = ApplyMode::kCommit;
-      break;
-    case v1::APPLY_MODE_TRIAL:
-      mode = ApplyMode::kTrial;
-      break;
-    default:
-      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                          "mode must be APPLY_MODE_COMMIT or APPLY_MODE_TRIAL");
-  }
+  absl::StatusOr<ApplyMode> mode = FromProto(req->mode());
+  if (!mode.ok()) return ToGrpc(mode.status());
   const dem::ApplyOptions options = FromProto(req->options());
-  std::vector<Increment> increments(req->increments_size());
-  for (int k = 0; k < req->increments_size(); ++k) {
-    const v1::Increment& inc = req->increments(k);
-    absl::StatusOr<Eigen::Matrix3d> f = Matrix3FromProto(
-        inc.delta_f(), absl::StrCat("increments[", k, "] (id ", inc.id(), ").delta_f"));
-    if (!f.ok()) return ToGrpc(f.status());
-    increments[k] = {inc.id(), *f};
-  }
+  absl::StatusOr<std::vector<Increment>> increments = FromProto(req->increments());
+  if (!increments.ok()) return ToGrpc(increments.status());
   absl::StatusOr<std::vector<RveOutcome>> out =
-      registry_.Apply(req->run_id(), req->step(), mode, options, increments, Canceller(ctx));
+      registry_.Apply(req->run_id(), req->step(), *mode, options, *increments, Canceller(ctx));
   if (!out.ok()) return ToGrpc(out.status());
   std::int64_t failed = 0;
   for (const RveOutcome& o : *out) {
