@@ -159,8 +159,14 @@ TEST(HardeningDeadline, LongRelaxationStopsAtTheDeadlineAndChangesNothing) {
   req.mutable_options()->set_relax_max_steps(10'000'000);
   v1::ApplyResponse resp;
   const auto t0 = Clock::now();
-  ExpectError(h.stub().Apply(h.Context(std::chrono::milliseconds(500)).get(), req, &resp),
-              grpc::StatusCode::DEADLINE_EXCEEDED, "");
+  // Either the client's deadline ends the call, or (on a loaded machine) the
+  // server sees it pass first and answers with the RVE stopped.
+  const grpc::Status first =
+      h.stub().Apply(h.Context(std::chrono::milliseconds(500)).get(), req, &resp);
+  EXPECT_TRUE(first.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED ||
+              (first.ok() && resp.failed() == 1 &&
+               resp.results(0).code() == static_cast<int>(absl::StatusCode::kDeadlineExceeded)))
+      << first.error_code() << " " << first.error_message() << " failed " << resp.failed();
   // The next call needs the only worker: it gets it within moments.
   ASSERT_TRUE(h.stub()
                   .Apply(h.Context(std::chrono::seconds(20)).get(),
@@ -450,9 +456,9 @@ TEST(HardeningStop, DrainEndsWhenTheGraceDoesDespiteALongCall) {
   req.mutable_options()->set_relax_tolerance(1e-12);
   req.mutable_options()->set_relax_max_steps(10'000'000);
   grpc::Status long_call;
+  v1::ApplyResponse resp;
   std::thread client([&] {
     grpc::ClientContext ctx;  // no deadline: only the drain can end it
-    v1::ApplyResponse resp;
     long_call = h.stub().Apply(&ctx, req, &resp);
   });
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the call is in the engine
@@ -460,7 +466,11 @@ TEST(HardeningStop, DrainEndsWhenTheGraceDoesDespiteALongCall) {
   EXPECT_TRUE(h.server().Stop(std::chrono::milliseconds(500)).ok());
   EXPECT_LT(Seconds(t0), 5.0) << "Stop waited for the engine beyond the grace";
   client.join();
-  EXPECT_FALSE(long_call.ok());
+  // The call fails, or its reply says the RVE was stopped (the drain's
+  // cancellation reached the engine before the transport closed).
+  EXPECT_TRUE(!long_call.ok() || (resp.failed() == 1 && resp.results(0).code() != 0))
+      << long_call.error_code() << " " << long_call.error_message() << " failed "
+      << resp.failed();
 }
 
 }  // namespace
