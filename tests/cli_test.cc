@@ -27,6 +27,8 @@
 #include "gtest/gtest.h"
 #include "nlohmann/json.hpp"
 #include "rve_server/client/channel.h"
+#include "rve_server/client/server_client.h"
+#include "rve_server/service/registry.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
 #include "tests/process_util.h"
 
@@ -755,6 +757,38 @@ TEST(CliServerTest, TokenFromTheTokenFile) {
   EXPECT_EQ(no_file.exit_code, 1) << no_file.output;
   EXPECT_TRUE(absl::StrContains(no_file.output, "NOT_FOUND: ")) << no_file.output;
   std::remove(token_file.c_str());
+  EXPECT_EQ(server.Stop(), 0) << server.Log();
+}
+
+// rve_cli checks --name on the client side (client::ValidateName, so that a
+// bad name fails before the preparation): the server's rule and messages.
+TEST(CliTest, ClientNameCheckIsTheServers) {
+  for (const std::string& name :
+       {std::string("SET-dense-seed1"), std::string("._-"), std::string(), std::string(128, 'a'),
+        std::string(129, 'a'), std::string("a/b"), std::string("a b"), std::string("\xc3\xbc")}) {
+    EXPECT_EQ(client::ValidateName("--name", name), service::ValidateName("--name", name))
+        << "'" << name << "'";
+  }
+}
+
+// ServerClient, rve_cli's way to a server: plain results, and errors that
+// keep the server's code and name the call and the server.
+TEST(CliServerTest, ServerClientNamesTheCallAndServerInErrors) {
+  Server server;
+  ASSERT_FALSE(server.address().empty());
+  const client::ServerClient c(server.address(), {}, std::chrono::seconds(60));
+  const absl::StatusOr<client::ServerInfo> info = c.GetServerInfo();
+  ASSERT_TRUE(info.ok()) << info.status();
+  EXPECT_EQ(info->api_version, "rvehub.v1");
+  const absl::StatusOr<std::vector<client::RunInfo>> runs = c.ListRuns();
+  ASSERT_TRUE(runs.ok()) << runs.status();
+  EXPECT_TRUE(runs->empty());
+  const std::int64_t ids[] = {1};
+  const absl::StatusOr<std::int64_t> dropped = c.Drop("none", ids);
+  EXPECT_TRUE(absl::IsNotFound(dropped.status())) << dropped.status();
+  EXPECT_TRUE(absl::EndsWith(dropped.status().message(),
+                             absl::StrCat(" (Drop on ", server.address(), ")")))
+      << dropped.status();
   EXPECT_EQ(server.Stop(), 0) << server.Log();
 }
 

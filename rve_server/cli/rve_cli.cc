@@ -14,6 +14,7 @@
 // Exit status: 0 success, 1 failure, 2 usage error.
 #include <unistd.h>
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -45,14 +46,11 @@
 #include "rve_server/common/flags.h"
 #include "rve_server/common/version.h"
 #include "rve_server/client/channel.h"
-#include "rve_server/client/record_stream.h"
+#include "rve_server/client/server_client.h"
+#include "rve_server/client/types.h"
 #include "rve_server/engine/element_test.h"
 #include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
-#include "rve_server/service/convert.h"
-#include "rve_server/service/registry.h"
-#include "rve_server/service/server.h"
-#include "rvehub/v1/rve_service.grpc.pb.h"
 #include "store/checkpoint.h"
 #include "store/record.h"
 
@@ -345,49 +343,24 @@ std::vector<std::string> WithServerFlags(std::vector<std::string> flags) {
   return flags;
 }
 
-struct Remote {
-  std::string target;
-  client::ClientOptions options;
-  std::chrono::milliseconds timeout{600'000};
-  std::unique_ptr<v1::RveService::Stub> stub;
-
-  // A ClientContext serves one call; this readies one (token, deadline).
-  void Ready(grpc::ClientContext& ctx) const { client::Prepare(ctx, options, timeout); }
-
-  // A failed call's status, its message followed by the call and server.
-  absl::Status Check(const grpc::Status& s, absl::string_view rpc) const {
-    if (s.ok()) return absl::OkStatus();
-    const absl::Status a = client::FromGrpc(s);
-    return absl::Status(a.code(), absl::StrCat(a.message(), " (", rpc, " on ", target, ")"));
-  }
-
-  template <typename Request, typename Response>
-  absl::Status Call(absl::string_view rpc,
-                    grpc::Status (v1::RveService::Stub::*method)(grpc::ClientContext*,
-                                                                 const Request&, Response*),
-                    const Request& request, Response* response) const {
-    grpc::ClientContext ctx;
-    Ready(ctx);
-    return Check((stub.get()->*method)(&ctx, request, response), rpc);
-  }
-};
+// Servers are reached only through the client library: ServerClient names
+// the call and server in its errors ("... (ListRuns on HOST:PORT)").
+using Remote = client::ServerClient;
 
 absl::StatusOr<Remote> Connect(const Flags& flags) {
-  Remote r;
-  RETURN_IF_ERROR(Require(flags, "server", "HOST:PORT", &r.target));
+  std::string target;
+  RETURN_IF_ERROR(Require(flags, "server", "HOST:PORT", &target));
   double timeout = 600;
   RETURN_IF_ERROR(Get(flags, "timeout", &timeout));
   if (timeout < 0 || timeout > 1e9) return UsageError("--timeout must lie in [0, 1e9] seconds");
-  r.timeout = std::chrono::milliseconds(static_cast<std::int64_t>(std::llround(timeout * 1e3)));
   std::string token_file, tls_ca;
   RETURN_IF_ERROR(Get(flags, "token-file", &token_file));
   RETURN_IF_ERROR(Get(flags, "tls-ca", &tls_ca));
   absl::StatusOr<client::ClientOptions> options =
       client::ClientOptionsFromFiles(token_file, tls_ca);
   if (!options.ok()) return options.status();
-  r.options = *std::move(options);
-  r.stub = v1::RveService::NewStub(client::MakeChannel(r.target, r.options));
-  return r;
+  return Remote(std::move(target), *std::move(options),
+                std::chrono::milliseconds(static_cast<std::int64_t>(std::llround(timeout * 1e3))));
 }
 
 // ---------------------------------------------------------------------------
@@ -426,13 +399,13 @@ class ProgressLine {
 // read back bit for bit, and NaN or infinity as null).
 using Json = nlohmann::ordered_json;
 
-// A row-major n×n matrix of a repeated field as nested JSON arrays.
-Json JsonMatrix(const google::protobuf::RepeatedField<double>& v, int n) {
-  if (v.size() != n * n) return nullptr;
+// A matrix as nested JSON arrays, one a row.
+template <typename Matrix>
+Json JsonMatrix(const Matrix& m) {
   Json rows = Json::array();
-  for (int r = 0; r < n; ++r) {
+  for (int r = 0; r < m.rows(); ++r) {
     Json row = Json::array();
-    for (int c = 0; c < n; ++c) row.push_back(v[n * r + c]);
+    for (int c = 0; c < m.cols(); ++c) row.push_back(m(r, c));
     rows.push_back(std::move(row));
   }
   return rows;
@@ -444,15 +417,12 @@ void PrintValue(absl::string_view key, const std::string& value) {
   std::printf("%-*s %s\n", kKeyWidth, std::string(key).c_str(), value.c_str());
 }
 
-// A row-major n×n matrix, one row a line, under `key`.
-void PrintMatrix(absl::string_view key, const google::protobuf::RepeatedField<double>& v, int n) {
-  if (v.size() != n * n) {
-    PrintValue(key, absl::StrCat("(", v.size(), " values)"));
-    return;
-  }
-  for (int r = 0; r < n; ++r) {
+// A matrix, one row a line, under `key`.
+template <typename Matrix>
+void PrintMatrix(absl::string_view key, const Matrix& m) {
+  for (int r = 0; r < m.rows(); ++r) {
     std::string row;
-    for (int c = 0; c < n; ++c) absl::StrAppendFormat(&row, " %16.9g", v[n * r + c]);
+    for (int c = 0; c < m.cols(); ++c) absl::StrAppendFormat(&row, " %16.9g", m(r, c));
     std::printf("%-*s%s\n", kKeyWidth, r == 0 ? std::string(key).c_str() : "", row.c_str());
   }
 }
@@ -482,22 +452,6 @@ absl::StatusOr<dem::Packing> PreparePacking(const Flags& flags, std::string* mat
   return packing;
 }
 
-v1::ElementTest ToProto(dem::ElementTestKind kind) {
-  switch (kind) {
-    case dem::ElementTestKind::kDrainedBiaxial:
-      return v1::ELEMENT_TEST_DRAINED_BIAXIAL;
-    case dem::ElementTestKind::kIsotropic:
-      return v1::ELEMENT_TEST_ISOTROPIC;
-    case dem::ElementTestKind::kOedometer:
-      return v1::ELEMENT_TEST_OEDOMETER;
-    case dem::ElementTestKind::kUndrainedSimpleShear:
-      return v1::ELEMENT_TEST_UNDRAINED_SIMPLE_SHEAR;
-    case dem::ElementTestKind::kCyclicSimpleShear:
-      return v1::ELEMENT_TEST_CYCLIC_SIMPLE_SHEAR;
-  }
-  return v1::ELEMENT_TEST_UNSPECIFIED;
-}
-
 // RunElementTest on the server: progress on stderr, the rows at the end.
 absl::StatusOr<std::vector<dem::ElementTestRow>> RunOnServer(const Flags& flags,
                                                              const dem::ElementTestSpec& spec,
@@ -505,30 +459,10 @@ absl::StatusOr<std::vector<dem::ElementTestRow>> RunOnServer(const Flags& flags,
                                                              const std::string& template_name) {
   absl::StatusOr<Remote> remote = Connect(flags);
   if (!remote.ok()) return remote.status();
-  v1::ElementTestRequest request;
-  request.set_template_name(template_name);
-  request.set_test(ToProto(spec.kind));
-  request.set_confining_pressure(spec.confining);
-  request.set_max_strain(spec.max_strain);
-  request.set_inertial_number(spec.inertial_number);
-  request.set_rows(spec.rows);
-  request.set_cyclic_stress_control(spec.cyclic_control == dem::CyclicControl::kStress);
-  request.set_amplitude(spec.amplitude);
-  request.set_cycles(spec.cycles);
-
-  grpc::ClientContext ctx;
-  remote->Ready(ctx);
-  std::unique_ptr<grpc::ClientReader<v1::ElementTestUpdate>> reader =
-      remote->stub->RunElementTest(&ctx, request);
-  ProgressLine progress(absl::StrCat(test, " on ", template_name, " at ", remote->target));
-  std::vector<dem::ElementTestRow> rows;
-  v1::ElementTestUpdate update;
-  while (reader->Read(&update)) {
-    progress.Update(update.progress());
-    for (const v1::ElementTestRow& row : update.rows()) rows.push_back(service::FromProto(row));
-  }
+  ProgressLine progress(absl::StrCat(test, " on ", template_name, " at ", remote->target()));
+  absl::StatusOr<std::vector<dem::ElementTestRow>> rows = remote->RunElementTest(
+      template_name, spec, [&](double fraction) { progress.Update(fraction); });
   progress.Done();
-  RETURN_IF_ERROR(remote->Check(reader->Finish(), "RunElementTest"));
   return rows;
 }
 
@@ -605,7 +539,7 @@ absl::Status PrepareCommand(const Flags& flags) {
   if (!name.empty() && out.empty()) return UsageError("--name needs --out=FILE.h5");
   // A bad name would only be refused at upload, after the preparation.
   if (!name.empty()) {
-    if (absl::Status s = service::ValidateName("--name", name); !s.ok()) {
+    if (absl::Status s = client::ValidateName("--name", name); !s.ok()) {
       return UsageError(s.message());
     }
   }
@@ -702,121 +636,118 @@ std::string Mib(std::int64_t bytes) {
 absl::Status InfoCommand(const Flags& flags) {
   absl::StatusOr<Remote> remote = Connect(flags);
   if (!remote.ok()) return remote.status();
-  v1::ServerInfo info;
-  v1::ListRunsResponse runs;
-  v1::ListTemplatesResponse templates;
-  RETURN_IF_ERROR(remote->Call("GetServerInfo", &v1::RveService::Stub::GetServerInfo,
-                               v1::ServerInfoRequest(), &info));
-  RETURN_IF_ERROR(
-      remote->Call("ListRuns", &v1::RveService::Stub::ListRuns, v1::ListRunsRequest(), &runs));
-  RETURN_IF_ERROR(remote->Call("ListTemplates", &v1::RveService::Stub::ListTemplates,
-                               v1::ListTemplatesRequest(), &templates));
+  absl::StatusOr<client::ServerInfo> info = remote->GetServerInfo();
+  if (!info.ok()) return info.status();
+  absl::StatusOr<std::vector<client::RunInfo>> runs = remote->ListRuns();
+  if (!runs.ok()) return runs.status();
+  absl::StatusOr<std::vector<client::TemplateInfo>> templates = remote->ListTemplates();
+  if (!templates.ok()) return templates.status();
 
-  std::printf("server     %s\n", remote->target.c_str());
-  std::printf("version    %s (%s), up %.1f s\n", info.version().c_str(), info.api_version().c_str(),
-              info.uptime_seconds());
-  std::printf("threads    %d\n", info.threads());
+  std::printf("server     %s\n", remote->target().c_str());
+  std::printf("version    %s (%s), up %.1f s\n", info->version.c_str(), info->api_version.c_str(),
+              info->uptime_seconds);
+  std::printf("threads    %d\n", info->threads);
   std::printf("RVEs       %lld of at most %lld, in %lld runs\n",
-              static_cast<long long>(info.num_rves()), static_cast<long long>(info.max_rves()),
-              static_cast<long long>(info.num_runs()));
-  std::printf("memory     %s of at most %s\n", Mib(info.memory_bytes()).c_str(),
-              Mib(info.max_memory_bytes()).c_str());
+              static_cast<long long>(info->num_rves), static_cast<long long>(info->max_rves),
+              static_cast<long long>(info->num_runs));
+  std::printf("memory     %s of at most %s\n", Mib(info->memory_bytes).c_str(),
+              Mib(info->max_memory_bytes).c_str());
   std::printf("limits     %lld RVEs per call, %s per message\n",
-              static_cast<long long>(info.max_batch()), Mib(info.max_message_bytes()).c_str());
-  std::printf("security   authentication %s, TLS %s\n", info.auth_required() ? "on" : "off",
-              info.tls() ? "on" : "off");
+              static_cast<long long>(info->max_batch), Mib(info->max_message_bytes).c_str());
+  std::printf("security   authentication %s, TLS %s\n", info->auth_required ? "on" : "off",
+              info->tls ? "on" : "off");
 
-  std::printf("\nruns: %d\n", runs.runs_size());
-  if (runs.runs_size() > 0) {
+  std::printf("\nruns: %d\n", static_cast<int>(runs->size()));
+  if (!runs->empty()) {
     int width = 3;
-    for (const v1::RunInfo& r : runs.runs()) width = std::max<int>(width, r.run_id().size());
+    for (const client::RunInfo& r : *runs) width = std::max<int>(width, r.run_id.size());
     std::printf("  %-*s %10s  %s\n", width, "RUN", "RVES", "STEPS");
-    for (const v1::RunInfo& r : runs.runs()) {
-      const std::string steps = r.min_step() == r.max_step()
-                                    ? absl::StrCat(r.min_step())
-                                    : absl::StrCat(r.min_step(), "..", r.max_step());
-      std::printf("  %-*s %10lld  %s\n", width, r.run_id().c_str(),
-                  static_cast<long long>(r.num_rves()), steps.c_str());
+    for (const client::RunInfo& r : *runs) {
+      const std::string steps = r.min_step == r.max_step
+                                    ? absl::StrCat(r.min_step)
+                                    : absl::StrCat(r.min_step, "..", r.max_step);
+      std::printf("  %-*s %10lld  %s\n", width, r.run_id.c_str(),
+                  static_cast<long long>(r.num_rves), steps.c_str());
     }
   }
-  std::printf("\ntemplates: %d\n", templates.templates_size());
-  if (templates.templates_size() > 0) {
+  std::printf("\ntemplates: %d\n", static_cast<int>(templates->size()));
+  if (!templates->empty()) {
     int width = 4, material_width = 8;
-    for (const v1::TemplateInfo& t : templates.templates()) {
-      width = std::max<int>(width, t.name().size());
-      material_width = std::max<int>(material_width, t.material_name().size());
+    for (const client::TemplateInfo& t : *templates) {
+      width = std::max<int>(width, t.name.size());
+      material_width = std::max<int>(material_width, t.material_name.size());
     }
     std::printf("  %-*s %9s %10s %14s  %-*s  %s\n", width, "NAME", "PARTICLES", "VOID_RATIO",
                 "P_PA", material_width, "MATERIAL", "DESCRIPTION");
-    for (const v1::TemplateInfo& t : templates.templates()) {
-      std::printf("  %-*s %9lld %10.4f %14.1f  %-*s  %s\n", width, t.name().c_str(),
-                  static_cast<long long>(t.num_particles()), t.void_ratio(), t.mean_pressure(),
-                  material_width, t.material_name().c_str(), t.description().c_str());
+    for (const client::TemplateInfo& t : *templates) {
+      std::printf("  %-*s %9lld %10.4f %14.1f  %-*s  %s\n", width, t.name.c_str(),
+                  static_cast<long long>(t.num_particles), t.void_ratio, t.mean_pressure,
+                  material_width, t.material_name.c_str(), t.description.c_str());
     }
   }
   return absl::OkStatus();
 }
 
-void PrintStateText(const std::string& run, const v1::RveResult& r) {
-  const v1::RveState& s = r.state();
+void PrintStateText(const std::string& run, const client::RveOutcome& r) {
+  const dem::RveState& s = r.state;
   PrintValue("run", run);
-  PrintValue("id", absl::StrCat(r.id()));
-  PrintValue("step", absl::StrCat(r.step()));
-  PrintMatrix("stress_Pa (tension +)", s.stress(), 3);
-  PrintValue("p_Pa (compression +)", absl::StrFormat("%.10g", s.mean_pressure()));
-  PrintValue("q_Pa", absl::StrFormat("%.10g", s.deviator_stress()));
-  PrintValue("void_ratio", absl::StrFormat("%.10g", s.void_ratio()));
-  PrintValue("porosity", absl::StrFormat("%.10g", s.porosity()));
-  PrintValue("coordination", absl::StrFormat("%.10g", s.coordination()));
-  PrintValue("mechanical_coordination", absl::StrFormat("%.10g", s.mechanical_coordination()));
-  PrintValue("contacts", absl::StrCat(s.num_contacts()));
-  PrintMatrix(s.fabric_defined() ? "fabric" : "fabric (no contacts)", s.fabric(), 3);
-  PrintMatrix("fabric_anisotropy_tensor", s.fabric_anisotropy_tensor(), 3);
-  PrintValue("Fa", absl::StrFormat("%.10g", s.fabric_anisotropy()));
-  PrintValue("permeability_m_per_s", absl::StrFormat("%.10g", s.permeability()));
-  PrintMatrix("F", s.deformation_gradient(), 3);
-  PrintValue("mean_rotation_rad", absl::StrFormat("%.10g", s.mean_rotation()));
-  PrintValue("kinetic_energy_J", absl::StrFormat("%.10g", s.kinetic_energy()));
-  PrintValue("unbalanced_force_ratio", absl::StrFormat("%.10g", s.unbalanced_force_ratio()));
-  PrintValue("volume_m3", absl::StrFormat("%.10g", s.volume()));
-  PrintValue("last_call_dem_steps", absl::StrCat(s.steps()));
-  PrintValue("time_step_s", absl::StrFormat("%.10g", s.time_step()));
-  PrintValue("mass_scale", absl::StrFormat("%.10g", s.mass_scale()));
-  if (s.tangent_size() > 0) {
+  PrintValue("id", absl::StrCat(r.id));
+  PrintValue("step", absl::StrCat(r.step));
+  PrintMatrix("stress_Pa (tension +)", s.stress);
+  PrintValue("p_Pa (compression +)", absl::StrFormat("%.10g", s.MeanPressure()));
+  PrintValue("q_Pa", absl::StrFormat("%.10g", s.DeviatorStress()));
+  PrintValue("void_ratio", absl::StrFormat("%.10g", s.void_ratio));
+  PrintValue("porosity", absl::StrFormat("%.10g", s.porosity));
+  PrintValue("coordination", absl::StrFormat("%.10g", s.coordination));
+  PrintValue("mechanical_coordination", absl::StrFormat("%.10g", s.mechanical_coordination));
+  PrintValue("contacts", absl::StrCat(s.num_contacts));
+  PrintMatrix(s.fabric_defined ? "fabric" : "fabric (no contacts)", s.fabric);
+  PrintMatrix("fabric_anisotropy_tensor", s.fabric_anisotropy_tensor);
+  PrintValue("Fa", absl::StrFormat("%.10g", s.fabric_anisotropy));
+  PrintValue("permeability_m_per_s", absl::StrFormat("%.10g", s.permeability));
+  PrintMatrix("F", r.deformation_gradient);
+  PrintValue("mean_rotation_rad", absl::StrFormat("%.10g", s.mean_rotation));
+  PrintValue("kinetic_energy_J", absl::StrFormat("%.10g", s.kinetic_energy));
+  PrintValue("unbalanced_force_ratio", absl::StrFormat("%.10g", s.unbalanced_force_ratio));
+  PrintValue("volume_m3", absl::StrFormat("%.10g", s.volume));
+  PrintValue("last_call_dem_steps", absl::StrCat(s.steps));
+  PrintValue("time_step_s", absl::StrFormat("%.10g", s.time_step));
+  PrintValue("mass_scale", absl::StrFormat("%.10g", s.mass_scale));
+  if (s.has_tangent) {
     PrintValue("tangent_Pa", "D[3i+j][3k+l], rows and columns xx xy xz yx yy yz zx zy zz");
-    PrintMatrix("", s.tangent(), 9);
+    PrintMatrix("", s.tangent);
   }
 }
 
-void PrintStateJson(const std::string& run, const v1::RveResult& r) {
-  const v1::RveState& s = r.state();
+void PrintStateJson(const std::string& run, const client::RveOutcome& r) {
+  const dem::RveState& s = r.state;
   Json j = {
       {"run_id", run},
-      {"id", r.id()},
-      {"step", r.step()},
-      {"stress", JsonMatrix(s.stress(), 3)},
-      {"mean_pressure", s.mean_pressure()},
-      {"deviator_stress", s.deviator_stress()},
-      {"void_ratio", s.void_ratio()},
-      {"porosity", s.porosity()},
-      {"coordination", s.coordination()},
-      {"mechanical_coordination", s.mechanical_coordination()},
-      {"num_contacts", s.num_contacts()},
-      {"fabric_defined", s.fabric_defined()},
-      {"fabric", JsonMatrix(s.fabric(), 3)},
-      {"fabric_anisotropy_tensor", JsonMatrix(s.fabric_anisotropy_tensor(), 3)},
-      {"fabric_anisotropy", s.fabric_anisotropy()},
-      {"permeability", s.permeability()},
-      {"deformation_gradient", JsonMatrix(s.deformation_gradient(), 3)},
-      {"mean_rotation", s.mean_rotation()},
-      {"kinetic_energy", s.kinetic_energy()},
-      {"unbalanced_force_ratio", s.unbalanced_force_ratio()},
-      {"volume", s.volume()},
-      {"steps", s.steps()},
-      {"time_step", s.time_step()},
-      {"mass_scale", s.mass_scale()},
+      {"id", r.id},
+      {"step", r.step},
+      {"stress", JsonMatrix(s.stress)},
+      {"mean_pressure", s.MeanPressure()},
+      {"deviator_stress", s.DeviatorStress()},
+      {"void_ratio", s.void_ratio},
+      {"porosity", s.porosity},
+      {"coordination", s.coordination},
+      {"mechanical_coordination", s.mechanical_coordination},
+      {"num_contacts", s.num_contacts},
+      {"fabric_defined", s.fabric_defined},
+      {"fabric", JsonMatrix(s.fabric)},
+      {"fabric_anisotropy_tensor", JsonMatrix(s.fabric_anisotropy_tensor)},
+      {"fabric_anisotropy", s.fabric_anisotropy},
+      {"permeability", s.permeability},
+      {"deformation_gradient", JsonMatrix(r.deformation_gradient)},
+      {"mean_rotation", s.mean_rotation},
+      {"kinetic_energy", s.kinetic_energy},
+      {"unbalanced_force_ratio", s.unbalanced_force_ratio},
+      {"volume", s.volume},
+      {"steps", s.steps},
+      {"time_step", s.time_step},
+      {"mass_scale", s.mass_scale},
   };
-  if (s.tangent_size() > 0) j["tangent"] = JsonMatrix(s.tangent(), 9);
+  if (s.has_tangent) j["tangent"] = JsonMatrix(s.tangent);
   // Invalid UTF-8 in a run id is replaced rather than thrown about.
   std::printf("%s\n", j.dump(-1, ' ', false, Json::error_handler_t::replace).c_str());
 }
@@ -833,22 +764,13 @@ absl::Status GetCommand(const Flags& flags) {
   if (format != "text" && format != "json") return UsageError("--format must be text or json");
   absl::StatusOr<Remote> remote = Connect(flags);
   if (!remote.ok()) return remote.status();
-  v1::GetStatesRequest request;
-  request.set_run_id(run);
-  request.add_ids(id);
-  request.set_want_tangent(tangent);
-  v1::GetStatesResponse response;
-  RETURN_IF_ERROR(remote->Call("GetStates", &v1::RveService::Stub::GetStates, request, &response));
-  if (response.results_size() != 1) {
-    return absl::InternalError(
-        absl::StrCat("GetStates returned ", response.results_size(), " results for one id"));
-  }
-  const v1::RveResult& r = response.results(0);
-  if (r.code() != 0) return absl::Status(static_cast<absl::StatusCode>(r.code()), r.message());
+  absl::StatusOr<client::RveOutcome> r = remote->GetState(run, id, tangent);
+  if (!r.ok()) return r.status();
+  if (!r->status.ok()) return r->status;
   if (format == "json") {
-    PrintStateJson(run, r);
+    PrintStateJson(run, *r);
   } else {
-    PrintStateText(run, r);
+    PrintStateText(run, *r);
   }
   return absl::OkStatus();
 }
@@ -866,39 +788,13 @@ absl::Status UploadTemplateCommand(const Flags& flags) {
     return absl::FailedPreconditionError(absl::StrCat("'", file, "' holds no templates"));
   }
   for (const store::TemplateRecord& t : *templates) {
-    v1::UploadTemplateRequest request;
-    request.mutable_entry()->set_name(t.name);
-    request.mutable_entry()->set_description(t.description);
-    service::ToProto(t.packing, request.mutable_entry()->mutable_packing());
-    request.set_replace(replace);
-    v1::TemplateInfo info;
-    RETURN_IF_ERROR(
-        remote->Call("UploadTemplate", &v1::RveService::Stub::UploadTemplate, request, &info));
+    absl::StatusOr<client::TemplateInfo> info = remote->UploadTemplate(t, replace);
+    if (!info.ok()) return info.status();
     std::printf("uploaded %s: %lld particles, e = %.4f, p = %.1f Pa, material %s (%s)\n",
-                info.name().c_str(), static_cast<long long>(info.num_particles()),
-                info.void_ratio(), info.mean_pressure(), info.material_name().c_str(),
-                info.description().c_str());
+                info->name.c_str(), static_cast<long long>(info->num_particles), info->void_ratio,
+                info->mean_pressure, info->material_name.c_str(), info->description.c_str());
   }
   return absl::OkStatus();
-}
-
-// Every record of one run, through the Export stream.
-absl::Status ExportRun(const Remote& remote, const std::string& run,
-                       std::vector<store::RveRecord>* records) {
-  v1::ExportRequest request;
-  request.set_run_id(run);
-  grpc::ClientContext ctx;
-  remote.Ready(ctx);
-  std::unique_ptr<grpc::ClientReader<v1::RveChunk>> reader = remote.stub->Export(&ctx, request);
-  return client::ReadExport(
-      ctx, *reader, run,
-      [records](store::RveRecord&& r) {
-        records->push_back(std::move(r));
-        return absl::OkStatus();
-      },
-      [&](const grpc::Status& s) {
-        return remote.Check(s, absl::StrCat("Export of run \"", run, "\""));
-      });
 }
 
 absl::Status CheckpointCommand(const Flags& flags) {
@@ -912,13 +808,17 @@ absl::Status CheckpointCommand(const Flags& flags) {
   if (!run.empty()) {
     runs.push_back(run);
   } else {
-    v1::ListRunsResponse list;
-    RETURN_IF_ERROR(
-        remote->Call("ListRuns", &v1::RveService::Stub::ListRuns, v1::ListRunsRequest(), &list));
-    for (const v1::RunInfo& r : list.runs()) runs.push_back(r.run_id());
+    absl::StatusOr<std::vector<client::RunInfo>> list = remote->ListRuns();
+    if (!list.ok()) return list.status();
+    for (const client::RunInfo& r : *list) runs.push_back(r.run_id);
   }
   std::vector<store::RveRecord> records;
-  for (const std::string& r : runs) RETURN_IF_ERROR(ExportRun(*remote, r, &records));
+  for (const std::string& r : runs) {
+    RETURN_IF_ERROR(remote->ExportRun(r, [&records](store::RveRecord&& record) {
+      records.push_back(std::move(record));
+      return absl::OkStatus();
+    }));
+  }
   store::FileInfo info;
   info.created_by = CreatedBy();
   RETURN_IF_ERROR(store::WriteRves(out, records, info));
@@ -950,27 +850,11 @@ absl::Status RestoreCommand(const Flags& flags) {
     std::printf("imported 0 RVEs (%s holds none)\n", file.c_str());
     return absl::OkStatus();
   }
-
-  // Chunks stay below the smaller of the two message limits, with the same
-  // headroom the server keeps for its export chunks.
-  v1::ServerInfo info;
-  RETURN_IF_ERROR(remote->Call("GetServerInfo", &v1::RveService::Stub::GetServerInfo,
-                               v1::ServerInfoRequest(), &info));
-  const std::int64_t budget =
-      client::ImportChunkBudget(info.max_message_bytes(), remote->options.max_message_bytes);
-
-  grpc::ClientContext ctx;
-  remote->Ready(ctx);
-  v1::ImportResponse response;
-  std::unique_ptr<grpc::ClientWriter<v1::RveChunk>> writer = remote->stub->Import(&ctx, &response);
-  std::int64_t chunks = 0;
-  RETURN_IF_ERROR(client::WriteImport(
-      ctx, *writer, records.size(),
-      [&](std::size_t k, v1::RveRecord* out) { service::ToProto(*records[k], out); }, budget,
-      [&](const grpc::Status& s) { return remote->Check(s, "Import"); }, &chunks));
+  absl::StatusOr<client::ImportSummary> imported = remote->Import(records);
+  if (!imported.ok()) return imported.status();
   std::printf("imported %lld RVEs into %s (%lld chunks, %.2f s)\n",
-              static_cast<long long>(response.imported()), remote->target.c_str(),
-              static_cast<long long>(chunks), SecondsSince(start));
+              static_cast<long long>(imported->imported), remote->target().c_str(),
+              static_cast<long long>(imported->chunks), SecondsSince(start));
   return absl::OkStatus();
 }
 
@@ -978,14 +862,12 @@ absl::Status RestoreCommand(const Flags& flags) {
 absl::Status ListRunsCommand(const Flags& flags) {
   absl::StatusOr<Remote> remote = Connect(flags);
   if (!remote.ok()) return remote.status();
-  v1::ListRunsResponse runs;
-  RETURN_IF_ERROR(
-      remote->Call("ListRuns", &v1::RveService::Stub::ListRuns, v1::ListRunsRequest(), &runs));
+  absl::StatusOr<std::vector<client::RunInfo>> runs = remote->ListRuns();
+  if (!runs.ok()) return runs.status();
   std::printf("RUN\tRVES\tMIN_STEP\tMAX_STEP\n");
-  for (const v1::RunInfo& r : runs.runs()) {
-    std::printf("%s\t%lld\t%lld\t%lld\n", r.run_id().c_str(),
-                static_cast<long long>(r.num_rves()), static_cast<long long>(r.min_step()),
-                static_cast<long long>(r.max_step()));
+  for (const client::RunInfo& r : *runs) {
+    std::printf("%s\t%lld\t%lld\t%lld\n", r.run_id.c_str(), static_cast<long long>(r.num_rves),
+                static_cast<long long>(r.min_step), static_cast<long long>(r.max_step));
   }
   return absl::OkStatus();
 }
@@ -994,19 +876,18 @@ absl::Status ListRunsCommand(const Flags& flags) {
 absl::Status DropCommand(const Flags& flags) {
   std::string run;
   RETURN_IF_ERROR(Require(flags, "run", "RUN", &run));
-  v1::DropRequest request;
-  request.set_run_id(run);
+  std::vector<std::int64_t> ids;
   if (flags.contains("id")) {
     std::int64_t id = 0;
     RETURN_IF_ERROR(Get(flags, "id", &id));
-    request.add_ids(id);
+    ids.push_back(id);
   }
   absl::StatusOr<Remote> remote = Connect(flags);
   if (!remote.ok()) return remote.status();
-  v1::DropResponse response;
-  RETURN_IF_ERROR(remote->Call("Drop", &v1::RveService::Stub::Drop, request, &response));
-  std::printf("dropped %lld RVEs of run %s on %s\n", static_cast<long long>(response.dropped()),
-              run.c_str(), remote->target.c_str());
+  absl::StatusOr<std::int64_t> dropped = remote->Drop(run, ids);
+  if (!dropped.ok()) return dropped.status();
+  std::printf("dropped %lld RVEs of run %s on %s\n", static_cast<long long>(*dropped), run.c_str(),
+              remote->target().c_str());
   return absl::OkStatus();
 }
 

@@ -55,42 +55,6 @@ void ToProto(const dem::ApplyOptions& o, v1::ApplyOptions* out) {
   out->set_relax_max_steps(o.relax_max_steps);
 }
 
-absl::Status StateFromProto(const v1::RveState& s, dem::RveState* out, Eigen::Matrix3d* f) {
-  const std::pair<const google::protobuf::RepeatedField<double>*, Eigen::Matrix3d*> tensors[] = {
-      {&s.stress(), &out->stress},
-      {&s.fabric(), &out->fabric},
-      {&s.fabric_anisotropy_tensor(), &out->fabric_anisotropy_tensor},
-      {&s.deformation_gradient(), f}};
-  for (const auto& [field, m] : tensors) {
-    absl::StatusOr<Eigen::Matrix3d> v = service::Matrix3FromProto(*field, "state tensor");
-    if (!v.ok()) return v.status();
-    *m = *v;
-  }
-  out->fabric_anisotropy = s.fabric_anisotropy();
-  out->fabric_defined = s.fabric_defined();
-  out->void_ratio = s.void_ratio();
-  out->porosity = s.porosity();
-  out->coordination = s.coordination();
-  out->mechanical_coordination = s.mechanical_coordination();
-  out->permeability = s.permeability();
-  out->mean_rotation = s.mean_rotation();
-  out->kinetic_energy = s.kinetic_energy();
-  out->unbalanced_force_ratio = s.unbalanced_force_ratio();
-  out->num_contacts = s.num_contacts();
-  out->volume = s.volume();
-  out->steps = s.steps();
-  out->time_step = s.time_step();
-  out->mass_scale = s.mass_scale();
-  out->has_tangent = s.tangent_size() == 81;
-  if (out->has_tangent) {
-    for (int r = 0; r < 9; ++r)
-      for (int c = 0; c < 9; ++c) out->tangent(r, c) = s.tangent(9 * r + c);
-  } else if (s.tangent_size() != 0) {
-    return absl::DataLossError(absl::StrCat("tangent has ", s.tangent_size(), " values, not 81"));
-  }
-  return absl::OkStatus();
-}
-
 absl::StatusOr<RveOutcome> OutcomeFromProto(const v1::RveResult& r) {
   RveOutcome o;
   o.id = r.id();
@@ -100,7 +64,7 @@ absl::StatusOr<RveOutcome> OutcomeFromProto(const v1::RveResult& r) {
     o.status = absl::Status(static_cast<absl::StatusCode>(r.code()), r.message());
     return o;
   }
-  if (absl::Status s = StateFromProto(r.state(), &o.state, &o.deformation_gradient); !s.ok()) {
+  if (absl::Status s = service::FromProto(r.state(), &o.state, &o.deformation_gradient); !s.ok()) {
     return absl::DataLossError(
         absl::StrCat("reply for material point ", r.id(), " is malformed: ", s.message()));
   }

@@ -398,4 +398,68 @@ dem::ElementTestRow FromProto(const v1::ElementTestRow& r) {
   return out;
 }
 
+v1::ElementTest ToProto(dem::ElementTestKind kind) {
+  switch (kind) {
+    case dem::ElementTestKind::kDrainedBiaxial:
+      return v1::ELEMENT_TEST_DRAINED_BIAXIAL;
+    case dem::ElementTestKind::kIsotropic:
+      return v1::ELEMENT_TEST_ISOTROPIC;
+    case dem::ElementTestKind::kOedometer:
+      return v1::ELEMENT_TEST_OEDOMETER;
+    case dem::ElementTestKind::kUndrainedSimpleShear:
+      return v1::ELEMENT_TEST_UNDRAINED_SIMPLE_SHEAR;
+    case dem::ElementTestKind::kCyclicSimpleShear:
+      return v1::ELEMENT_TEST_CYCLIC_SIMPLE_SHEAR;
+  }
+  return v1::ELEMENT_TEST_UNSPECIFIED;
+}
+
+void ToProto(const dem::ElementTestSpec& s, v1::ElementTestRequest* out) {
+  out->set_test(ToProto(s.kind));
+  out->set_confining_pressure(s.confining);
+  out->set_max_strain(s.max_strain);
+  out->set_inertial_number(s.inertial_number);
+  out->set_rows(s.rows);
+  out->set_cyclic_stress_control(s.cyclic_control == dem::CyclicControl::kStress);
+  out->set_amplitude(s.amplitude);
+  out->set_cycles(s.cycles);
+}
+
+absl::Status FromProto(const v1::RveState& s, dem::RveState* out,
+                       Eigen::Matrix3d* deformation_gradient) {
+  const std::pair<const RepeatedField<double>*, Eigen::Matrix3d*> tensors[] = {
+      {&s.stress(), &out->stress},
+      {&s.fabric(), &out->fabric},
+      {&s.fabric_anisotropy_tensor(), &out->fabric_anisotropy_tensor},
+      {&s.deformation_gradient(), deformation_gradient}};
+  for (const auto& [field, m] : tensors) {
+    absl::StatusOr<Eigen::Matrix3d> v = Matrix3FromProto(*field, "state tensor");
+    if (!v.ok()) return v.status();
+    *m = *v;
+  }
+  out->fabric_anisotropy = s.fabric_anisotropy();
+  out->fabric_defined = s.fabric_defined();
+  out->void_ratio = s.void_ratio();
+  out->porosity = s.porosity();
+  out->coordination = s.coordination();
+  out->mechanical_coordination = s.mechanical_coordination();
+  out->permeability = s.permeability();
+  out->mean_rotation = s.mean_rotation();
+  out->kinetic_energy = s.kinetic_energy();
+  out->unbalanced_force_ratio = s.unbalanced_force_ratio();
+  out->num_contacts = s.num_contacts();
+  out->volume = s.volume();
+  out->steps = s.steps();
+  out->time_step = s.time_step();
+  out->mass_scale = s.mass_scale();
+  out->has_tangent = s.tangent_size() == 81;
+  if (out->has_tangent) {
+    for (int r = 0; r < 9; ++r)
+      for (int c = 0; c < 9; ++c) out->tangent(r, c) = s.tangent(9 * r + c);
+  } else if (s.tangent_size() != 0) {
+    return absl::DataLossError(absl::StrCat("tangent has ", s.tangent_size(), " values, not 81"));
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace rvehub::service

@@ -56,6 +56,16 @@ absl::StatusOr<dem::ElementTestSpec> FromProto(const v1::ElementTestRequest& r);
 void ToProto(const dem::ElementTestRow& r, v1::ElementTestRow* out);
 dem::ElementTestRow FromProto(const v1::ElementTestRow& r);
 
+// Client side (rve_server/client): the request of an element test and the
+// state of an RVE read back.
+v1::ElementTest ToProto(dem::ElementTestKind kind);
+// Every field of `s` as it is; the template name is the caller's.
+void ToProto(const dem::ElementTestSpec& s, v1::ElementTestRequest* out);
+// The inverse of ToProto(RveState): InvalidArgument for a tensor without 9
+// values, DataLoss for a tangent of neither 0 nor 81 values.
+absl::Status FromProto(const v1::RveState& s, dem::RveState* out,
+                       Eigen::Matrix3d* deformation_gradient);
+
 }  // namespace rvehub::service
 
 #endif  // RVEHUB_RVE_SERVER_SERVICE_CONVERT_H_
