@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "absl/container/flat_hash_map.h"
+#include "absl/flags/flag.h"
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/cord.h"
@@ -40,14 +41,14 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/string_view.h"
-#include "absl/flags/flag.h"
 #include "nlohmann/json.hpp"
 #include "rve_server/cli/element_test_io.h"
-#include "rve_server/common/flags.h"
-#include "rve_server/common/version.h"
 #include "rve_server/client/channel.h"
 #include "rve_server/client/server_client.h"
 #include "rve_server/client/types.h"
+#include "rve_server/common/flags.h"
+#include "rve_server/common/status_macros.h"
+#include "rve_server/common/version.h"
 #include "rve_server/engine/element_test.h"
 #include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
@@ -280,11 +281,6 @@ absl::Status UsageError(absl::string_view message) {
 
 bool IsUsageError(const absl::Status& s) { return s.GetPayload(kUsagePayload).has_value(); }
 
-#define RETURN_IF_ERROR(expr)                          \
-  do {                                                 \
-    if (absl::Status s_ = (expr); !s_.ok()) return s_; \
-  } while (false)
-
 using Flags = Args;
 
 absl::StatusOr<Flags> ParseFlags(int argc, char** argv, int first,
@@ -356,10 +352,9 @@ absl::StatusOr<Remote> Connect(const Flags& flags) {
   std::string token_file, tls_ca;
   RETURN_IF_ERROR(Get(flags, "token-file", &token_file));
   RETURN_IF_ERROR(Get(flags, "tls-ca", &tls_ca));
-  absl::StatusOr<client::ClientOptions> options =
-      client::ClientOptionsFromFiles(token_file, tls_ca);
-  if (!options.ok()) return options.status();
-  return Remote(std::move(target), *std::move(options),
+  ASSIGN_OR_RETURN(client::ClientOptions options,
+                   client::ClientOptionsFromFiles(token_file, tls_ca));
+  return Remote(std::move(target), std::move(options),
                 std::chrono::milliseconds(static_cast<std::int64_t>(std::llround(timeout * 1e3))));
 }
 
@@ -436,15 +431,12 @@ absl::StatusOr<dem::Packing> PreparePacking(const Flags& flags, std::string* mat
   *seed = 1;
   RETURN_IF_ERROR(Get(flags, "material", material));
   RETURN_IF_ERROR(Get(flags, "seed", seed));
-  absl::StatusOr<dem::ParameterSet> set = dem::FindParameterSet(*material);
-  if (!set.ok()) return set.status();
-  set->preparation.seed = *seed;
-  std::fprintf(stderr, "preparing %s (seed %llu, %d discs)...\n", material->c_str(),
-               static_cast<unsigned long long>(*seed), set->preparation.num_particles);
-  absl::StatusOr<dem::Packing> packing = dem::PreparePacking(
-      *set, {}, report,
-      [](const std::string& line) { std::fprintf(stderr, "  %s\n", line.c_str()); });
-  if (!packing.ok()) return packing.status();
+  std::fprintf(stderr, "preparing %s...\n", material->c_str());
+  // Its first line is "N discs, seed S".
+  ASSIGN_OR_RETURN(dem::Packing packing,
+                   dem::PrepareTemplate(*material, *seed, report, [](const std::string& line) {
+                     std::fprintf(stderr, "  %s\n", line.c_str());
+                   }));
   std::fprintf(
       stderr, "prepared: e0 = %.4f, p0 = %.1f Pa, Z = %.2f, compaction friction %.4f, %lld steps\n",
       report->void_ratio, report->pressure, report->coordination, report->compaction_friction,
@@ -457,10 +449,9 @@ absl::StatusOr<std::vector<dem::ElementTestRow>> RunOnServer(const Flags& flags,
                                                              const dem::ElementTestSpec& spec,
                                                              const std::string& test,
                                                              const std::string& template_name) {
-  absl::StatusOr<Remote> remote = Connect(flags);
-  if (!remote.ok()) return remote.status();
-  ProgressLine progress(absl::StrCat(test, " on ", template_name, " at ", remote->target()));
-  absl::StatusOr<std::vector<dem::ElementTestRow>> rows = remote->RunElementTest(
+  ASSIGN_OR_RETURN(Remote remote, Connect(flags));
+  ProgressLine progress(absl::StrCat(test, " on ", template_name, " at ", remote.target()));
+  absl::StatusOr<std::vector<dem::ElementTestRow>> rows = remote.RunElementTest(
       template_name, spec, [&](double fraction) { progress.Update(fraction); });
   progress.Done();
   return rows;
@@ -513,13 +504,11 @@ absl::Status ElementTestCommand(const Flags& flags) {
     std::string material;
     std::uint64_t seed;
     dem::PreparationReport report;
-    absl::StatusOr<dem::Packing> packing = PreparePacking(flags, &material, &seed, &report);
-    if (!packing.ok()) return packing.status();
-    absl::StatusOr<dem::Rve> rve = dem::Rve::Create(*std::move(packing));
-    if (!rve.ok()) return rve.status();
+    ASSIGN_OR_RETURN(dem::Packing packing, PreparePacking(flags, &material, &seed, &report));
+    ASSIGN_OR_RETURN(dem::Rve rve, dem::Rve::Create(std::move(packing)));
     title = absl::StrCat(test, " on ", material);
     ProgressLine progress(title);
-    rows = dem::RunElementTest(*rve, spec, [&](double fraction) { progress.Update(fraction); });
+    rows = dem::RunElementTest(rve, spec, [&](double fraction) { progress.Update(fraction); });
     progress.Done();
   }
   if (!rows.ok()) return rows.status();
@@ -546,13 +535,11 @@ absl::Status PrepareCommand(const Flags& flags) {
   std::string material;
   std::uint64_t seed;
   dem::PreparationReport report;
-  absl::StatusOr<dem::Packing> packing = PreparePacking(flags, &material, &seed, &report);
-  if (!packing.ok()) return packing.status();
-  absl::StatusOr<dem::Rve> rve = dem::Rve::Create(*packing);
-  if (!rve.ok()) return rve.status();
-  const dem::RveState s = rve->Observe(/*want_tangent=*/true);
+  ASSIGN_OR_RETURN(dem::Packing packing, PreparePacking(flags, &material, &seed, &report));
+  ASSIGN_OR_RETURN(dem::Rve rve, dem::Rve::Create(packing));
+  const dem::RveState s = rve.Observe(/*want_tangent=*/true);
   std::printf("material %s\nparticles %d\nvoid_ratio %.6f\nporosity %.6f\n", material.c_str(),
-              rve->num_particles(), s.void_ratio, s.porosity);
+              rve.num_particles(), s.void_ratio, s.porosity);
   std::printf("p_Pa %.3f\nsxx_Pa %.3f\nsyy_Pa %.3f\nsxy_Pa %.3f\n", s.MeanPressure(),
               -s.stress(0, 0), -s.stress(1, 1), -s.stress(0, 1));
   std::printf(
@@ -566,7 +553,7 @@ absl::Status PrepareCommand(const Flags& flags) {
   record.name = name.empty() ? absl::StrCat(material, "-seed", seed) : name;
   record.description = absl::StrFormat("material %s, seed %d, e0 = %.4f, p0 = %.1f Pa", material,
                                        seed, report.void_ratio, report.pressure);
-  record.packing = *std::move(packing);
+  record.packing = std::move(packing);
   store::FileInfo info;
   info.created_by = CreatedBy();
   RETURN_IF_ERROR(
@@ -582,10 +569,9 @@ absl::Status MaterialsCommand(const Flags&) {
               "NAME", "CONTACT", "RHO", "E_MPA", "KT/KN", "NU", "MU", "BETA", "ETA",
               "C_KPA", "DAMP", "T_M", "N", "RMIN_MM", "RMAX_MM", "P0_KPA", "E0", "K0_M/S");
   for (const std::string& name : dem::ParameterSetNames()) {
-    absl::StatusOr<dem::ParameterSet> set = dem::FindParameterSet(name);
-    if (!set.ok()) return set.status();
-    const dem::Material& m = set->material;
-    const dem::PreparationSpec& p = set->preparation;
+    ASSIGN_OR_RETURN(dem::ParameterSet set, dem::FindParameterSet(name));
+    const dem::Material& m = set.material;
+    const dem::PreparationSpec& p = set.preparation;
     std::printf(
         "%-20s %-13s %7.0f %9.4g %6.3g %5.3g %6.4g %5.3g %5.3g %7.4g %5.3g %5.3g %5d %7.3g %7.3g "
         "%8.4g %6.4g %7.3g\n",
@@ -634,35 +620,31 @@ std::string Mib(std::int64_t bytes) {
 }
 
 absl::Status InfoCommand(const Flags& flags) {
-  absl::StatusOr<Remote> remote = Connect(flags);
-  if (!remote.ok()) return remote.status();
-  absl::StatusOr<client::ServerInfo> info = remote->GetServerInfo();
-  if (!info.ok()) return info.status();
-  absl::StatusOr<std::vector<client::RunInfo>> runs = remote->ListRuns();
-  if (!runs.ok()) return runs.status();
-  absl::StatusOr<std::vector<client::TemplateInfo>> templates = remote->ListTemplates();
-  if (!templates.ok()) return templates.status();
+  ASSIGN_OR_RETURN(Remote remote, Connect(flags));
+  ASSIGN_OR_RETURN(client::ServerInfo info, remote.GetServerInfo());
+  ASSIGN_OR_RETURN(std::vector<client::RunInfo> runs, remote.ListRuns());
+  ASSIGN_OR_RETURN(std::vector<client::TemplateInfo> templates, remote.ListTemplates());
 
-  std::printf("server     %s\n", remote->target().c_str());
-  std::printf("version    %s (%s), up %.1f s\n", info->version.c_str(), info->api_version.c_str(),
-              info->uptime_seconds);
-  std::printf("threads    %d\n", info->threads);
+  std::printf("server     %s\n", remote.target().c_str());
+  std::printf("version    %s (%s), up %.1f s\n", info.version.c_str(), info.api_version.c_str(),
+              info.uptime_seconds);
+  std::printf("threads    %d\n", info.threads);
   std::printf("RVEs       %lld of at most %lld, in %lld runs\n",
-              static_cast<long long>(info->num_rves), static_cast<long long>(info->max_rves),
-              static_cast<long long>(info->num_runs));
-  std::printf("memory     %s of at most %s\n", Mib(info->memory_bytes).c_str(),
-              Mib(info->max_memory_bytes).c_str());
+              static_cast<long long>(info.num_rves), static_cast<long long>(info.max_rves),
+              static_cast<long long>(info.num_runs));
+  std::printf("memory     %s of at most %s\n", Mib(info.memory_bytes).c_str(),
+              Mib(info.max_memory_bytes).c_str());
   std::printf("limits     %lld RVEs per call, %s per message\n",
-              static_cast<long long>(info->max_batch), Mib(info->max_message_bytes).c_str());
-  std::printf("security   authentication %s, TLS %s\n", info->auth_required ? "on" : "off",
-              info->tls ? "on" : "off");
+              static_cast<long long>(info.max_batch), Mib(info.max_message_bytes).c_str());
+  std::printf("security   authentication %s, TLS %s\n", info.auth_required ? "on" : "off",
+              info.tls ? "on" : "off");
 
-  std::printf("\nruns: %d\n", static_cast<int>(runs->size()));
-  if (!runs->empty()) {
+  std::printf("\nruns: %d\n", static_cast<int>(runs.size()));
+  if (!runs.empty()) {
     int width = 3;
-    for (const client::RunInfo& r : *runs) width = std::max<int>(width, r.run_id.size());
+    for (const client::RunInfo& r : runs) width = std::max<int>(width, r.run_id.size());
     std::printf("  %-*s %10s  %s\n", width, "RUN", "RVES", "STEPS");
-    for (const client::RunInfo& r : *runs) {
+    for (const client::RunInfo& r : runs) {
       const std::string steps = r.min_step == r.max_step
                                     ? absl::StrCat(r.min_step)
                                     : absl::StrCat(r.min_step, "..", r.max_step);
@@ -670,16 +652,16 @@ absl::Status InfoCommand(const Flags& flags) {
                   static_cast<long long>(r.num_rves), steps.c_str());
     }
   }
-  std::printf("\ntemplates: %d\n", static_cast<int>(templates->size()));
-  if (!templates->empty()) {
+  std::printf("\ntemplates: %d\n", static_cast<int>(templates.size()));
+  if (!templates.empty()) {
     int width = 4, material_width = 8;
-    for (const client::TemplateInfo& t : *templates) {
+    for (const client::TemplateInfo& t : templates) {
       width = std::max<int>(width, t.name.size());
       material_width = std::max<int>(material_width, t.material_name.size());
     }
     std::printf("  %-*s %9s %10s %14s  %-*s  %s\n", width, "NAME", "PARTICLES", "VOID_RATIO",
                 "P_PA", material_width, "MATERIAL", "DESCRIPTION");
-    for (const client::TemplateInfo& t : *templates) {
+    for (const client::TemplateInfo& t : templates) {
       std::printf("  %-*s %9lld %10.4f %14.1f  %-*s  %s\n", width, t.name.c_str(),
                   static_cast<long long>(t.num_particles), t.void_ratio, t.mean_pressure,
                   material_width, t.material_name.c_str(), t.description.c_str());
@@ -762,15 +744,13 @@ absl::Status GetCommand(const Flags& flags) {
   RETURN_IF_ERROR(GetBool(flags, "tangent", &tangent));
   RETURN_IF_ERROR(Get(flags, "format", &format));
   if (format != "text" && format != "json") return UsageError("--format must be text or json");
-  absl::StatusOr<Remote> remote = Connect(flags);
-  if (!remote.ok()) return remote.status();
-  absl::StatusOr<client::RveOutcome> r = remote->GetState(run, id, tangent);
-  if (!r.ok()) return r.status();
-  if (!r->status.ok()) return r->status;
+  ASSIGN_OR_RETURN(Remote remote, Connect(flags));
+  ASSIGN_OR_RETURN(client::RveOutcome r, remote.GetState(run, id, tangent));
+  if (!r.status.ok()) return r.status;
   if (format == "json") {
-    PrintStateJson(run, *r);
+    PrintStateJson(run, r);
   } else {
-    PrintStateText(run, *r);
+    PrintStateText(run, r);
   }
   return absl::OkStatus();
 }
@@ -780,19 +760,17 @@ absl::Status UploadTemplateCommand(const Flags& flags) {
   bool replace = false;
   RETURN_IF_ERROR(Require(flags, "file", "FILE.h5", &file));
   RETURN_IF_ERROR(GetBool(flags, "replace", &replace));
-  absl::StatusOr<Remote> remote = Connect(flags);
-  if (!remote.ok()) return remote.status();
+  ASSIGN_OR_RETURN(Remote remote, Connect(flags));
   absl::StatusOr<std::vector<store::TemplateRecord>> templates = store::ReadTemplates(file);
   if (!templates.ok()) return ExplainFileKind(templates.status(), file);
   if (templates->empty()) {
     return absl::FailedPreconditionError(absl::StrCat("'", file, "' holds no templates"));
   }
   for (const store::TemplateRecord& t : *templates) {
-    absl::StatusOr<client::TemplateInfo> info = remote->UploadTemplate(t, replace);
-    if (!info.ok()) return info.status();
+    ASSIGN_OR_RETURN(client::TemplateInfo info, remote.UploadTemplate(t, replace));
     std::printf("uploaded %s: %lld particles, e = %.4f, p = %.1f Pa, material %s (%s)\n",
-                info->name.c_str(), static_cast<long long>(info->num_particles), info->void_ratio,
-                info->mean_pressure, info->material_name.c_str(), info->description.c_str());
+                info.name.c_str(), static_cast<long long>(info.num_particles), info.void_ratio,
+                info.mean_pressure, info.material_name.c_str(), info.description.c_str());
   }
   return absl::OkStatus();
 }
@@ -801,20 +779,18 @@ absl::Status CheckpointCommand(const Flags& flags) {
   std::string out, run;
   RETURN_IF_ERROR(Require(flags, "out", "FILE.h5", &out));
   RETURN_IF_ERROR(Get(flags, "run", &run));
-  absl::StatusOr<Remote> remote = Connect(flags);
-  if (!remote.ok()) return remote.status();
+  ASSIGN_OR_RETURN(Remote remote, Connect(flags));
   const auto start = std::chrono::steady_clock::now();
   std::vector<std::string> runs;
   if (!run.empty()) {
     runs.push_back(run);
   } else {
-    absl::StatusOr<std::vector<client::RunInfo>> list = remote->ListRuns();
-    if (!list.ok()) return list.status();
-    for (const client::RunInfo& r : *list) runs.push_back(r.run_id);
+    ASSIGN_OR_RETURN(std::vector<client::RunInfo> list, remote.ListRuns());
+    for (const client::RunInfo& r : list) runs.push_back(r.run_id);
   }
   std::vector<store::RveRecord> records;
   for (const std::string& r : runs) {
-    RETURN_IF_ERROR(remote->ExportRun(r, [&records](store::RveRecord&& record) {
+    RETURN_IF_ERROR(remote.ExportRun(r, [&records](store::RveRecord&& record) {
       records.push_back(std::move(record));
       return absl::OkStatus();
     }));
@@ -834,8 +810,7 @@ absl::Status RestoreCommand(const Flags& flags) {
   std::string file, run;
   RETURN_IF_ERROR(Require(flags, "file", "FILE.h5", &file));
   RETURN_IF_ERROR(Get(flags, "run", &run));
-  absl::StatusOr<Remote> remote = Connect(flags);
-  if (!remote.ok()) return remote.status();
+  ASSIGN_OR_RETURN(Remote remote, Connect(flags));
   const auto start = std::chrono::steady_clock::now();
   absl::StatusOr<std::vector<store::RveRecord>> all = store::ReadRves(file);
   if (!all.ok()) return ExplainFileKind(all.status(), file);
@@ -850,22 +825,19 @@ absl::Status RestoreCommand(const Flags& flags) {
     std::printf("imported 0 RVEs (%s holds none)\n", file.c_str());
     return absl::OkStatus();
   }
-  absl::StatusOr<client::ImportSummary> imported = remote->Import(records);
-  if (!imported.ok()) return imported.status();
+  ASSIGN_OR_RETURN(client::ImportSummary imported, remote.Import(records));
   std::printf("imported %lld RVEs into %s (%lld chunks, %.2f s)\n",
-              static_cast<long long>(imported->imported), remote->target().c_str(),
-              static_cast<long long>(imported->chunks), SecondsSince(start));
+              static_cast<long long>(imported.imported), remote.target().c_str(),
+              static_cast<long long>(imported.chunks), SecondsSince(start));
   return absl::OkStatus();
 }
 
 // The runs a server hosts: one line each (tab-separated, for scripts).
 absl::Status ListRunsCommand(const Flags& flags) {
-  absl::StatusOr<Remote> remote = Connect(flags);
-  if (!remote.ok()) return remote.status();
-  absl::StatusOr<std::vector<client::RunInfo>> runs = remote->ListRuns();
-  if (!runs.ok()) return runs.status();
+  ASSIGN_OR_RETURN(Remote remote, Connect(flags));
+  ASSIGN_OR_RETURN(std::vector<client::RunInfo> runs, remote.ListRuns());
   std::printf("RUN\tRVES\tMIN_STEP\tMAX_STEP\n");
-  for (const client::RunInfo& r : *runs) {
+  for (const client::RunInfo& r : runs) {
     std::printf("%s\t%lld\t%lld\t%lld\n", r.run_id.c_str(), static_cast<long long>(r.num_rves),
                 static_cast<long long>(r.min_step), static_cast<long long>(r.max_step));
   }
@@ -882,12 +854,10 @@ absl::Status DropCommand(const Flags& flags) {
     RETURN_IF_ERROR(Get(flags, "id", &id));
     ids.push_back(id);
   }
-  absl::StatusOr<Remote> remote = Connect(flags);
-  if (!remote.ok()) return remote.status();
-  absl::StatusOr<std::int64_t> dropped = remote->Drop(run, ids);
-  if (!dropped.ok()) return dropped.status();
-  std::printf("dropped %lld RVEs of run %s on %s\n", static_cast<long long>(*dropped), run.c_str(),
-              remote->target().c_str());
+  ASSIGN_OR_RETURN(Remote remote, Connect(flags));
+  ASSIGN_OR_RETURN(std::int64_t dropped, remote.Drop(run, ids));
+  std::printf("dropped %lld RVEs of run %s on %s\n", static_cast<long long>(dropped), run.c_str(),
+              remote.target().c_str());
   return absl::OkStatus();
 }
 
@@ -973,13 +943,4 @@ int Main(int argc, char** argv) {
 }  // namespace
 }  // namespace rvehub::cli
 
-int main(int argc, char** argv) {
-  const int code = rvehub::cli::Main(argc, argv);
-  if (code != 0) {
-    // As in mpm_client: after a store write failed part-way (ENOSPC, EFBIG)
-    // HDF5's exit-time cleanup crashes on the file whose close failed.
-    std::fflush(nullptr);
-    std::_Exit(code);
-  }
-  return code;
-}
+int main(int argc, char** argv) { return rvehub::cli::Main(argc, argv); }

@@ -4,6 +4,7 @@
 #include <climits>
 
 #include "absl/strings/str_cat.h"
+#include "rve_server/common/status_macros.h"
 #include "rve_server/common/text_file.h"
 
 namespace rvehub::client {
@@ -48,17 +49,15 @@ absl::StatusOr<ClientOptions> ClientOptionsFromFiles(const std::string& token_fi
                                                      const std::string& tls_ca_file) {
   ClientOptions options;
   if (!token_file.empty()) {
-    absl::StatusOr<std::string> token = ReadTokenFile(token_file);
-    if (!token.ok()) return token.status();
-    options.token = *std::move(token);
+    ASSIGN_OR_RETURN(std::string token, ReadTokenFile(token_file));
+    options.token = std::move(token);
   }
   if (!tls_ca_file.empty()) {
-    absl::StatusOr<std::string> pem = ReadTextFile(tls_ca_file, "TLS CA file");
-    if (!pem.ok()) return pem.status();
-    if (pem->empty()) {
+    ASSIGN_OR_RETURN(std::string pem, ReadTextFile(tls_ca_file, "TLS CA file"));
+    if (pem.empty()) {
       return absl::InvalidArgumentError(absl::StrCat("TLS CA file '", tls_ca_file, "' is empty"));
     }
-    options.tls_ca_pem = *std::move(pem);
+    options.tls_ca_pem = std::move(pem);
   }
   return options;
 }

@@ -6,6 +6,7 @@
 
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
+#include "rve_server/common/status_macros.h"
 #include "rve_server/service/convert.h"
 
 namespace rvehub::client {
@@ -55,7 +56,7 @@ absl::Status ReadExport(grpc::ClientContext& ctx, grpc::ClientReader<v1::RveChun
     (void)reader.Finish();  // the stream is abandoned; its status adds nothing
     return failed;
   }
-  if (absl::Status s = check(reader.Finish()); !s.ok()) return s;
+  RETURN_IF_ERROR(check(reader.Finish()));
   if (declared > 0 && declared != received) {
     return absl::DataLossError(absl::StrCat("export of run \"", run, "\" declared ", declared,
                                             " records but carried ", received));

@@ -16,6 +16,7 @@
 #include "absl/time/clock.h"
 #include "rve_server/client/endpoint.h"
 #include "rve_server/client/record_stream.h"
+#include "rve_server/common/status_macros.h"
 #include "rve_server/service/convert.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
 
@@ -79,13 +80,12 @@ absl::Status AppendOutcomes(const google::protobuf::RepeatedPtrField<v1::RveResu
         absl::StrCat("reply has ", results.size(), " results for ", expected.size(), " RVEs"));
   }
   for (int k = 0; k < results.size(); ++k) {
-    absl::StatusOr<RveOutcome> o = OutcomeFromProto(results[k]);
-    if (!o.ok()) return o.status();
-    if (!expected.empty() && o->id != expected[k]) {
-      return absl::DataLossError(absl::StrCat("reply result ", k, " is for material point ", o->id,
-                                              ", not ", expected[k]));
+    ASSIGN_OR_RETURN(RveOutcome o, OutcomeFromProto(results[k]));
+    if (!expected.empty() && o.id != expected[k]) {
+      return absl::DataLossError(
+          absl::StrCat("reply result ", k, " is for material point ", o.id, ", not ", expected[k]));
     }
-    out->push_back(*std::move(o));
+    out->push_back(std::move(o));
   }
   return absl::OkStatus();
 }
@@ -363,7 +363,7 @@ class RemoteEndpoint final : public RveEndpoint {
     std::size_t begin = 0;
     do {
       const std::size_t end = std::min(n, begin + batch);
-      if (absl::Status s = send(begin, end); !s.ok()) return s;
+      RETURN_IF_ERROR(send(begin, end));
       begin = end;
     } while (begin < n);
     return absl::OkStatus();
@@ -400,7 +400,7 @@ absl::StatusOr<std::unique_ptr<RveEndpoint>> MakeRemoteEndpoint(const std::strin
                                                                 const ClientOptions& options,
                                                                 const RemoteOptions& remote) {
   auto endpoint = std::make_unique<RemoteEndpoint>(address, options, remote);
-  if (absl::Status s = endpoint->Connect(); !s.ok()) return s;
+  RETURN_IF_ERROR(endpoint->Connect());
   return endpoint;
 }
 

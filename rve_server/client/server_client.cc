@@ -9,15 +9,12 @@
 
 #include "absl/strings/str_cat.h"
 #include "rve_server/client/record_stream.h"
+#include "rve_server/common/status_macros.h"
 #include "rve_server/service/convert.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
 
 namespace rvehub::client {
 namespace {
-
-// As service::ValidateName (the server's check), for clients that must not
-// depend on the service.
-constexpr std::size_t kMaxNameLength = 128;
 
 // Message reading for the client's own types; engine and store types go
 // through rve_server/service/convert.h.
@@ -53,22 +50,6 @@ TemplateInfo FromProto(const v1::TemplateInfo& t) {
 }
 
 }  // namespace
-
-absl::Status ValidateName(absl::string_view what, absl::string_view name) {
-  if (name.empty() || name.size() > kMaxNameLength) {
-    return absl::InvalidArgumentError(
-        absl::StrCat(what, " must have 1 to ", kMaxNameLength, " characters, got ", name.size()));
-  }
-  for (char c : name) {
-    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
-                    c == '.' || c == '_' || c == '-';
-    if (!ok) {
-      return absl::InvalidArgumentError(
-          absl::StrCat(what, " \"", name, "\" may contain only letters, digits, '.', '_' and '-'"));
-    }
-  }
-  return absl::OkStatus();
-}
 
 struct ServerClient::Stub {
   std::unique_ptr<v1::RveService::Stub> stub;
@@ -209,10 +190,8 @@ absl::Status ServerClient::ExportRun(const std::string& run, const RecordSink& s
 
 absl::StatusOr<ImportSummary> ServerClient::Import(
     std::span<const store::RveRecord* const> records) const {
-  absl::StatusOr<ServerInfo> info = GetServerInfo();
-  if (!info.ok()) return info.status();
-  const std::int64_t budget =
-      ImportChunkBudget(info->max_message_bytes, options_.max_message_bytes);
+  ASSIGN_OR_RETURN(ServerInfo info, GetServerInfo());
+  const std::int64_t budget = ImportChunkBudget(info.max_message_bytes, options_.max_message_bytes);
   grpc::ClientContext ctx;
   stub_->Ready(*this, ctx);
   v1::ImportResponse response;
@@ -258,7 +237,7 @@ absl::StatusOr<std::vector<dem::ElementTestRow>> ServerClient::RunElementTest(
     if (progress) progress(update.progress());
     for (const v1::ElementTestRow& row : update.rows()) rows.push_back(service::FromProto(row));
   }
-  if (absl::Status s = Stub::Check(*this, reader->Finish(), "RunElementTest"); !s.ok()) return s;
+  RETURN_IF_ERROR(Stub::Check(*this, reader->Finish(), "RunElementTest"));
   return rows;
 }
 

@@ -20,15 +20,16 @@
 #include "absl/strings/string_view.h"
 #include "rve_server/client/channel.h"
 #include "rve_server/client/types.h"
+#include "rve_server/common/names.h"
 #include "rve_server/engine/element_test.h"
 #include "store/record.h"
 
 namespace rvehub::client {
 
-// Checks a run id or template name as servers do: [A-Za-z0-9._-], 1 to 128
-// characters. InvalidArgument naming `what`, in the server's words, so a
-// client refuses a name before the work that would end in its upload.
-absl::Status ValidateName(absl::string_view what, absl::string_view name);
+// Checks a run id or template name as servers do (the one rule of
+// rve_server/common/names.h), so a client refuses a name before the work that
+// would end in its upload.
+using ::rvehub::ValidateName;
 
 // GetServerInfo: the server's version, limits and load.
 struct ServerInfo {

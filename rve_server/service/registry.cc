@@ -21,19 +21,11 @@
 namespace rvehub::service {
 namespace {
 
-constexpr std::size_t kMaxNameLength = 128;
 constexpr std::size_t kMaxDescriptionBytes = 4096;
 constexpr int kMaxListedIds = 8;  // ids named in one error message at most
 constexpr double kMaxK0 = 10.0;   // σh/σv of a K0 state at most, [-]
 
 }  // namespace
-
-std::string Quoted(absl::string_view name) {
-  constexpr std::size_t kShown = 64;
-  std::string s = absl::StrCat("\"", absl::CHexEscape(name.substr(0, kShown)), "\"");
-  if (name.size() > kShown) absl::StrAppend(&s, "... (", name.size(), " bytes)");
-  return s;
-}
 
 namespace {
 
@@ -133,22 +125,6 @@ absl::Status Validate(const InitialStress& initial) {
       return absl::OkStatus();
   }
   return absl::InvalidArgumentError("unknown kind of initial stress");
-}
-
-absl::Status ValidateName(absl::string_view what, absl::string_view name) {
-  if (name.empty() || name.size() > kMaxNameLength) {
-    return absl::InvalidArgumentError(
-        absl::StrCat(what, " must have 1 to ", kMaxNameLength, " characters, got ", name.size()));
-  }
-  for (char c : name) {
-    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
-                    c == '.' || c == '_' || c == '-';
-    if (!ok) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          what, " ", Quoted(name), " may contain only letters, digits, '.', '_' and '-'"));
-    }
-  }
-  return absl::OkStatus();
 }
 
 Registry::Registry(const RegistryOptions& options) : options_(options), pool_(options.threads) {}

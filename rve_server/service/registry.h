@@ -20,6 +20,7 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
 #include "absl/synchronization/mutex.h"
+#include "rve_server/common/names.h"
 #include "rve_server/engine/rve.h"
 #include "rve_server/service/worker_pool.h"
 #include "store/record.h"
@@ -94,13 +95,10 @@ using CancelFn = std::function<absl::Status()>;
 // Finite positive stresses (and K0) for the kind; kTemplate is always valid.
 absl::Status Validate(const InitialStress& initial);
 
-// Checks a run id or template name: [A-Za-z0-9._-], 1..128 characters.
-// Its message quotes at most a bounded, escaped prefix of the name.
-absl::Status ValidateName(absl::string_view what, absl::string_view name);
-
-// A name for an error message: quoted, C-escaped, at most 64 bytes of it
-// and its length when longer (error messages never echo unbounded input).
-std::string Quoted(absl::string_view name);
+// Run ids and template names follow the one rule of rve_server/common/names.h
+// (the client checks the same one).
+using ::rvehub::ValidateName;
+inline std::string Quoted(absl::string_view name) { return QuotedName(name); }
 
 class Registry {
  public:
