@@ -27,9 +27,9 @@
 #include <vector>
 
 #include "rve_server/engine/material.h"
-#include "rve_server/engine/packing.h"
 #include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
+#include "rve_server/engine/snapshot.h"
 #include "rve_server/service/worker_pool.h"
 
 namespace {
@@ -45,15 +45,15 @@ constexpr double kGoalParticleSteps = 30e6;  // ≥ 30 M particle-steps/s/core
 constexpr double kGoalBytesPerRve = 64e3;    // ≤ 64 KB per 400-disc RVE
 
 // The prepared SET-dense packing, made once per process (takes seconds).
-const dem::Packing& DensePacking() {
-  static const dem::Packing packing = [] {
+const dem::RveSnapshot& DensePacking() {
+  static const dem::RveSnapshot packing = [] {
     absl::StatusOr<dem::ParameterSet> set = dem::FindParameterSet("SET-dense");
     if (!set.ok()) {
       std::fprintf(stderr, "SET-dense: %s\n", set.status().ToString().c_str());
       std::exit(1);
     }
     dem::PreparationReport report;
-    absl::StatusOr<dem::Packing> p = dem::PreparePacking(*set, {}, &report);
+    absl::StatusOr<dem::RveSnapshot> p = dem::PreparePacking(*set, {}, &report);
     if (!p.ok()) {
       std::fprintf(stderr, "PreparePacking(SET-dense): %s\n", p.status().ToString().c_str());
       std::exit(1);
@@ -90,7 +90,7 @@ struct RefParticle {
 
 class ReferenceDem {
  public:
-  ReferenceDem(const dem::Packing& p, double dt)
+  ReferenceDem(const dem::RveSnapshot& p, double dt)
       : m_(p.material), h_(p.cell), hinv_(p.cell.inverse()), dt_(dt), n_(p.radius.size()) {
     const double kPi = 3.14159265358979323846;
     for (std::size_t i = 0; i < n_; ++i) {
@@ -316,7 +316,7 @@ BENCHMARK(BM_ObserveByDefinition)->Unit(benchmark::kMicrosecond);
 // One MPM-sized increment (strain 1e-6) with the quasi-static criterion
 // alone (min_steps 1): one DEM step plus the homogenisation.
 void BM_ApplySmallIncrement(benchmark::State& state) {
-  dem::Packing packing = DensePacking();
+  dem::RveSnapshot packing = DensePacking();
   packing.controls.min_steps = state.range(0);
   dem::Rve rve = *dem::Rve::Create(packing);
   Eigen::Matrix3d delta_f = Eigen::Matrix3d::Identity();
@@ -346,7 +346,7 @@ BENCHMARK(BM_ApplySmallIncrement)
 // that left the caches since its RVE's last increment (the footing-full case
 // holds 7776 RVEs, ~0.5 GB). The ratio to rves:1 is the price of that.
 void BM_ApplyManyRves(benchmark::State& state) {
-  dem::Packing packing = DensePacking();
+  dem::RveSnapshot packing = DensePacking();
   packing.controls.min_steps = 1;
   std::vector<dem::Rve> rves(static_cast<std::size_t>(state.range(0)), *dem::Rve::Create(packing));
   Eigen::Matrix3d delta_f = Eigen::Matrix3d::Identity();
@@ -376,7 +376,7 @@ double ResidentBytes() {
 // Rve::MemoryBytes() per RVE. malloc_trim first, so that heap freed by earlier
 // benchmarks is not silently reused and hidden from the RSS growth.
 void BM_MemoryPerRve(benchmark::State& state) {
-  const dem::Packing& packing = DensePacking();
+  const dem::RveSnapshot& packing = DensePacking();
   double rss = 0.0, state_bytes = 0.0;
   for (auto _ : state) {
     state.PauseTiming();

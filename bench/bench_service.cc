@@ -59,7 +59,7 @@ v1::ApplyRequest Batch(const std::string& run, std::int64_t step, int rves, doub
   return req;
 }
 
-Figures Measure(const dem::Packing& packing, int threads, int rves, int reps) {
+Figures Measure(const dem::RveSnapshot& packing, int threads, int rves, int reps) {
   service::ServerConfig config;
   config.listen = "127.0.0.1:0";
   config.registry.threads = threads;
@@ -131,7 +131,7 @@ Figures Measure(const dem::Packing& packing, int threads, int rves, int reps) {
     }
   }
   // The engine alone, same zero-step increments, same number of threads.
-  dem::Packing zero = packing;
+  dem::RveSnapshot zero = packing;
   zero.controls.min_steps = 0;
   std::vector<dem::Rve> engine;
   for (int k = 0; k < rves; ++k) engine.push_back(*dem::Rve::Create(zero));
@@ -163,7 +163,7 @@ int main(int argc, char** argv) {
   setenv("GRPC_CLIENT_CHANNEL_BACKUP_POLL_INTERVAL_MS", "50", 1);  // quick drains
   service::SetLogEnabled(false);
   absl::StatusOr<dem::ParameterSet> set = dem::FindParameterSet("SET-dense");
-  absl::StatusOr<dem::Packing> packing = dem::PreparePacking(*set);
+  absl::StatusOr<dem::RveSnapshot> packing = dem::PreparePacking(*set);
   if (!packing.ok()) {
     std::fprintf(stderr, "%s\n", packing.status().ToString().c_str());
     return 1;

@@ -19,8 +19,8 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
 #include "rve_server/engine/material.h"
-#include "rve_server/engine/packing.h"
 #include "rve_server/engine/prepare.h"
+#include "rve_server/engine/snapshot.h"
 #include "store/checkpoint.h"
 #include "store/record.h"
 
@@ -38,7 +38,7 @@ double Seconds(Clock::time_point a, Clock::time_point b) {
 
 // Bitwise equality of the particle and contact arrays (a cheap check that
 // the timed read returned what was written).
-bool SamePacking(const rvehub::dem::Packing& a, const rvehub::dem::Packing& b) {
+bool SamePacking(const rvehub::dem::RveSnapshot& a, const rvehub::dem::RveSnapshot& b) {
   auto same = [](const std::vector<double>& x, const std::vector<double>& y) {
     return x.size() == y.size() && std::memcmp(x.data(), y.data(), 8 * x.size()) == 0;
   };
@@ -66,7 +66,7 @@ int Run() {
     std::fprintf(stderr, "%s\n", set.status().ToString().c_str());
     return 1;
   }
-  absl::StatusOr<rvehub::dem::Packing> packing = rvehub::dem::PreparePacking(*set);
+  absl::StatusOr<rvehub::dem::RveSnapshot> packing = rvehub::dem::PreparePacking(*set);
   if (!packing.ok()) {
     std::fprintf(stderr, "PreparePacking: %s\n", packing.status().ToString().c_str());
     return 1;

@@ -52,7 +52,7 @@ absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
   dem::PreparationReport report;
   // The first progress line ("N discs, seed S") is the one worth a log line.
   bool announced = false;
-  absl::StatusOr<dem::Packing> packing =
+  absl::StatusOr<dem::RveSnapshot> packing =
       dem::PrepareTemplate(spec.parameter_set, spec.seed, &report, [&](const std::string& line) {
         if (log && !announced) log(absl::StrCat("  ", line));
         announced = true;
@@ -96,7 +96,7 @@ absl::StatusOr<std::vector<store::TemplateRecord>> ResolveTemplates(
   return out;
 }
 
-double BulkDensity(const dem::Packing& packing) {
+double BulkDensity(const dem::RveSnapshot& packing) {
   const double cell_area = std::abs(packing.cell.determinant());  // m²
   return packing.material.density * dem::SolidArea(packing.radius) / cell_area;
 }

@@ -1,4 +1,4 @@
-// Packing templates of a case: read from template files, or prepared in code
+// RveSnapshot templates of a case: read from template files, or prepared in code
 // from a named parameter set and seed and cached as template files (so a
 // second run, or another case on the same material, does not prepare again).
 #ifndef RVEHUB_MPM_CLIENT_TEMPLATES_H_
@@ -23,7 +23,7 @@ absl::StatusOr<std::vector<store::TemplateRecord>> ResolveTemplates(
 
 // Dry bulk density of a packing's material, kg/m³: ρ_s·A_solid/A_cell,
 // i.e. ρ_s/(1 + e) with e the 2-D void ratio.
-double BulkDensity(const dem::Packing& packing);
+double BulkDensity(const dem::RveSnapshot& packing);
 
 }  // namespace rvehub::mpm
 

@@ -1,6 +1,6 @@
 // Checkpoint files: many RVE states (or packing templates) in one HDF5 file,
 // laid out as a few large chunked, fletcher32-checksummed datasets indexed by
-// record (store/FORMAT.md). Every Packing field round-trips bit for bit, so a
+// record (store/FORMAT.md). Every RveSnapshot field round-trips bit for bit, so a
 // restored RVE continues exactly as the saved one would have.
 //
 // Writes are atomic: the file is built under a temporary name next to `path`
@@ -8,7 +8,7 @@
 // previous file or the new one. Reads check the file's kind and format
 // version, every dataset's presence, shape and type, the offsets, every
 // checksum (a mismatch is DataLoss naming the dataset) and every restored
-// Packing (material, controls, array lengths, contact indices).
+// RveSnapshot (material, controls, array lengths, contact indices).
 //
 // Thread-safe: calls are serialised process-wide (HDF5 itself has one lock).
 #ifndef RVEHUB_STORE_CHECKPOINT_H_

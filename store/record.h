@@ -1,5 +1,5 @@
 // What the store saves: RVE states keyed by (run id, material-point id) and
-// packing templates. Plain data over the engine's Packing (which holds every
+// packing templates. Plain data over the engine's RveSnapshot (which holds every
 // bit an RVE needs for a bit-exact continuation).
 #ifndef RVEHUB_STORE_RECORD_H_
 #define RVEHUB_STORE_RECORD_H_
@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "rve_server/engine/packing.h"
+#include "rve_server/engine/snapshot.h"
 
 namespace rvehub::store {
 
@@ -21,14 +21,14 @@ struct RveRecord {
   // ΔF of the last committed step (identity at step 0), kept so that a retried
   // COMMIT can be checked against it after a restart. 3×3, [-].
   Eigen::Matrix3d last_delta_f = Eigen::Matrix3d::Identity();
-  dem::Packing packing;
+  dem::RveSnapshot packing;
 };
 
 // A prepared packing plus its material, from which RVEs are created.
 struct TemplateRecord {
   std::string name;
   std::string description;  // free text (how it was prepared)
-  dem::Packing packing;
+  dem::RveSnapshot packing;
 };
 
 // File-level facts written into every store file.

@@ -27,7 +27,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "rve_server/engine/material.h"
-#include "rve_server/engine/packing.h"
+#include "rve_server/engine/snapshot.h"
 #include "store/checkpoint.h"
 #include "store/hdf5.h"
 
@@ -43,7 +43,7 @@ using internal::StoreMutex;
 
 constexpr char kEngine[] =
     "RVEHub DEM engine: 2-D discs in a periodic cell, plane strain; "
-    "dem::Packing state, bit-exact (store/FORMAT.md)";
+    "dem::RveSnapshot state, bit-exact (store/FORMAT.md)";
 
 // Field tables: the dataset name next to the member it holds, so that the
 // writer and the reader cannot disagree on a name or forget a field.
@@ -80,32 +80,35 @@ constexpr ControlsField kControlsFields[] = {
 
 struct MatrixField {
   const char* dataset;
-  Eigen::Matrix2d dem::Packing::*member;
+  Eigen::Matrix2d dem::RveSnapshot::*member;
 };
 constexpr MatrixField kMatrixFields[] = {
-    {"/packing/cell", &dem::Packing::cell},
-    {"/packing/reference_cell", &dem::Packing::reference_cell},
-    {"/packing/frame", &dem::Packing::frame},
+    {"/packing/cell", &dem::RveSnapshot::cell},
+    {"/packing/reference_cell", &dem::RveSnapshot::reference_cell},
+    {"/packing/frame", &dem::RveSnapshot::frame},
 };
 
 struct ScalarField {
   const char* dataset;
-  double dem::Packing::*member;
+  double dem::RveSnapshot::*member;
 };
 constexpr ScalarField kScalarFields[] = {
-    {"/packing/initial_void_ratio", &dem::Packing::initial_void_ratio},
-    {"/packing/permeability_coefficient", &dem::Packing::permeability_coefficient},
+    {"/packing/initial_void_ratio", &dem::RveSnapshot::initial_void_ratio},
+    {"/packing/permeability_coefficient", &dem::RveSnapshot::permeability_coefficient},
 };
 
 struct ParticleField {
   const char* dataset;
-  std::vector<double> dem::Packing::*member;
+  std::vector<double> dem::RveSnapshot::*member;
 };
 constexpr ParticleField kParticleFields[] = {
-    {"/particles/radius", &dem::Packing::radius}, {"/particles/sx", &dem::Packing::sx},
-    {"/particles/sy", &dem::Packing::sy},         {"/particles/vx", &dem::Packing::vx},
-    {"/particles/vy", &dem::Packing::vy},         {"/particles/omega", &dem::Packing::omega},
-    {"/particles/theta", &dem::Packing::theta},
+    {"/particles/radius", &dem::RveSnapshot::radius},
+    {"/particles/sx", &dem::RveSnapshot::sx},
+    {"/particles/sy", &dem::RveSnapshot::sy},
+    {"/particles/vx", &dem::RveSnapshot::vx},
+    {"/particles/vy", &dem::RveSnapshot::vy},
+    {"/particles/omega", &dem::RveSnapshot::omega},
+    {"/particles/theta", &dem::RveSnapshot::theta},
 };
 
 struct ContactField {
@@ -127,7 +130,7 @@ constexpr std::int32_t kModelHertzMindlin = 1;
 // controls, one value per particle in every particle array, and contact
 // indices i < j inside the packing. (The rest, e.g. finiteness, is
 // Rve::Create's to judge: the store keeps whatever state it is given.)
-absl::Status CheckPacking(const dem::Packing& p) {
+absl::Status CheckPacking(const dem::RveSnapshot& p) {
   if (absl::Status s = dem::Validate(p.material); !s.ok()) {
     return absl::InvalidArgumentError(absl::StrCat("material: ", s.message()));
   }
@@ -180,14 +183,14 @@ Eigen::Matrix<double, kN, kN> FromRowMajor(const double* v) {
 
 // Writes the packing part shared by both kinds of record, under `group`.
 absl::Status WritePackings(h5::File& file, const std::string& group,
-                           const std::vector<const dem::Packing*>& packings) {
+                           const std::vector<const dem::RveSnapshot*>& packings) {
   const auto at = [&group](const char* dataset) { return absl::StrCat(group, dataset); };
   const std::size_t n = packings.size();
   std::vector<std::string> names;
   std::vector<std::int32_t> models;
   names.reserve(n);
   models.reserve(n);
-  for (const dem::Packing* p : packings) {
+  for (const dem::RveSnapshot* p : packings) {
     names.push_back(p->material.name);
     models.push_back(p->material.model == dem::ContactModel::kHertzMindlin ? kModelHertzMindlin
                                                                            : kModelLinear);
@@ -199,43 +202,43 @@ absl::Status WritePackings(h5::File& file, const std::string& group,
   values.reserve(n * 4);
   for (const MaterialField& f : kMaterialFields) {
     values.clear();
-    for (const dem::Packing* p : packings) values.push_back(p->material.*f.member);
+    for (const dem::RveSnapshot* p : packings) values.push_back(p->material.*f.member);
     RETURN_IF_ERROR(file.Write(at(f.dataset), Span(values)));
   }
   for (const ControlsField& f : kControlsFields) {
     values.clear();
-    for (const dem::Packing* p : packings) values.push_back(p->controls.*f.member);
+    for (const dem::RveSnapshot* p : packings) values.push_back(p->controls.*f.member);
     RETURN_IF_ERROR(file.Write(at(f.dataset), Span(values)));
   }
   std::vector<std::int64_t> integers;
   integers.reserve(n + 1);
-  for (const dem::Packing* p : packings) integers.push_back(p->controls.min_steps);
+  for (const dem::RveSnapshot* p : packings) integers.push_back(p->controls.min_steps);
   RETURN_IF_ERROR(file.Write(at("/controls/min_steps"), Span(integers)));
 
   for (const MatrixField& f : kMatrixFields) {
     values.clear();
-    for (const dem::Packing* p : packings) AppendRowMajor(p->*f.member, &values);
+    for (const dem::RveSnapshot* p : packings) AppendRowMajor(p->*f.member, &values);
     RETURN_IF_ERROR(file.Write(at(f.dataset), Span(values), 4));
   }
   for (const ScalarField& f : kScalarFields) {
     values.clear();
-    for (const dem::Packing* p : packings) values.push_back(p->*f.member);
+    for (const dem::RveSnapshot* p : packings) values.push_back(p->*f.member);
     RETURN_IF_ERROR(file.Write(at(f.dataset), Span(values)));
   }
   integers.clear();
-  for (const dem::Packing* p : packings) integers.push_back(p->total_steps);
+  for (const dem::RveSnapshot* p : packings) integers.push_back(p->total_steps);
   RETURN_IF_ERROR(file.Write(at("/packing/total_steps"), Span(integers)));
 
   // CSR offsets: record k owns particles [offset[k], offset[k+1]).
   std::size_t num_particles = 0, num_contacts = 0;
   integers.assign(1, 0);
-  for (const dem::Packing* p : packings) {
+  for (const dem::RveSnapshot* p : packings) {
     num_particles += p->radius.size();
     integers.push_back(static_cast<std::int64_t>(num_particles));
   }
   RETURN_IF_ERROR(file.Write(at("/packing/particle_offset"), Span(integers)));
   integers.assign(1, 0);
-  for (const dem::Packing* p : packings) {
+  for (const dem::RveSnapshot* p : packings) {
     num_contacts += p->contacts.size();
     integers.push_back(static_cast<std::int64_t>(num_contacts));
   }
@@ -246,7 +249,7 @@ absl::Status WritePackings(h5::File& file, const std::string& group,
   values.reserve(std::max(num_particles, num_contacts));
   for (const ParticleField& f : kParticleFields) {
     values.clear();
-    for (const dem::Packing* p : packings) {
+    for (const dem::RveSnapshot* p : packings) {
       const std::vector<double>& v = p->*f.member;
       values.insert(values.end(), v.begin(), v.end());
     }
@@ -257,14 +260,14 @@ absl::Status WritePackings(h5::File& file, const std::string& group,
   for (auto [dataset, member] : {std::pair{"/contacts/i", &dem::ContactHistory::i},
                                  std::pair{"/contacts/j", &dem::ContactHistory::j}}) {
     indices.clear();
-    for (const dem::Packing* p : packings) {
+    for (const dem::RveSnapshot* p : packings) {
       for (const dem::ContactHistory& c : p->contacts) indices.push_back(c.*member);
     }
     RETURN_IF_ERROR(file.Write(at(dataset), Span(indices)));
   }
   for (const ContactField& f : kContactFields) {
     values.clear();
-    for (const dem::Packing* p : packings) {
+    for (const dem::RveSnapshot* p : packings) {
       for (const dem::ContactHistory& c : p->contacts) values.push_back(c.*f.member);
     }
     RETURN_IF_ERROR(file.Write(at(f.dataset), Span(values)));
@@ -274,11 +277,11 @@ absl::Status WritePackings(h5::File& file, const std::string& group,
 
 // Reads the packing part shared by both kinds of record, from under
 // `group`; `label(k)` names record k in messages.
-absl::StatusOr<std::vector<dem::Packing>> ReadPackings(
+absl::StatusOr<std::vector<dem::RveSnapshot>> ReadPackings(
     const h5::File& file, const std::string& group, std::size_t n,
     const std::function<std::string(std::size_t)>& label) {
   const auto at = [&group](const char* dataset) { return absl::StrCat(group, dataset); };
-  std::vector<dem::Packing> packings(n);
+  std::vector<dem::RveSnapshot> packings(n);
   std::vector<std::string> names;
   RETURN_IF_ERROR(file.ReadStrings(at("/material/name"), n, &names));
   std::vector<std::int32_t> models;
@@ -466,7 +469,7 @@ absl::Status CheckTemplateRecords(const std::string& path,
 
 absl::Status WriteRveRecords(h5::File& file, const std::string& group,
                              std::span<const RveRecord> rves) {
-  std::vector<const dem::Packing*> packings;
+  std::vector<const dem::RveSnapshot*> packings;
   std::vector<std::string> run_ids;
   std::vector<std::int64_t> ids, steps;
   std::vector<double> delta_f;
@@ -497,7 +500,7 @@ absl::StatusOr<std::vector<RveRecord>> ReadRveRecords(const h5::File& file,
   RETURN_IF_ERROR(file.Read(absl::StrCat(group, "/records/step"), n, 0, &steps));
   RETURN_IF_ERROR(file.Read(absl::StrCat(group, "/records/last_delta_f"), n, 9, &delta_f));
   ASSIGN_OR_RETURN(
-      std::vector<dem::Packing> packings,
+      std::vector<dem::RveSnapshot> packings,
       ReadPackings(file, group, n, [&](std::size_t k) { return RveLabel(k, run_ids[k], ids[k]); }));
   std::vector<RveRecord> rves(n);
   for (std::size_t k = 0; k < n; ++k) {
@@ -512,7 +515,7 @@ absl::StatusOr<std::vector<RveRecord>> ReadRveRecords(const h5::File& file,
 
 absl::Status WriteTemplateRecords(h5::File& file, const std::string& group,
                                   std::span<const TemplateRecord> templates) {
-  std::vector<const dem::Packing*> packings;
+  std::vector<const dem::RveSnapshot*> packings;
   std::vector<std::string> names, descriptions;
   packings.reserve(templates.size());
   names.reserve(templates.size());
@@ -534,7 +537,7 @@ absl::StatusOr<std::vector<TemplateRecord>> ReadTemplateRecords(const h5::File& 
   RETURN_IF_ERROR(file.ReadStrings(absl::StrCat(group, "/records/name"), n, &names));
   RETURN_IF_ERROR(file.ReadStrings(absl::StrCat(group, "/records/description"), n, &descriptions));
   ASSIGN_OR_RETURN(
-      std::vector<dem::Packing> packings,
+      std::vector<dem::RveSnapshot> packings,
       ReadPackings(file, group, n, [&](std::size_t k) { return TemplateLabel(k, names[k]); }));
   std::vector<TemplateRecord> templates(n);
   for (std::size_t k = 0; k < n; ++k) {

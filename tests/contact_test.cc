@@ -16,8 +16,8 @@
 #include "gtest/gtest.h"
 #include "rve_server/engine/contact_law.h"
 #include "rve_server/engine/material.h"
-#include "rve_server/engine/packing.h"
 #include "rve_server/engine/rve.h"
+#include "rve_server/engine/snapshot.h"
 #include "tests/test_util.h"
 
 namespace rvehub::dem {
@@ -44,8 +44,8 @@ struct PairSpec {
 
 // Two discs at rest, centred on the middle of a square cell that is 20 r_max
 // wide (well above the 2·(2 r_max + skin·r_min) that Create requires).
-Packing MakePair(const PairSpec& spec) {
-  Packing p;
+RveSnapshot MakePair(const PairSpec& spec) {
+  RveSnapshot p;
   p.material = spec.material;
   p.controls.time_step_factor = spec.time_step_factor;
   const double side = 20.0 * std::max(spec.r1, spec.r2);
@@ -122,7 +122,7 @@ TEST_P(LinearPairTest, StepPushesTheDiscsApartWithFnOverMass) {
   Rve rve = CreateOrDie(MakePair(spec));
   const ContactForce c = OnlyContact(rve);
   StepAtFixedCell(rve, 1);
-  const Packing after = rve.ToPacking();
+  const RveSnapshot after = rve.ToSnapshot();
   const double dt = rve.time_step();
   // Leapfrog from rest: v = dt·F/m, with F_i = −fn·n and F_j = +fn·n.
   const Eigen::Vector2d vi(after.vx[0], after.vy[0]), vj(after.vx[1], after.vy[1]);
@@ -139,7 +139,7 @@ TEST_P(LinearPairTest, LoveWeberStressOfThePair) {
   spec.angle = 1.1;
   spec.material.friction = 10.0;  // keep the preload below the Coulomb limit
   spec.preload_ft = 0.3;          // N: exercises the t⊗n part of the stress
-  const Packing packing = MakePair(spec);
+  const RveSnapshot packing = MakePair(spec);
   const Rve rve = CreateOrDie(packing);
   const ContactForce c = OnlyContact(rve);
   ASSERT_EQ(c.tangential_force, spec.preload_ft);
@@ -204,7 +204,7 @@ TEST(CoulombTest, SlidingContactStaysOnTheCoulombLimit) {
   // Small Δt keeps the free pair in contact: it would otherwise bounce apart
   // within a few steps (quarter normal period ≈ 110 steps at this factor).
   spec.time_step_factor = 0.01;
-  Packing p = MakePair(spec);
+  RveSnapshot p = MakePair(spec);
   const Rve probe = CreateOrDie(p);
   const double kt = OnlyContact(probe).kt;
   const double fn0 = OnlyContact(probe).normal_force;
@@ -250,8 +250,8 @@ TEST(CoulombTest, SetFrictionClampsStoredForces) {
   EXPECT_EQ(rve.material().friction, 0.1);
   const ContactForce c = OnlyContact(rve);
   EXPECT_NEAR(c.tangential_force, -0.1 * c.normal_force, kRoundOff * c.normal_force);
-  ASSERT_EQ(rve.ToPacking().contacts.size(), 1u);
-  EXPECT_NEAR(rve.ToPacking().contacts[0].tangential_force, -0.1 * c.normal_force,
+  ASSERT_EQ(rve.ToSnapshot().contacts.size(), 1u);
+  EXPECT_NEAR(rve.ToSnapshot().contacts[0].tangential_force, -0.1 * c.normal_force,
               kRoundOff * c.normal_force);
 }
 
@@ -271,7 +271,7 @@ TEST(ObjectivityTest, RigidRotationByVelocitiesKeepsTheTangentialForce) {
   // oscillation driven by the preload, periods ~1e5 steps) change fn and ft
   // by < 1e-5 over the 200 steps, so what is left is the rigid motion.
   spec.time_step_factor = 1e-5;
-  Packing p = MakePair(spec);
+  RveSnapshot p = MakePair(spec);
   const double kn = LinearNormalStiffness(spec.material.young_modulus, spec.r1, spec.r2);
   const double ft0 = 0.5 * kn * spec.overlap;  // N, half of fn
   p.contacts.push_back({0, 1, ft0, 0.0, 0.0});
@@ -327,7 +327,7 @@ TEST(ObjectivityTest, ApplyOfAPureRotationRotatesTheForceAndKeepsFt) {
   spec.time_step_factor = 1e-5;  // the pair barely moves during Apply's min_steps
   spec.preload_ft =
       0.5 * LinearNormalStiffness(spec.material.young_modulus, spec.r1, spec.r2) * spec.overlap;
-  Packing p = MakePair(spec);
+  RveSnapshot p = MakePair(spec);
   // A common drift plus a normal approach (no tangential relative velocity):
   // Apply must rotate the velocities with the cell, or the approach would
   // turn into tangential slip (Δft ≈ 1e-5 ft0 over the 20 steps).
@@ -369,15 +369,15 @@ TEST(ObjectivityTest, ApplyOfAPureRotationRotatesTheForceAndKeepsFt) {
 TEST(ObjectivityTest, ApplyOfARotationIsObjectiveForADampedPacking) {
   constexpr int kSide = 4;
   constexpr double kR = 5e-3, kSpacing = 2 * kR * 0.998;
-  Packing p = SquareLattice(kSide, kSpacing,
-                            [](int x, int y) { return kR * (1.0 + 0.002 * ((3 * x + y) % 4)); });
+  RveSnapshot p = SquareLattice(
+      kSide, kSpacing, [](int x, int y) { return kR * (1.0 + 0.002 * ((3 * x + y) % 4)); });
   p.material.damping = 0.1;
   const std::size_t n = p.radius.size();
   Rve start = CreateOrDie(p);
   CellControl shear;
   shear.xy = {ControlMode::kStrainRate, 5e-5 / start.time_step()};
   start.Run(shear, 40);
-  Packing loaded = start.ToPacking();
+  RveSnapshot loaded = start.ToSnapshot();
   // Off-balance velocities, so that the net forces and hence the damping
   // forces are not negligible during the 20 steps of Apply.
   for (std::size_t i = 0; i < n; ++i) {
@@ -489,7 +489,7 @@ TEST(RollingTest, MomentIsMinusKrTimesRelativeRotationCappedByTheLimit) {
   spec.material.rolling_eta = 0.05;
   spec.material.damping = 0.0;
   spec.material.friction = 10.0;
-  const Packing base = MakePair(spec);
+  const RveSnapshot base = MakePair(spec);
   const Rve probe = CreateOrDie(base);
   const ContactForce c = OnlyContact(probe);
   const double dt = probe.time_step();
@@ -497,12 +497,12 @@ TEST(RollingTest, MomentIsMinusKrTimesRelativeRotationCappedByTheLimit) {
   const double limit = RollingLimit(spec.material.rolling_eta, spec.r1, spec.r2, c.normal_force);
   // Relative rotation rates giving 30 % of the limit in one step, and 10×.
   for (double fraction : {0.3, 10.0}) {
-    Packing p = base;
+    RveSnapshot p = base;
     const double rate = fraction * limit / (kr * dt);  // rad/s, ω_i − ω_j
     p.omega = {0.6 * rate, -0.4 * rate};
     Rve rve = CreateOrDie(p);
     StepAtFixedCell(rve, 1);
-    const Packing after = rve.ToPacking();
+    const RveSnapshot after = rve.ToSnapshot();
     ASSERT_EQ(after.contacts.size(), 1u);
     const double expect = -std::min(kr * rate * dt, limit);  // resists ω_i − ω_j > 0
     EXPECT_NEAR(after.contacts[0].rolling_moment, expect, kRoundOff * std::abs(expect))
@@ -526,14 +526,14 @@ class BondTest : public testing::Test {
     return spec;
   }
   static double Strength() { return kCohesion * 4e-3 * 4e-3; }  // c·min(r)², N
-  static Packing Bonded() {
+  static RveSnapshot Bonded() {
     Rve rve = CreateOrDie(MakePair(Spec()));
     rve.BondContacts();
-    return rve.ToPacking();
+    return rve.ToSnapshot();
   }
   // The bonded pair with particle j moved along n so that the gap is `gap`.
-  static Packing WithGap(double gap) {
-    Packing p = Bonded();
+  static RveSnapshot WithGap(double gap) {
+    RveSnapshot p = Bonded();
     const PairSpec spec = Spec();
     const double side = p.cell(0, 0);
     p.sx[1] = p.sx[0] + (spec.r1 + spec.r2 + gap) / side;
@@ -542,7 +542,7 @@ class BondTest : public testing::Test {
 };
 
 TEST_F(BondTest, BondContactsStoresCMinRSquared) {
-  const Packing p = Bonded();
+  const RveSnapshot p = Bonded();
   ASSERT_EQ(p.contacts.size(), 1u);
   EXPECT_EQ(p.contacts[0].bond_strength, BondStrength(kCohesion, 4e-3, 6e-3));
   EXPECT_NEAR(p.contacts[0].bond_strength, Strength(), kRoundOff * Strength());
@@ -560,7 +560,7 @@ TEST_F(BondTest, HoldsTensionBelowTheStrengthAndBreaksAbove) {
     EXPECT_NEAR(before.overlap, -gap, 1e-9 * gap + 1e-15);  // from x = h·s
     EXPECT_NEAR(before.normal_force, -fraction * Strength(), 1e-6 * Strength());
     StepAtFixedCell(rve, 1);
-    const Packing after = rve.ToPacking();
+    const RveSnapshot after = rve.ToSnapshot();
     if (fraction < 1.0) {
       ASSERT_EQ(after.contacts.size(), 1u);
       EXPECT_EQ(after.contacts[0].bond_strength, Strength());
@@ -581,12 +581,12 @@ TEST_F(BondTest, HoldsTensionBelowTheStrengthAndBreaksAbove) {
 
 TEST_F(BondTest, BondCarriesShearBeyondCoulombUntilItsStrength) {
   for (double fraction : {0.9, 1.1}) {
-    Packing p = Bonded();
+    RveSnapshot p = Bonded();
     p.contacts[0].tangential_force = fraction * Strength();  // far above μ·fn ≈ 0
     Rve rve = CreateOrDie(p);
     const double fn = OnlyContact(rve).normal_force;
     StepAtFixedCell(rve, 1);
-    const Packing after = rve.ToPacking();
+    const RveSnapshot after = rve.ToSnapshot();
     if (fraction < 1.0) {
       ASSERT_EQ(after.contacts.size(), 1u);
       EXPECT_EQ(after.contacts[0].bond_strength, Strength());
@@ -614,7 +614,7 @@ TEST_F(BondTest, PulledApartByVelocities) {
   const double m1 = Mass(spec.material, spec.r1), m2 = Mass(spec.material, spec.r2);
   const double w = std::sqrt(kn * (m1 + m2) / (m1 * m2));  // rad/s
   for (double fraction : {0.5, 2.0}) {
-    Packing p = Bonded();
+    RveSnapshot p = Bonded();
     const double v_rel = fraction * Strength() / kn * w;  // m/s
     // Momentum-free split of v_rel along n = +x.
     p.vx = {-v_rel * m2 / (m1 + m2), v_rel * m1 / (m1 + m2)};
@@ -627,7 +627,7 @@ TEST_F(BondTest, PulledApartByVelocities) {
     for (int k = 0; k < steps; ++k) {
       StepAtFixedCell(rve, 1);
       for (const ContactForce& c : rve.Contacts()) min_fn = std::min(min_fn, c.normal_force);
-      const Packing now = rve.ToPacking();
+      const RveSnapshot now = rve.ToSnapshot();
       ever_unbonded |= now.contacts.empty() || now.contacts[0].bond_strength == 0.0;
     }
     if (fraction < 1.0) {
@@ -645,7 +645,7 @@ TEST_F(BondTest, PulledApartByVelocities) {
       EXPECT_GT(min_fn, -1.03 * Strength());
       EXPECT_TRUE(rve.Contacts().empty());
       EXPECT_EQ(rve.Observe().stress.norm(), 0.0);
-      const Packing end = rve.ToPacking();
+      const RveSnapshot end = rve.ToSnapshot();
       EXPECT_GT(end.vx[1] - end.vx[0], 0.0) << "separating";
     }
   }

@@ -22,7 +22,7 @@ bool SameBits(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
 }
 
 TEST(CreateProgressTest, ReportsEachCallAndMatchesOneCall) {
-  dem::Packing packing = dem::testing_util::Prepared("SET-dense");
+  dem::RveSnapshot packing = dem::testing_util::Prepared("SET-dense");
   const store::TemplateRecord record{"t", "SET-dense seed 1", packing};
   // 9 distinct stresses over 12 points (points 9..11 repeat 0..2); one
   // worker: calls of 2, 2, 2, 2 and 1 consolidations.

@@ -1,6 +1,6 @@
 // Bit-exact determinism of the DEM engine: repeated runs, the thread count
 // of the server's worker pool (each RVE on one thread, RVEs sharing no
-// state: results are bit-identical whatever the thread count) and restart from a Packing
+// state: results are bit-identical whatever the thread count) and restart from a RveSnapshot
 // (packing.h: "Restoring it gives a bit-identical continuation"). Doubles are compared bit for bit,
 // never with tolerances.
 #include <Eigen/Dense>
@@ -15,8 +15,8 @@
 #include "absl/status/statusor.h"
 #include "gtest/gtest.h"
 #include "rve_server/engine/material.h"
-#include "rve_server/engine/packing.h"
 #include "rve_server/engine/rve.h"
+#include "rve_server/engine/snapshot.h"
 #include "rve_server/service/worker_pool.h"
 #include "tests/test_util.h"
 
@@ -62,10 +62,10 @@ TEST(DeterminismTest, SameStateAndIncrementsGiveIdenticalResults) {
   for (int k = 0; k < 20; ++k) {
     ExpectIdenticalStates(sa[k], sb[k], "increment " + std::to_string(k));
   }
-  ExpectIdenticalPackings(a.ToPacking(), b.ToPacking(), "after 20 increments");
+  ExpectIdenticalPackings(a.ToSnapshot(), b.ToSnapshot(), "after 20 increments");
   // The run did something: the sheared state differs from the start, so the
   // comparison above is not between two untouched copies.
-  EXPECT_GT(a.ToPacking().total_steps, 0);
+  EXPECT_GT(a.ToSnapshot().total_steps, 0);
   EXPECT_NE(sa.back().stress(0, 1), CreateOrDie(Prepared("SET-dense")).Observe().stress(0, 1));
   EXPECT_TRUE(sa.back().has_tangent);
 }
@@ -107,7 +107,7 @@ TEST(DeterminismTest, WorkerPoolApplyIsIndependentOfThreadCount) {
     }
   }
   for (int k = 0; k < kRves; ++k) {
-    ExpectIdenticalPackings(one[k].ToPacking(), two[k].ToPacking(), "RVE " + std::to_string(k));
+    ExpectIdenticalPackings(one[k].ToSnapshot(), two[k].ToSnapshot(), "RVE " + std::to_string(k));
   }
   // The RVEs did follow their own increments (they differ from each other).
   EXPECT_FALSE(SameBits(one[0].Observe().stress, one[kRves - 1].Observe().stress));
@@ -116,17 +116,17 @@ TEST(DeterminismTest, WorkerPoolApplyIsIndependentOfThreadCount) {
   absl::StatusOr<RveState> last;
   for (int round = 0; round < kRounds; ++round) last = alone.Apply(df[kRves - 1], options);
   ASSERT_TRUE(last.ok()) << last.status();
-  ExpectIdenticalPackings(alone.ToPacking(), two[kRves - 1].ToPacking(), "batch vs alone");
+  ExpectIdenticalPackings(alone.ToSnapshot(), two[kRves - 1].ToSnapshot(), "batch vs alone");
 }
 
 TEST(DeterminismTest, RestartFromPackingContinuesBitIdentically) {
   Rve original = CreateOrDie(Prepared("SET-dense"));
   ASSERT_EQ(RunIncrements(original, 10).size(), 10u);
-  const Packing saved = original.ToPacking();
+  const RveSnapshot saved = original.ToSnapshot();
   Rve restored = CreateOrDie(saved);
   // The restored RVE holds the same state before it moves on.
   ExpectIdenticalStates(original.Observe(true), restored.Observe(true), "at restart");
-  ExpectIdenticalPackings(saved, restored.ToPacking(), "round trip");
+  ExpectIdenticalPackings(saved, restored.ToSnapshot(), "round trip");
   const std::vector<RveState> so = RunIncrements(original, 10);
   const std::vector<RveState> sr = RunIncrements(restored, 10);
   ASSERT_EQ(so.size(), 10u);
@@ -134,9 +134,9 @@ TEST(DeterminismTest, RestartFromPackingContinuesBitIdentically) {
   for (int k = 0; k < 10; ++k) {
     ExpectIdenticalStates(so[k], sr[k], "increment " + std::to_string(10 + k));
   }
-  ExpectIdenticalPackings(original.ToPacking(), restored.ToPacking(), "after 20 increments");
-  EXPECT_EQ(original.ToPacking().total_steps, restored.ToPacking().total_steps);
-  EXPECT_GT(restored.ToPacking().total_steps, saved.total_steps);
+  ExpectIdenticalPackings(original.ToSnapshot(), restored.ToSnapshot(), "after 20 increments");
+  EXPECT_EQ(original.ToSnapshot().total_steps, restored.ToSnapshot().total_steps);
+  EXPECT_GT(restored.ToSnapshot().total_steps, saved.total_steps);
 }
 
 // A restart mid-shear, while contacts slide at the Coulomb limit and the
@@ -150,7 +150,7 @@ TEST(DeterminismTest, RestartMidShearWithRelaxContinuesBitIdentically) {
   Eigen::Matrix3d big = Eigen::Matrix3d::Identity();
   big(0, 1) = 0.01;
   for (int k = 0; k < 3; ++k) ASSERT_TRUE(original.Apply(big).ok());
-  Rve restored = CreateOrDie(original.ToPacking());
+  Rve restored = CreateOrDie(original.ToSnapshot());
   for (int k = 0; k < 5; ++k) {
     absl::StatusOr<RveState> so = original.Apply(ShearIncrement(10.0), options);
     absl::StatusOr<RveState> sr = restored.Apply(ShearIncrement(10.0), options);
@@ -158,7 +158,7 @@ TEST(DeterminismTest, RestartMidShearWithRelaxContinuesBitIdentically) {
     ASSERT_TRUE(sr.ok()) << sr.status();
     ExpectIdenticalStates(*so, *sr, "increment " + std::to_string(k));
   }
-  ExpectIdenticalPackings(original.ToPacking(), restored.ToPacking(), "after mid-shear restart");
+  ExpectIdenticalPackings(original.ToSnapshot(), restored.ToSnapshot(), "after mid-shear restart");
 }
 
 // A restart shortly before the periodic cell is reduced (MaybeFlip at
@@ -174,7 +174,7 @@ TEST(DeterminismTest, RestartBeforeCellFlipContinuesBitIdentically) {
   };
   ASSERT_GT(skew(original), 0.4);   // sheared ...
   ASSERT_LT(skew(original), 0.55);  // ... but not yet reduced
-  Rve restored = CreateOrDie(original.ToPacking());
+  Rve restored = CreateOrDie(original.ToSnapshot());
   for (int k = 0; k < 4; ++k) {
     absl::StatusOr<RveState> so = original.Apply(shear);
     absl::StatusOr<RveState> sr = restored.Apply(shear);
@@ -185,7 +185,7 @@ TEST(DeterminismTest, RestartBeforeCellFlipContinuesBitIdentically) {
   // The basis changed: the cell is reduced again (|a·b| ≤ ½|a|²).
   std::printf("cell skew a·b/|a|² after the continuation: %.3f\n", skew(original));
   EXPECT_LT(std::abs(skew(original)), 0.5);
-  ExpectIdenticalPackings(original.ToPacking(), restored.ToPacking(), "after the flip");
+  ExpectIdenticalPackings(original.ToSnapshot(), restored.ToSnapshot(), "after the flip");
 }
 
 // Restart of the other contact histories: rolling moments (footing-dense,
@@ -193,10 +193,10 @@ TEST(DeterminismTest, RestartBeforeCellFlipContinuesBitIdentically) {
 // bonds (SET-dense cemented with c = 1 MPa, guo-et-al-spfem-dem §2.4), saved
 // mid-loading while bonds break under extension and shear.
 TEST(DeterminismTest, RestartCarriesRollingMomentsAndBonds) {
-  Packing cemented = Prepared("SET-dense");
+  RveSnapshot cemented = Prepared("SET-dense");
   cemented.material.bond_cohesion = 1e6;  // Pa
   for (const auto& [name, start] :
-       {std::pair<std::string, Packing>{"footing-dense", Prepared("footing-dense")},
+       {std::pair<std::string, RveSnapshot>{"footing-dense", Prepared("footing-dense")},
         {"cemented SET-dense", cemented}}) {
     SCOPED_TRACE(name);
     Rve original = CreateOrDie(start);
@@ -205,7 +205,7 @@ TEST(DeterminismTest, RestartCarriesRollingMomentsAndBonds) {
     df(0, 1) = 5e-3;
     df(1, 1) = 1.0 + 2e-3;  // extension: some bonds break
     for (int k = 0; k < 5; ++k) ASSERT_TRUE(original.Apply(df).ok()) << "increment " << k;
-    const Packing saved = original.ToPacking();
+    const RveSnapshot saved = original.ToSnapshot();
     int moments = 0, bonds = 0;
     for (const ContactHistory& c : saved.contacts) {
       moments += c.rolling_moment != 0.0;
@@ -224,7 +224,7 @@ TEST(DeterminismTest, RestartCarriesRollingMomentsAndBonds) {
       ASSERT_TRUE(sr.ok()) << sr.status();
       ExpectIdenticalStates(*so, *sr, "increment " + std::to_string(5 + k));
     }
-    ExpectIdenticalPackings(original.ToPacking(), restored.ToPacking(), "after the restart");
+    ExpectIdenticalPackings(original.ToSnapshot(), restored.ToSnapshot(), "after the restart");
   }
 }
 

@@ -13,9 +13,9 @@
 #include "absl/status/statusor.h"
 #include "gtest/gtest.h"
 #include "rve_server/engine/material.h"
-#include "rve_server/engine/packing.h"
 #include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
+#include "rve_server/engine/snapshot.h"
 
 namespace rvehub::dem {
 namespace {
@@ -32,15 +32,15 @@ constexpr double kTolerance = 1e-4;  // relative to E0, over kSteps steps
 
 // SET-dense prepared without friction (frictionless compaction), so that the
 // packing is in equilibrium with normal forces only. 400 discs, ~0.3 s.
-const Packing& Frictionless() {
-  static const Packing* packing = [] {
+const RveSnapshot& Frictionless() {
+  static const RveSnapshot* packing = [] {
     absl::StatusOr<ParameterSet> set = FindParameterSet("SET-dense");
     EXPECT_TRUE(set.ok()) << set.status();
     set->material.friction = 0.0;
     set->preparation.target_void_ratio = 0.0;  // <= 0: compact without friction only
-    absl::StatusOr<Packing> p = PreparePacking(*set);
+    absl::StatusOr<RveSnapshot> p = PreparePacking(*set);
     EXPECT_TRUE(p.ok()) << p.status();
-    return new Packing(p.ok() ? *std::move(p) : Packing{});
+    return new RveSnapshot(p.ok() ? *std::move(p) : RveSnapshot{});
   }();
   return *packing;
 }
@@ -52,8 +52,8 @@ double Symmetric(std::mt19937_64& rng) {
 
 // The frictionless packing with damping α, Δt factor, and seeded random
 // velocities (about 0.1 m/s, zero total momentum) and spins.
-Packing Agitated(double damping, double time_step_factor) {
-  Packing p = Frictionless();
+RveSnapshot Agitated(double damping, double time_step_factor) {
+  RveSnapshot p = Frictionless();
   p.material.damping = damping;
   p.controls.time_step_factor = time_step_factor;
   std::mt19937_64 rng(20240611);
@@ -91,7 +91,7 @@ struct EnergyRun {
 // Hertz–Mindlin with that E (the packing is then off equilibrium, which does
 // not matter for energy conservation).
 EnergyRun RunAtFixedCell(double damping, double time_step_factor, double hertz_young = 0.0) {
-  Packing start = Agitated(damping, time_step_factor);
+  RveSnapshot start = Agitated(damping, time_step_factor);
   if (hertz_young > 0) {
     start.material.model = ContactModel::kHertzMindlin;
     start.material.young_modulus = hertz_young;
@@ -99,7 +99,7 @@ EnergyRun RunAtFixedCell(double damping, double time_step_factor, double hertz_y
   absl::StatusOr<Rve> rve = Rve::Create(start);
   EXPECT_TRUE(rve.ok()) << rve.status();
   if (!rve.ok()) return {};
-  auto momentum = [](const Packing& p) {
+  auto momentum = [](const RveSnapshot& p) {
     Eigen::Vector2d sum = Eigen::Vector2d::Zero();
     double scale = 0.0;
     for (std::size_t i = 0; i < p.radius.size(); ++i) {
@@ -125,7 +125,7 @@ EnergyRun RunAtFixedCell(double damping, double time_step_factor, double hertz_y
   }
   out.final_rel_change = (Total(rve->last_step_energy()) - out.e0) / out.e0;
   const auto [p0, scale] = momentum(start);
-  out.momentum_change = momentum(rve->ToPacking()).first - p0;
+  out.momentum_change = momentum(rve->ToSnapshot()).first - p0;
   out.momentum_scale = scale;
   return out;
 }
@@ -175,11 +175,11 @@ TEST(EnergyTest, StepEnergyIsThatOfTheForceEvaluation) {
   rve->set_track_energy(true);
   CellControl fixed;
   rve->Run(fixed, 5);
-  const Packing before = rve->ToPacking();
+  const RveSnapshot before = rve->ToSnapshot();
   double elastic = 0.0;  // J
   for (const ContactForce& c : rve->Contacts()) elastic += 0.5 * c.normal_force * c.overlap;
   rve->Run(fixed, 1);
-  const Packing after = rve->ToPacking();
+  const RveSnapshot after = rve->ToSnapshot();
   double kinetic = 0.0;  // J
   for (std::size_t i = 0; i < before.radius.size(); ++i) {
     const double r = before.radius[i];

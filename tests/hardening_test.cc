@@ -26,7 +26,7 @@ double Seconds(Clock::time_point since) {
 
 // Two 1 mm discs in a 1000 m cell (the neighbour grid would need ~1e11 bins).
 v1::Packing HugeCellPacking() {
-  dem::Packing p;
+  dem::RveSnapshot p;
   p.cell = Eigen::Matrix2d::Identity() * 1000.0;
   p.reference_cell = p.cell;
   p.radius = {1e-3, 1e-3};

@@ -34,8 +34,8 @@ struct StopAt {
   }
 };
 
-Packing LongIncrements() {
-  Packing p = Prepared("SET-dense");
+RveSnapshot LongIncrements() {
+  RveSnapshot p = Prepared("SET-dense");
   p.controls.min_steps = 2000;  // several interrupt checks per increment
   return p;
 }
@@ -43,12 +43,12 @@ Packing LongIncrements() {
 TEST(InterruptTest, StoppedApplyLeavesTheRveAsItWas) {
   Rve rve = CreateOrDie(LongIncrements());
   ASSERT_TRUE(rve.Apply(Compress(1e-4)).ok());  // a history to keep
-  const Packing before = rve.ToPacking();
+  const RveSnapshot before = rve.ToSnapshot();
   StopAt stop{3};
   absl::StatusOr<RveState> s = rve.Apply(Compress(1e-4), {}, stop.Fn());
   ASSERT_EQ(s.status().code(), absl::StatusCode::kCancelled) << s.status();
   EXPECT_EQ(stop.asked, 3);
-  ExpectIdenticalPackings(before, rve.ToPacking(), "after a stopped Apply");
+  ExpectIdenticalPackings(before, rve.ToSnapshot(), "after a stopped Apply");
   // And it continues exactly as an RVE that was never interrupted.
   Rve twin = CreateOrDie(LongIncrements());
   ASSERT_TRUE(twin.Apply(Compress(1e-4)).ok());
@@ -56,12 +56,12 @@ TEST(InterruptTest, StoppedApplyLeavesTheRveAsItWas) {
   absl::StatusOr<RveState> b = twin.Apply(Compress(1e-4));
   ASSERT_TRUE(a.ok() && b.ok());
   ExpectIdenticalStates(*a, *b, "continuation after a stopped Apply");
-  ExpectIdenticalPackings(rve.ToPacking(), twin.ToPacking(), "continuation");
+  ExpectIdenticalPackings(rve.ToSnapshot(), twin.ToSnapshot(), "continuation");
 }
 
 TEST(InterruptTest, StoppedRelaxationUndoesTheWholeIncrement) {
   Rve rve = CreateOrDie(Prepared("SET-dense"));
-  const Packing before = rve.ToPacking();
+  const RveSnapshot before = rve.ToSnapshot();
   ApplyOptions options;
   options.relax = true;
   options.relax_tolerance = kMinRelaxTolerance;  // never reached
@@ -69,7 +69,7 @@ TEST(InterruptTest, StoppedRelaxationUndoesTheWholeIncrement) {
   StopAt stop{4};
   absl::StatusOr<RveState> s = rve.Apply(Compress(1e-4), options, stop.Fn());
   ASSERT_EQ(s.status().code(), absl::StatusCode::kCancelled) << s.status();
-  ExpectIdenticalPackings(before, rve.ToPacking(), "after a stopped relaxation");
+  ExpectIdenticalPackings(before, rve.ToSnapshot(), "after a stopped relaxation");
 }
 
 TEST(InterruptTest, AnInterruptThatNeverStopsChangesNoResult) {
@@ -85,7 +85,7 @@ TEST(InterruptTest, AnInterruptThatNeverStopsChangesNoResult) {
     ExpectIdenticalStates(*a, *b, "increment " + std::to_string(k));
   }
   EXPECT_GT(never.asked, 0);
-  ExpectIdenticalPackings(asked.ToPacking(), plain.ToPacking(), "after three increments");
+  ExpectIdenticalPackings(asked.ToSnapshot(), plain.ToSnapshot(), "after three increments");
 }
 
 TEST(InterruptTest, ConsolidationAndElementTestsStopWhenAsked) {
@@ -106,22 +106,22 @@ TEST(InterruptTest, OutOfRangeWorkIsRefusedBeforeAnyStep) {
   // A loose packing (no contacts: p is the 1 Pa floor), stiff contacts (a
   // tiny time step) and the slowest inertial number: each parameter in
   // range, the increment far beyond kMaxStepsPerApply steps.
-  Packing stiff = Prepared("SET-dense");
+  RveSnapshot stiff = Prepared("SET-dense");
   stiff.cell *= 1.5;
   stiff.reference_cell = stiff.cell;
   stiff.contacts.clear();
   stiff.controls.pressure_floor = kMinPressureFloor;
   stiff.material.young_modulus *= 1e6;
   Rve rve = CreateOrDie(stiff);
-  const Packing before = rve.ToPacking();
+  const RveSnapshot before = rve.ToSnapshot();
   ApplyOptions slow;
   slow.max_inertial_number = kMinInertialNumber;
   absl::StatusOr<RveState> s = rve.Apply(Compress(0.04), slow);
   EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument) << s.status();
   EXPECT_NE(s.status().message().find("DEM steps"), std::string::npos) << s.status();
-  ExpectIdenticalPackings(before, rve.ToPacking(), "after a refused increment");
+  ExpectIdenticalPackings(before, rve.ToSnapshot(), "after a refused increment");
 
-  Packing huge = Prepared("SET-dense");
+  RveSnapshot huge = Prepared("SET-dense");
   huge.cell *= 1e4;  // 1e8 times the area for the same discs
   absl::Status v = ValidatePacking(huge);
   EXPECT_EQ(v.code(), absl::StatusCode::kInvalidArgument);

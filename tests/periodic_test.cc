@@ -12,8 +12,8 @@
 
 #include "gtest/gtest.h"
 #include "rve_server/engine/material.h"
-#include "rve_server/engine/packing.h"
 #include "rve_server/engine/rve.h"
+#include "rve_server/engine/snapshot.h"
 #include "tests/test_util.h"
 
 namespace rvehub::dem {
@@ -69,10 +69,10 @@ Eigen::Vector2d MinImage(const Eigen::Vector2d& si, const Eigen::Vector2d& sj) {
 
 // A pair of discs (4 and 6 mm) at si, sj in a cell scaled so that they
 // overlap by 0.4 mm, with velocities and spins that make them slide and roll.
-Packing CrossPair(const CrossCase& c, const Eigen::Vector2d& si, const Eigen::Vector2d& sj) {
+RveSnapshot CrossPair(const CrossCase& c, const Eigen::Vector2d& si, const Eigen::Vector2d& sj) {
   constexpr double kR1 = 4e-3, kR2 = 6e-3, kOverlap = 4e-4;
   const double scale = (kR1 + kR2 - kOverlap) / (c.shape * MinImage(c.si, c.sj)).norm();
-  Packing p;
+  RveSnapshot p;
   p.cell = c.shape * scale;
   p.material.damping = 0.0;
   p.controls.time_step_factor = 0.02;  // the pair stays in contact over the 20 steps below
@@ -94,10 +94,10 @@ TEST_P(CrossBoundaryTest, SameContactAsInsideTheCell) {
   // The same pair moved to the middle of the cell: same minimum image.
   const Eigen::Vector2d mid(0.5, 0.5);
   const Eigen::Vector2d d = MinImage(c.si, c.sj);
-  const Packing across = CrossPair(c, c.si, c.sj);
-  const Packing inside = CrossPair(c, mid - 0.5 * d, mid + 0.5 * d);
+  const RveSnapshot across = CrossPair(c, c.si, c.sj);
+  const RveSnapshot inside = CrossPair(c, mid - 0.5 * d, mid + 0.5 * d);
   // And with unwrapped coordinates (sj shifted by lattice vectors).
-  const Packing unwrapped =
+  const RveSnapshot unwrapped =
       CrossPair(c, c.si + Eigen::Vector2d(-2.0, 1.0), c.sj + Eigen::Vector2d(3.0, -5.0));
   Rve a = CreateOrDie(across), b = CreateOrDie(inside), u = CreateOrDie(unwrapped);
   for (int step = 0; step <= 20; step += 10) {
@@ -141,8 +141,8 @@ INSTANTIATE_TEST_SUITE_P(Cells, CrossBoundaryTest, testing::ValuesIn(CrossCases(
 
 // A change of basis of the same lattice: columns (a', b') = (a, b)·M with M
 // unimodular, and s' = M⁻¹·s, so that x = h·s = h'·s' for every particle.
-Packing ChangeBasis(const Packing& p, const Eigen::Matrix2d& m) {
-  Packing out = p;
+RveSnapshot ChangeBasis(const RveSnapshot& p, const Eigen::Matrix2d& m) {
+  RveSnapshot out = p;
   out.cell = p.cell * m;
   out.reference_cell = p.reference_cell * m;  // F = cell·reference⁻¹ is unchanged
   const Eigen::Matrix2d m_inv = m.inverse();  // integer: det M = 1
@@ -169,8 +169,8 @@ std::vector<BasisCase> BasisCases() {
 
 // The packing described in the basis h·M gives the same homogenised state,
 // and the same dynamics.
-void ExpectSameStateInBasis(const Packing& original, const Eigen::Matrix2d& m) {
-  const Packing skewed = ChangeBasis(original, m);
+void ExpectSameStateInBasis(const RveSnapshot& original, const Eigen::Matrix2d& m) {
+  const RveSnapshot skewed = ChangeBasis(original, m);
   ASSERT_NE(skewed.cell, original.cell);
   Rve a = CreateOrDie(original), b = CreateOrDie(skewed);
   const RveState sa = a.Observe(/*want_tangent=*/true), sb = b.Observe(/*want_tangent=*/true);
@@ -198,7 +198,7 @@ void ExpectSameStateInBasis(const Packing& original, const Eigen::Matrix2d& m) {
 
 // One test over all bases: each test process prepares SET-dense once.
 TEST(LatticeBasisTest, SkewedBasisGivesTheSameState) {
-  const Packing& original = Prepared("SET-dense");
+  const RveSnapshot& original = Prepared("SET-dense");
   ASSERT_FALSE(original.radius.empty());
   for (const BasisCase& basis : BasisCases()) {
     SCOPED_TRACE(basis.name);
@@ -221,7 +221,7 @@ class CellFlipTest : public testing::Test {
     std::vector<double> change;  // |σ_k − σ_{k−1}| (Frobenius), Pa
     int flip_step = -1;          // index of the (first) step that flipped the cell
     int flips = 0;
-    Packing before_flip;  // state at the start of the flip step
+    RveSnapshot before_flip;  // state at the start of the flip step
     RveState end;
     Eigen::Matrix2d end_cell;
     Eigen::Matrix2d end_f;  // deformation gradient since the prepared state
@@ -239,8 +239,8 @@ class CellFlipTest : public testing::Test {
       for (int k = 0; k < steps; ++k) {
         const Eigen::Matrix2d h = rve.cell();
         const bool near = std::abs(h.col(0).dot(h.col(1))) > 0.5 * h.col(0).squaredNorm();
-        Packing start;
-        if (near && r->flips == 0) start = rve.ToPacking();
+        RveSnapshot start;
+        if (near && r->flips == 0) start = rve.ToSnapshot();
         const RveState s = rve.Run(control, 1);
         r->change.push_back((s.stress - prev.stress).norm());
         prev = s;
@@ -321,7 +321,7 @@ TEST_F(CellFlipTest, FlipStepEqualsAStepInThePreFlippedBasis) {
   EXPECT_LT((flips.DeformationGradient() - pre_flipped.DeformationGradient()).norm(), 1e-14);
   EXPECT_LT((a.stress - b.stress).norm(), 1e-10 * a.stress.norm());
   EXPECT_EQ(a.num_contacts, b.num_contacts);
-  const Packing pa = flips.ToPacking(), pb = pre_flipped.ToPacking();
+  const RveSnapshot pa = flips.ToSnapshot(), pb = pre_flipped.ToSnapshot();
   ASSERT_EQ(pa.contacts.size(), pb.contacts.size());
   double max_ft = 0.0, max_dft = 0.0;
   for (std::size_t k = 0; k < pa.contacts.size(); ++k) {

@@ -13,9 +13,9 @@
 #include "absl/status/statusor.h"
 #include "gtest/gtest.h"
 #include "rve_server/engine/material.h"
-#include "rve_server/engine/packing.h"
 #include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
+#include "rve_server/engine/snapshot.h"
 #include "tests/test_util.h"
 
 namespace rvehub::dem {
@@ -25,7 +25,7 @@ using testing_util::ExpectIdenticalPackings;
 using testing_util::SameBits;
 
 struct Prepared {
-  Packing packing;
+  RveSnapshot packing;
   PreparationReport report;
 };
 
@@ -39,7 +39,7 @@ ParameterSet SetWithSeed(const std::string& name, std::uint64_t seed) {
 
 Prepared PrepareNow(const std::string& name, std::uint64_t seed) {
   Prepared out;
-  absl::StatusOr<Packing> packing = PreparePacking(SetWithSeed(name, seed), {}, &out.report);
+  absl::StatusOr<RveSnapshot> packing = PreparePacking(SetWithSeed(name, seed), {}, &out.report);
   EXPECT_TRUE(packing.ok()) << name << " seed " << seed << ": " << packing.status();
   if (packing.ok()) out.packing = *std::move(packing);
   return out;
@@ -55,7 +55,7 @@ const Prepared& Cached(const std::string& name, std::uint64_t seed) {
   return it->second;
 }
 
-RveState ObserveOf(const Packing& packing) {
+RveState ObserveOf(const RveSnapshot& packing) {
   absl::StatusOr<Rve> rve = Rve::Create(packing);
   EXPECT_TRUE(rve.ok()) << rve.status();
   return rve.ok() ? rve->Observe() : RveState{};

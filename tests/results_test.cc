@@ -32,7 +32,7 @@
 #include "absl/strings/str_split.h"
 #include "absl/strings/string_view.h"
 #include "gtest/gtest.h"
-#include "rve_server/engine/packing.h"
+#include "rve_server/engine/snapshot.h"
 #include "store/checkpoint.h"
 #include "store/record.h"
 #include "store/sim_checkpoint.h"
@@ -513,7 +513,7 @@ TEST_F(StoreFilesTest, CorruptOrTruncatedResultsAreDataLoss) {
 // ============================================================================
 // Simulation checkpoint
 
-RveRecord MakeRecord(std::int64_t id, dem::Packing packing) {
+RveRecord MakeRecord(std::int64_t id, dem::RveSnapshot packing) {
   RveRecord r;
   r.run_id = "run-sim";
   r.id = id;
@@ -524,8 +524,8 @@ RveRecord MakeRecord(std::int64_t id, dem::Packing packing) {
 }
 
 // A small packing with contact history (fast to build, unlike Prepared).
-dem::Packing Lattice(double salt) {
-  dem::Packing p = SquareLattice(3, 0.02, [&](int x, int y) { return 0.009 + 1e-4 * (x + y); });
+dem::RveSnapshot Lattice(double salt) {
+  dem::RveSnapshot p = SquareLattice(3, 0.02, [&](int x, int y) { return 0.009 + 1e-4 * (x + y); });
   p.material.name = absl::StrCat("lattice ", salt);
   dem::ContactHistory c;
   c.i = 0;

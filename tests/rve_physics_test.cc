@@ -15,8 +15,8 @@
 #include "absl/status/statusor.h"
 #include "gtest/gtest.h"
 #include "rve_server/engine/material.h"
-#include "rve_server/engine/packing.h"
 #include "rve_server/engine/rve.h"
+#include "rve_server/engine/snapshot.h"
 #include "tests/test_util.h"
 
 namespace rvehub::dem {
@@ -38,7 +38,7 @@ Eigen::Matrix3d Rotation3(double angle) {
 // else: ΔF = R(θ) on one copy, ΔF = I on its twin (the same number of DEM
 // steps, so the same residual motion), then σ_rot = R σ_twin Rᵀ.
 TEST(RvePhysicsTest, RigidRotationRotatesStressAndFabric) {
-  const Packing& packing = Prepared("SET-dense");
+  const RveSnapshot& packing = Prepared("SET-dense");
   Rve rotated = CreateOrDie(packing);
   Rve twin = CreateOrDie(packing);
   const RveState before = twin.Observe();
@@ -220,7 +220,7 @@ TEST(RvePhysicsTest, CachedHomogenisationEqualsRecomputed) {
   ASSERT_TRUE(rve.Apply(delta_f).ok());
   const RveState cached = rve.Observe();
   EXPECT_GT(cached.MeanPressure(), 100e3);
-  Rve fresh = testing_util::CreateOrDie(rve.ToPacking());
+  Rve fresh = testing_util::CreateOrDie(rve.ToSnapshot());
   const RveState recomputed = fresh.Observe();
   EXPECT_EQ(rve.MeanPressure(), fresh.MeanPressure());
   for (int a = 0; a < 2; ++a) {

@@ -54,7 +54,7 @@ constexpr char kRun[] = "mpm-run";
 // (the second with other controls) so that one endpoint needs a Create per
 // template.
 std::vector<store::TemplateRecord> Templates() {
-  dem::Packing p = Prepared("SET-dense");
+  dem::RveSnapshot p = Prepared("SET-dense");
   p.controls.min_steps = 10;
   std::vector<store::TemplateRecord> t = {{"set-dense", "SET-dense seed 1, min_steps 10", p}};
   p.controls.min_steps = 12;

@@ -143,7 +143,7 @@ v1::RveRecord ExportOne(v1::RveService::Stub& stub, std::int64_t id) {
 grpc::Status CreateRun(v1::RveService::Stub& stub, int count) {
   v1::UploadTemplateRequest up;
   up.mutable_entry()->set_name("t");
-  dem::Packing p = dem::testing_util::Prepared("SET-dense");
+  dem::RveSnapshot p = dem::testing_util::Prepared("SET-dense");
   p.controls.min_steps = 10;
   ToProto(p, up.mutable_entry()->mutable_packing());
   v1::TemplateInfo info;

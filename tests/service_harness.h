@@ -25,7 +25,7 @@ inline constexpr char kTemplate[] = "set-dense";
 
 // The SET-dense template with few DEM steps per increment.
 inline v1::Template MakeTemplate() {
-  dem::Packing p = dem::testing_util::Prepared("SET-dense");
+  dem::RveSnapshot p = dem::testing_util::Prepared("SET-dense");
   p.controls.min_steps = 10;
   v1::Template t;
   t.set_name(kTemplate);

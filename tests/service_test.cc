@@ -30,7 +30,7 @@ constexpr char kTemplate[] = "set-dense";
 // A template from the SET-dense packing with few DEM steps per increment so
 // that the tests run quickly.
 v1::Template MakeTemplate() {
-  dem::Packing p = Prepared("SET-dense");
+  dem::RveSnapshot p = Prepared("SET-dense");
   p.controls.min_steps = 10;
   v1::Template t;
   t.set_name(kTemplate);
@@ -103,10 +103,10 @@ class ServerHarness {
     return service::ExportOne(*stub_, *Context(), run, id);
   }
 
-  dem::Packing PackingOf(const std::string& run, std::int64_t id) {
-    absl::StatusOr<dem::Packing> p = FromProto(ExportOne(run, id).packing());
+  dem::RveSnapshot PackingOf(const std::string& run, std::int64_t id) {
+    absl::StatusOr<dem::RveSnapshot> p = FromProto(ExportOne(run, id).packing());
     EXPECT_TRUE(p.ok()) << p.status();
-    return p.ok() ? *p : dem::Packing{};
+    return p.ok() ? *p : dem::RveSnapshot{};
   }
 
  private:
@@ -274,7 +274,7 @@ TEST_F(ServiceTest, RepeatedCommitReturnsStoredResultWithoutRecomputing) {
   ASSERT_TRUE(h_.Create("r", {7}).ok());
   v1::ApplyResponse first, again;
   ASSERT_TRUE(h_.Apply("r", 1, v1::APPLY_MODE_COMMIT, {7}, Compress(2e-4), &first).ok());
-  const dem::Packing after_first = h_.PackingOf("r", 7);
+  const dem::RveSnapshot after_first = h_.PackingOf("r", 7);
   ASSERT_TRUE(h_.Apply("r", 1, v1::APPLY_MODE_COMMIT, {7}, Compress(2e-4), &again).ok());
   EXPECT_EQ(again.results(0).code(), 0);
   EXPECT_EQ(again.results(0).step(), 1);
@@ -299,7 +299,7 @@ TEST_F(ServiceTest, RepeatedCommitReturnsStoredResultWithoutRecomputing) {
 
 TEST_F(ServiceTest, TrialLeavesStateUnchangedAndMatchesCommit) {
   ASSERT_TRUE(h_.Create("r", {1}).ok());
-  const dem::Packing before = h_.PackingOf("r", 1);
+  const dem::RveSnapshot before = h_.PackingOf("r", 1);
   v1::ApplyResponse t1, t2, c;
   ASSERT_TRUE(h_.Apply("r", 1, v1::APPLY_MODE_TRIAL, {1}, Compress(3e-4), &t1, true).ok());
   ASSERT_EQ(t1.results(0).code(), 0) << t1.results(0).message();
@@ -400,7 +400,7 @@ TEST(ServiceDeterminism, ResultsDoNotDependOnThreadCount) {
 
 TEST_F(ServiceTest, BadInputGetsSpecificCodeAndChangesNothing) {
   ASSERT_TRUE(h_.Create("r", {1, 2}).ok());
-  const dem::Packing before = h_.PackingOf("r", 1);
+  const dem::RveSnapshot before = h_.PackingOf("r", 1);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   v1::ApplyResponse resp;
   ExpectError(h_.Apply("r", 1, v1::APPLY_MODE_COMMIT, {1, 2}, {1, 0, 0, 0, nan, 0, 0, 0, 1}, &resp),

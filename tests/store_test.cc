@@ -22,8 +22,8 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "gtest/gtest.h"
-#include "rve_server/engine/packing.h"
 #include "rve_server/engine/rve.h"
+#include "rve_server/engine/snapshot.h"
 #include "store/checkpoint.h"
 #include "store/record.h"
 #include "tests/store_test_util.h"
@@ -72,8 +72,8 @@ const std::vector<double>& AwkwardValues() {
 // A packing built by hand with `side`² discs, `contacts_per_disc` contacts
 // per disc with tangential force, rolling moment and bond history, and
 // awkward values in every particle array.
-dem::Packing HandBuilt(int side, int contacts_per_disc, double salt) {
-  dem::Packing p = SquareLattice(side, 0.02, [&](int x, int y) {
+dem::RveSnapshot HandBuilt(int side, int contacts_per_disc, double salt) {
+  dem::RveSnapshot p = SquareLattice(side, 0.02, [&](int x, int y) {
     return 0.008 + 1e-4 * ((x * 7 + y * 3) % 11) + 1e-9 * salt;
   });
   p.material.name = absl::StrCat("hand-built ", salt);
@@ -113,7 +113,7 @@ dem::Packing HandBuilt(int side, int contacts_per_disc, double salt) {
   return p;
 }
 
-RveRecord MakeRecord(std::string run_id, std::int64_t id, dem::Packing packing) {
+RveRecord MakeRecord(std::string run_id, std::int64_t id, dem::RveSnapshot packing) {
   RveRecord r;
   r.run_id = std::move(run_id);
   r.id = id;
@@ -180,7 +180,7 @@ TEST_F(StoreTest, PreparedPackingsRoundTripBitExactly) {
 }
 
 TEST_F(StoreTest, RestoredRveContinuesBitIdentically) {
-  dem::Packing packing = Prepared("SET-dense");
+  dem::RveSnapshot packing = Prepared("SET-dense");
   packing.material.rolling_beta = 1.0;
   packing.material.rolling_eta = 0.05;
   packing.material.bond_cohesion = 1e6;  // Pa: bonds of ~10–50 N, some of which break
@@ -191,7 +191,7 @@ TEST_F(StoreTest, RestoredRveContinuesBitIdentically) {
   delta_f(1, 1) = 1.0 - 5e-5;
   for (int k = 0; k < 5; ++k) ASSERT_TRUE(original.Apply(delta_f).ok());
 
-  RveRecord record = MakeRecord("continue", 42, original.ToPacking());
+  RveRecord record = MakeRecord("continue", 42, original.ToSnapshot());
   record.step = 5;
   record.last_delta_f = delta_f;
   bool bonded = false, rolling = false;
@@ -215,7 +215,7 @@ TEST_F(StoreTest, RestoredRveContinuesBitIdentically) {
     ExpectIdenticalStates(*a, *b, absl::StrCat("increment ", k));
     if (::testing::Test::HasFailure()) return;
   }
-  ExpectIdenticalPackings(original.ToPacking(), restored.ToPacking(), "after 50 increments");
+  ExpectIdenticalPackings(original.ToSnapshot(), restored.ToSnapshot(), "after 50 increments");
 }
 
 TEST_F(StoreTest, ZeroRecords) {
@@ -239,7 +239,7 @@ TEST_F(StoreTest, ZeroRecords) {
 TEST_F(StoreTest, RecordsWithoutContactsOrParticles) {
   std::vector<RveRecord> rves;
   rves.push_back(MakeRecord("r", 0, HandBuilt(2, 0, 0.0)));
-  rves.push_back(MakeRecord("r", 1, dem::Packing{}));  // nothing at all
+  rves.push_back(MakeRecord("r", 1, dem::RveSnapshot{}));  // nothing at all
   rves.push_back(MakeRecord("r", 2, HandBuilt(3, 0, 1.0)));
   const std::string path = Path("no_contacts.h5");
   ASSERT_TRUE(WriteRves(path, rves, info_).ok());

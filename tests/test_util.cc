@@ -13,28 +13,28 @@
 
 namespace rvehub::dem::testing_util {
 
-const Packing& Prepared(const std::string& name) {
-  static auto* cache = new std::map<std::string, Packing>();
+const RveSnapshot& Prepared(const std::string& name) {
+  static auto* cache = new std::map<std::string, RveSnapshot>();
   auto it = cache->find(name);
   if (it == cache->end()) {
     absl::StatusOr<ParameterSet> set = FindParameterSet(name);
     EXPECT_TRUE(set.ok()) << set.status();
     EXPECT_EQ(set->preparation.seed, 1u);
-    absl::StatusOr<Packing> packing = PreparePacking(*set);
+    absl::StatusOr<RveSnapshot> packing = PreparePacking(*set);
     EXPECT_TRUE(packing.ok()) << name << ": " << packing.status();
-    it = cache->emplace(name, packing.ok() ? *std::move(packing) : Packing{}).first;
+    it = cache->emplace(name, packing.ok() ? *std::move(packing) : RveSnapshot{}).first;
   }
   return it->second;
 }
 
-Rve CreateOrDie(Packing packing) {
+Rve CreateOrDie(RveSnapshot packing) {
   absl::StatusOr<Rve> rve = Rve::Create(std::move(packing));
   EXPECT_TRUE(rve.ok()) << rve.status();
   return *std::move(rve);
 }
 
-Packing SquareLattice(int side, double spacing, const std::function<double(int, int)>& radius) {
-  Packing p;
+RveSnapshot SquareLattice(int side, double spacing, const std::function<double(int, int)>& radius) {
+  RveSnapshot p;
   p.cell = Eigen::Matrix2d::Identity() * (side * spacing);
   for (int y = 0; y < side; ++y) {
     for (int x = 0; x < side; ++x) {
@@ -67,7 +67,7 @@ void ExpectSameBits(const Eigen::Matrix2d& a, const Eigen::Matrix2d& b, const ch
   EXPECT_TRUE(SameBits(a, b)) << what << "\n" << a << "\nvs\n" << b;
 }
 
-void ExpectSameMaterialAndControls(const Packing& a, const Packing& b) {
+void ExpectSameMaterialAndControls(const RveSnapshot& a, const RveSnapshot& b) {
   const Material &ma = a.material, &mb = b.material;
   const Controls &ca = a.controls, &cb = b.controls;
   EXPECT_EQ(ma.name, mb.name);
@@ -95,7 +95,7 @@ void ExpectSameMaterialAndControls(const Packing& a, const Packing& b) {
   }
 }
 
-void ExpectIdenticalPackings(const Packing& a, const Packing& b) {
+void ExpectIdenticalPackings(const RveSnapshot& a, const RveSnapshot& b) {
   ExpectSameMaterialAndControls(a, b);
   ExpectSameBits(a.cell, b.cell, "cell");
   ExpectSameBits(a.frame, b.frame, "frame");
@@ -130,7 +130,7 @@ void ExpectIdenticalPackings(const Packing& a, const Packing& b) {
   }
 }
 
-void ExpectIdenticalPackings(const Packing& a, const Packing& b, const std::string& where) {
+void ExpectIdenticalPackings(const RveSnapshot& a, const RveSnapshot& b, const std::string& where) {
   SCOPED_TRACE(where);
   ExpectIdenticalPackings(a, b);
 }

@@ -12,23 +12,23 @@
 #include <string>
 #include <vector>
 
-#include "rve_server/engine/packing.h"
 #include "rve_server/engine/rve.h"
+#include "rve_server/engine/snapshot.h"
 
 namespace rvehub::dem::testing_util {
 
 // The packing of parameter set `name` (its seed, 1) as PreparePacking makes
 // it. Preparing 400 discs takes 1–2 s: each set is prepared once per process.
-// A failure is reported to the running test and gives an empty Packing.
-const Packing& Prepared(const std::string& name);
+// A failure is reported to the running test and gives an empty RveSnapshot.
+const RveSnapshot& Prepared(const std::string& name);
 
 // Rve::Create(packing), failing the test (and crashing) when it is refused.
-Rve CreateOrDie(Packing packing);
+Rve CreateOrDie(RveSnapshot packing);
 
 // A side×side square lattice of discs at rest, centres `spacing` apart in a
 // square periodic cell side·spacing wide; radius(x, y) gives the disc of
 // column x and row y. Material, controls and reference cell are the defaults.
-Packing SquareLattice(int side, double spacing, const std::function<double(int, int)>& radius);
+RveSnapshot SquareLattice(int side, double spacing, const std::function<double(int, int)>& radius);
 
 // Bitwise equality of doubles and of fixed-size Eigen matrices of doubles.
 bool SameBits(double a, double b);
@@ -45,12 +45,12 @@ void ExpectSameBits(const std::vector<double>& a, const std::vector<double>& b, 
 void ExpectSameBits(const Eigen::Matrix2d& a, const Eigen::Matrix2d& b, const char* what);
 
 // Every field of the material and the controls, doubles bit for bit.
-void ExpectSameMaterialAndControls(const Packing& a, const Packing& b);
+void ExpectSameMaterialAndControls(const RveSnapshot& a, const RveSnapshot& b);
 
 // Every field of two packings, doubles bit for bit, contact history included.
 // A single differing value gives a single non-fatal failure naming it.
-void ExpectIdenticalPackings(const Packing& a, const Packing& b);
-void ExpectIdenticalPackings(const Packing& a, const Packing& b, const std::string& where);
+void ExpectIdenticalPackings(const RveSnapshot& a, const RveSnapshot& b);
+void ExpectIdenticalPackings(const RveSnapshot& a, const RveSnapshot& b, const std::string& where);
 
 // Every field of two states, bit for bit.
 void ExpectIdenticalStates(const RveState& a, const RveState& b, const std::string& where);

@@ -21,9 +21,9 @@
 #include "gtest/gtest.h"
 #include "rve_server/engine/element_test.h"
 #include "rve_server/engine/material.h"
-#include "rve_server/engine/packing.h"
 #include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
+#include "rve_server/engine/snapshot.h"
 #include "tests/test_util.h"
 
 namespace rvehub::dem {
@@ -47,11 +47,11 @@ using testing_util::SquareLattice;
 // 5×5 square lattice of 5 mm discs at spacing 2r·0.999 (each disc touches
 // four neighbours), with rolling resistance, sheared and rotated a little so
 // that every part of the state (ft, M_r, frame, velocities, steps) is set.
-const Packing& Loaded() {
-  static const Packing* packing = [] {
+const RveSnapshot& Loaded() {
+  static const RveSnapshot* packing = [] {
     constexpr int kSide = 5;
     constexpr double kR = 5e-3, kSpacing = 2 * kR * 0.999;
-    Packing p = SquareLattice(kSide, kSpacing, [](int x, int y) {
+    RveSnapshot p = SquareLattice(kSide, kSpacing, [](int x, int y) {
       return kR * (1.0 + 0.001 * ((x + 2 * y) % 3));  // slightly polydisperse
     });
     p.material.name = "validation";
@@ -67,13 +67,13 @@ const Packing& Loaded() {
     Eigen::Matrix3d turn = Eigen::Matrix3d::Identity();
     turn.topLeftCorner<2, 2>() << std::cos(0.1), -std::sin(0.1), std::sin(0.1), std::cos(0.1);
     EXPECT_TRUE(rve.Apply(turn).ok());
-    return new Packing(rve.ToPacking());
+    return new RveSnapshot(rve.ToSnapshot());
   }();
   return *packing;
 }
 
 TEST(LoadedPackingTest, HasAFullHistory) {
-  const Packing& p = Loaded();
+  const RveSnapshot& p = Loaded();
   EXPECT_GE(p.contacts.size(), 40u);
   bool ft = false, moment = false;
   for (const ContactHistory& c : p.contacts) {
@@ -88,13 +88,13 @@ TEST(LoadedPackingTest, HasAFullHistory) {
 
 // The comparison itself can fail: a one-ulp change anywhere is reported.
 TEST(LoadedPackingTest, ExpectIdenticalSeesAOneUlpChange) {
-  Packing p = Loaded();
+  RveSnapshot p = Loaded();
   p.sx[3] = std::nextafter(p.sx[3], 2.0);
   EXPECT_NONFATAL_FAILURE(ExpectIdenticalPackings(p, Loaded()), "sx[3]");
-  Packing q = Loaded();
+  RveSnapshot q = Loaded();
   q.contacts[2].tangential_force = std::nextafter(q.contacts[2].tangential_force, 1e9);
   EXPECT_NONFATAL_FAILURE(ExpectIdenticalPackings(q, Loaded()), "contact 2");
-  Packing r = Loaded();
+  RveSnapshot r = Loaded();
   r.frame(0, 1) = std::nextafter(r.frame(0, 1), 1.0);
   EXPECT_NONFATAL_FAILURE(ExpectIdenticalPackings(r, Loaded()), "frame");
 }
@@ -153,13 +153,13 @@ TEST_P(BadApplyTest, RefusedWithInvalidArgumentAndNoChange) {
   ASSERT_FALSE(s.ok());
   EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument) << s.status();
   EXPECT_TRUE(HasSubstr(s.status().message(), c.message));
-  ExpectIdenticalPackings(rve.ToPacking(), Loaded());
+  ExpectIdenticalPackings(rve.ToSnapshot(), Loaded());
   // Nothing hidden changed either: both continue identically.
   CellControl shear;
   shear.xy = {ControlMode::kStrainRate, 1e-5 / rve.time_step()};
   rve.Run(shear, 20);
   twin.Run(shear, 20);
-  ExpectIdenticalPackings(rve.ToPacking(), twin.ToPacking());
+  ExpectIdenticalPackings(rve.ToSnapshot(), twin.ToSnapshot());
 }
 
 INSTANTIATE_TEST_SUITE_P(Cases, BadApplyTest, testing::ValuesIn(BadApplyCases()),
@@ -176,50 +176,50 @@ TEST(ApplyTest, ValidIncrementsAreAccepted) {
 }
 
 TEST(ApplyTest, CellThinnerThanTheCutoffIsAFailedPrecondition) {
-  Packing p = Loaded();
+  RveSnapshot p = Loaded();
   p.controls.max_stretch = 2.0;  // let the stretch limit pass
   Rve rve = CreateOrDie(p);
-  const Packing before = rve.ToPacking();
+  const RveSnapshot before = rve.ToSnapshot();
   // The 5×5 cell is ~10 radii wide; 0.4 of it is below 2 × (2 r_max + skin·r_min).
   const absl::StatusOr<RveState> s = rve.Apply(Diag(0.4, 1.0));
   ASSERT_FALSE(s.ok());
   EXPECT_EQ(s.status().code(), absl::StatusCode::kFailedPrecondition) << s.status();
   EXPECT_TRUE(HasSubstr(s.status().message(), "cutoff"));
-  ExpectIdenticalPackings(rve.ToPacking(), before);
+  ExpectIdenticalPackings(rve.ToSnapshot(), before);
 }
 
 // --- Create. ---
 
 struct CreateCase {
   std::string name;
-  std::function<void(Packing&)> corrupt;
+  std::function<void(RveSnapshot&)> corrupt;
   std::string message;
 };
 
 std::vector<CreateCase> BadCreateCases() {
   std::vector<CreateCase> cases;
-  using Field = std::vector<double> Packing::*;
-  for (const auto& [name, field] : {std::pair<const char*, Field>{"sx", &Packing::sx},
-                                    {"sy", &Packing::sy},
-                                    {"vx", &Packing::vx},
-                                    {"vy", &Packing::vy},
-                                    {"omega", &Packing::omega},
-                                    {"theta", &Packing::theta}}) {
+  using Field = std::vector<double> RveSnapshot::*;
+  for (const auto& [name, field] : {std::pair<const char*, Field>{"sx", &RveSnapshot::sx},
+                                    {"sy", &RveSnapshot::sy},
+                                    {"vx", &RveSnapshot::vx},
+                                    {"vy", &RveSnapshot::vy},
+                                    {"omega", &RveSnapshot::omega},
+                                    {"theta", &RveSnapshot::theta}}) {
     const std::string n = name;
     const Field f = field;
-    cases.push_back(
-        {"short_" + n, [f](Packing& p) { (p.*f).pop_back(); }, "field " + n + " has 24 entries"});
-    cases.push_back({"long_" + n, [f](Packing& p) { (p.*f).push_back(0.0); },
+    cases.push_back({"short_" + n, [f](RveSnapshot& p) { (p.*f).pop_back(); },
+                     "field " + n + " has 24 entries"});
+    cases.push_back({"long_" + n, [f](RveSnapshot& p) { (p.*f).push_back(0.0); },
                      "field " + n + " has 26 entries"});
-    cases.push_back({"nan_" + n, [f](Packing& p) { (p.*f)[7] = kNaN; }, n + "[7]"});
-    cases.push_back({"inf_" + n, [f](Packing& p) { (p.*f)[3] = -kInf; }, n + "[3]"});
+    cases.push_back({"nan_" + n, [f](RveSnapshot& p) { (p.*f)[7] = kNaN; }, n + "[7]"});
+    cases.push_back({"inf_" + n, [f](RveSnapshot& p) { (p.*f)[3] = -kInf; }, n + "[3]"});
   }
-  cases.push_back({"zero_radius", [](Packing& p) { p.radius[4] = 0.0; }, "radius[4]"});
-  cases.push_back({"negative_radius", [](Packing& p) { p.radius[2] = -1e-3; }, "radius[2]"});
-  cases.push_back({"nan_radius", [](Packing& p) { p.radius[1] = kNaN; }, "radius[1]"});
-  cases.push_back({"inf_radius", [](Packing& p) { p.radius[0] = kInf; }, "radius[0]"});
+  cases.push_back({"zero_radius", [](RveSnapshot& p) { p.radius[4] = 0.0; }, "radius[4]"});
+  cases.push_back({"negative_radius", [](RveSnapshot& p) { p.radius[2] = -1e-3; }, "radius[2]"});
+  cases.push_back({"nan_radius", [](RveSnapshot& p) { p.radius[1] = kNaN; }, "radius[1]"});
+  cases.push_back({"inf_radius", [](RveSnapshot& p) { p.radius[0] = kInf; }, "radius[0]"});
   cases.push_back({"one_particle",
-                   [](Packing& p) {
+                   [](RveSnapshot& p) {
                      for (auto* v : {&p.radius, &p.sx, &p.sy, &p.vx, &p.vy, &p.omega, &p.theta}) {
                        v->resize(1);
                      }
@@ -227,50 +227,52 @@ std::vector<CreateCase> BadCreateCases() {
                    },
                    "1 particles"});
   cases.push_back(
-      {"negative_det_cell", [](Packing& p) { p.cell.col(0).swap(p.cell.col(1)); }, "det"});
-  cases.push_back({"singular_cell", [](Packing& p) { p.cell.col(1) = p.cell.col(0); }, "det"});
-  cases.push_back({"nan_cell", [](Packing& p) { p.cell(1, 0) = kNaN; }, "cell matrix"});
-  cases.push_back({"cell_too_small", [](Packing& p) { p.cell *= 0.4; }, "too small"});
-  cases.push_back(
-      {"nan_reference_cell", [](Packing& p) { p.reference_cell(0, 1) = kNaN; }, "reference_cell"});
-  cases.push_back({"singular_reference_cell", [](Packing& p) { p.reference_cell.col(0).setZero(); },
+      {"negative_det_cell", [](RveSnapshot& p) { p.cell.col(0).swap(p.cell.col(1)); }, "det"});
+  cases.push_back({"singular_cell", [](RveSnapshot& p) { p.cell.col(1) = p.cell.col(0); }, "det"});
+  cases.push_back({"nan_cell", [](RveSnapshot& p) { p.cell(1, 0) = kNaN; }, "cell matrix"});
+  cases.push_back({"cell_too_small", [](RveSnapshot& p) { p.cell *= 0.4; }, "too small"});
+  cases.push_back({"nan_reference_cell", [](RveSnapshot& p) { p.reference_cell(0, 1) = kNaN; },
                    "reference_cell"});
-  cases.push_back({"frame_not_rotation", [](Packing& p) { p.frame *= 2.0; }, "frame"});
-  cases.push_back({"frame_reflection", [](Packing& p) { p.frame.col(0) *= -1.0; }, "frame"});
-  cases.push_back(
-      {"contacts_unsorted", [](Packing& p) { std::swap(p.contacts[3], p.contacts[4]); }, "sorted"});
+  cases.push_back({"singular_reference_cell",
+                   [](RveSnapshot& p) { p.reference_cell.col(0).setZero(); }, "reference_cell"});
+  cases.push_back({"frame_not_rotation", [](RveSnapshot& p) { p.frame *= 2.0; }, "frame"});
+  cases.push_back({"frame_reflection", [](RveSnapshot& p) { p.frame.col(0) *= -1.0; }, "frame"});
+  cases.push_back({"contacts_unsorted",
+                   [](RveSnapshot& p) { std::swap(p.contacts[3], p.contacts[4]); }, "sorted"});
   cases.push_back({"contacts_duplicate",
-                   [](Packing& p) { p.contacts.insert(p.contacts.begin() + 2, p.contacts[2]); },
+                   [](RveSnapshot& p) { p.contacts.insert(p.contacts.begin() + 2, p.contacts[2]); },
                    "without repeats"});
   cases.push_back({"contact_j_out_of_range",
-                   [](Packing& p) {
+                   [](RveSnapshot& p) {
                      p.contacts.push_back({3, 25, 0.1, 0.0, 0.0});
                    },
                    "need i < j"});
   cases.push_back({"contact_i_equals_j",
-                   [](Packing& p) {
+                   [](RveSnapshot& p) {
                      p.contacts.back() = {24, 24, 0.1, 0.0, 0.0};
                    },
                    "need i < j"});
   cases.push_back({"contact_i_above_j",
-                   [](Packing& p) { std::swap(p.contacts[0].i, p.contacts[0].j); }, "need i < j"});
-  cases.push_back(
-      {"contact_nan_ft", [](Packing& p) { p.contacts[5].tangential_force = kNaN; }, "contact 5"});
-  cases.push_back(
-      {"contact_inf_moment", [](Packing& p) { p.contacts[6].rolling_moment = kInf; }, "contact 6"});
-  cases.push_back({"contact_negative_bond", [](Packing& p) { p.contacts[1].bond_strength = -1.0; },
-                   "contact 1"});
-  cases.push_back({"bad_material", [](Packing& p) { p.material.density = 0.0; }, "density"});
-  cases.push_back({"bad_controls", [](Packing& p) { p.controls.skin = 0.0; }, "skin"});
+                   [](RveSnapshot& p) { std::swap(p.contacts[0].i, p.contacts[0].j); },
+                   "need i < j"});
+  cases.push_back({"contact_nan_ft", [](RveSnapshot& p) { p.contacts[5].tangential_force = kNaN; },
+                   "contact 5"});
+  cases.push_back({"contact_inf_moment",
+                   [](RveSnapshot& p) { p.contacts[6].rolling_moment = kInf; }, "contact 6"});
+  cases.push_back({"contact_negative_bond",
+                   [](RveSnapshot& p) { p.contacts[1].bond_strength = -1.0; }, "contact 1"});
+  cases.push_back({"bad_material", [](RveSnapshot& p) { p.material.density = 0.0; }, "density"});
+  cases.push_back({"bad_controls", [](RveSnapshot& p) { p.controls.skin = 0.0; }, "skin"});
   cases.push_back({"hertz_with_bonds",
-                   [](Packing& p) {
+                   [](RveSnapshot& p) {
                      p.material.model = ContactModel::kHertzMindlin;
                      p.material.bond_cohesion = 1e6;
                    },
                    "linear contact model"});
-  cases.push_back(
-      {"nan_void_ratio", [](Packing& p) { p.initial_void_ratio = kNaN; }, "initial_void_ratio"});
-  cases.push_back({"negative_permeability", [](Packing& p) { p.permeability_coefficient = -1.0; },
+  cases.push_back({"nan_void_ratio", [](RveSnapshot& p) { p.initial_void_ratio = kNaN; },
+                   "initial_void_ratio"});
+  cases.push_back({"negative_permeability",
+                   [](RveSnapshot& p) { p.permeability_coefficient = -1.0; },
                    "permeability_coefficient"});
   return cases;
 }
@@ -280,7 +282,7 @@ void PrintTo(const CreateCase& c, std::ostream* os) { *os << c.name; }
 class BadCreateTest : public testing::TestWithParam<CreateCase> {};
 
 TEST_P(BadCreateTest, RefusedWithInvalidArgument) {
-  Packing p = Loaded();
+  RveSnapshot p = Loaded();
   ASSERT_TRUE(Rve::Create(p).ok());  // the unmodified packing is valid
   ASSERT_GE(p.contacts.size(), 7u);
   GetParam().corrupt(p);
@@ -298,7 +300,7 @@ INSTANTIATE_TEST_SUITE_P(Cases, BadCreateTest, testing::ValuesIn(BadCreateCases(
 // Two discs at the same centre have no contact normal (n = 0/0): Create
 // refuses them, naming the particles.
 TEST(CreateTest, CoincidentCentresAreRefused) {
-  Packing p;
+  RveSnapshot p;
   p.cell = Eigen::Matrix2d::Identity() * 0.1;
   p.radius = {5e-3, 5e-3, 5e-3};
   p.sx = {0.5, 0.5, 0.2};
@@ -397,14 +399,14 @@ TEST(PreparePackingTest, BadInputsAreRefusedBeforeAnyWork) {
   for (const FieldCase<PreparationSpec>& c : BadPreparationCases()) {
     ParameterSet set = *base;
     c.corrupt(set.preparation);
-    const absl::StatusOr<Packing> p = PreparePacking(set);
+    const absl::StatusOr<RveSnapshot> p = PreparePacking(set);
     ASSERT_FALSE(p.ok()) << c.field;
     EXPECT_EQ(p.status().code(), absl::StatusCode::kInvalidArgument) << p.status();
     EXPECT_TRUE(HasSubstr(p.status().message(), c.field + " = "));
   }
   ParameterSet bad_material = *base;
   bad_material.material.friction = -1.0;
-  absl::StatusOr<Packing> p = PreparePacking(bad_material);
+  absl::StatusOr<RveSnapshot> p = PreparePacking(bad_material);
   EXPECT_EQ(p.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_TRUE(HasSubstr(p.status().message(), "friction"));
   Controls bad_controls;
@@ -496,7 +498,7 @@ TEST(RunElementTestTest, BadSpecIsRefusedAndTheRveUntouched) {
     EXPECT_EQ(rows.status().code(), absl::StatusCode::kInvalidArgument) << rows.status();
     EXPECT_TRUE(HasSubstr(rows.status().message(), c.field + " = "));
     EXPECT_FALSE(progressed);
-    ExpectIdenticalPackings(rve.ToPacking(), Loaded());
+    ExpectIdenticalPackings(rve.ToSnapshot(), Loaded());
   }
 }
 
@@ -517,7 +519,7 @@ void ExpectAllFinite(const RveState& s) {
 TEST(DiluteTest, NoContactsGiveAZeroWellDefinedState) {
   // 12 discs of 2–4 mm on a 4×3 grid, 3 cm apart: no contacts, and moving
   // slowly enough that none form during the calls below.
-  Packing p;
+  RveSnapshot p;
   p.cell << 0.12, 0.0, 0.0, 0.09;
   for (int k = 0; k < 12; ++k) {
     p.radius.push_back(2e-3 + 2e-3 * (k % 3) / 2.0);

@@ -425,15 +425,16 @@ void PrintMatrix(absl::string_view key, const Matrix& m) {
 // ---------------------------------------------------------------------------
 // Local commands.
 
-absl::StatusOr<dem::Packing> PreparePacking(const Flags& flags, std::string* material,
-                                            std::uint64_t* seed, dem::PreparationReport* report) {
+absl::StatusOr<dem::RveSnapshot> PreparePacking(const Flags& flags, std::string* material,
+                                                std::uint64_t* seed,
+                                                dem::PreparationReport* report) {
   *material = "SET-dense";
   *seed = 1;
   RETURN_IF_ERROR(Get(flags, "material", material));
   RETURN_IF_ERROR(Get(flags, "seed", seed));
   std::fprintf(stderr, "preparing %s...\n", material->c_str());
   // Its first line is "N discs, seed S".
-  ASSIGN_OR_RETURN(dem::Packing packing,
+  ASSIGN_OR_RETURN(dem::RveSnapshot packing,
                    dem::PrepareTemplate(*material, *seed, report, [](const std::string& line) {
                      std::fprintf(stderr, "  %s\n", line.c_str());
                    }));
@@ -504,7 +505,7 @@ absl::Status ElementTestCommand(const Flags& flags) {
     std::string material;
     std::uint64_t seed;
     dem::PreparationReport report;
-    ASSIGN_OR_RETURN(dem::Packing packing, PreparePacking(flags, &material, &seed, &report));
+    ASSIGN_OR_RETURN(dem::RveSnapshot packing, PreparePacking(flags, &material, &seed, &report));
     ASSIGN_OR_RETURN(dem::Rve rve, dem::Rve::Create(std::move(packing)));
     title = absl::StrCat(test, " on ", material);
     ProgressLine progress(title);
@@ -535,7 +536,7 @@ absl::Status PrepareCommand(const Flags& flags) {
   std::string material;
   std::uint64_t seed;
   dem::PreparationReport report;
-  ASSIGN_OR_RETURN(dem::Packing packing, PreparePacking(flags, &material, &seed, &report));
+  ASSIGN_OR_RETURN(dem::RveSnapshot packing, PreparePacking(flags, &material, &seed, &report));
   ASSIGN_OR_RETURN(dem::Rve rve, dem::Rve::Create(packing));
   const dem::RveState s = rve.Observe(/*want_tangent=*/true);
   std::printf("material %s\nparticles %d\nvoid_ratio %.6f\nporosity %.6f\n", material.c_str(),

@@ -18,8 +18,8 @@
 #include "absl/time/time.h"
 #include "rve_server/client/channel.h"
 #include "rve_server/client/types.h"
-#include "rve_server/engine/packing.h"
 #include "rve_server/engine/rve.h"
+#include "rve_server/engine/snapshot.h"
 #include "store/record.h"
 
 namespace rvehub::client {

@@ -92,15 +92,15 @@ namespace {
 struct Trial {
   double friction;
   double void_ratio;
-  Packing packing;
+  RveSnapshot packing;
 };
 
 }  // namespace
 
-Packing GenerateLoosePacking(const ParameterSet& set, const Controls& controls) {
+RveSnapshot GenerateLoosePacking(const ParameterSet& set, const Controls& controls) {
   const PreparationSpec& spec = set.preparation;
   std::mt19937_64 rng(spec.seed);
-  Packing p;
+  RveSnapshot p;
   p.material = set.material;
   p.controls = controls;
   const int n = spec.num_particles;
@@ -139,20 +139,20 @@ Packing GenerateLoosePacking(const ParameterSet& set, const Controls& controls) 
   return p;
 }
 
-absl::StatusOr<Packing> PreparePacking(const ParameterSet& set, const Controls& controls,
-                                       PreparationReport* report,
-                                       const std::function<void(const std::string&)>& progress) {
+absl::StatusOr<RveSnapshot> PreparePacking(
+    const ParameterSet& set, const Controls& controls, PreparationReport* report,
+    const std::function<void(const std::string&)>& progress) {
   RETURN_IF_ERROR(Validate(set.material));
   RETURN_IF_ERROR(Validate(set.preparation));
   RETURN_IF_ERROR(Validate(controls));
   const double p0 = set.preparation.pressure;
   const double target = set.preparation.target_void_ratio;
-  const Packing loose = GenerateLoosePacking(set, controls);
+  const RveSnapshot loose = GenerateLoosePacking(set, controls);
   std::int64_t steps = 0;
   int trials = 0;
 
   auto compact = [&](double friction) -> absl::StatusOr<Trial> {
-    Packing start = loose;
+    RveSnapshot start = loose;
     start.material.friction = friction;
     ASSIGN_OR_RETURN(Rve rve, Rve::Create(std::move(start)));
     ASSIGN_OR_RETURN(RveState s, ConsolidateIsotropic(rve, p0, kCompactionBalance, &steps));
@@ -162,7 +162,7 @@ absl::StatusOr<Packing> PreparePacking(const ParameterSet& set, const Controls& 
           absl::StrFormat("compaction trial %d: friction %.4f -> e = %.4f (target %.4f), %d steps",
                           trials, friction, s.void_ratio, target, steps));
     }
-    return Trial{friction, s.void_ratio, rve.ToPacking()};
+    return Trial{friction, s.void_ratio, rve.ToSnapshot()};
   };
 
   // Steer e by the compaction friction: e grows with friction. Regula falsi
@@ -189,7 +189,7 @@ absl::StatusOr<Packing> PreparePacking(const ParameterSet& set, const Controls& 
   rve.BondContacts();
   ASSIGN_OR_RETURN(RveState final_state, ConsolidateIsotropic(rve, p0, kFinalBalance, &steps));
 
-  Packing out = rve.ToPacking();
+  RveSnapshot out = rve.ToSnapshot();
   const double e0 = final_state.void_ratio;
   out.initial_void_ratio = e0;
   out.permeability_coefficient = set.preparation.initial_permeability * (1.0 + e0) / (e0 * e0 * e0);
@@ -203,9 +203,9 @@ absl::StatusOr<Packing> PreparePacking(const ParameterSet& set, const Controls& 
   return out;
 }
 
-absl::StatusOr<Packing> PrepareTemplate(absl::string_view parameter_set, std::uint64_t seed,
-                                        PreparationReport* report,
-                                        const std::function<void(const std::string&)>& progress) {
+absl::StatusOr<RveSnapshot> PrepareTemplate(
+    absl::string_view parameter_set, std::uint64_t seed, PreparationReport* report,
+    const std::function<void(const std::string&)>& progress) {
   ASSIGN_OR_RETURN(ParameterSet set, FindParameterSet(parameter_set));
   set.preparation.seed = seed;
   if (progress) {

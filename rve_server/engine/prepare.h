@@ -9,8 +9,8 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
 #include "rve_server/engine/material.h"
-#include "rve_server/engine/packing.h"
 #include "rve_server/engine/rve.h"
+#include "rve_server/engine/snapshot.h"
 
 namespace rvehub::dem {
 
@@ -43,13 +43,13 @@ absl::StatusOr<RveState> ConsolidateToStress(Rve& rve, double sxx, double syy,
 
 // Random discs, placed without overlap in a loose square cell (seeded,
 // platform-independent random numbers).
-Packing GenerateLoosePacking(const ParameterSet& set, const Controls& controls = {});
+RveSnapshot GenerateLoosePacking(const ParameterSet& set, const Controls& controls = {});
 
 // Generates N discs, compacts them isotropically by a cell servo to p0 with a
 // compaction friction steered (a few trials) so that e lands near the target,
 // restores the material friction and stabilises (p within 1 %, unbalanced
 // force ratio < 1e-4). `progress`, when set, receives one line per trial.
-absl::StatusOr<Packing> PreparePacking(
+absl::StatusOr<RveSnapshot> PreparePacking(
     const ParameterSet& set, const Controls& controls = {}, PreparationReport* report = nullptr,
     const std::function<void(const std::string&)>& progress = {});
 
@@ -58,7 +58,7 @@ absl::StatusOr<Packing> PreparePacking(
 // its seed replaced, through PreparePacking. NotFound naming the known sets
 // for an unknown name. `progress`, when set, first receives "N discs, seed
 // S", then PreparePacking's lines.
-absl::StatusOr<Packing> PrepareTemplate(
+absl::StatusOr<RveSnapshot> PrepareTemplate(
     absl::string_view parameter_set, std::uint64_t seed, PreparationReport* report = nullptr,
     const std::function<void(const std::string&)>& progress = {});
 

@@ -38,7 +38,7 @@ double SolidArea(const std::vector<double>& radius) {
   return a;
 }
 
-Rve::Rve(Packing packing) : p_(std::move(packing)) {
+Rve::Rve(RveSnapshot packing) : p_(std::move(packing)) {
   const auto [rmin, rmax] = std::minmax_element(p_.radius.begin(), p_.radius.end());
   radius_min_ = *rmin;
   radius_max_ = *rmax;
@@ -74,7 +74,7 @@ Rve::Rve(Packing packing) : p_(std::move(packing)) {
   Rebuild(history);
 }
 
-absl::Status ValidatePacking(const Packing& p) {
+absl::Status ValidatePacking(const RveSnapshot& p) {
   RETURN_IF_ERROR(Validate(p.material));
   if (p.material.name.size() > kMaxNameBytes) {
     return absl::InvalidArgumentError(absl::StrCat("material name has ", p.material.name.size(),
@@ -176,7 +176,7 @@ absl::Status ValidatePacking(const Packing& p) {
   return absl::OkStatus();
 }
 
-absl::StatusOr<Rve> Rve::Create(Packing p) {
+absl::StatusOr<Rve> Rve::Create(RveSnapshot p) {
   RETURN_IF_ERROR(ValidatePacking(p));
   Rve rve(std::move(p));
   // Discs with (nearly) coincident centres have no contact normal.
@@ -190,8 +190,8 @@ absl::StatusOr<Rve> Rve::Create(Packing p) {
   return rve;
 }
 
-Packing Rve::ToPacking() const {
-  Packing out = p_;
+RveSnapshot Rve::ToSnapshot() const {
+  RveSnapshot out = p_;
   out.contacts = CollectHistory();
   return out;
 }

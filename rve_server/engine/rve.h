@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "rve_server/engine/packing.h"
+#include "rve_server/engine/snapshot.h"
 
 namespace rvehub::dem {
 
@@ -135,10 +135,10 @@ struct StepEnergy {
 class Rve {
  public:
   // Checks the packing (ValidatePacking) and builds caches.
-  static absl::StatusOr<Rve> Create(Packing packing);
+  static absl::StatusOr<Rve> Create(RveSnapshot packing);
 
   // The full state, contact history included (what Create restores exactly).
-  Packing ToPacking() const;
+  RveSnapshot ToSnapshot() const;
   const Material& material() const { return p_.material; }
   const Eigen::Matrix2d& cell() const { return p_.cell; }
   // Deformation gradient since the reference configuration (flip-proof).
@@ -208,7 +208,7 @@ class Rve {
   void BondContacts();
 
  private:
-  explicit Rve(Packing packing);
+  explicit Rve(RveSnapshot packing);
   // Run and Relax; a null interrupt is never asked. `stopped` gets its status.
   RveState RunSteps(CellControl& control, std::int64_t steps, const Interrupt* interrupt,
                     absl::Status& stopped);
@@ -266,7 +266,7 @@ class Rve {
   template <typename F>
   void ForEachContact(F&& f) const;
 
-  Packing p_;  // p_.contacts stays empty: the history lives in the list
+  RveSnapshot p_;  // p_.contacts stays empty: the history lives in the list
   // Caches of the current configuration, never part of the state: each DEM
   // step ends with the contact pass of its new positions, which the next step
   // integrates with and, when measured, which Observe reads, so homogenising
@@ -316,7 +316,7 @@ inline constexpr std::size_t kMaxNameBytes = 128;  // material name, printable A
 // path (templates, imports, checkpoints): material and controls, array
 // sizes, finiteness, particle count, cell against particle size and the
 // neighbour-grid size, contacts. InvalidArgument naming the first problem.
-absl::Status ValidatePacking(const Packing& p);
+absl::Status ValidatePacking(const RveSnapshot& p);
 
 }  // namespace rvehub::dem
 

@@ -112,7 +112,7 @@ dem::Controls FromProto(const v1::Controls& c) {
   return out;
 }
 
-void ToProto(const dem::Packing& p, v1::Packing* out) {
+void ToProto(const dem::RveSnapshot& p, v1::Packing* out) {
   ToProto(p.material, out->mutable_material());
   ToProto(p.controls, out->mutable_controls());
   Put2(p.cell, out->mutable_cell());
@@ -143,10 +143,10 @@ void ToProto(const dem::Packing& p, v1::Packing* out) {
   out->set_total_steps(p.total_steps);
 }
 
-absl::StatusOr<dem::Packing> FromProto(const v1::Packing& p) {
+absl::StatusOr<dem::RveSnapshot> FromProto(const v1::Packing& p) {
   if (!p.has_material()) return absl::InvalidArgumentError("packing.material is missing");
   if (!p.has_controls()) return absl::InvalidArgumentError("packing.controls is missing");
-  dem::Packing out;
+  dem::RveSnapshot out;
   out.material = FromProto(p.material());
   out.controls = FromProto(p.controls());
   absl::StatusOr<Eigen::Matrix2d> cell = Take2(p.cell(), "cell");
@@ -214,7 +214,7 @@ absl::StatusOr<store::RveRecord> FromProto(const v1::RveRecord& r) {
   absl::StatusOr<Eigen::Matrix3d> f = Matrix3FromProto(r.last_delta_f(), "last_delta_f");
   if (!f.ok()) return f.status();
   out.last_delta_f = *f;
-  absl::StatusOr<dem::Packing> p = FromProto(r.packing());
+  absl::StatusOr<dem::RveSnapshot> p = FromProto(r.packing());
   if (!p.ok()) return p.status();
   out.packing = *std::move(p);
   return out;

@@ -9,8 +9,8 @@
 
 #include "absl/status/statusor.h"
 #include "rve_server/engine/element_test.h"
-#include "rve_server/engine/packing.h"
 #include "rve_server/engine/rve.h"
+#include "rve_server/engine/snapshot.h"
 #include "rve_server/service/registry.h"
 #include "rvehub/v1/rve_service.pb.h"
 #include "store/record.h"
@@ -27,10 +27,10 @@ dem::Material FromProto(const v1::Material& m);
 void ToProto(const dem::Controls& c, v1::Controls* out);
 dem::Controls FromProto(const v1::Controls& c);
 
-void ToProto(const dem::Packing& p, v1::Packing* out);
+void ToProto(const dem::RveSnapshot& p, v1::Packing* out);
 // Shapes are checked (cell 4 values, particle and contact arrays of one
 // length each); physics is checked later by dem::Rve::Create.
-absl::StatusOr<dem::Packing> FromProto(const v1::Packing& p);
+absl::StatusOr<dem::RveSnapshot> FromProto(const v1::Packing& p);
 
 void ToProto(const store::RveRecord& r, v1::RveRecord* out);
 absl::StatusOr<store::RveRecord> FromProto(const v1::RveRecord& r);

@@ -246,7 +246,7 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
   }
 
   ASSIGN_OR_RETURN(store::TemplateRecord found, FindTemplate(template_name));
-  dem::Packing base = std::move(found.packing);
+  dem::RveSnapshot base = std::move(found.packing);
   std::int64_t bytes_each = 0;
   if (controls.has_value()) base.controls = *controls;
   ASSIGN_OR_RETURN(dem::Rve prototype, dem::Rve::Create(base));
@@ -543,7 +543,7 @@ absl::Status Registry::Export(absl::string_view run_id, std::span<const std::int
       absl::MutexLock lock(&e->mu);
       r.step = e->step;
       r.last_delta_f = e->last_delta_f;
-      r.packing = e->rve.ToPacking();
+      r.packing = e->rve.ToSnapshot();
     }
     RETURN_IF_ERROR(sink(std::move(r)));
   }

@@ -223,7 +223,7 @@ grpc::Status RveServiceImpl::DoUploadTemplate(grpc::ServerContext* ctx,
   if (!req->has_entry()) {
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "entry (the template) is missing");
   }
-  absl::StatusOr<dem::Packing> packing = FromProto(req->entry().packing());
+  absl::StatusOr<dem::RveSnapshot> packing = FromProto(req->entry().packing());
   if (!packing.ok()) return ToGrpc(packing.status());
   store::TemplateRecord record{req->entry().name(), req->entry().description(),
                                *std::move(packing)};

@@ -1,7 +1,9 @@
-// The complete state of one RVE as a plain struct: what the service and store
-// layers serialise. Restoring it gives a bit-identical continuation.
-#ifndef RVEHUB_RVE_SERVER_ENGINE_PACKING_H_
-#define RVEHUB_RVE_SERVER_ENGINE_PACKING_H_
+// RveSnapshot, the complete state of one RVE as a plain struct (particles,
+// contact history, cell, material, controls and counters; a "packing" is only
+// its particle part): what the service and store layers serialise. Restoring
+// it gives a bit-identical continuation.
+#ifndef RVEHUB_RVE_SERVER_ENGINE_SNAPSHOT_H_
+#define RVEHUB_RVE_SERVER_ENGINE_SNAPSHOT_H_
 
 #include <Eigen/Dense>
 #include <cstdint>
@@ -33,7 +35,7 @@ struct ContactHistory {
   double bond_strength = 0.0;     // N; > 0 while the pair is bonded
 };
 
-struct Packing {
+struct RveSnapshot {
   Material material;
   Controls controls;
   // Cell matrix h (m): columns are the two cell vectors; x = h·s.
@@ -67,4 +69,4 @@ absl::Status Validate(const Controls& c);
 
 }  // namespace rvehub::dem
 
-#endif  // RVEHUB_RVE_SERVER_ENGINE_PACKING_H_
+#endif  // RVEHUB_RVE_SERVER_ENGINE_SNAPSHOT_H_

@@ -1,4 +1,4 @@
-#include "rve_server/engine/packing.h"
+#include "rve_server/engine/snapshot.h"
 
 #include <cmath>
 
