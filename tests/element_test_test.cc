@@ -4,7 +4,7 @@
 // oedometer moduli of liang-zhao-wu-soga §4.1, and the qualitative behaviour
 // of isotropic compression and (cyclic) undrained simple shear
 // (guo-zhao-2014 §5). Rows are compression positive; the shear stress in the
-// direction of shearing is τ = σxy (tension +) = −row.sxy.
+// direction of shearing is τ = σxy (tension +) = −row.sxy_comp.
 #include "rve_server/engine/element_test.h"
 
 #include <algorithm>
@@ -35,7 +35,7 @@ std::vector<ElementTestRow> RunOn(const std::string& set, const ElementTestSpec&
   return rows.ok() ? *std::move(rows) : std::vector<ElementTestRow>{};
 }
 
-double Tau(const ElementTestRow& r) { return -r.sxy; }  // Pa, along the shearing
+double Tau(const ElementTestRow& r) { return -r.sxy_comp; }  // Pa, along the shearing
 
 // Dense drained biaxial test at σ3 = 100 kPa (SPFEM-biaxial set):
 // guo-et-al-spfem-dem §3.2 reports a peak nominal axial stress of ≈ 280 kPa
@@ -50,46 +50,49 @@ TEST(ElementTestTest, DrainedBiaxialOnDenseSandPeaksSoftensAndDilates) {
   ASSERT_GE(rows.size(), 100u);
   const auto peak = std::max_element(
       rows.begin(), rows.end(),
-      [](const ElementTestRow& a, const ElementTestRow& b) { return a.syy < b.syy; });
-  const auto first90 = std::find_if(
-      rows.begin(), rows.end(), [&](const ElementTestRow& r) { return r.syy >= 0.9 * peak->syy; });
-  double sxx_min = rows[0].sxx, sxx_max = rows[0].sxx;
+      [](const ElementTestRow& a, const ElementTestRow& b) { return a.syy_comp < b.syy_comp; });
+  const auto first90 = std::find_if(rows.begin(), rows.end(), [&](const ElementTestRow& r) {
+    return r.syy_comp >= 0.9 * peak->syy_comp;
+  });
+  double sxx_min = rows[0].sxx_comp, sxx_max = rows[0].sxx_comp;
   for (const ElementTestRow& r : rows) {
-    sxx_min = std::min(sxx_min, r.sxx);
-    sxx_max = std::max(sxx_max, r.sxx);
+    sxx_min = std::min(sxx_min, r.sxx_comp);
+    sxx_max = std::max(sxx_max, r.sxx_comp);
   }
   const ElementTestRow& last = rows.back();
   std::printf(
       "biaxial: peak σyy = %.1f kPa at εa = %.3f %%, 90 %% of peak first at εa = %.3f %%, "
       "σxx in [%.1f, %.1f] kPa, end: εa = %.3f %%, σyy = %.1f kPa, εv = %.3f %%\n",
-      peak->syy / 1e3, 100 * peak->axial_strain, 100 * first90->axial_strain, sxx_min / 1e3,
-      sxx_max / 1e3, 100 * last.axial_strain, last.syy / 1e3, 100 * last.vol_strain);
+      peak->syy_comp / 1e3, 100 * peak->axial_strain_comp, 100 * first90->axial_strain_comp,
+      sxx_min / 1e3, sxx_max / 1e3, 100 * last.axial_strain_comp, last.syy_comp / 1e3,
+      100 * last.vol_strain_comp);
   // Peak ≈ 280 kPa (guo-et-al-spfem-dem §3.2); ±15 % covers the scatter of a
   // 400-disc RVE and e0 = 0.1775 against the paper's 0.178.
-  EXPECT_NEAR(peak->syy, 280e3, 0.15 * 280e3);
+  EXPECT_NEAR(peak->syy_comp, 280e3, 0.15 * 280e3);
   // The paper's peak lies at ≈ 1.8 % on a flat top; the stress is within 10 %
   // of the peak from well before it: 90 % is reached in [0.5 %, 2.8 %].
-  EXPECT_GE(first90->axial_strain, 0.005);
-  EXPECT_LE(first90->axial_strain, 0.028);
+  EXPECT_GE(first90->axial_strain_comp, 0.005);
+  EXPECT_LE(first90->axial_strain_comp, 0.028);
   // The lateral servo holds σxx at the confining stress: ±3 % (element_test.cc
   // tunes it for ±2 % through peak and dilation).
   EXPECT_GE(sxx_min, 0.97 * 100e3);
   EXPECT_LE(sxx_max, 1.03 * 100e3);
   // The test runs to the requested strain.
-  EXPECT_GE(last.axial_strain, 0.1);
-  EXPECT_LT(last.axial_strain, 0.1 + 0.01);
+  EXPECT_GE(last.axial_strain_comp, 0.1);
+  EXPECT_LT(last.axial_strain_comp, 0.1 + 0.01);
   // Softening after the peak (guo-et-al-spfem-dem §3.2).
-  EXPECT_GT(peak->axial_strain, rows.front().axial_strain);
-  EXPECT_LT(last.syy, 0.9 * peak->syy);
+  EXPECT_GT(peak->axial_strain_comp, rows.front().axial_strain_comp);
+  EXPECT_LT(last.syy_comp, 0.9 * peak->syy_comp);
   // Dense sand dilates: εv ≈ −4.5 % in shear bands (guo-zhao-2014 §4.2); the
   // whole RVE at 10 % axial strain must have dilated by more than 2 %.
-  EXPECT_LT(last.vol_strain, -0.02);
+  EXPECT_LT(last.vol_strain_comp, -0.02);
   // Initial contraction before dilation (dense-sand signature).
   const auto most_contracted = std::max_element(
-      rows.begin(), rows.end(),
-      [](const ElementTestRow& a, const ElementTestRow& b) { return a.vol_strain < b.vol_strain; });
-  EXPECT_GT(most_contracted->vol_strain, 0.0);
-  EXPECT_LT(most_contracted->axial_strain, peak->axial_strain);
+      rows.begin(), rows.end(), [](const ElementTestRow& a, const ElementTestRow& b) {
+        return a.vol_strain_comp < b.vol_strain_comp;
+      });
+  EXPECT_GT(most_contracted->vol_strain_comp, 0.0);
+  EXPECT_LT(most_contracted->axial_strain_comp, peak->axial_strain_comp);
 }
 
 // Oedometer on the consolidation RVE: liang-zhao-wu-soga §4.1 measures
@@ -101,18 +104,18 @@ TEST(ElementTestTest, OedometerModuliMatchPublishedValues) {
   const std::vector<ElementTestRow> rows = RunOn("consolidation", spec);
   ASSERT_GE(rows.size(), 2u);
   const auto at = std::find_if(rows.begin(), rows.end(),
-                               [](const ElementTestRow& r) { return r.axial_strain >= 2e-4; });
+                               [](const ElementTestRow& r) { return r.axial_strain_comp >= 2e-4; });
   ASSERT_NE(at, rows.end());
   const ElementTestRow& r0 = rows.front();
-  const double de = at->axial_strain - r0.axial_strain;
-  const double constrained = (at->syy - r0.syy) / de;  // K + 4G/3, Pa
-  const double lateral = (at->sxx - r0.sxx) / de;      // K − 2G/3, Pa
+  const double de = at->axial_strain_comp - r0.axial_strain_comp;
+  const double constrained = (at->syy_comp - r0.syy_comp) / de;  // K + 4G/3, Pa
+  const double lateral = (at->sxx_comp - r0.sxx_comp) / de;      // K − 2G/3, Pa
   std::printf(
       "oedometer: secant to εyy = %.3g: K + 4G/3 = %.3f MPa (paper 25.06), "
       "K − 2G/3 = %.3f MPa (paper 3.93)\n",
-      at->axial_strain, constrained / 1e6, lateral / 1e6);
+      at->axial_strain_comp, constrained / 1e6, lateral / 1e6);
   // No lateral strain and no volume change other than the axial one.
-  EXPECT_NEAR(at->vol_strain, at->axial_strain, 1e-12);
+  EXPECT_NEAR(at->vol_strain_comp, at->axial_strain_comp, 1e-12);
   // 20 %: a 400-disc RVE with e0 = 0.196 against the paper's 0.192, and a
   // secant over 2e-4 instead of the paper's unstated increment.
   EXPECT_NEAR(constrained, 25.06e6, 0.2 * 25.06e6);
@@ -135,29 +138,30 @@ TEST(ElementTestTest, IsotropicCompressionStiffensAndDensifies) {
   for (std::size_t k = 1; k < rows.size(); ++k) {
     // The cell shrinks every step: e = (A − A_s)/A_s falls strictly.
     ASSERT_LT(rows[k].void_ratio, rows[k - 1].void_ratio) << "row " << k;
-    ASSERT_GT(rows[k].vol_strain, rows[k - 1].vol_strain) << "row " << k;
-    if (rows[k].p < rows[k - 1].p) {
+    ASSERT_GT(rows[k].vol_strain_comp, rows[k - 1].vol_strain_comp) << "row " << k;
+    if (rows[k].p_comp < rows[k - 1].p_comp) {
       ++drops;
-      worst_drop = std::max(worst_drop, (rows[k - 1].p - rows[k].p) / rows[k - 1].p);
+      worst_drop = std::max(worst_drop, (rows[k - 1].p_comp - rows[k].p_comp) / rows[k - 1].p_comp);
     }
   }
   const ElementTestRow &first = rows.front(), &last = rows.back();
   std::printf(
       "isotropic: p %.1f -> %.1f kPa over εv = %.3f %%, e %.5f -> %.5f, %d drops "
       "(worst %.2g), secant bulk modulus %.2f MPa\n",
-      first.p / 1e3, last.p / 1e3, 100 * last.vol_strain, first.void_ratio, last.void_ratio, drops,
-      worst_drop, (last.p - first.p) / (last.vol_strain - first.vol_strain) / 1e6);
-  EXPECT_GE(last.vol_strain, 0.01);
+      first.p_comp / 1e3, last.p_comp / 1e3, 100 * last.vol_strain_comp, first.void_ratio,
+      last.void_ratio, drops, worst_drop,
+      (last.p_comp - first.p_comp) / (last.vol_strain_comp - first.vol_strain_comp) / 1e6);
+  EXPECT_GE(last.vol_strain_comp, 0.01);
   // "Monotonically-ish": rare small drops (slips of single contacts) only.
   EXPECT_LE(drops, static_cast<int>(rows.size()) / 10);
   EXPECT_LT(worst_drop, 0.01);
   // 1 % volumetric strain on a packing with contact stiffness E = 600 MPa
   // raises p well above p0 (contact-level moduli of tens of MPa).
-  EXPECT_GT(last.p, 1.5 * first.p);
+  EXPECT_GT(last.p_comp, 1.5 * first.p_comp);
   // Equal strains on a nearly isotropic fabric (Fa < 0.1): σxx ≈ σyy.
-  EXPECT_LT(std::abs(last.sxx - last.syy), 0.05 * last.p);
+  EXPECT_LT(std::abs(last.sxx_comp - last.syy_comp), 0.05 * last.p_comp);
   // e = (1 + e0)(1 − εv) − 1 exactly for the cell's area change.
-  EXPECT_NEAR(last.void_ratio, (1 + first.void_ratio) * (1 - last.vol_strain) - 1, 1e-9);
+  EXPECT_NEAR(last.void_ratio, (1 + first.void_ratio) * (1 - last.vol_strain_comp) - 1, 1e-9);
 }
 
 // Undrained (constant-volume) simple shear on the loose strain-controlled RVE
@@ -170,7 +174,7 @@ TEST(ElementTestTest, UndrainedSimpleShearKeepsVolumeAndResistsShear) {
   ASSERT_GE(rows.size(), 10u);
   double worst_ev = 0, min_tau = 1e300, max_tau = -1e300;
   for (const ElementTestRow& r : rows) {
-    worst_ev = std::max(worst_ev, std::abs(r.vol_strain));
+    worst_ev = std::max(worst_ev, std::abs(r.vol_strain_comp));
     if (r.shear_strain > 0) {
       min_tau = std::min(min_tau, Tau(r));
       max_tau = std::max(max_tau, Tau(r));
@@ -181,7 +185,7 @@ TEST(ElementTestTest, UndrainedSimpleShearKeepsVolumeAndResistsShear) {
       "undrained simple shear: |εv| <= %.2g, γ_end = %.4f, τ %.1f -> %.1f kPa, "
       "τ over γ > 0 in [%.1f, %.1f] kPa, p %.1f -> %.1f kPa\n",
       worst_ev, last.shear_strain, Tau(first) / 1e3, Tau(last) / 1e3, min_tau / 1e3, max_tau / 1e3,
-      first.p / 1e3, last.p / 1e3);
+      first.p_comp / 1e3, last.p_comp / 1e3);
   // Undrained: the cell keeps its area; 1e-9 leaves room for rounding only.
   EXPECT_LT(worst_ev, 1e-9);
   EXPECT_NEAR(last.void_ratio, first.void_ratio, 1e-9);
@@ -189,7 +193,7 @@ TEST(ElementTestTest, UndrainedSimpleShearKeepsVolumeAndResistsShear) {
   EXPECT_GE(last.shear_strain, 0.02);
   EXPECT_GT(min_tau, 0.0);
   // And τ grows well beyond its starting value: 10 % of p0 at γ = 2 %.
-  EXPECT_GT(Tau(last) - Tau(first), 0.1 * first.p);
+  EXPECT_GT(Tau(last) - Tau(first), 0.1 * first.p_comp);
 }
 
 // Strain-controlled cyclic simple shear (guo-zhao-2014 §5): γ reverses at
@@ -208,7 +212,7 @@ TEST(ElementTestTest, CyclicStrainControlReversesAtAmplitude) {
   for (std::size_t k = 0; k < rows.size(); ++k) {
     gmin = std::min(gmin, rows[k].shear_strain);
     gmax = std::max(gmax, rows[k].shear_strain);
-    worst_ev = std::max(worst_ev, std::abs(rows[k].vol_strain));
+    worst_ev = std::max(worst_ev, std::abs(rows[k].vol_strain_comp));
     if (k >= 2) {
       const double d1 = rows[k - 1].shear_strain - rows[k - 2].shear_strain;
       const double d2 = rows[k].shear_strain - rows[k - 1].shear_strain;
@@ -250,7 +254,7 @@ TEST(ElementTestTest, CyclicStressControlReachesStressAmplitude) {
   std::vector<double> peaks;
   double worst_ev = 0;
   for (std::size_t k = 0; k < rows.size(); ++k) {
-    worst_ev = std::max(worst_ev, std::abs(rows[k].vol_strain));
+    worst_ev = std::max(worst_ev, std::abs(rows[k].vol_strain_comp));
     if (k >= 2) {
       const double d1 = rows[k - 1].shear_strain - rows[k - 2].shear_strain;
       const double d2 = rows[k].shear_strain - rows[k - 1].shear_strain;

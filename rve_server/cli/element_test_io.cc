@@ -26,9 +26,9 @@ absl::Status WriteElementTestCsv(const std::string& path, const std::vector<Elem
     std::fprintf(file.get(),
                  "%lld,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,"
                  "%.10g,%.10g,%.10g\n",
-                 static_cast<long long>(r.step), r.axial_strain, r.vol_strain, r.sxx, r.syy, r.sxy,
-                 r.p, r.q, r.void_ratio, r.coordination, r.fabric_xx, r.fabric_yy, r.fabric_xy,
-                 r.fabric_anisotropy, r.permeability, r.shear_strain);
+                 static_cast<long long>(r.step), r.axial_strain_comp, r.vol_strain_comp, r.sxx_comp,
+                 r.syy_comp, r.sxy_comp, r.p_comp, r.q, r.void_ratio, r.coordination, r.fabric_xx,
+                 r.fabric_yy, r.fabric_xy, r.fabric_anisotropy, r.permeability, r.shear_strain);
   }
   if (std::ferror(file.get()) || std::fclose(file.release()) != 0) {
     return absl::UnavailableError(absl::StrCat("error while writing '", path, "'"));
@@ -49,14 +49,14 @@ absl::Status WriteElementTestPlot(const std::string& path, ElementTestKind kind,
     }
     return s;
   };
-  const Getter axial = [](const ElementTestRow& r) { return r.axial_strain; };
-  const Getter vol = [](const ElementTestRow& r) { return r.vol_strain; };
+  const Getter axial = [](const ElementTestRow& r) { return r.axial_strain_comp; };
+  const Getter vol = [](const ElementTestRow& r) { return r.vol_strain_comp; };
   const Getter shear = [](const ElementTestRow& r) { return r.shear_strain; };
-  const Getter p = [](const ElementTestRow& r) { return r.p; };
+  const Getter p = [](const ElementTestRow& r) { return r.p_comp; };
   const Getter q = [](const ElementTestRow& r) { return r.q; };
-  const Getter sxx = [](const ElementTestRow& r) { return r.sxx; };
-  const Getter syy = [](const ElementTestRow& r) { return r.syy; };
-  const Getter tau = [](const ElementTestRow& r) { return -r.sxy; };
+  const Getter sxx = [](const ElementTestRow& r) { return r.sxx_comp; };
+  const Getter syy = [](const ElementTestRow& r) { return r.syy_comp; };
+  const Getter tau = [](const ElementTestRow& r) { return -r.sxy_comp; };
   const Getter e = [](const ElementTestRow& r) { return r.void_ratio; };
   const Getter z = [](const ElementTestRow& r) { return r.coordination; };
   const Getter fa = [](const ElementTestRow& r) { return r.fabric_anisotropy; };

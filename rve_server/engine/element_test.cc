@@ -31,13 +31,13 @@ constexpr NamedKind kKinds[] = {
 ElementTestRow MakeRow(const RveState& s, const Eigen::Matrix2d& f, std::int64_t step) {
   ElementTestRow r;
   r.step = step;
-  r.axial_strain = 1.0 - f(1, 1);
-  r.vol_strain = 1.0 - f.determinant();
+  r.axial_strain_comp = 1.0 - f(1, 1);
+  r.vol_strain_comp = 1.0 - f.determinant();
   r.shear_strain = f(0, 1);
-  r.sxx = -s.stress(0, 0);
-  r.syy = -s.stress(1, 1);
-  r.sxy = -s.stress(0, 1);
-  r.p = s.MeanPressure();
+  r.sxx_comp = -s.stress(0, 0);
+  r.syy_comp = -s.stress(1, 1);
+  r.sxy_comp = -s.stress(0, 1);
+  r.p_comp = s.MeanPressure();
   r.q = s.DeviatorStress();
   r.void_ratio = s.void_ratio;
   r.coordination = s.coordination;
@@ -143,9 +143,9 @@ absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
     switch (spec.kind) {
       case ElementTestKind::kDrainedBiaxial:
       case ElementTestKind::kOedometer:
-        return r.axial_strain;
+        return r.axial_strain_comp;
       case ElementTestKind::kIsotropic:
-        return r.vol_strain;
+        return r.vol_strain_comp;
       default:
         return std::abs(r.shear_strain);
     }
@@ -181,7 +181,8 @@ absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
     }
     // Cyclic: reverse at the amplitude (γ or τ); a cycle is two reversals,
     // and the test ends back at γ = 0 heading in the first direction.
-    const double level = spec.cyclic_control == CyclicControl::kStrain ? r.shear_strain : -r.sxy;
+    const double level =
+        spec.cyclic_control == CyclicControl::kStrain ? r.shear_strain : -r.sxy_comp;
     if (half_cycles < target_half_cycles && direction * level >= spec.amplitude) {
       direction = -direction;
       ++half_cycles;

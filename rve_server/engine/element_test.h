@@ -38,9 +38,12 @@ struct ElementTestSpec {
 
 struct ElementTestRow {
   std::int64_t step = 0;
-  double axial_strain = 0, vol_strain = 0;  // 1 − F_yy, 1 − det F (compression +)
-  double sxx = 0, syy = 0, sxy = 0;         // Pa, compression +
-  double p = 0, q = 0;                      // Pa: p = tr σ/2, q = sqrt(½ s:s)
+  // Soil mechanics' signs, compression positive, which the names carry
+  // (_comp): the engine's stress is tension-positive (σ_comp = −σ).
+  double axial_strain_comp = 0, vol_strain_comp = 0;  // 1 − F_yy, 1 − det F, [-]
+  double sxx_comp = 0, syy_comp = 0, sxy_comp = 0;    // Pa
+  double p_comp = 0;                                  // Pa, −tr σ/2
+  double q = 0;                                       // Pa, sqrt(½ s:s), sign-free
   double void_ratio = 0, coordination = 0;
   double fabric_xx = 0, fabric_yy = 0, fabric_xy = 0, fabric_anisotropy = 0;
   double permeability = 0;  // m/s

@@ -360,12 +360,12 @@ absl::StatusOr<dem::ElementTestSpec> FromProto(const v1::ElementTestRequest& r) 
 
 void ToProto(const dem::ElementTestRow& r, v1::ElementTestRow* out) {
   out->set_step(r.step);
-  out->set_axial_strain(r.axial_strain);
-  out->set_vol_strain(r.vol_strain);
-  out->set_sxx(r.sxx);
-  out->set_syy(r.syy);
-  out->set_sxy(r.sxy);
-  out->set_p(r.p);
+  out->set_axial_strain(r.axial_strain_comp);
+  out->set_vol_strain(r.vol_strain_comp);
+  out->set_sxx(r.sxx_comp);
+  out->set_syy(r.syy_comp);
+  out->set_sxy(r.sxy_comp);
+  out->set_p(r.p_comp);
   out->set_q(r.q);
   out->set_void_ratio(r.void_ratio);
   out->set_coordination(r.coordination);
@@ -380,12 +380,12 @@ void ToProto(const dem::ElementTestRow& r, v1::ElementTestRow* out) {
 dem::ElementTestRow FromProto(const v1::ElementTestRow& r) {
   dem::ElementTestRow out;
   out.step = r.step();
-  out.axial_strain = r.axial_strain();
-  out.vol_strain = r.vol_strain();
-  out.sxx = r.sxx();
-  out.syy = r.syy();
-  out.sxy = r.sxy();
-  out.p = r.p();
+  out.axial_strain_comp = r.axial_strain();
+  out.vol_strain_comp = r.vol_strain();
+  out.sxx_comp = r.sxx();
+  out.syy_comp = r.syy();
+  out.sxy_comp = r.sxy();
+  out.p_comp = r.p();
   out.q = r.q();
   out.void_ratio = r.void_ratio();
   out.coordination = r.coordination();
