@@ -1,5 +1,5 @@
 // An in-process RVE server on loopback with a client, for the service's
-// hardening and fuzz tests.
+// tests (service_test, hardening_test, fuzz_test).
 #ifndef RVEHUB_TESTS_SERVICE_HARNESS_H_
 #define RVEHUB_TESTS_SERVICE_HARNESS_H_
 
@@ -17,6 +17,7 @@
 #include "rve_server/service/log.h"
 #include "rve_server/service/server.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
+#include "tests/rpc_test_util.h"
 #include "tests/test_util.h"
 
 namespace rvehub::service::testing {
@@ -29,6 +30,7 @@ inline v1::Template MakeTemplate() {
   p.controls.min_steps = 10;
   v1::Template t;
   t.set_name(kTemplate);
+  t.set_description("SET-dense seed 1, min_steps 10");
   ToProto(p, t.mutable_packing());
   return t;
 }
@@ -68,13 +70,34 @@ class Harness {
     return stub_->UploadTemplate(Context().get(), req, &info);
   }
 
-  grpc::Status Create(const std::string& run, const std::vector<std::int64_t>& ids) {
+  grpc::Status Create(const std::string& run, const std::vector<std::int64_t>& ids,
+                      v1::CreateRvesResponse* resp = nullptr) {
     v1::CreateRvesRequest req;
     req.set_run_id(run);
     req.set_template_name(kTemplate);
     for (std::int64_t id : ids) req.add_ids(id);
-    v1::CreateRvesResponse resp;
-    return stub_->CreateRves(Context().get(), req, &resp);
+    v1::CreateRvesResponse local;
+    return stub_->CreateRves(Context().get(), req, resp ? resp : &local);
+  }
+
+  // One increment per id at `step` in `mode`.
+  grpc::Status Apply(const std::string& run, std::int64_t step, v1::ApplyMode mode,
+                     const std::vector<std::int64_t>& ids, const std::vector<double>& delta_f,
+                     v1::ApplyResponse* resp, bool tangent = false) {
+    v1::ApplyRequest req = Commit(run, step, ids, delta_f);
+    req.set_mode(mode);
+    req.mutable_options()->set_want_tangent(tangent);
+    return stub_->Apply(Context().get(), req, resp);
+  }
+
+  v1::RveRecord ExportOne(const std::string& run, std::int64_t id) {
+    return service::ExportOne(*stub_, *Context(), run, id);
+  }
+
+  dem::RveSnapshot SnapshotOf(const std::string& run, std::int64_t id) {
+    absl::StatusOr<dem::RveSnapshot> p = FromProto(ExportOne(run, id).packing());
+    EXPECT_TRUE(p.ok()) << p.status();
+    return p.ok() ? *p : dem::RveSnapshot{};
   }
 
   // One increment per id, COMMIT at `step`.

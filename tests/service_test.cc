@@ -17,6 +17,7 @@
 #include "rve_server/service/server.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
 #include "tests/rpc_test_util.h"
+#include "tests/service_harness.h"
 #include "tests/test_util.h"
 
 namespace rvehub::service {
@@ -25,96 +26,11 @@ namespace {
 using dem::testing_util::ExpectIdenticalPackings;
 using dem::testing_util::Prepared;
 
-constexpr char kTemplate[] = "set-dense";
-
-// A template from the SET-dense packing with few DEM steps per increment so
-// that the tests run quickly.
-v1::Template MakeTemplate() {
-  dem::RveSnapshot p = Prepared("SET-dense");
-  p.controls.min_steps = 10;
-  v1::Template t;
-  t.set_name(kTemplate);
-  t.set_description("SET-dense seed 1, min_steps 10");
-  ToProto(p, t.mutable_packing());
-  return t;
-}
-
-// Axial compression increment εyy = −e (plane strain), [-].
-std::vector<double> Compress(double e) { return {1, 0, 0, 0, 1 - e, 0, 0, 0, 1}; }
-
-class ServerHarness {
- public:
-  explicit ServerHarness(ServerConfig config = {}) {
-    SetLogEnabled(false);
-    config.listen = "127.0.0.1:0";
-    absl::StatusOr<std::unique_ptr<RveServer>> s = RveServer::Start(config);
-    EXPECT_TRUE(s.ok()) << s.status();
-    server_ = *std::move(s);
-    channel_ = grpc::CreateChannel(server_->address(), grpc::InsecureChannelCredentials());
-    stub_ = v1::RveService::NewStub(channel_);
-    token_ = config.auth_token;
-  }
-
-  v1::RveService::Stub& stub() { return *stub_; }
-  std::shared_ptr<grpc::Channel> channel() { return channel_; }
-  RveServer& server() { return *server_; }
-
-  std::unique_ptr<grpc::ClientContext> Context() {
-    auto ctx = std::make_unique<grpc::ClientContext>();
-    if (!token_.empty()) ctx->AddMetadata("authorization", "Bearer " + token_);
-    ctx->set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(120));
-    return ctx;
-  }
-
-  grpc::Status Upload() {
-    v1::UploadTemplateRequest req;
-    *req.mutable_entry() = MakeTemplate();
-    v1::TemplateInfo info;
-    return stub_->UploadTemplate(Context().get(), req, &info);
-  }
-
-  grpc::Status Create(const std::string& run, const std::vector<std::int64_t>& ids,
-                      v1::CreateRvesResponse* resp = nullptr) {
-    v1::CreateRvesRequest req;
-    req.set_run_id(run);
-    req.set_template_name(kTemplate);
-    for (std::int64_t id : ids) req.add_ids(id);
-    v1::CreateRvesResponse local;
-    return stub_->CreateRves(Context().get(), req, resp ? resp : &local);
-  }
-
-  grpc::Status Apply(const std::string& run, std::int64_t step, v1::ApplyMode mode,
-                     const std::vector<std::int64_t>& ids, const std::vector<double>& delta_f,
-                     v1::ApplyResponse* resp, bool tangent = false) {
-    v1::ApplyRequest req;
-    req.set_run_id(run);
-    req.set_step(step);
-    req.set_mode(mode);
-    req.mutable_options()->set_want_tangent(tangent);
-    for (std::int64_t id : ids) {
-      v1::Increment* inc = req.add_increments();
-      inc->set_id(id);
-      for (double v : delta_f) inc->add_delta_f(v);
-    }
-    return stub_->Apply(Context().get(), req, resp);
-  }
-
-  v1::RveRecord ExportOne(const std::string& run, std::int64_t id) {
-    return service::ExportOne(*stub_, *Context(), run, id);
-  }
-
-  dem::RveSnapshot PackingOf(const std::string& run, std::int64_t id) {
-    absl::StatusOr<dem::RveSnapshot> p = FromProto(ExportOne(run, id).packing());
-    EXPECT_TRUE(p.ok()) << p.status();
-    return p.ok() ? *p : dem::RveSnapshot{};
-  }
-
- private:
-  std::unique_ptr<RveServer> server_;
-  std::shared_ptr<grpc::Channel> channel_;
-  std::unique_ptr<v1::RveService::Stub> stub_;
-  std::string token_;
-};
+using testing::Compress;
+using testing::ExpectError;
+using testing::kTemplate;
+using testing::MakeTemplate;
+using ServerHarness = testing::Harness;
 
 bool SameBits(const google::protobuf::RepeatedField<double>& a,
               const google::protobuf::RepeatedField<double>& b) {
@@ -126,13 +42,6 @@ bool SameBits(const google::protobuf::RepeatedField<double>& a,
 void ExpectSameState(const v1::RveState& a, const v1::RveState& b, const std::string& where) {
   EXPECT_EQ(a.SerializeAsString(), b.SerializeAsString()) << where;
   EXPECT_TRUE(SameBits(a.stress(), b.stress())) << where;
-}
-
-// Expects `status` to carry `code` and a message containing `words`.
-void ExpectError(const grpc::Status& status, grpc::StatusCode code, const std::string& words) {
-  EXPECT_EQ(status.error_code(), code) << status.error_message();
-  EXPECT_NE(status.error_message().find(words), std::string::npos)
-      << "\"" << status.error_message() << "\" lacks \"" << words << "\"";
 }
 
 class ServiceTest : public ::testing::Test {
@@ -274,13 +183,13 @@ TEST_F(ServiceTest, RepeatedCommitReturnsStoredResultWithoutRecomputing) {
   ASSERT_TRUE(h_.Create("r", {7}).ok());
   v1::ApplyResponse first, again;
   ASSERT_TRUE(h_.Apply("r", 1, v1::APPLY_MODE_COMMIT, {7}, Compress(2e-4), &first).ok());
-  const dem::RveSnapshot after_first = h_.PackingOf("r", 7);
+  const dem::RveSnapshot after_first = h_.SnapshotOf("r", 7);
   ASSERT_TRUE(h_.Apply("r", 1, v1::APPLY_MODE_COMMIT, {7}, Compress(2e-4), &again).ok());
   EXPECT_EQ(again.results(0).code(), 0);
   EXPECT_EQ(again.results(0).step(), 1);
   ExpectSameState(first.results(0).state(), again.results(0).state(), "retry");
   // Not recomputed: the DEM state (step counter included) did not move.
-  ExpectIdenticalPackings(after_first, h_.PackingOf("r", 7), "after retry");
+  ExpectIdenticalPackings(after_first, h_.SnapshotOf("r", 7), "after retry");
 
   // A "retry" with another ΔF is a client error, not a retry.
   v1::ApplyResponse other;
@@ -294,17 +203,17 @@ TEST_F(ServiceTest, RepeatedCommitReturnsStoredResultWithoutRecomputing) {
   EXPECT_EQ(skip.results(0).code(), grpc::StatusCode::FAILED_PRECONDITION);
   EXPECT_EQ(skip.results(0).step(), 1);
   EXPECT_NE(skip.results(0).message().find("is at step 1"), std::string::npos);
-  ExpectIdenticalPackings(after_first, h_.PackingOf("r", 7), "after refused calls");
+  ExpectIdenticalPackings(after_first, h_.SnapshotOf("r", 7), "after refused calls");
 }
 
 TEST_F(ServiceTest, TrialLeavesStateUnchangedAndMatchesCommit) {
   ASSERT_TRUE(h_.Create("r", {1}).ok());
-  const dem::RveSnapshot before = h_.PackingOf("r", 1);
+  const dem::RveSnapshot before = h_.SnapshotOf("r", 1);
   v1::ApplyResponse t1, t2, c;
   ASSERT_TRUE(h_.Apply("r", 1, v1::APPLY_MODE_TRIAL, {1}, Compress(3e-4), &t1, true).ok());
   ASSERT_EQ(t1.results(0).code(), 0) << t1.results(0).message();
   EXPECT_EQ(t1.results(0).step(), 0);  // nothing committed
-  ExpectIdenticalPackings(before, h_.PackingOf("r", 1), "after trial");
+  ExpectIdenticalPackings(before, h_.SnapshotOf("r", 1), "after trial");
   // A second trial (another Newton iteration) from the same committed state.
   ASSERT_TRUE(h_.Apply("r", 1, v1::APPLY_MODE_TRIAL, {1}, Compress(3e-4), &t2, true).ok());
   ExpectSameState(t1.results(0).state(), t2.results(0).state(), "two trials");
@@ -357,7 +266,7 @@ TEST(ServiceExportImport, ContinuationOnAnotherServerIsBitIdentical) {
         << "step " << step;
   }
   ExpectSameState(ra.results(1).state(), rb.results(1).state(), "after 100 steps");
-  ExpectIdenticalPackings(a.PackingOf("run", 6), b.PackingOf("run", 6), "after 100 steps");
+  ExpectIdenticalPackings(a.SnapshotOf("run", 6), b.SnapshotOf("run", 6), "after 100 steps");
   // The retry protocol survives the move: b knows step and ΔF of the last commit.
   v1::ApplyResponse retry;
   ASSERT_TRUE(b.Apply("run", step, v1::APPLY_MODE_COMMIT, {5}, Compress(5e-5), &retry).ok());
@@ -400,7 +309,7 @@ TEST(ServiceDeterminism, ResultsDoNotDependOnThreadCount) {
 
 TEST_F(ServiceTest, BadInputGetsSpecificCodeAndChangesNothing) {
   ASSERT_TRUE(h_.Create("r", {1, 2}).ok());
-  const dem::RveSnapshot before = h_.PackingOf("r", 1);
+  const dem::RveSnapshot before = h_.SnapshotOf("r", 1);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   v1::ApplyResponse resp;
   ExpectError(h_.Apply("r", 1, v1::APPLY_MODE_COMMIT, {1, 2}, {1, 0, 0, 0, nan, 0, 0, 0, 1}, &resp),
@@ -500,7 +409,7 @@ TEST_F(ServiceTest, BadInputGetsSpecificCodeAndChangesNothing) {
     v1::DropResponse out;
     ExpectError(h_.stub().Drop(h_.Context().get(), drop, &out), grpc::StatusCode::NOT_FOUND, "42");
   }
-  ExpectIdenticalPackings(before, h_.PackingOf("r", 1), "after every refused call");
+  ExpectIdenticalPackings(before, h_.SnapshotOf("r", 1), "after every refused call");
   v1::ListRunsResponse runs;
   ASSERT_TRUE(h_.stub().ListRuns(h_.Context().get(), {}, &runs).ok());
   ASSERT_EQ(runs.runs_size(), 1);
