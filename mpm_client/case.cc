@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <initializer_list>
 #include <limits>
 #include <map>
@@ -101,7 +102,7 @@ size_t Distance(absl::string_view a, absl::string_view b) {
 class Object {
  public:
   static absl::StatusOr<Object> Open(const Json& j, std::string ptr,
-                                     std::initializer_list<absl::string_view> keys) {
+                                     const std::vector<absl::string_view>& keys) {
     if (!j.is_object()) return Bad(ptr, "must be an object, got ", Got(j));
     for (const auto& [key, value] : j.items()) {
       if (std::find(keys.begin(), keys.end(), key) != keys.end()) continue;
@@ -368,6 +369,99 @@ std::vector<std::string> NamesOf(const std::vector<T>& items) {
   return names;
 }
 
+// ---------------------------------------------------------------- field tables
+
+// One key of a section, once: how it is read from a case file (with its
+// validation) and how the canonical writer writes it back. A section's
+// table lists its keys in order; the reader reads them in that order (so a
+// rule may look at keys read before it), the writer writes them so.
+template <typename S>
+struct Field {
+  absl::string_view key;
+  std::function<absl::Status(const Object&, S*)> read;
+  // Writes the key into `j`, or nothing where the spec does not use it.
+  std::function<void(const S&, OrderedJson&)> write;
+};
+template <typename S>
+using Fields = std::vector<Field<S>>;
+
+OrderedJson Vec(const Eigen::Vector2d& v) { return OrderedJson::array({v.x(), v.y()}); }
+
+template <typename S>
+Field<S> NumberField(absl::string_view key, double S::*m, Need need, Range range) {
+  return {key, [=](const Object& o, S* s) { return GetNumber(o, key, need, range, &(s->*m)); },
+          [=](const S& s, OrderedJson& j) { j[std::string(key)] = s.*m; }};
+}
+
+template <typename S>
+Field<S> Vec2Field(absl::string_view key, Eigen::Vector2d S::*m, Need need, Range range) {
+  return {key, [=](const Object& o, S* s) { return GetVec2(o, key, need, range, &(s->*m)); },
+          [=](const S& s, OrderedJson& j) { j[std::string(key)] = Vec(s.*m); }};
+}
+
+template <typename S>
+Field<S> IntegerField(absl::string_view key, std::int64_t S::*m, std::int64_t lo, std::int64_t hi) {
+  return {key, [=](const Object& o, S* s) { return GetInteger(o, key, lo, hi, &(s->*m)); },
+          [=](const S& s, OrderedJson& j) { j[std::string(key)] = s.*m; }};
+}
+
+template <typename S>
+Field<S> TextField(absl::string_view key, std::string S::*m, Need need, bool non_empty) {
+  return {key, [=](const Object& o, S* s) { return GetString(o, key, need, non_empty, &(s->*m)); },
+          [=](const S& s, OrderedJson& j) { j[std::string(key)] = s.*m; }};
+}
+
+template <typename S>
+Field<S> NameField() {
+  return {"name", [](const Object& o, S* s) { return GetName(o, &s->name); },
+          [](const S& s, OrderedJson& j) { j["name"] = s.name; }};
+}
+
+// An enumeration: read by `table` (aliases allowed), written as name(value).
+// `table` must have static storage (a constexpr Table).
+template <typename S, typename T>
+Field<S> EnumField(absl::string_view key, T S::*m, Need need, absl::string_view what,
+                   Table<T> table, absl::string_view (*name)(T)) {
+  return {key, [=](const Object& o, S* s) { return GetEnum(o, key, need, what, table, &(s->*m)); },
+          [=](const S& s, OrderedJson& j) { j[std::string(key)] = name(s.*m); }};
+}
+
+// `field` only where `applies` holds for what was read before it; elsewhere
+// the key is refused (`why`) and not written.
+template <typename S>
+Field<S> Only(bool (*applies)(const S&), absl::string_view why, Field<S> field) {
+  return {field.key,
+          [=](const Object& o, S* s) {
+            return applies(*s) ? field.read(o, s) : Forbid(o, field.key, why);
+          },
+          [=](const S& s, OrderedJson& j) {
+            if (applies(s)) field.write(s, j);
+          }};
+}
+
+template <typename S>
+std::vector<absl::string_view> KeysOf(const Fields<S>& fields) {
+  std::vector<absl::string_view> keys;
+  for (const Field<S>& f : fields) keys.push_back(f.key);
+  return keys;
+}
+
+// Opens the section's object (unknown keys refused) and reads every field.
+template <typename S>
+absl::StatusOr<Object> ReadFields(const Json& j, const std::string& ptr, const Fields<S>& fields,
+                                  S* s) {
+  ASSIGN_OR_RETURN(Object o, Object::Open(j, ptr, KeysOf(fields)));
+  for (const Field<S>& f : fields) RETURN_IF_ERROR(f.read(o, s));
+  return o;
+}
+
+template <typename S>
+OrderedJson WriteFields(const Fields<S>& fields, const S& s) {
+  OrderedJson j = OrderedJson::object();
+  for (const Field<S>& f : fields) f.write(s, j);
+  return j;
+}
+
 // ---------------------------------------------------------------- sections
 
 constexpr absl::string_view kAxisName[2] = {"x", "y"};
@@ -401,85 +495,138 @@ class GridLines {
   GridSpec grid_;
 };
 
+// Bounded so that node and cell counts fit an int.
+constexpr int kMaxCells = 100000;
+constexpr std::int64_t kMaxTotalCells = 100000000;
+
+Fields<GridSpec> GridFields() {
+  return {
+      Vec2Field("origin", &GridSpec::origin, Need::kOptional, kAny),
+      NumberField("cell_size", &GridSpec::cell_size, Need::kRequired, kPositive),
+      {"cells",
+       [](const Object& o, GridSpec* grid) -> absl::Status {
+         const Json* cells = o.Get("cells");
+         if (cells == nullptr) return o.Missing("cells");
+         if (!cells->is_array() || cells->size() != 2) {
+           return Bad(o.At("cells"), "must be an array of 2 integers [nx, ny], got ", Got(*cells));
+         }
+         RETURN_IF_ERROR(ReadInt((*cells)[0], Child(o.At("cells"), 0), 1, kMaxCells, &grid->nx));
+         RETURN_IF_ERROR(ReadInt((*cells)[1], Child(o.At("cells"), 1), 1, kMaxCells, &grid->ny));
+         if (static_cast<std::int64_t>(grid->nx) * grid->ny > kMaxTotalCells) {
+           return Bad(o.At("cells"), "at most ", kMaxTotalCells, " cells, got ", grid->nx, " × ",
+                      grid->ny);
+         }
+         return absl::OkStatus();
+       },
+       [](const GridSpec& g, OrderedJson& j) {
+         j["cells"] = OrderedJson::array({g.nx, g.ny});
+       }},
+  };
+}
+
 absl::Status ParseGrid(const Json& j, const std::string& ptr, GridSpec* grid) {
-  ASSIGN_OR_RETURN(Object o, Object::Open(j, ptr, {"origin", "cell_size", "cells"}));
-  RETURN_IF_ERROR(GetVec2(o, "origin", Need::kOptional, kAny, &grid->origin));
-  RETURN_IF_ERROR(GetNumber(o, "cell_size", Need::kRequired, kPositive, &grid->cell_size));
-  const Json* cells = o.Get("cells");
-  if (cells == nullptr) return o.Missing("cells");
-  if (!cells->is_array() || cells->size() != 2) {
-    return Bad(o.At("cells"), "must be an array of 2 integers [nx, ny], got ", Got(*cells));
-  }
-  // Bounded so that node and cell counts fit an int.
-  constexpr int kMaxCells = 100000;
-  constexpr std::int64_t kMaxTotalCells = 100000000;
-  RETURN_IF_ERROR(ReadInt((*cells)[0], Child(o.At("cells"), 0), 1, kMaxCells, &grid->nx));
-  RETURN_IF_ERROR(ReadInt((*cells)[1], Child(o.At("cells"), 1), 1, kMaxCells, &grid->ny));
-  if (static_cast<std::int64_t>(grid->nx) * grid->ny > kMaxTotalCells) {
-    return Bad(o.At("cells"), "at most ", kMaxTotalCells, " cells, got ", grid->nx, " × ",
-               grid->ny);
-  }
-  return absl::OkStatus();
+  return ReadFields(j, ptr, GridFields(), grid).status();
 }
 
 constexpr Table<ShapeKind> kShapes = {{"linear", ShapeKind::kLinear}, {"gimp", ShapeKind::kGimp}};
 
+absl::string_view ShapeName(ShapeKind kind) { return kind == ShapeKind::kGimp ? "gimp" : "linear"; }
+
+Fields<SolverSpec> SolverFields() {
+  return {
+      EnumField("shape", &SolverSpec::shape, Need::kOptional, "shape function", kShapes,
+                &ShapeName),
+      NumberField("pic_fraction", &SolverSpec::pic_fraction, Need::kOptional, kUnit),
+      Vec2Field("gravity", &SolverSpec::gravity, Need::kOptional, kAny),
+      NumberField("time_step", &SolverSpec::time_step, Need::kOptional, Range{0.0, kMaxEndTime}),
+      NumberField("cfl", &SolverSpec::cfl, Need::kOptional, Range{0.0, 1.0, true, false}),
+      NumberField("wave_modulus", &SolverSpec::wave_modulus, Need::kOptional, kNonNegative),
+      // A bound that keeps end_time / Δt a step count (1e308 s overflowed it
+      // and ended the run at step 0); the step count itself is bounded at the
+      // start.
+      NumberField("end_time", &SolverSpec::end_time, Need::kRequired,
+                  Range{0.0, kMaxEndTime, true, false}),
+      NumberField("thickness", &SolverSpec::thickness, Need::kOptional, kPositive),
+  };
+}
+
 absl::Status ParseSolver(const Json& j, const std::string& ptr, SolverSpec* solver) {
-  ASSIGN_OR_RETURN(Object o, Object::Open(j, ptr,
-                                          {"shape", "pic_fraction", "gravity", "time_step", "cfl",
-                                           "wave_modulus", "end_time", "thickness"}));
-  RETURN_IF_ERROR(GetEnum(o, "shape", Need::kOptional, "shape function", kShapes, &solver->shape));
-  RETURN_IF_ERROR(GetNumber(o, "pic_fraction", Need::kOptional, kUnit, &solver->pic_fraction));
-  RETURN_IF_ERROR(GetVec2(o, "gravity", Need::kOptional, kAny, &solver->gravity));
-  RETURN_IF_ERROR(
-      GetNumber(o, "time_step", Need::kOptional, Range{0.0, kMaxEndTime}, &solver->time_step));
-  RETURN_IF_ERROR(GetNumber(o, "cfl", Need::kOptional, Range{0.0, 1.0, true, false}, &solver->cfl));
-  RETURN_IF_ERROR(
-      GetNumber(o, "wave_modulus", Need::kOptional, kNonNegative, &solver->wave_modulus));
-  // A bound that keeps end_time / Δt a step count (1e308 s overflowed it and
-  // ended the run at step 0); the step count itself is bounded at the start.
-  RETURN_IF_ERROR(GetNumber(o, "end_time", Need::kRequired, Range{0.0, kMaxEndTime, true, false},
-                            &solver->end_time));
-  RETURN_IF_ERROR(GetNumber(o, "thickness", Need::kOptional, kPositive, &solver->thickness));
-  return absl::OkStatus();
+  return ReadFields(j, ptr, SolverFields(), solver).status();
+}
+
+bool FromSet(const TemplateSpec& t) { return t.file.empty(); }
+
+// `base_dir`: the case file's directory, for relative template files.
+Fields<TemplateSpec> TemplateFields(const std::string& base_dir) {
+  return {
+      NameField<TemplateSpec>(),
+      {"parameter_set",
+       [](const Object& o, TemplateSpec* t) -> absl::Status {
+         if (o.Has("file") == o.Has("parameter_set")) {
+           return Bad(o.ptr(),
+                      "give exactly one of \"file\" (a template file) or \"parameter_set\" ",
+                      "(prepare from a named parameter set)");
+         }
+         if (!o.Has("parameter_set")) return absl::OkStatus();
+         RETURN_IF_ERROR(Forbid(o, "template_name", "only for templates read from a file"));
+         RETURN_IF_ERROR(GetString(o, "parameter_set", Need::kRequired, true, &t->parameter_set));
+         if (!dem::FindParameterSet(t->parameter_set).ok()) {
+           return Bad(o.At("parameter_set"), "unknown parameter set ", Quote(t->parameter_set),
+                      " (known: ", absl::StrJoin(dem::ParameterSetNames(), ", "), ")");
+         }
+         return absl::OkStatus();
+       },
+       [](const TemplateSpec& t, OrderedJson& j) {
+         if (FromSet(t)) j["parameter_set"] = t.parameter_set;
+       }},
+      {"seed",
+       [](const Object& o, TemplateSpec* t) -> absl::Status {
+         if (!o.Has("parameter_set")) {
+           return Forbid(o, "seed",
+                         "only for templates prepared from a parameter set (a file holds its own "
+                         "packing)");
+         }
+         const Json* seed = o.Get("seed");
+         return seed == nullptr ? absl::OkStatus() : ReadSeed(*seed, o.At("seed"), &t->seed);
+       },
+       [](const TemplateSpec& t, OrderedJson& j) {
+         if (FromSet(t)) j["seed"] = t.seed;
+       }},
+      {"file",
+       [base_dir](const Object& o, TemplateSpec* t) -> absl::Status {
+         if (!o.Has("file")) return absl::OkStatus();
+         std::string file;
+         RETURN_IF_ERROR(GetString(o, "file", Need::kRequired, true, &file));
+         std::filesystem::path path(file);
+         if (path.is_relative()) path = std::filesystem::path(base_dir) / path;
+         std::error_code error;
+         std::filesystem::path absolute = std::filesystem::absolute(path, error);
+         if (!error) path = absolute;
+         path = path.lexically_normal();
+         if (!std::filesystem::is_regular_file(path, error)) {
+           return Bad(o.At("file"), "no such file ", Quote(path.string()));
+         }
+         t->file = path.string();
+         return absl::OkStatus();
+       },
+       [](const TemplateSpec& t, OrderedJson& j) {
+         if (!FromSet(t)) j["file"] = t.file;
+       }},
+      {"template_name",
+       [](const Object& o, TemplateSpec* t) {
+         return o.Has("file")
+                    ? GetString(o, "template_name", Need::kOptional, true, &t->template_name)
+                    : absl::OkStatus();
+       },
+       [](const TemplateSpec& t, OrderedJson& j) {
+         if (!FromSet(t) && !t.template_name.empty()) j["template_name"] = t.template_name;
+       }},
+  };
 }
 
 absl::Status ParseTemplate(const Json& j, const std::string& ptr, const std::string& base_dir,
                            TemplateSpec* t) {
-  ASSIGN_OR_RETURN(
-      Object o, Object::Open(j, ptr, {"name", "parameter_set", "seed", "file", "template_name"}));
-  RETURN_IF_ERROR(GetName(o, &t->name));
-  if (o.Has("file") == o.Has("parameter_set")) {
-    return Bad(ptr, "give exactly one of \"file\" (a template file) or \"parameter_set\" (prepare ",
-               "from a named parameter set)");
-  }
-  if (o.Has("parameter_set")) {
-    RETURN_IF_ERROR(Forbid(o, "template_name", "only for templates read from a file"));
-    RETURN_IF_ERROR(GetString(o, "parameter_set", Need::kRequired, true, &t->parameter_set));
-    if (!dem::FindParameterSet(t->parameter_set).ok()) {
-      return Bad(o.At("parameter_set"), "unknown parameter set ", Quote(t->parameter_set),
-                 " (known: ", absl::StrJoin(dem::ParameterSetNames(), ", "), ")");
-    }
-    if (const Json* seed = o.Get("seed")) RETURN_IF_ERROR(ReadSeed(*seed, o.At("seed"), &t->seed));
-    return absl::OkStatus();
-  }
-  RETURN_IF_ERROR(Forbid(o, "seed",
-                         "only for templates prepared from a parameter set (a file holds its own "
-                         "packing)"));
-  std::string file;
-  RETURN_IF_ERROR(GetString(o, "file", Need::kRequired, true, &file));
-  RETURN_IF_ERROR(GetString(o, "template_name", Need::kOptional, true, &t->template_name));
-  std::filesystem::path path(file);
-  if (path.is_relative()) path = std::filesystem::path(base_dir) / path;
-  std::error_code error;
-  std::filesystem::path absolute = std::filesystem::absolute(path, error);
-  if (!error) path = absolute;
-  path = path.lexically_normal();
-  if (!std::filesystem::is_regular_file(path, error)) {
-    return Bad(o.At("file"), "no such file ", Quote(path.string()));
-  }
-  t->file = path.string();
-  return absl::OkStatus();
+  return ReadFields(j, ptr, TemplateFields(base_dir), t).status();
 }
 
 // A region's extent in grid cells, for the overlap and free-surface checks.
@@ -493,24 +640,41 @@ constexpr Table<InitialStressKind> kInitialStresses = {
     {"geostatic_isotropic", InitialStressKind::kIsotropic},
     {"geostatic_k0", InitialStressKind::kK0}};
 
+absl::string_view InitialStressName(InitialStressKind kind) {
+  switch (kind) {
+    case InitialStressKind::kTemplate:
+      break;
+    case InitialStressKind::kIsotropic:
+      return "geostatic_isotropic";
+    case InitialStressKind::kK0:
+      return "geostatic_k0";
+  }
+  return "template";
+}
+
+bool K0(const MaterialRegion& r) { return r.initial_stress == InitialStressKind::kK0; }
+bool Geostatic(const MaterialRegion& r) { return r.initial_stress != InitialStressKind::kTemplate; }
+
+// The keys of a region's "initial_stress" object.
+Fields<MaterialRegion> InitialStressFields() {
+  constexpr absl::string_view kOnlyGeostatic = "only for the geostatic kinds";
+  return {
+      EnumField("kind", &MaterialRegion::initial_stress, Need::kRequired, "initial stress kind",
+                kInitialStresses, &InitialStressName),
+      Only(&K0, "only for kind \"geostatic_k0\"",
+           NumberField("k0", &MaterialRegion::k0, Need::kOptional, kPositive)),
+      Only(&Geostatic, kOnlyGeostatic,
+           NumberField("surface_y", &MaterialRegion::surface_y, Need::kOptional, kAny)),
+      Only(&Geostatic, kOnlyGeostatic,
+           NumberField("surcharge", &MaterialRegion::surcharge, Need::kOptional, kNonNegative)),
+      Only(&Geostatic, kOnlyGeostatic,
+           NumberField("minimum", &MaterialRegion::minimum_stress, Need::kOptional, kNonNegative)),
+  };
+}
+
 absl::Status ParseInitialStress(const Json& j, const std::string& ptr, const SolverSpec& solver,
                                 MaterialRegion* r) {
-  ASSIGN_OR_RETURN(Object o,
-                   Object::Open(j, ptr, {"kind", "k0", "surface_y", "surcharge", "minimum"}));
-  RETURN_IF_ERROR(GetEnum(o, "kind", Need::kRequired, "initial stress kind", kInitialStresses,
-                          &r->initial_stress));
-  if (r->initial_stress != InitialStressKind::kK0) {
-    RETURN_IF_ERROR(Forbid(o, "k0", "only for kind \"geostatic_k0\""));
-  }
-  if (r->initial_stress == InitialStressKind::kTemplate) {
-    for (absl::string_view key : {"surface_y", "surcharge", "minimum"}) {
-      RETURN_IF_ERROR(Forbid(o, key, "only for the geostatic kinds"));
-    }
-  }
-  RETURN_IF_ERROR(GetNumber(o, "k0", Need::kOptional, kPositive, &r->k0));
-  RETURN_IF_ERROR(GetNumber(o, "surface_y", Need::kOptional, kAny, &r->surface_y));
-  RETURN_IF_ERROR(GetNumber(o, "surcharge", Need::kOptional, kNonNegative, &r->surcharge));
-  RETURN_IF_ERROR(GetNumber(o, "minimum", Need::kOptional, kNonNegative, &r->minimum_stress));
+  ASSIGN_OR_RETURN(Object o, ReadFields(j, ptr, InitialStressFields(), r));
   // RVEs need p > 0: without gravity σv is the surcharge (or the minimum).
   if (r->initial_stress != InitialStressKind::kTemplate && solver.gravity.isZero(0.0) &&
       r->surcharge == 0.0 && r->minimum_stress == 0.0) {
@@ -520,41 +684,75 @@ absl::Status ParseInitialStress(const Json& j, const std::string& ptr, const Sol
   return absl::OkStatus();
 }
 
+// What reading a region needs besides its JSON (null members: only writing).
+struct RegionContext {
+  const GridLines* lines = nullptr;
+  const SolverSpec* solver = nullptr;
+  const std::vector<TemplateSpec>* templates = nullptr;
+  CellBox* box = nullptr;
+};
+
+Fields<MaterialRegion> RegionFields(const RegionContext& c) {
+  return {
+      NameField<MaterialRegion>(),
+      Vec2Field("lower", &MaterialRegion::lower, Need::kRequired, kAny),
+      {"upper",
+       [c](const Object& o, MaterialRegion* r) -> absl::Status {
+         RETURN_IF_ERROR(GetVec2(o, "upper", Need::kRequired, kAny, &r->upper));
+         // Both corners on grid lines, upper above lower: at least one cell.
+         for (int axis = 0; axis < 2; ++axis) {
+           RETURN_IF_ERROR(c.lines->Snap(r->lower[axis], axis, Child(o.At("lower"), axis),
+                                         &c.box->lo[axis], &r->lower[axis]));
+           RETURN_IF_ERROR(c.lines->Snap(r->upper[axis], axis, Child(o.At("upper"), axis),
+                                         &c.box->hi[axis], &r->upper[axis]));
+           if (c.box->hi[axis] <= c.box->lo[axis]) {
+             return Bad(Child(o.At("upper"), axis), "upper ", kAxisName[axis], " = ",
+                        Num(r->upper[axis]), " m must be above lower ", kAxisName[axis], " = ",
+                        Num(r->lower[axis]), " m (a region spans at least one cell)");
+           }
+         }
+         return absl::OkStatus();
+       },
+       [](const MaterialRegion& r, OrderedJson& j) { j["upper"] = Vec(r.upper); }},
+      {"points_per_cell_side",
+       [](const Object& o, MaterialRegion* r) -> absl::Status {
+         const Json* v = o.Get("points_per_cell_side");
+         return v == nullptr
+                    ? absl::OkStatus()
+                    : ReadInt(*v, o.At("points_per_cell_side"), 1, 8, &r->points_per_cell_side);
+       },
+       [](const MaterialRegion& r, OrderedJson& j) {
+         j["points_per_cell_side"] = r.points_per_cell_side;
+       }},
+      {"template",
+       [c](const Object& o, MaterialRegion* r) -> absl::Status {
+         RETURN_IF_ERROR(GetString(o, "template", Need::kRequired, true, &r->rve_template));
+         if (std::none_of(c.templates->begin(), c.templates->end(),
+                          [&](const TemplateSpec& t) { return t.name == r->rve_template; })) {
+           return Bad(o.At("template"), "no template named ", Quote(r->rve_template),
+                      " (templates: ", absl::StrJoin(NamesOf(*c.templates), ", "), ")");
+         }
+         return absl::OkStatus();
+       },
+       [](const MaterialRegion& r, OrderedJson& j) { j["template"] = r.rve_template; }},
+      NumberField("density", &MaterialRegion::density, Need::kOptional, kNonNegative),
+      {"initial_stress",
+       [c](const Object& o, MaterialRegion* r) -> absl::Status {
+         r->surface_y = r->upper.y();  // the region's top unless stated
+         const Json* v = o.Get("initial_stress");
+         return v == nullptr ? absl::OkStatus()
+                             : ParseInitialStress(*v, o.At("initial_stress"), *c.solver, r);
+       },
+       [](const MaterialRegion& r, OrderedJson& j) {
+         j["initial_stress"] = WriteFields(InitialStressFields(), r);
+       }},
+  };
+}
+
 absl::Status ParseRegion(const Json& j, const std::string& ptr, const GridLines& lines,
                          const SolverSpec& solver, const std::vector<TemplateSpec>& templates,
                          MaterialRegion* r, CellBox* box) {
-  ASSIGN_OR_RETURN(Object o, Object::Open(j, ptr,
-                                          {"name", "lower", "upper", "points_per_cell_side",
-                                           "template", "density", "initial_stress"}));
-  RETURN_IF_ERROR(GetName(o, &r->name));
-  RETURN_IF_ERROR(GetVec2(o, "lower", Need::kRequired, kAny, &r->lower));
-  RETURN_IF_ERROR(GetVec2(o, "upper", Need::kRequired, kAny, &r->upper));
-  for (int axis = 0; axis < 2; ++axis) {
-    RETURN_IF_ERROR(lines.Snap(r->lower[axis], axis, Child(o.At("lower"), axis), &box->lo[axis],
-                               &r->lower[axis]));
-    RETURN_IF_ERROR(lines.Snap(r->upper[axis], axis, Child(o.At("upper"), axis), &box->hi[axis],
-                               &r->upper[axis]));
-    if (box->hi[axis] <= box->lo[axis]) {
-      return Bad(Child(o.At("upper"), axis), "upper ", kAxisName[axis], " = ", Num(r->upper[axis]),
-                 " m must be above lower ", kAxisName[axis], " = ", Num(r->lower[axis]),
-                 " m (a region spans at least one cell)");
-    }
-  }
-  if (const Json* v = o.Get("points_per_cell_side")) {
-    RETURN_IF_ERROR(ReadInt(*v, o.At("points_per_cell_side"), 1, 8, &r->points_per_cell_side));
-  }
-  RETURN_IF_ERROR(GetString(o, "template", Need::kRequired, true, &r->rve_template));
-  if (std::none_of(templates.begin(), templates.end(),
-                   [&](const TemplateSpec& t) { return t.name == r->rve_template; })) {
-    return Bad(o.At("template"), "no template named ", Quote(r->rve_template),
-               " (templates: ", absl::StrJoin(NamesOf(templates), ", "), ")");
-  }
-  RETURN_IF_ERROR(GetNumber(o, "density", Need::kOptional, kNonNegative, &r->density));
-  r->surface_y = r->upper.y();  // the region's top unless stated
-  if (const Json* v = o.Get("initial_stress")) {
-    RETURN_IF_ERROR(ParseInitialStress(*v, o.At("initial_stress"), solver, r));
-  }
-  return absl::OkStatus();
+  return ReadFields(j, ptr, RegionFields({&lines, &solver, &templates, box}), r).status();
 }
 
 absl::Status CheckOverlaps(const std::vector<MaterialRegion>& regions,
@@ -601,20 +799,52 @@ absl::Status GetFriction(const Object& o, ContactKind kind, absl::string_view ki
   return GetNumber(o, "friction", Need::kRequired, kPositive, friction);
 }
 
+constexpr Table<int> kAxes = {{"x", 0}, {"y", 1}};
+absl::string_view AxisName(int axis) { return kAxisName[axis == 0 ? 0 : 1]; }
+
+// μ of a contact `kind_key` ("kind" or "contact"): required and > 0 for
+// frictional contact, refused otherwise; written only where it applies.
+template <typename S>
+Field<S> FrictionField(absl::string_view kind_key) {
+  return {"friction",
+          [=](const Object& o, S* s) { return GetFriction(o, s->contact, kind_key, &s->friction); },
+          [](const S& s, OrderedJson& j) {
+            if (s.contact == ContactKind::kFrictional) j["friction"] = s.friction;
+          }};
+}
+
+// A number that is infinite (never, unbounded) unless given; written only
+// when finite.
+template <typename S>
+Field<S> OptionalFiniteField(absl::string_view key, double S::*m, Range range) {
+  return {
+      key,
+      [=](const Object& o, S* s) { return GetNumber(o, key, Need::kOptional, range, &(s->*m)); },
+      [=](const S& s, OrderedJson& j) {
+        if (std::isfinite(s.*m)) j[std::string(key)] = s.*m;
+      }};
+}
+
+// `lines`: the grid's, for snapping the position (null when only writing).
+Fields<Wall> WallFields(const GridLines* lines) {
+  return {
+      NameField<Wall>(),
+      EnumField("kind", &Wall::contact, Need::kRequired, "wall kind", kWallKinds, &ContactKindName),
+      EnumField("line", &Wall::axis, Need::kRequired, "wall line", kAxes, &AxisName),
+      {"position",
+       [lines](const Object& o, Wall* w) -> absl::Status {
+         RETURN_IF_ERROR(GetNumber(o, "position", Need::kRequired, kAny, &w->position));
+         int index = 0;
+         return lines->Snap(w->position, w->axis, o.At("position"), &index, &w->position);
+       },
+       [](const Wall& w, OrderedJson& j) { j["position"] = w.position; }},
+      FrictionField<Wall>("kind"),
+      OptionalFiniteField("remove_time", &Wall::remove_time, kNonNegative),
+  };
+}
+
 absl::Status ParseWall(const Json& j, const std::string& ptr, const GridLines& lines, Wall* w) {
-  ASSIGN_OR_RETURN(
-      Object o,
-      Object::Open(j, ptr, {"name", "kind", "line", "position", "friction", "remove_time"}));
-  RETURN_IF_ERROR(GetName(o, &w->name));
-  RETURN_IF_ERROR(GetEnum(o, "kind", Need::kRequired, "wall kind", kWallKinds, &w->contact));
-  RETURN_IF_ERROR(
-      GetEnum(o, "line", Need::kRequired, "wall line", Table<int>{{"x", 0}, {"y", 1}}, &w->axis));
-  RETURN_IF_ERROR(GetNumber(o, "position", Need::kRequired, kAny, &w->position));
-  int index = 0;
-  RETURN_IF_ERROR(lines.Snap(w->position, w->axis, o.At("position"), &index, &w->position));
-  RETURN_IF_ERROR(GetFriction(o, w->contact, "kind", &w->friction));
-  RETURN_IF_ERROR(GetNumber(o, "remove_time", Need::kOptional, kNonNegative, &w->remove_time));
-  return absl::OkStatus();
+  return ReadFields(j, ptr, WallFields(&lines), w).status();
 }
 
 absl::Status ParseVelocity(const Json& j, const std::string& ptr,
@@ -640,30 +870,43 @@ absl::Status ParseVelocity(const Json& j, const std::string& ptr,
   return absl::OkStatus();
 }
 
+constexpr Table<RigidBody::Shape> kBodyShapes = {{"rectangle", RigidBody::Shape::kRectangle},
+                                                 {"circle", RigidBody::Shape::kCircle}};
+absl::string_view BodyShapeName(RigidBody::Shape shape) {
+  return shape == RigidBody::Shape::kCircle ? "circle" : "rectangle";
+}
+bool Rectangle(const RigidBody& b) { return b.shape == RigidBody::Shape::kRectangle; }
+bool Circle(const RigidBody& b) { return b.shape == RigidBody::Shape::kCircle; }
+
+Fields<RigidBody> BodyFields() {
+  return {
+      NameField<RigidBody>(),
+      EnumField("shape", &RigidBody::shape, Need::kRequired, "body shape", kBodyShapes,
+                &BodyShapeName),
+      Vec2Field("center", &RigidBody::center, Need::kRequired, kAny),
+      Only(&Rectangle, "only for shape \"rectangle\"",
+           Vec2Field("half_size", &RigidBody::half_size, Need::kRequired, kPositive)),
+      Only(&Circle, "only for shape \"circle\"",
+           NumberField("radius", &RigidBody::radius, Need::kRequired, kPositive)),
+      EnumField("contact", &RigidBody::contact, Need::kOptional, "body contact", kBodyContacts,
+                &ContactKindName),
+      FrictionField<RigidBody>("contact"),
+      {"velocity",
+       [](const Object& o, RigidBody* b) -> absl::Status {
+         const Json* v = o.Get("velocity");
+         return v == nullptr ? absl::OkStatus() : ParseVelocity(*v, o.At("velocity"), &b->velocity);
+       },
+       [](const RigidBody& b, OrderedJson& j) {
+         OrderedJson& velocity = j["velocity"] = OrderedJson::array();
+         for (const VelocityPoint& p : b.velocity) {
+           velocity.push_back(OrderedJson::array({p.time, p.velocity.x(), p.velocity.y()}));
+         }
+       }},
+  };
+}
+
 absl::Status ParseBody(const Json& j, const std::string& ptr, RigidBody* b) {
-  ASSIGN_OR_RETURN(Object o, Object::Open(j, ptr,
-                                          {"name", "shape", "center", "half_size", "radius",
-                                           "contact", "friction", "velocity"}));
-  RETURN_IF_ERROR(GetName(o, &b->name));
-  RETURN_IF_ERROR(GetEnum(o, "shape", Need::kRequired, "body shape",
-                          Table<RigidBody::Shape>{{"rectangle", RigidBody::Shape::kRectangle},
-                                                  {"circle", RigidBody::Shape::kCircle}},
-                          &b->shape));
-  RETURN_IF_ERROR(GetVec2(o, "center", Need::kRequired, kAny, &b->center));
-  if (b->shape == RigidBody::Shape::kRectangle) {
-    RETURN_IF_ERROR(Forbid(o, "radius", "only for shape \"circle\""));
-    RETURN_IF_ERROR(GetVec2(o, "half_size", Need::kRequired, kPositive, &b->half_size));
-  } else {
-    RETURN_IF_ERROR(Forbid(o, "half_size", "only for shape \"rectangle\""));
-    RETURN_IF_ERROR(GetNumber(o, "radius", Need::kRequired, kPositive, &b->radius));
-  }
-  RETURN_IF_ERROR(
-      GetEnum(o, "contact", Need::kOptional, "body contact", kBodyContacts, &b->contact));
-  RETURN_IF_ERROR(GetFriction(o, b->contact, "contact", &b->friction));
-  if (const Json* v = o.Get("velocity")) {
-    RETURN_IF_ERROR(ParseVelocity(*v, o.At("velocity"), &b->velocity));
-  }
-  return absl::OkStatus();
+  return ReadFields(j, ptr, BodyFields(), b).status();
 }
 
 struct Surface {
@@ -677,44 +920,71 @@ std::string SurfaceName(int axis, int sign) {
   return absl::StrCat(sign > 0 ? "+" : "-", kAxisName[axis]);
 }
 
+// `regions`: the case's, for the region's check (null when only writing).
+Fields<SurfaceTraction> TractionFields(const std::vector<MaterialRegion>* regions) {
+  return {
+      NameField<SurfaceTraction>(),
+      {"region",
+       [regions](const Object& o, SurfaceTraction* t) -> absl::Status {
+         RETURN_IF_ERROR(GetString(o, "region", Need::kRequired, true, &t->region));
+         if (std::none_of(regions->begin(), regions->end(),
+                          [&](const MaterialRegion& r) { return r.name == t->region; })) {
+           return Bad(o.At("region"), "no region named ", Quote(t->region),
+                      " (regions: ", absl::StrJoin(NamesOf(*regions), ", "), ")");
+         }
+         return absl::OkStatus();
+       },
+       [](const SurfaceTraction& t, OrderedJson& j) { j["region"] = t.region; }},
+      {"surface",
+       [](const Object& o, SurfaceTraction* t) -> absl::Status {
+         Surface surface{0, 1};
+         RETURN_IF_ERROR(GetEnum(o, "surface", Need::kRequired, "surface", kSurfaces, &surface));
+         t->normal_axis = surface.axis;
+         t->normal_sign = surface.sign;
+         return absl::OkStatus();
+       },
+       [](const SurfaceTraction& t, OrderedJson& j) {
+         j["surface"] = SurfaceName(t.normal_axis == 0 ? 0 : 1, t.normal_sign);
+       }},
+      // Read as the traction it makes; the writer writes that traction.
+      {"pressure",
+       [](const Object& o, SurfaceTraction* t) -> absl::Status {
+         if (o.Has("pressure") == o.Has("traction")) {
+           return Bad(o.ptr(), "give exactly one of \"pressure\" (Pa, compression +) or ",
+                      "\"traction\" ([tx, ty], Pa, tension +)");
+         }
+         if (!o.Has("pressure")) return absl::OkStatus();
+         double pressure = 0.0;
+         RETURN_IF_ERROR(GetNumber(o, "pressure", Need::kRequired, kAny, &pressure));
+         // A pressure pushes against the outward normal n: t = −p·n.
+         t->traction = Eigen::Vector2d::Zero();
+         t->traction[t->normal_axis] = -pressure * t->normal_sign;
+         return absl::OkStatus();
+       },
+       [](const SurfaceTraction&, OrderedJson&) {}},
+      {"traction",
+       [](const Object& o, SurfaceTraction* t) {
+         return o.Has("traction") ? GetVec2(o, "traction", Need::kRequired, kAny, &t->traction)
+                                  : absl::OkStatus();
+       },
+       [](const SurfaceTraction& t, OrderedJson& j) { j["traction"] = Vec(t.traction); }},
+      NumberField("ramp_time", &SurfaceTraction::ramp_time, Need::kOptional, kNonNegative),
+      OptionalFiniteField("from", &SurfaceTraction::from, kAny),
+      OptionalFiniteField("to", &SurfaceTraction::to, kAny),
+  };
+}
+
 absl::Status ParseTraction(const Json& j, const std::string& ptr,
                            const std::vector<MaterialRegion>& regions,
                            const std::vector<CellBox>& boxes, const std::string& regions_ptr,
                            SurfaceTraction* t) {
-  ASSIGN_OR_RETURN(Object o, Object::Open(j, ptr,
-                                          {"name", "region", "surface", "pressure", "traction",
-                                           "ramp_time", "from", "to"}));
-  RETURN_IF_ERROR(GetName(o, &t->name));
-  RETURN_IF_ERROR(GetString(o, "region", Need::kRequired, true, &t->region));
-  auto region = std::find_if(regions.begin(), regions.end(),
-                             [&](const MaterialRegion& r) { return r.name == t->region; });
-  if (region == regions.end()) {
-    return Bad(o.At("region"), "no region named ", Quote(t->region),
-               " (regions: ", absl::StrJoin(NamesOf(regions), ", "), ")");
-  }
-  Surface surface{0, 1};
-  RETURN_IF_ERROR(GetEnum(o, "surface", Need::kRequired, "surface", kSurfaces, &surface));
-  t->normal_axis = surface.axis;
-  t->normal_sign = surface.sign;
-  if (o.Has("pressure") == o.Has("traction")) {
-    return Bad(ptr, "give exactly one of \"pressure\" (Pa, compression +) or \"traction\" ",
-               "([tx, ty], Pa, tension +)");
-  }
-  if (o.Has("pressure")) {
-    double pressure = 0.0;
-    RETURN_IF_ERROR(GetNumber(o, "pressure", Need::kRequired, kAny, &pressure));
-    // A pressure pushes against the outward normal n: t = −p·n.
-    t->traction = Eigen::Vector2d::Zero();
-    t->traction[surface.axis] = -pressure * surface.sign;
-  } else {
-    RETURN_IF_ERROR(GetVec2(o, "traction", Need::kRequired, kAny, &t->traction));
-  }
-  RETURN_IF_ERROR(GetNumber(o, "ramp_time", Need::kOptional, kNonNegative, &t->ramp_time));
-  RETURN_IF_ERROR(GetNumber(o, "from", Need::kOptional, kAny, &t->from));
-  RETURN_IF_ERROR(GetNumber(o, "to", Need::kOptional, kAny, &t->to));
+  ASSIGN_OR_RETURN(Object o, ReadFields(j, ptr, TractionFields(&regions), t));
   if (!(t->from < t->to)) {
     return Bad(o.At("to"), "must be > from = ", Num(t->from), " m, got ", Num(t->to));
   }
+  auto region = std::find_if(regions.begin(), regions.end(),
+                             [&](const MaterialRegion& r) { return r.name == t->region; });
+  const Surface surface{t->normal_axis, t->normal_sign};
 
   // The loaded part of the face, [lo, hi] along the other axis, must exist
   // and be free: not shared with a neighbouring region.
@@ -746,46 +1016,62 @@ absl::Status ParseTraction(const Json& j, const std::string& ptr,
   return absl::OkStatus();
 }
 
-absl::Status ParseRve(const Json& j, const std::string& ptr, RveSpec* rve) {
-  ASSIGN_OR_RETURN(Object o, Object::Open(j, ptr, {"max_inertial_number", "min_steps"}));
+Fields<RveSpec> RveFields() {
   // I above 0.1 is a dense flow, not a quasi-static RVE; more than 10^5 DEM
   // steps per increment is a mistake, not a setting.
-  RETURN_IF_ERROR(GetNumber(o, "max_inertial_number", Need::kOptional, Range{0.0, 0.1},
-                            &rve->max_inertial_number));
-  RETURN_IF_ERROR(GetInteger(o, "min_steps", 0, 100000, &rve->min_steps));
-  return absl::OkStatus();
+  return {
+      NumberField("max_inertial_number", &RveSpec::max_inertial_number, Need::kOptional,
+                  Range{0.0, 0.1}),
+      IntegerField("min_steps", &RveSpec::min_steps, 0, 100000),
+  };
+}
+
+absl::Status ParseRve(const Json& j, const std::string& ptr, RveSpec* rve) {
+  return ReadFields(j, ptr, RveFields(), rve).status();
+}
+
+// Static storage for the list (the table outlives every read).
+const Table<std::string> kPlots = {
+    {"stress-strain", "stress-strain"}, {"load-settlement", "load-settlement"}, {"none", "none"}};
+
+bool LoadSettlement(const OutputSpec& o) { return o.plot == "load-settlement"; }
+
+// `bodies`: the case's, for the plot body's check (null when only writing).
+Fields<OutputSpec> OutputFields(const std::vector<RigidBody>* bodies) {
+  constexpr std::int64_t kMax = std::numeric_limits<std::int64_t>::max();
+  constexpr absl::string_view kOnlyLoadSettlement = "only for plot \"load-settlement\"";
+  Field<OutputSpec> plot_body = TextField("plot_body", &OutputSpec::plot_body, Need::kRequired,
+                                          /*non_empty=*/true);
+  const auto read_body = plot_body.read;
+  plot_body.read = [=](const Object& o, OutputSpec* out) -> absl::Status {
+    RETURN_IF_ERROR(read_body(o, out));
+    if (bodies != nullptr && std::none_of(bodies->begin(), bodies->end(), [&](const RigidBody& b) {
+          return b.name == out->plot_body;
+        })) {
+      return Bad(o.At("plot_body"), "no body named ", Quote(out->plot_body),
+                 " (bodies: ", absl::StrJoin(NamesOf(*bodies), ", "), ")");
+    }
+    return absl::OkStatus();
+  };
+  return {
+      IntegerField("frame_every", &OutputSpec::frame_every, 1, kMax),
+      IntegerField("timeseries_every", &OutputSpec::timeseries_every, 1, kMax),
+      IntegerField("checkpoint_every", &OutputSpec::checkpoint_every, 0, kMax),
+      IntegerField("progress_every", &OutputSpec::progress_every, 1, kMax),
+      {"plot",
+       [](const Object& o, OutputSpec* out) {
+         return GetEnum(o, "plot", Need::kOptional, "plot", kPlots, &out->plot);
+       },
+       [](const OutputSpec& out, OrderedJson& j) { j["plot"] = out.plot; }},
+      Only(&LoadSettlement, kOnlyLoadSettlement, plot_body),
+      Only(&LoadSettlement, kOnlyLoadSettlement,
+           NumberField("plot_width", &OutputSpec::plot_width, Need::kOptional, kPositive)),
+  };
 }
 
 absl::Status ParseOutput(const Json& j, const std::string& ptr,
                          const std::vector<RigidBody>& bodies, OutputSpec* out) {
-  ASSIGN_OR_RETURN(Object o, Object::Open(j, ptr,
-                                          {"frame_every", "timeseries_every", "checkpoint_every",
-                                           "progress_every", "plot", "plot_body", "plot_width"}));
-  constexpr std::int64_t kMax = std::numeric_limits<std::int64_t>::max();
-  RETURN_IF_ERROR(GetInteger(o, "frame_every", 1, kMax, &out->frame_every));
-  RETURN_IF_ERROR(GetInteger(o, "timeseries_every", 1, kMax, &out->timeseries_every));
-  RETURN_IF_ERROR(GetInteger(o, "checkpoint_every", 0, kMax, &out->checkpoint_every));
-  RETURN_IF_ERROR(GetInteger(o, "progress_every", 1, kMax, &out->progress_every));
-  std::string plot = out->plot;
-  RETURN_IF_ERROR(GetEnum(o, "plot", Need::kOptional, "plot",
-                          Table<std::string>{{"stress-strain", "stress-strain"},
-                                             {"load-settlement", "load-settlement"},
-                                             {"none", "none"}},
-                          &plot));
-  out->plot = plot;
-  if (out->plot != "load-settlement") {
-    RETURN_IF_ERROR(Forbid(o, "plot_body", "only for plot \"load-settlement\""));
-    RETURN_IF_ERROR(Forbid(o, "plot_width", "only for plot \"load-settlement\""));
-    return absl::OkStatus();
-  }
-  RETURN_IF_ERROR(GetString(o, "plot_body", Need::kRequired, true, &out->plot_body));
-  if (std::none_of(bodies.begin(), bodies.end(),
-                   [&](const RigidBody& b) { return b.name == out->plot_body; })) {
-    return Bad(o.At("plot_body"), "no body named ", Quote(out->plot_body),
-               " (bodies: ", absl::StrJoin(NamesOf(bodies), ", "), ")");
-  }
-  RETURN_IF_ERROR(GetNumber(o, "plot_width", Need::kOptional, kPositive, &out->plot_width));
-  return absl::OkStatus();
+  return ReadFields(j, ptr, OutputFields(&bodies), out).status();
 }
 
 // Parses a list section: each element with `parse`, then unique names.
@@ -896,8 +1182,6 @@ absl::Status SyntaxError(const Json::exception& e, absl::string_view text) {
 }
 
 // ---------------------------------------------------------------- writing
-
-OrderedJson Vec(const Eigen::Vector2d& v) { return OrderedJson::array({v.x(), v.y()}); }
 
 std::string Dump(const OrderedJson& j) {
   return j.dump(-1, ' ', false, OrderedJson::error_handler_t::replace);
@@ -1126,122 +1410,30 @@ std::string ToJson(const CaseSpec& spec) {
   doc["description"] = spec.description;
   doc["expected_runtime_s"] = spec.expected_runtime_s;
 
-  const GridSpec& g = spec.grid;
-  doc["grid"] = {{"origin", Vec(g.origin)},
-                 {"cell_size", g.cell_size},
-                 {"cells", OrderedJson::array({g.nx, g.ny})}};
-
-  const SolverSpec& s = spec.solver;
-  doc["solver"] = {{"shape", s.shape == ShapeKind::kGimp ? "gimp" : "linear"},
-                   {"pic_fraction", s.pic_fraction},
-                   {"gravity", Vec(s.gravity)},
-                   {"time_step", s.time_step},
-                   {"cfl", s.cfl},
-                   {"wave_modulus", s.wave_modulus},
-                   {"end_time", s.end_time},
-                   {"thickness", s.thickness}};
+  doc["grid"] = WriteFields(GridFields(), spec.grid);
+  doc["solver"] = WriteFields(SolverFields(), spec.solver);
 
   OrderedJson& templates = doc["templates"] = OrderedJson::array();
   for (const TemplateSpec& t : spec.templates) {
-    OrderedJson j = {{"name", t.name}};
-    if (!t.file.empty()) {
-      j["file"] = t.file;
-      if (!t.template_name.empty()) j["template_name"] = t.template_name;
-    } else {
-      j["parameter_set"] = t.parameter_set;
-      j["seed"] = t.seed;
-    }
-    templates.push_back(std::move(j));
+    templates.push_back(WriteFields(TemplateFields(""), t));
   }
 
   OrderedJson& regions = doc["regions"] = OrderedJson::array();
-  for (const MaterialRegion& r : spec.regions) {
-    OrderedJson stress;
-    switch (r.initial_stress) {
-      case InitialStressKind::kTemplate:
-        stress["kind"] = "template";
-        break;
-      case InitialStressKind::kIsotropic:
-        stress["kind"] = "geostatic_isotropic";
-        break;
-      case InitialStressKind::kK0:
-        stress["kind"] = "geostatic_k0";
-        stress["k0"] = r.k0;
-        break;
-    }
-    if (r.initial_stress != InitialStressKind::kTemplate) {
-      stress["surface_y"] = r.surface_y;
-      stress["surcharge"] = r.surcharge;
-      stress["minimum"] = r.minimum_stress;
-    }
-    OrderedJson j = {{"name", r.name},
-                     {"lower", Vec(r.lower)},
-                     {"upper", Vec(r.upper)},
-                     {"points_per_cell_side", r.points_per_cell_side},
-                     {"template", r.rve_template},
-                     {"density", r.density},
-                     {"initial_stress", std::move(stress)}};
-    regions.push_back(std::move(j));
-  }
+  for (const MaterialRegion& r : spec.regions) regions.push_back(WriteFields(RegionFields({}), r));
 
   OrderedJson& walls = doc["walls"] = OrderedJson::array();
-  for (const Wall& w : spec.walls) {
-    OrderedJson j = {{"name", w.name},
-                     {"kind", ContactKindName(w.contact)},
-                     {"line", kAxisName[w.axis == 0 ? 0 : 1]},
-                     {"position", w.position}};
-    if (w.contact == ContactKind::kFrictional) j["friction"] = w.friction;
-    if (std::isfinite(w.remove_time)) j["remove_time"] = w.remove_time;
-    walls.push_back(std::move(j));
-  }
+  for (const Wall& w : spec.walls) walls.push_back(WriteFields(WallFields(nullptr), w));
 
   OrderedJson& bodies = doc["bodies"] = OrderedJson::array();
-  for (const RigidBody& b : spec.bodies) {
-    OrderedJson j = {{"name", b.name}};
-    if (b.shape == RigidBody::Shape::kCircle) {
-      j["shape"] = "circle";
-      j["center"] = Vec(b.center);
-      j["radius"] = b.radius;
-    } else {
-      j["shape"] = "rectangle";
-      j["center"] = Vec(b.center);
-      j["half_size"] = Vec(b.half_size);
-    }
-    j["contact"] = ContactKindName(b.contact);
-    if (b.contact == ContactKind::kFrictional) j["friction"] = b.friction;
-    OrderedJson& velocity = j["velocity"] = OrderedJson::array();
-    for (const VelocityPoint& p : b.velocity) {
-      velocity.push_back(OrderedJson::array({p.time, p.velocity.x(), p.velocity.y()}));
-    }
-    bodies.push_back(std::move(j));
-  }
+  for (const RigidBody& b : spec.bodies) bodies.push_back(WriteFields(BodyFields(), b));
 
   OrderedJson& tractions = doc["tractions"] = OrderedJson::array();
   for (const SurfaceTraction& t : spec.tractions) {
-    OrderedJson j = {{"name", t.name},
-                     {"region", t.region},
-                     {"surface", SurfaceName(t.normal_axis == 0 ? 0 : 1, t.normal_sign)},
-                     {"traction", Vec(t.traction)},
-                     {"ramp_time", t.ramp_time}};
-    if (std::isfinite(t.from)) j["from"] = t.from;
-    if (std::isfinite(t.to)) j["to"] = t.to;
-    tractions.push_back(std::move(j));
+    tractions.push_back(WriteFields(TractionFields(nullptr), t));
   }
 
-  doc["rve"] = {{"max_inertial_number", spec.rve.max_inertial_number},
-                {"min_steps", spec.rve.min_steps}};
-
-  const OutputSpec& o = spec.output;
-  OrderedJson output = {{"frame_every", o.frame_every},
-                        {"timeseries_every", o.timeseries_every},
-                        {"checkpoint_every", o.checkpoint_every},
-                        {"progress_every", o.progress_every},
-                        {"plot", o.plot}};
-  if (o.plot == "load-settlement") {
-    output["plot_body"] = o.plot_body;
-    output["plot_width"] = o.plot_width;
-  }
-  doc["output"] = std::move(output);
+  doc["rve"] = WriteFields(RveFields(), spec.rve);
+  doc["output"] = WriteFields(OutputFields(nullptr), spec.output);
   std::string out;
   Write(doc, 0, &out);
   return out;
