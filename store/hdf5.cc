@@ -504,6 +504,31 @@ absl::Status File::WriteRaw(const std::string& name, const void* data, std::size
   return absl::OkStatus();
 }
 
+namespace {
+
+// The extent of an open dataset: its rank, and for rank 1 or 2 the current
+// and maximum dimensions (an unreadable dataspace gives rank -1; the error
+// stack is cleared). Callers accept only ranks 1 and 2.
+struct Extent {
+  int rank = -1;
+  hsize_t dims[2] = {0, 0};
+  hsize_t max_dims[2] = {0, 0};
+};
+Extent ExtentOf(hid_t dataset) {
+  Extent e;
+  Handle space(H5Dget_space(dataset), H5Sclose);
+  const int rank = space.valid() ? H5Sget_simple_extent_ndims(space.id()) : -1;
+  if (rank >= 1 && rank <= 2 && H5Sget_simple_extent_dims(space.id(), e.dims, e.max_dims) == rank) {
+    e.rank = rank;
+  } else {
+    e.rank = rank >= 1 && rank <= 2 ? -1 : rank;
+    H5Eclear2(H5E_DEFAULT);
+  }
+  return e;
+}
+
+}  // namespace
+
 absl::Status File::OpenShaped(const std::string& name, std::size_t rows, std::size_t width,
                               Handle* dataset) const {
   const std::string where = Where("dataset", name);
@@ -513,13 +538,11 @@ absl::Status File::OpenShaped(const std::string& name, std::size_t rows, std::si
   *dataset = Handle(H5Dopen2(handle_.id(), name.c_str(), dapl.valid() ? dapl.id() : H5P_DEFAULT),
                     H5Dclose);
   if (!dataset->valid()) return CorruptError("open", where);
-  Handle space(H5Dget_space(dataset->id()), H5Sclose);
-  const int rank = space.valid() ? H5Sget_simple_extent_ndims(space.id()) : -1;
-  hsize_t dims[2] = {0, 0};
+  const Extent e = ExtentOf(dataset->id());
+  const int rank = e.rank;
+  const hsize_t* dims = e.dims;
   const int expected_rank = width == 0 ? 1 : 2;
-  if (rank != expected_rank || H5Sget_simple_extent_dims(space.id(), dims, nullptr) != rank ||
-      dims[0] != rows || (rank == 2 && dims[1] != width)) {
-    H5Eclear2(H5E_DEFAULT);
+  if (rank != expected_rank || dims[0] != rows || (rank == 2 && dims[1] != width)) {
     const std::string expected =
         width == 0 ? absl::StrCat("[", rows, "]") : absl::StrCat("[", rows, ", ", width, "]");
     const std::string found = rank == 1   ? absl::StrCat("[", dims[0], "]")
@@ -597,26 +620,23 @@ absl::Status File::CreateAppendableRaw(const std::string& name, std::size_t widt
 
 absl::StatusOr<std::size_t> File::NumRows(const std::string& name) const {
   ASSIGN_OR_RETURN(Dataset dataset, OpenDataset(name));
-  Handle space(H5Dget_space(dataset.id()), H5Sclose);
-  hsize_t dims[2] = {0, 0};
-  const int rank = space.valid() ? H5Sget_simple_extent_ndims(space.id()) : -1;
-  if (rank < 1 || rank > 2 || H5Sget_simple_extent_dims(space.id(), dims, nullptr) != rank) {
-    H5Eclear2(H5E_DEFAULT);
+  const Extent e = ExtentOf(dataset.id());
+  if (e.rank != 1 && e.rank != 2) {
     return absl::DataLossError(absl::StrCat(Where("dataset", name), " is not 1-D or 2-D"));
   }
-  return static_cast<std::size_t>(dims[0]);
+  return static_cast<std::size_t>(e.dims[0]);
 }
 
 absl::Status File::AppendRaw(const std::string& name, const void* data, std::size_t count,
                              hid_t file_type, hid_t memory_type) {
   const std::string where = Where("dataset", name);
   ASSIGN_OR_RETURN(Dataset dataset, OpenDataset(name));
-  Handle space(H5Dget_space(dataset.id()), H5Sclose);
   Handle type(H5Dget_type(dataset.id()), H5Tclose);
-  hsize_t dims[2] = {0, 0}, max_dims[2] = {0, 0};
-  const int rank = space.valid() ? H5Sget_simple_extent_ndims(space.id()) : -1;
-  if (rank < 1 || rank > 2 || H5Sget_simple_extent_dims(space.id(), dims, max_dims) != rank ||
-      max_dims[0] != H5S_UNLIMITED || !type.valid() || H5Tequal(type.id(), file_type) <= 0) {
+  const Extent e = ExtentOf(dataset.id());
+  const int rank = e.rank;
+  const hsize_t* dims = e.dims;
+  if ((rank != 1 && rank != 2) || e.max_dims[0] != H5S_UNLIMITED || !type.valid() ||
+      H5Tequal(type.id(), file_type) <= 0) {
     H5Eclear2(H5E_DEFAULT);
     return absl::InvalidArgumentError(
         absl::StrCat(where, " is not an appendable dataset of this element type"));

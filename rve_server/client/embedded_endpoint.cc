@@ -38,11 +38,6 @@ std::vector<RveOutcome> FromRegistry(std::vector<service::RveOutcome>&& outcomes
   return out;
 }
 
-absl::Status Prefixed(absl::string_view prefix, const absl::Status& s) {
-  if (s.ok()) return s;
-  return absl::Status(s.code(), absl::StrCat(prefix, ": ", s.message()));
-}
-
 // An Apply already done inside StartApply.
 class DoneApply final : public PendingApply {
  public:
@@ -130,7 +125,7 @@ class EmbeddedEndpoint final : public RveEndpoint {
   }
 
  private:
-  absl::Status Error(const absl::Status& s) const { return Prefixed(label(), s); }
+  absl::Status Error(const absl::Status& s) const { return Labelled(label(), s); }
 
   std::shared_ptr<service::Registry> registry_;
 };

@@ -14,6 +14,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "absl/time/time.h"
 #include "rve_server/client/channel.h"
@@ -23,6 +24,13 @@
 #include "store/record.h"
 
 namespace rvehub::client {
+
+// `s` with "<label>: " before its message (OK stays OK): how every error of
+// an endpoint names it.
+inline absl::Status Labelled(absl::string_view label, const absl::Status& s) {
+  if (s.ok()) return s;
+  return absl::Status(s.code(), absl::StrCat(label, ": ", s.message()));
+}
 
 // An Apply under way (RveEndpoint::StartApply).
 class PendingApply {

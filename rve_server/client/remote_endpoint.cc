@@ -23,11 +23,6 @@
 namespace rvehub::client {
 namespace {
 
-absl::Status Prefixed(absl::string_view prefix, const absl::Status& s) {
-  if (s.ok()) return s;
-  return absl::Status(s.code(), absl::StrCat(prefix, ": ", s.message()));
-}
-
 // Message assembly for the client's own types; the engine-level
 // conversions (matrices, states, controls, packings, records) are the
 // service's, in rve_server/service/convert.h.
@@ -44,16 +39,6 @@ void ToProto(const InitialStress& s, v1::InitialStress* out) {
       out->mutable_k0()->set_k0(s.k0);
       break;
   }
-}
-
-// Zero fields mean "the default" on the server; the values are sent as they
-// are, so a default is sent as itself.
-void ToProto(const dem::ApplyOptions& o, v1::ApplyOptions* out) {
-  out->set_want_tangent(o.want_tangent);
-  out->set_max_inertial_number(o.max_inertial_number);
-  out->set_relax(o.relax);
-  out->set_relax_tolerance(o.relax_tolerance);
-  out->set_relax_max_steps(o.relax_max_steps);
 }
 
 absl::StatusOr<RveOutcome> OutcomeFromProto(const v1::RveResult& r) {
@@ -157,7 +142,7 @@ class RemoteApply final : public PendingApply {
     for (const std::unique_ptr<Message>& m : messages_) {
       absl::Status s = FromGrpc(m->status);
       if (s.ok()) s = AppendOutcomes(m->response.results(), m->ids, &out);
-      if (!s.ok()) return Prefixed(label_, s);
+      if (!s.ok()) return Labelled(label_, s);
     }
     return out;
   }
@@ -288,7 +273,7 @@ class RemoteEndpoint final : public RveEndpoint {
       m.request.set_run_id(std::string(run));
       m.request.set_step(step);
       m.request.set_mode(v1::APPLY_MODE_COMMIT);
-      ToProto(options, m.request.mutable_options());
+      service::ToProto(options, m.request.mutable_options());
       m.ids.reserve(end - begin);
       for (std::size_t k = begin; k < end; ++k) {
         v1::Increment* inc = m.request.add_increments();
@@ -373,7 +358,7 @@ class RemoteEndpoint final : public RveEndpoint {
     Prepare(ctx, options_, DeadlineOf(timeout));
   }
 
-  absl::Status Error(const absl::Status& s) const { return Prefixed(label(), s); }
+  absl::Status Error(const absl::Status& s) const { return Labelled(label(), s); }
 
   absl::Status DropIds(absl::string_view run, std::span<const std::int64_t> ids) {
     v1::DropRequest req;

@@ -272,6 +272,14 @@ void ToProto(const TemplateSummary& t, v1::TemplateInfo* out) {
   out->set_mean_pressure(t.mean_pressure);
 }
 
+void ToProto(const dem::ApplyOptions& o, v1::ApplyOptions* out) {
+  out->set_want_tangent(o.want_tangent);
+  out->set_max_inertial_number(o.max_inertial_number);
+  out->set_relax(o.relax);
+  out->set_relax_tolerance(o.relax_tolerance);
+  out->set_relax_max_steps(o.relax_max_steps);
+}
+
 dem::ApplyOptions FromProto(const v1::ApplyOptions& o) {
   // Zero means "the default"; the registry checks the values.
   dem::ApplyOptions out;

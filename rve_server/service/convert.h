@@ -44,6 +44,9 @@ void ToProto(const RveOutcome& o, v1::RveResult* out);
 
 void ToProto(const TemplateSummary& t, v1::TemplateInfo* out);
 
+// Values sent as they are (a default is sent as itself); zero fields mean
+// "the default" on the way back.
+void ToProto(const dem::ApplyOptions& o, v1::ApplyOptions* out);
 dem::ApplyOptions FromProto(const v1::ApplyOptions& o);
 // InvalidArgument unless COMMIT or TRIAL.
 absl::StatusOr<ApplyMode> FromProto(v1::ApplyMode mode);

@@ -50,7 +50,7 @@ std::vector<std::int64_t> Repeated(std::span<const std::int64_t> ids) {
 }
 
 absl::Status UnknownRun(absl::string_view run_id) {
-  return absl::NotFoundError(absl::StrCat("unknown run ", Quoted(run_id)));
+  return absl::NotFoundError(absl::StrCat("unknown run ", QuotedName(run_id)));
 }
 
 // Runs fn, turning an allocation failure into ResourceExhausted. A last line
@@ -147,12 +147,12 @@ absl::StatusOr<TemplateSummary> Registry::PutTemplate(store::TemplateRecord reco
   }
   if (!rve.ok()) {
     return absl::InvalidArgumentError(
-        absl::StrCat("template ", Quoted(record.name), ": ", rve.status().message()));
+        absl::StrCat("template ", QuotedName(record.name), ": ", rve.status().message()));
   }
   const TemplateSummary summary = Summarise(record, rve->Observe());
   absl::MutexLock lock(&mu_);
   if (!replace && templates_.contains(record.name)) {
-    return absl::AlreadyExistsError(absl::StrCat("template ", Quoted(record.name),
+    return absl::AlreadyExistsError(absl::StrCat("template ", QuotedName(record.name),
                                                  " exists; upload with replace to overwrite it"));
   }
   std::string name = record.name;
@@ -180,7 +180,7 @@ absl::StatusOr<store::TemplateRecord> Registry::FindTemplate(absl::string_view n
   auto t = templates_.find(name);
   if (t == templates_.end()) {
     return absl::NotFoundError(
-        absl::StrCat("unknown template ", Quoted(name),
+        absl::StrCat("unknown template ", QuotedName(name),
                      "; upload it first (ListTemplates shows the known ones)"));
   }
   return t->second.record;
@@ -195,7 +195,7 @@ absl::Status Registry::CheckRoom(absl::string_view run_id, std::span<const std::
       if (run->second.contains(id)) taken.push_back(id);
     if (!taken.empty()) {
       return absl::AlreadyExistsError(
-          absl::StrCat("run ", Quoted(run_id), " already has material points ", ListIds(taken)));
+          absl::StrCat("run ", QuotedName(run_id), " already has material points ", ListIds(taken)));
     }
   }
   return CheckCapacity(static_cast<std::int64_t>(ids.size()), bytes);
@@ -369,7 +369,7 @@ absl::StatusOr<std::vector<std::pair<std::int64_t, Registry::EntryPtr>>> Registr
   }
   if (!missing.empty()) {
     return absl::NotFoundError(
-        absl::StrCat("run ", Quoted(run_id), " has no material points ", ListIds(missing)));
+        absl::StrCat("run ", QuotedName(run_id), " has no material points ", ListIds(missing)));
   }
   return out;
 }
@@ -517,7 +517,7 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Get(absl::string_view run_id,
     o.status = NoThrow([&] {
       if (entries[k].second == nullptr) {
         return absl::NotFoundError(
-            absl::StrCat("run ", Quoted(run_id), " has no material point ", o.id));
+            absl::StrCat("run ", QuotedName(run_id), " has no material point ", o.id));
       }
       Entry& e = *entries[k].second;
       absl::MutexLock lock(&e.mu);
@@ -587,7 +587,7 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<store::RveRecord> reco
       const absl::StatusCode code = absl::IsResourceExhausted(s)
                                         ? absl::StatusCode::kResourceExhausted
                                         : absl::StatusCode::kInvalidArgument;
-      status[k] = absl::Status(code, absl::StrCat("record ", k, " (run ", Quoted(r.run_id),
+      status[k] = absl::Status(code, absl::StrCat("record ", k, " (run ", QuotedName(r.run_id),
                                                   ", material point ", r.id, "): ", s.message()));
     }
   };
@@ -604,7 +604,7 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<store::RveRecord> reco
   std::int64_t bytes = 0;
   for (std::size_t k = 0; k < records.size(); ++k) {
     if (!seen.emplace(records[k].run_id, records[k].id).second) {
-      return absl::AlreadyExistsError(absl::StrCat("run ", Quoted(records[k].run_id),
+      return absl::AlreadyExistsError(absl::StrCat("run ", QuotedName(records[k].run_id),
                                                    ", material point ", records[k].id,
                                                    " appears twice in the import"));
     }
@@ -615,7 +615,7 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<store::RveRecord> reco
   for (const store::RveRecord& r : records) {
     auto run = runs_.find(r.run_id);
     if (run != runs_.end() && run->second.contains(r.id)) {
-      return absl::AlreadyExistsError(absl::StrCat("run ", Quoted(r.run_id),
+      return absl::AlreadyExistsError(absl::StrCat("run ", QuotedName(r.run_id),
                                                    " already has material point ", r.id,
                                                    "; drop it before importing"));
     }
@@ -650,7 +650,7 @@ absl::StatusOr<std::int64_t> Registry::Drop(absl::string_view run_id,
     if (!run->second.contains(id)) missing.push_back(id);
   if (!missing.empty()) {
     return absl::NotFoundError(
-        absl::StrCat("run ", Quoted(run_id), " has no material points ", ListIds(missing)));
+        absl::StrCat("run ", QuotedName(run_id), " has no material points ", ListIds(missing)));
   }
   std::int64_t dropped = 0;
   auto drop = [&](Run::iterator it) {

@@ -98,7 +98,6 @@ absl::Status Validate(const InitialStress& initial);
 // Run ids and template names follow the one rule of rve_server/common/names.h
 // (the client checks the same one).
 using ::rvehub::ValidateName;
-inline std::string Quoted(absl::string_view name) { return QuotedName(name); }
 
 class Registry {
  public:
