@@ -411,6 +411,22 @@ Field<S> TextField(absl::string_view key, std::string S::*m, Need need, bool non
           [=](const S& s, OrderedJson& j) { j[std::string(key)] = s.*m; }};
 }
 
+// A flag, false when absent; written only when true.
+template <typename S>
+Field<S> FlagField(absl::string_view key, bool S::*m) {
+  return {key,
+          [=](const Object& o, S* s) -> absl::Status {
+            const Json* v = o.Get(key);
+            if (v == nullptr) return absl::OkStatus();
+            if (!v->is_boolean()) return Bad(o.At(key), "must be true or false, got ", Got(*v));
+            s->*m = v->get<bool>();
+            return absl::OkStatus();
+          },
+          [=](const S& s, OrderedJson& j) {
+            if (s.*m) j[std::string(key)] = true;
+          }};
+}
+
 template <typename S>
 Field<S> NameField() {
   return {"name", [](const Object& o, S* s) { return GetName(o, &s->name); },
@@ -840,6 +856,7 @@ Fields<Wall> WallFields(const GridLines* lines) {
        [](const Wall& w, OrderedJson& j) { j["position"] = w.position; }},
       FrictionField<Wall>("kind"),
       OptionalFiniteField("remove_time", &Wall::remove_time, kNonNegative),
+      FlagField("unilateral", &Wall::unilateral),
   };
 }
 

@@ -94,7 +94,9 @@ enum class ContactKind {
 
 // A straight boundary on a grid line (x = position or y = position) acting
 // on the nodes of that line. Fixed = rough; roller and symmetry = smooth.
-// The constraint is bilateral (the normal velocity is set to the wall's).
+// Bilateral by default (the normal velocity is set to the wall's, a
+// symmetry plane or a glued base); unilateral walls hold only nodes that
+// approach them, so the soil can separate (a base the soil may bounce off).
 struct Wall {
   std::string name;
   int axis = 1;           // 0: the line x = position; 1: the line y = position
@@ -102,11 +104,13 @@ struct Wall {
   ContactKind contact = ContactKind::kSmooth;
   double friction = 0.0;        // μ for kFrictional, [-]
   double remove_time = kNever;  // s: the wall is gone from then on (a gate)
+  bool unilateral = false;
 };
 
-// A rigid body with a prescribed velocity history. Grid nodes inside it
-// (closed shape) that carry mass take its velocity (rough), its normal
-// velocity when approaching (smooth), or Coulomb friction.
+// A rigid body with a prescribed velocity history. It meets the soil at the
+// soil's surface (mpm_client/body_contact.h): the faces of the material
+// points near it may not approach it; rough: no slip while pressing;
+// smooth: no friction; frictional: Coulomb. The soil can separate from it.
 struct RigidBody {
   enum class Shape { kRectangle, kCircle };
   std::string name;

@@ -7,6 +7,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
+#include "mpm_client/body_contact.h"
 #include "rve_server/common/status_macros.h"
 
 namespace rvehub::mpm {
@@ -19,8 +20,10 @@ using Eigen::Vector2d;
 // Nodes lighter than this fraction of the lightest point are inactive: their
 // velocity would be force/(tiny mass), the small-mass instability.
 constexpr double kInactiveMassFraction = 1e-10;
-// Tolerance, in cells, for "on a grid line" and "inside a body".
+// Tolerance, in cells, for "on a grid line".
 constexpr double kGridTolerance = 1e-9;
+// Faces within this many cells of a body are contact candidates.
+constexpr double kContactMargin = 0.5;
 
 std::string Format(const Vector2d& x) { return absl::StrCat("(", x.x(), ", ", x.y(), ")"); }
 
@@ -38,7 +41,7 @@ Vector2d CurrentHalfSize(const Matrix2d& f, const Vector2d& lp0) {
   return Vector2d(lp0.x() * f.col(0).norm(), lp0.y() * f.col(1).norm());
 }
 
-// A node's new velocity relative to a wall or body (m/s), from its relative
+// A wall node's new velocity relative to the wall (m/s), from its relative
 // velocity `rel` and the unit normal n pointing from the obstacle into the
 // soil. Rough: no relative motion. Smooth: no normal relative motion.
 // Frictional: also, while the soil presses on the obstacle (rel·n < 0), the
@@ -48,9 +51,9 @@ Vector2d CurrentHalfSize(const Matrix2d& f, const Vector2d& lp0) {
 // then tensile).
 Vector2d ContactVelocity(const Vector2d& rel, const Vector2d& n, ContactKind kind, double mu,
                          bool bilateral) {
-  if (kind == ContactKind::kRough) return Vector2d::Zero();
   const double vn = rel.dot(n);
   if (!bilateral && vn >= 0.0) return rel;
+  if (kind == ContactKind::kRough) return Vector2d::Zero();
   Vector2d vt = rel - vn * n;
   if (kind == ContactKind::kFrictional && vn < 0.0) {
     const double speed = vt.norm();
@@ -58,30 +61,6 @@ Vector2d ContactVelocity(const Vector2d& rel, const Vector2d& n, ContactKind kin
     vt = slip > 0.0 ? Vector2d(vt * (slip / speed)) : Vector2d::Zero();
   }
   return vt;
-}
-
-// Whether x lies in the body (centre c; closed, within tol) and, if so, the
-// outward unit normal of the nearest face (rectangle) or radial (circle).
-bool InsideBody(const RigidBody& body, const Vector2d& c, const Vector2d& x, double tol,
-                Vector2d& normal) {
-  const Vector2d d = x - c;
-  if (body.shape == RigidBody::Shape::kCircle) {
-    const double r = d.norm();
-    if (r > body.radius + tol) return false;
-    normal = r > 0.0 ? Vector2d(d / r) : Vector2d(0.0, 1.0);
-    return true;
-  }
-  const Vector2d e = body.half_size;
-  if (std::abs(d.x()) > e.x() + tol || std::abs(d.y()) > e.y() + tol) return false;
-  // Gaps to the faces +y, −y, +x, −x; the first smallest wins.
-  const double gap[4] = {e.y() - d.y(), e.y() + d.y(), e.x() - d.x(), e.x() + d.x()};
-  const Vector2d face[4] = {{0.0, 1.0}, {0.0, -1.0}, {1.0, 0.0}, {-1.0, 0.0}};
-  int best = 0;
-  for (int k = 1; k < 4; ++k) {
-    if (gap[k] < gap[best]) best = k;
-  }
-  normal = face[best];
-  return true;
 }
 
 Vector2d BodyExtent(const RigidBody& body) {
@@ -407,7 +386,9 @@ void Solver::Prepare() {
   node_velocity_.resize(nodes);
   node_force_.resize(nodes);
   node_velocity_new_.resize(nodes);
+  node_fixed_.resize(nodes);
   impulse_.resize(walls_.size() + bodies_.size());
+  body_velocity_.resize(bodies_.size());
   delta_f_.resize(n);
   response_.resize(n);
 }
@@ -441,10 +422,44 @@ absl::Status Solver::EvaluateShapes() {
     load_force_[k] =
         load.traction * (RampFactor(load.ramp_time, time_) * length * solver_.thickness);
   }
+  FindContacts();
   return absl::OkStatus();
 }
 
+void Solver::FindContacts() {
+  contacts_.clear();
+  const MaterialPoints& mp = points_;
+  const double h = grid_.cell_size;
+  // Faces farther than this stay out: to close it within one step a face
+  // would move half a cell per step, far beyond any stable Δt.
+  const double margin = kContactMargin * h;
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    const RigidBody& body = bodies_[b];
+    const Vector2d center = body.center + DisplacementAt(body.velocity, time_);
+    const Vector2d reach = BodyExtent(body) + Vector2d::Constant(margin);
+    for (std::size_t p = 0; p < mp.size(); ++p) {
+      const Vector2d lp = CurrentHalfSize(mp.F[p], mp.half_size0[p]);
+      const Vector2d d = (mp.position[p] - center).cwiseAbs() - lp;
+      if (d.x() > reach.x() || d.y() > reach.y()) continue;
+      const BodyGap where = GapToBody(body, center, mp.position[p], lp);
+      if (where.gap > margin) continue;
+      const ShapeValues& shape = shape_[p];
+      const Vector2d arm = where.face - mp.position[p];  // m
+      SurfaceContact& contact = contacts_.emplace_back();
+      contact.body = static_cast<std::int32_t>(b);
+      contact.point = static_cast<std::int32_t>(p);
+      contact.where = where;
+      contact.count = shape.count;
+      for (int k = 0; k < shape.count; ++k) {
+        contact.node[k] = shape.node[k];
+        contact.weight[k] = shape.weight[k] + shape.gradient[k].dot(arm);
+      }
+    }
+  }
+}
+
 void Solver::Constrain(std::vector<Eigen::Vector2d>& velocity, double body_time, double weight) {
+  std::fill(node_fixed_.begin(), node_fixed_.end(), std::uint8_t{0});
   for (std::size_t w = 0; w < walls_.size(); ++w) {
     const Wall& wall = walls_[w];
     if (wall.remove_time <= time_) continue;
@@ -453,6 +468,9 @@ void Solver::Constrain(std::vector<Eigen::Vector2d>& velocity, double body_time,
     // lies; with soil on both sides, any approach presses on the wall.
     const int stride = wall.axis == 0 ? 1 : grid_.nx + 1;
     const int last_line = wall.axis == 0 ? grid_.nx : grid_.ny;
+    // What a wall holds, the body contacts below leave alone: the normal
+    // velocity, and the tangential one of a rough wall.
+    const std::uint8_t held = wall.contact == ContactKind::kRough ? 3 : (wall.axis == 0 ? 1 : 2);
     for (std::int32_t node : wall_nodes_[w]) {
       if (node_mass_[node] <= min_node_mass_) continue;
       const double m_plus = wall_lines_[w] < last_line ? node_mass_[node + stride] : 0.0;
@@ -460,41 +478,21 @@ void Solver::Constrain(std::vector<Eigen::Vector2d>& velocity, double body_time,
       const double side = m_plus > m_minus   ? 1.0
                           : m_plus < m_minus ? -1.0
                                              : (velocity[node].dot(axis) <= 0.0 ? 1.0 : -1.0);
-      const Vector2d v =
-          ContactVelocity(velocity[node], side * axis, wall.contact, wall.friction, true);
+      if (wall.unilateral && velocity[node].dot(side * axis) >= 0.0) continue;  // separating
+      const Vector2d v = ContactVelocity(velocity[node], side * axis, wall.contact, wall.friction,
+                                         !wall.unilateral);
       impulse_[w] += (weight * node_mass_[node]) * (v - velocity[node]);
       velocity[node] = v;
+      node_fixed_[node] |= held;
     }
   }
-  const double h = grid_.cell_size;
-  const double tol = kGridTolerance * h;
+  if (contacts_.empty()) return;
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
-    const RigidBody& body = bodies_[b];
-    const Vector2d center = body.center + DisplacementAt(body.velocity, time_);
-    const Vector2d vb = VelocityAt(body.velocity, body_time);
-    const Vector2d extent = BodyExtent(body);
-    // Node index range of the body's bounding box, clamped to the grid.
-    int lo[2], hi[2];
-    const int n[2] = {grid_.nx, grid_.ny};
-    for (int d = 0; d < 2; ++d) {
-      const double t_lo = (center[d] - extent[d] - tol - grid_.origin[d]) / h;
-      const double t_hi = (center[d] + extent[d] + tol - grid_.origin[d]) / h;
-      lo[d] = static_cast<int>(std::clamp(std::ceil(t_lo), 0.0, n[d] + 1.0));
-      hi[d] = static_cast<int>(std::clamp(std::floor(t_hi), -1.0, static_cast<double>(n[d])));
-    }
-    for (int j = lo[1]; j <= hi[1]; ++j) {
-      for (int i = lo[0]; i <= hi[0]; ++i) {
-        const int node = i + (grid_.nx + 1) * j;
-        if (node_mass_[node] <= min_node_mass_) continue;
-        Vector2d normal;
-        if (!InsideBody(body, center, NodePosition(grid_, node), tol, normal)) continue;
-        const Vector2d v = vb + ContactVelocity(velocity[node] - vb, normal, body.contact,
-                                                body.friction, body.contact == ContactKind::kRough);
-        impulse_[walls_.size() + b] += (weight * node_mass_[node]) * (v - velocity[node]);
-        velocity[node] = v;
-      }
-    }
+    body_velocity_[b] = VelocityAt(bodies_[b].velocity, body_time);
   }
+  ContactGrid grid{node_mass_, velocity, node_fixed_, min_node_mass_};
+  ResolveContacts(contacts_, bodies_, body_velocity_, dt_, weight, grid,
+                  std::span<Vector2d>(impulse_).subspan(walls_.size()));
 }
 
 absl::Status Solver::Step() {

@@ -18,6 +18,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "mpm_client/body_contact.h"
 #include "mpm_client/model.h"
 #include "mpm_client/shape.h"
 
@@ -155,6 +156,8 @@ class Solver {
   // velocities, with the bodies moving at their velocity at body_time;
   // adds weight × (momentum change) of each to impulse_.
   void Constrain(std::vector<Eigen::Vector2d>& velocity, double body_time, double weight);
+  // The points' faces near each body at the step's start (contacts_).
+  void FindContacts();
 
   GridSpec grid_;
   SolverSpec solver_;
@@ -180,6 +183,9 @@ class Solver {
   std::vector<Eigen::Vector2d> node_force_;
   std::vector<Eigen::Vector2d> node_velocity_new_;  // v^{n+1}
   std::vector<Eigen::Vector2d> impulse_;            // per wall/body, N·s
+  std::vector<std::uint8_t> node_fixed_;            // per node: components a wall holds
+  std::vector<SurfaceContact> contacts_;            // faces near bodies, this step
+  std::vector<Eigen::Vector2d> body_velocity_;      // per body, m/s
   std::vector<Eigen::Matrix3d> delta_f_;
   std::vector<PointResponse> response_;
 };

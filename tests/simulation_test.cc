@@ -79,16 +79,17 @@ void ExpectSameSnapshots(const store::SimCheckpoint& a, const store::SimCheckpoi
 }
 
 // §3.1: four material points with identical RVEs under the element's
-// boundary conditions reproduce the DEM element test on one RVE. Tolerance:
-// σyy within 3 % at every recorded strain up to the element test's peak.
+// boundary conditions reproduce the DEM element test on one RVE, the whole
+// case to 15 % axial strain. Tolerances: the points' mean nominal strain
+// 1 − F_yy equals the platen's displacement over the height within 0.1 % of
+// it at the end (the platen meets the soil's surface, not a node row);
+// σyy within 3 % at every recorded strain up to the element test's peak;
+// the softening branch followed to the end (σyy there below the peak).
 TEST(SimulationTest, SingleElementMatchesElementTestUpToPeak) {
   CaseSpec spec = LoadOrDie("single-element-biaxial");
   ASSERT_EQ(spec.bodies.size(), 1u);
-  const double v = std::abs(spec.bodies[0].velocity.back().velocity.y());  // m/s
   const double height = spec.regions[0].upper.y() - spec.regions[0].lower.y();
-  const double ramp = spec.bodies[0].velocity.back().time;
-  const double max_strain = 0.04;
-  spec.solver.end_time = ramp / 2 + max_strain * height / v;
+  const double max_strain = 0.15;
   spec.output.checkpoint_every = 0;
   spec.output.timeseries_every = 1;
   const std::string out = FreshDir("single_element");
@@ -97,6 +98,14 @@ TEST(SimulationTest, SingleElementMatchesElementTestUpToPeak) {
   absl::StatusOr<SimulationSummary> sum = sim->StepToEnd();
   ASSERT_TRUE(sum.ok()) << sum.status();
   ASSERT_TRUE(sum->finished);
+  const double platen_strain = -sim->solver().BodyDisplacement(0).y() / height;
+  double points_strain = 0.0;
+  for (const Eigen::Matrix2d& f : sim->solver().points().F) points_strain += 1.0 - f(1, 1);
+  points_strain /= static_cast<double>(sim->solver().points().size());
+  std::printf("nominal strain: platen %.5f, points %.5f (%+.3f %%)\n", platen_strain, points_strain,
+              100.0 * (points_strain / platen_strain - 1.0));
+  EXPECT_GT(platen_strain, 0.149);
+  EXPECT_NEAR(points_strain, platen_strain, 1e-3 * platen_strain);
 
   // The DEM element test on the same template.
   absl::StatusOr<std::vector<store::TemplateRecord>> t =
@@ -148,13 +157,26 @@ TEST(SimulationTest, SingleElementMatchesElementTestUpToPeak) {
     }
     ++compared;
   }
+  // After the peak: reported, not bounded (a softening branch of 4 points
+  // against one RVE differs by more than the pre-peak tolerance).
+  double after = 0.0;
+  int after_rows = 0;
+  for (std::size_t i = 0; i < eyy.size(); ++i) {
+    if (eyy[i] <= peak_strain) continue;
+    after += std::abs(syy[i] - element_syy(eyy[i])) / peak->syy_comp;
+    ++after_rows;
+  }
   std::printf(
       "element test peak %.1f kPa at %.2f %%; MPM peak %.1f kPa; worst difference %.2f %% "
-      "at %.2f %% over %d rows\n",
+      "at %.2f %% over %d rows; after the peak mean |difference| %.2f %% of the peak over %d "
+      "rows; at %.2f %%: MPM %.1f kPa, element test %.1f kPa\n",
       peak->syy_comp * 1e-3, 100 * peak_strain, mpm_peak * 1e-3, 100 * worst, 100 * worst_at,
-      compared);
+      compared, 100 * after / std::max(after_rows, 1), after_rows, 100 * eyy.back(),
+      syy.back() * 1e-3, element_syy(eyy.back()) * 1e-3);
   EXPECT_GT(compared, 20);
   EXPECT_LE(worst, 0.03) << "at axial strain " << worst_at;
+  EXPECT_GT(eyy.back(), 0.149);
+  EXPECT_LT(syy.back(), 0.9 * mpm_peak);
   EXPECT_TRUE(fs::exists(out + "/plot.png"));
   EXPECT_TRUE(fs::exists(out + "/results.xdmf"));
 }

@@ -1,0 +1,89 @@
+// Contact of the soil with rigid bodies (footings, pipes, platens) at the
+// soil's surface, not at the grid nodes inside the body.
+//
+// Each material point near a body has a face towards it: its domain (the
+// GIMP half-sizes) reaches the distance `extent` along the body's normal. The
+// contact constraint is that the soil's velocity interpolated at that face
+// (linear weights, over the nodes that carry mass) does not approach the body
+// faster than the gap between them closes in one step ("speculative"
+// contact, so that a face meets the body's surface exactly instead of a node
+// row early or late). The face's velocity is the point's own (see
+// SurfaceContact). The impulses that enforce it, each one's normal part
+// compressive and its tangential part bounded by Coulomb's μ times the normal
+// one (rough: unbounded while pressing; smooth: none), are found by projected
+// Gauss–Seidel sweeps over the contacts in a fixed order (the sequential
+// impulses of rigid-body dynamics, Catto 2005; on an MPM grid cf. the
+// multi-velocity-field contact of Bardenhagen et al. 2001 with a rigid body
+// as one field, and the gap criterion of Huang et al. 2011). A body pushing a
+// soil surface that lies between node rows thus moves that surface with it,
+// and the soil can separate from it (unilateral).
+#ifndef RVEHUB_MPM_CLIENT_BODY_CONTACT_H_
+#define RVEHUB_MPM_CLIENT_BODY_CONTACT_H_
+
+#include <Eigen/Dense>
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "mpm_client/model.h"
+#include "mpm_client/shape.h"
+
+namespace rvehub::mpm {
+
+// Where a material point's face is relative to a body.
+struct BodyGap {
+  double gap = 0.0;  // m: clearance between the face and the body; < 0: overlap
+  Eigen::Vector2d normal = Eigen::Vector2d::UnitY();  // unit, from the body into the soil
+  Eigen::Vector2d face = Eigen::Vector2d::Zero();     // m, the point's face, x − extent·n
+};
+
+// The gap of a point at x with GIMP half-sizes half_size (m) to `body`
+// centred at `center`: the signed distance from x to the body's surface
+// (outside +; inside, to the nearest face), less the point's extent along the
+// normal, |n_x|·lp_x + |n_y|·lp_y (its box's support in that direction).
+BodyGap GapToBody(const RigidBody& body, const Eigen::Vector2d& center, const Eigen::Vector2d& x,
+                  const Eigen::Vector2d& half_size);
+
+// One point's face near one body, found at the step's start. The face moves
+// as the point's own affine motion carries it: v_face = v_p + L_p·(x_face −
+// x_p) = Σ_I c_I v_I with c_I = S_Ip + ∇S_Ip·(x_face − x_p) over the point's
+// nodes (Σ c_I = 1; some c_I may be negative). Constraining that velocity,
+// not a field interpolated at the face, keeps the point itself out of the
+// body (a GIMP point straddling cells moves with nodes the face's own cell
+// lacks).
+struct SurfaceContact {
+  std::int32_t body = 0;  // index into the case's bodies
+  std::int32_t point = 0;
+  BodyGap where;
+  int count = 0;                                    // the point's grid nodes
+  std::array<std::int32_t, kMaxShapeNodes> node{};  // their indices
+  std::array<double, kMaxShapeNodes> weight{};      // c_I, [-]
+};
+
+// The grid the contacts act on: nodal masses (kg) and velocities (m/s);
+// fixed[i] bit 0 / bit 1: node i's x / y velocity is held by a wall (the
+// contacts leave it alone).
+struct ContactGrid {
+  std::span<const double> mass;
+  std::span<Eigen::Vector2d> velocity;
+  std::span<const std::uint8_t> fixed;
+  double min_mass = 0.0;  // kg, lighter nodes carry no soil
+};
+
+// Sweeps of the projected Gauss–Seidel solve at most, and its stop: the
+// largest velocity change of a sweep, m/s.
+inline constexpr int kContactMaxSweeps = 200;
+inline constexpr double kContactTolerance = 1e-12;
+
+// Enforces the contacts on the nodal velocities over a step dt (s), each
+// body moving at body_velocity[b] (m/s). Adds weight × the momentum each
+// body gave the soil (N·s) to impulse[b]. Deterministic: contacts in the
+// given order, a bounded number of sweeps. Returns the sweeps done.
+int ResolveContacts(std::span<const SurfaceContact> contacts, std::span<const RigidBody> bodies,
+                    std::span<const Eigen::Vector2d> body_velocity, double dt, double weight,
+                    ContactGrid grid, std::span<Eigen::Vector2d> impulse);
+
+}  // namespace rvehub::mpm
+
+#endif  // RVEHUB_MPM_CLIENT_BODY_CONTACT_H_
