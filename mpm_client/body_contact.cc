@@ -78,8 +78,9 @@ int ResolveContacts(std::span<const SurfaceContact> contacts, std::span<const Ri
         if (!(m > grid.min_mass)) continue;
         const double c = contact.weight[k];
         face_velocity += c * grid.velocity[node];
-        if (!(grid.fixed[node] & 1)) compliance.x() += c * c / m;
-        if (!(grid.fixed[node] & 2)) compliance.y() += c * c / m;
+        const double moved = std::max(m, contact.mass_floor);
+        if (!(grid.fixed[node] & 1)) compliance.x() += c * c / moved;
+        if (!(grid.fixed[node] & 2)) compliance.y() += c * c / moved;
       }
       // Applies the impulse j (N·s) at the face, spread over its nodes.
       auto apply = [&](const Vector2d& j) {
@@ -87,7 +88,7 @@ int ResolveContacts(std::span<const SurfaceContact> contacts, std::span<const Ri
           const std::int32_t node = contact.node[k];
           const double m = grid.mass[node];
           if (!(m > grid.min_mass)) continue;
-          Vector2d dv = (contact.weight[k] / m) * j;
+          Vector2d dv = (contact.weight[k] / std::max(m, contact.mass_floor)) * j;
           if (grid.fixed[node] & 1) dv.x() = 0.0;
           if (grid.fixed[node] & 2) dv.y() = 0.0;
           grid.velocity[node] += dv;

@@ -59,7 +59,15 @@ struct SurfaceContact {
   int count = 0;                                    // the point's grid nodes
   std::array<std::int32_t, kMaxShapeNodes> node{};  // their indices
   std::array<double, kMaxShapeNodes> weight{};      // c_I, [-]
+  // The impulse moves node k as if its mass were at least this, kg: a
+  // fraction kContactMassFloor of the point's own. At the far tail of a GIMP
+  // point's support the node's mass is ~S² while its weight c is ~S^½, so a
+  // plain share would set that nearly empty node flying, and the point's
+  // velocity gradient with it.
+  double mass_floor = 0.0;
 };
+
+inline constexpr double kContactMassFloor = 0.1;
 
 // The grid the contacts act on: nodal masses (kg) and velocities (m/s);
 // fixed[i] bit 0 / bit 1: node i's x / y velocity is held by a wall (the

@@ -450,6 +450,7 @@ void Solver::FindContacts() {
       contact.point = static_cast<std::int32_t>(p);
       contact.where = where;
       contact.count = shape.count;
+      contact.mass_floor = kContactMassFloor * mp.mass[p];
       for (int k = 0; k < shape.count; ++k) {
         contact.node[k] = shape.node[k];
         contact.weight[k] = shape.weight[k] + shape.gradient[k].dot(arm);

@@ -58,7 +58,7 @@ constexpr char kFullCase[] = R"json({
      "initial_stress": {"kind": "geostatic_isotropic"}}
   ],
   "walls": [
-    {"name": "base", "kind": "fixed", "line": "y", "position": 0},
+    {"name": "base", "kind": "fixed", "line": "y", "position": 0, "unilateral": true},
     {"name": "left", "kind": "roller", "line": "x", "position": 0, "remove_time": 0.1},
     {"name": "right", "kind": "frictional", "line": "x", "position": 2, "friction": 0.4}
   ],
@@ -177,6 +177,8 @@ TEST_F(CaseTest, FullCaseParsesIntoExpectedSpec) {
   EXPECT_EQ(spec->walls[0].position, 0.0);
   EXPECT_EQ(spec->walls[0].contact, ContactKind::kRough);
   EXPECT_EQ(spec->walls[0].remove_time, kNever);
+  EXPECT_TRUE(spec->walls[0].unilateral);
+  EXPECT_FALSE(spec->walls[1].unilateral);
   EXPECT_EQ(spec->walls[1].axis, 0);
   EXPECT_EQ(spec->walls[1].contact, ContactKind::kSmooth);
   EXPECT_EQ(spec->walls[1].remove_time, 0.1);
@@ -325,6 +327,7 @@ void ExpectSameSpec(const CaseSpec& a, const CaseSpec& b) {
     EXPECT_EQ(a.walls[i].contact, b.walls[i].contact);
     EXPECT_EQ(a.walls[i].friction, b.walls[i].friction);
     EXPECT_EQ(a.walls[i].remove_time, b.walls[i].remove_time);
+    EXPECT_EQ(a.walls[i].unilateral, b.walls[i].unilateral);
   }
   ASSERT_EQ(a.bodies.size(), b.bodies.size());
   for (size_t i = 0; i < a.bodies.size(); ++i) {
@@ -437,6 +440,8 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
        "/regions/0/points_per_cell_side: must be an integer in 1..8, got 0"},
       {"/regions/0/initial_stress/k0", 0, "/regions/0/initial_stress/k0: must be > 0, got 0"},
       {"/walls/2/friction", 0, "/walls/2/friction: must be > 0, got 0"},
+      {"/walls/0/unilateral", "yes",
+       "/walls/0/unilateral: must be true or false, got string \"yes\""},
       {"/bodies/0/half_size/1", -1, "/bodies/0/half_size/1: must be > 0, got -1"},
       {"/output/frame_every", 0, "/output/frame_every: must be an integer >= 1, got 0"},
       {"/output/checkpoint_every", -1, "/output/checkpoint_every: must be an integer >= 0, got -1"},
