@@ -343,7 +343,7 @@ BENCHMARK(BM_ApplySmallIncrement)
 
 // One-step increments (min_steps 1) on `rves` RVEs in turn, as an MPM step
 // walks its points: with thousands of RVEs each increment starts from data
-// that left the caches since its RVE's last increment (the footing-full case
+// that left the caches since its RVE's last increment (the footing-dense case
 // holds 7776 RVEs, ~0.5 GB). The ratio to rves:1 is the price of that.
 void BM_ApplyManyRves(benchmark::State& state) {
   dem::RveSnapshot packing = DensePacking();

@@ -15,9 +15,9 @@
 //   build/bench/bench_mpm [--steps=N] [--full] [--baseline] [--remote] [--threads=N]
 //                         [CASE.json ...]
 // --steps: MPM steps per case (default 0: to the case's end time). Default
-// cases: the CI-sized ones (single-element-biaxial, footing-ci,
+// cases: the CI-sized ones (single-element-biaxial, footing-dense-ci,
 // biaxial-specimen-ci, column-collapse-ci); --full: footing-coarse,
-// biaxial-specimen-medium, column-collapse-full, footing-full (hours before
+// biaxial-specimen-medium, column-collapse-full, footing-dense (hours before
 // issue 9; give --steps to sample them).
 #include <algorithm>
 #include <chrono>
@@ -109,8 +109,8 @@ int main(int argc, char** argv) {
   if (cases.empty()) {
     const std::vector<std::string> names =
         full ? std::vector<std::string>{"footing-coarse", "biaxial-specimen-medium",
-                                        "column-collapse-full", "footing-full"}
-             : std::vector<std::string>{"single-element-biaxial", "footing-ci",
+                                        "column-collapse-full", "footing-dense"}
+             : std::vector<std::string>{"single-element-biaxial", "footing-dense-ci",
                                         "biaxial-specimen-ci", "column-collapse-ci"};
     for (const std::string& n : names)
       cases.push_back(std::string(RVEHUB_SOURCE_DIR) + "/cases/" + n + ".json");

@@ -288,7 +288,7 @@ class RunRecord {
 int Main(int argc, char** argv) {
   // Debian's Abseil is built with mutex deadlock detection on: a graph update
   // per lock, and the embedded registry locks every RVE every step (~2 % of
-  // footing-full). The tests keep it on.
+  // footing-dense). The tests keep it on.
   absl::SetMutexDeadlockDetectionMode(absl::OnDeadlockCycle::kIgnore);
   absl::StatusOr<Command> command = Parse(argc, argv);
   if (!command.ok()) return Fail(command.status(), 2);

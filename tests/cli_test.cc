@@ -201,7 +201,8 @@ TEST(CliTest, MaterialsListsTheParameterSets) {
     EXPECT_TRUE(absl::StrContains(lines[0], column)) << column << " in " << lines[0];
   }
   // SET-dense: linear contacts, E = 600 MPa, μ = 0.5452, 400 discs of 3-7 mm,
-  // p0 = 100 kPa, e0 = 0.177; footing-soft: E = 80 MPa, rolling η = 0.02.
+  // p0 = 100 kPa, e0 = 0.177; footing-soft: E = 80 MPa, rolling η = 0.02,
+  // prepared at the footing's 20 kPa.
   std::vector<std::string> dense = absl::StrSplit(lines[1], ' ', absl::SkipEmpty());
   EXPECT_EQ(dense, (std::vector<std::string>{"SET-dense", "linear", "2650", "600", "0.8", "0.25",
                                              "0.5452", "0", "0", "0", "0.1", "0.1", "400", "3",
@@ -215,6 +216,7 @@ TEST(CliTest, MaterialsListsTheParameterSets) {
   ASSERT_EQ(soft_fields.size(), 18u) << soft;
   EXPECT_EQ(soft_fields[3], "80");
   EXPECT_EQ(soft_fields[8], "0.02");
+  EXPECT_EQ(soft_fields[15], "20");
 }
 
 // Reads the CSV as rows of numbers (header dropped).
