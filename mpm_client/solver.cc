@@ -496,6 +496,21 @@ void Solver::Constrain(std::vector<Eigen::Vector2d>& velocity, double body_time,
                   std::span<Vector2d>(impulse_).subspan(walls_.size()));
 }
 
+Eigen::Vector2d Solver::KeepOffWalls(const Eigen::Vector2d& from, Eigen::Vector2d to) const {
+  for (std::size_t w = 0; w < walls_.size(); ++w) {
+    const Wall& wall = walls_[w];
+    if (wall.remove_time <= time_) continue;
+    const int a = wall.axis;
+    const double before = from[a] - wall.position, after = to[a] - wall.position;
+    const int last_line = a == 0 ? grid_.nx : grid_.ny;
+    const bool crosses = (before > 0.0 && after < 0.0) || (before < 0.0 && after > 0.0);
+    const bool off_grid =
+        (wall_lines_[w] == 0 && after < 0.0) || (wall_lines_[w] == last_line && after > 0.0);
+    if (crosses || off_grid) to[a] = wall.position;
+  }
+  return to;
+}
+
 absl::Status Solver::Step() {
   if (!(dt_ > 0.0) || !std::isfinite(dt_)) {
     return absl::FailedPreconditionError(absl::StrCat("time step dt = ", dt_, " must be > 0"));
@@ -598,7 +613,7 @@ absl::Status Solver::Step() {
       v_pic += s.weight[k] * node_velocity_new_[s.node[k]];
       dv += s.weight[k] * (node_velocity_new_[s.node[k]] - node_velocity_[s.node[k]]);
     }
-    mp.position[p] += dt_ * v_pic;
+    mp.position[p] = KeepOffWalls(mp.position[p], mp.position[p] + dt_ * v_pic);
     mp.velocity[p] = alpha * v_pic + (1.0 - alpha) * (mp.velocity[p] + dv);
   }
   for (std::size_t k = 0; k < reactions_.size(); ++k) reactions_[k] = impulse_[k] / -dt_;

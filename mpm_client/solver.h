@@ -158,6 +158,12 @@ class Solver {
   void Constrain(std::vector<Eigen::Vector2d>& velocity, double body_time, double weight);
   // The points' faces near each body at the step's start (contacts_).
   void FindContacts();
+  // A point's new position `to` (m), moved from `from`, held on the line of
+  // any wall it would cross or, at the grid's edge, leave the grid through.
+  // A GIMP point moves with its domain's mean velocity, which does not
+  // vanish at a wall line its domain reaches past: without this its centre
+  // creeps through the wall (and, at the grid's edge, off the grid).
+  Eigen::Vector2d KeepOffWalls(const Eigen::Vector2d& from, Eigen::Vector2d to) const;
 
   GridSpec grid_;
   SolverSpec solver_;
