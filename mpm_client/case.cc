@@ -1053,6 +1053,16 @@ const Table<std::string> kPlots = {
 
 bool LoadSettlement(const OutputSpec& o) { return o.plot == "load-settlement"; }
 
+const Table<std::string> kSummaries = {{"footing", "footing"},
+                                       {"pipe", "pipe"},
+                                       {"collapse", "collapse"},
+                                       {"biaxial", "biaxial"},
+                                       {"none", "none"}};
+
+bool FootingSummary(const OutputSpec& o) {
+  return o.summary == "footing" || (o.summary.empty() && o.plot == "load-settlement");
+}
+
 // `bodies`: the case's, for the plot body's check (null when only writing).
 Fields<OutputSpec> OutputFields(const std::vector<RigidBody>* bodies) {
   constexpr std::int64_t kMax = std::numeric_limits<std::int64_t>::max();
@@ -1083,6 +1093,22 @@ Fields<OutputSpec> OutputFields(const std::vector<RigidBody>* bodies) {
       Only(&LoadSettlement, kOnlyLoadSettlement, plot_body),
       Only(&LoadSettlement, kOnlyLoadSettlement,
            NumberField("plot_width", &OutputSpec::plot_width, Need::kOptional, kPositive)),
+      {"summary",
+       [](const Object& o, OutputSpec* out) {
+         return GetEnum(o, "summary", Need::kOptional, "summary", kSummaries, &out->summary);
+       },
+       [](const OutputSpec& out, OrderedJson& j) {
+         if (!out.summary.empty()) j["summary"] = out.summary;
+       }},
+      Only(&FootingSummary, "only for a footing summary",
+           {"phi_deg",
+            [](const Object& o, OutputSpec* out) {
+              return GetNumber(o, "phi_deg", Need::kOptional, Range{0.0, 90.0, true, true},
+                               &out->phi_deg);
+            },
+            [](const OutputSpec& out, OrderedJson& j) {
+              if (out.phi_deg > 0.0) j["phi_deg"] = out.phi_deg;
+            }}),
   };
 }
 

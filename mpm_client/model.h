@@ -151,6 +151,12 @@ struct OutputSpec {
   std::string plot = "stress-strain";
   std::string plot_body;    // body for load-settlement
   double plot_width = 1.0;  // m, footing width B for load normalisation q = fy/(B·t)
+  // Headline figures written to summary.json (mpm_client/summary.h):
+  // "footing", "pipe", "collapse", "biaxial", "none"; empty: from `plot`
+  // (load-settlement: footing; stress-strain: biaxial; none: none).
+  std::string summary;
+  // φ' of the soil for Prandtl's N_q (footing summary), degrees; 0: not given.
+  double phi_deg = 0.0;
 };
 
 struct RveSpec {

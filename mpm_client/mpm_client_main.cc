@@ -26,7 +26,9 @@
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
 #include "mpm_client/case.h"
+#include "mpm_client/output.h"
 #include "mpm_client/simulation.h"
+#include "mpm_client/summary.h"
 #include "nlohmann/json.hpp"
 #include "rve_server/client/channel.h"
 #include "rve_server/common/flags.h"
@@ -57,6 +59,7 @@ Usage:
   mpm_client run CASE.json --out=DIR [options]   run a case
   mpm_client resume CHECKPOINT.h5 [options]       continue a run from its checkpoint
   mpm_client check CASE.json [--set=...]         validate a case file and print it in full
+  mpm_client summarise CASE.json --out=DIR       (re)write DIR/summary.json from DIR/timeseries.csv
   mpm_client --help
 
 Options (run, resume):
@@ -120,7 +123,7 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
   }
   if (positional.empty()) return absl::InvalidArgumentError("no command (see --help)");
   c.name = positional[0];
-  if (c.name != "run" && c.name != "resume" && c.name != "check") {
+  if (c.name != "run" && c.name != "resume" && c.name != "check" && c.name != "summarise") {
     return absl::InvalidArgumentError(absl::StrCat("unknown command '", c.name, "'"));
   }
   if (positional.size() < 2) {
@@ -134,11 +137,32 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
           absl::StrCat("check takes no options (got --", key, "), only --set"));
     }
   }
+  if (c.name == "summarise") {
+    for (const auto& [key, value] : c.args.text) {
+      if (key != "out") {
+        return absl::InvalidArgumentError(
+            absl::StrCat("summarise takes only --out and --set (got --", key, ")"));
+      }
+    }
+    if (!c.args.contains("out")) return absl::InvalidArgumentError("summarise needs --out=DIR");
+  }
   if (c.name == "resume" && c.args.contains("set")) {
     return absl::InvalidArgumentError(
         "resume takes no --set (a checkpoint continues the case it was written with)");
   }
   return c;
+}
+
+// summarise: summary.json of a finished run in `dir` from its timeseries.csv
+// (e.g. after giving the case its φ'), printed as the run prints it.
+absl::Status Summarise(const std::string& case_path, const std::vector<CaseOverride>& overrides,
+                       const std::string& dir) {
+  ASSIGN_OR_RETURN(CaseSpec spec, LoadCase(case_path, overrides));
+  ASSIGN_OR_RETURN(auto columns, ReadCsvColumns(dir + "/timeseries.csv"));
+  ASSIGN_OR_RETURN(const Summary summary, mpm::Summarise(spec, columns));
+  RETURN_IF_ERROR(WriteSummary(dir + "/summary.json", spec.name, summary));
+  for (const auto& [key, value] : summary) std::printf("summary: %s = %.6g\n", key.c_str(), value);
+  return absl::OkStatus();
 }
 
 // The case overrides of --set, in the order given.
@@ -303,6 +327,10 @@ int Main(int argc, char** argv) {
     if (!spec.ok()) return Fail(spec.status(), 1);
     std::printf("%s\n", ToJson(*spec).c_str());
     return 0;
+  }
+  if (command->name == "summarise") {
+    const absl::Status s = Summarise(command->target, *overrides, command->args.text.at("out"));
+    return s.ok() ? 0 : Fail(s, 1);
   }
   absl::StatusOr<SimulationOptions> options = Options(command->args);
   if (!options.ok()) return Fail(options.status(), 2);

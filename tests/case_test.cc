@@ -78,7 +78,7 @@ constexpr char kFullCase[] = R"json({
   "rve": {"max_inertial_number": 1e-3, "min_steps": 50},
   "output": {"frame_every": 50, "timeseries_every": 5, "checkpoint_every": 1000,
              "progress_every": 10, "plot": "load-settlement", "plot_body": "footing",
-             "plot_width": 0.5}
+             "plot_width": 0.5, "phi_deg": 30}
 })json";
 
 // The smallest valid case: everything else takes model.h's defaults.
@@ -231,6 +231,8 @@ TEST_F(CaseTest, FullCaseParsesIntoExpectedSpec) {
   EXPECT_EQ(spec->output.progress_every, 10);
   EXPECT_EQ(spec->output.plot, "load-settlement");
   EXPECT_EQ(spec->output.plot_body, "footing");
+  EXPECT_EQ(spec->output.phi_deg, 30.0);
+  EXPECT_EQ(spec->output.summary, "");  // from the plot: a footing
   EXPECT_EQ(spec->output.plot_width, 0.5);
 }
 
@@ -370,6 +372,8 @@ void ExpectSameSpec(const CaseSpec& a, const CaseSpec& b) {
   EXPECT_EQ(a.output.plot, b.output.plot);
   EXPECT_EQ(a.output.plot_body, b.output.plot_body);
   EXPECT_EQ(a.output.plot_width, b.output.plot_width);
+  EXPECT_EQ(a.output.summary, b.output.summary);
+  EXPECT_EQ(a.output.phi_deg, b.output.phi_deg);
 }
 
 TEST_F(CaseTest, ToJsonRoundTrips) {
@@ -457,6 +461,9 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
        "/regions/1/template: no template named \"dense2\" (templates: dense, stored)"},
       {"/tractions/0/region", "rock", "/tractions/0/region: no region named \"rock\""},
       {"/output/plot_body", "pile", "/output/plot_body: no body named \"pile\" (bodies: footing"},
+      {"/output/phi_deg", 95, "/output/phi_deg: must be in (0, 90), got 95"},
+      {"/output/summary", "fancy",
+       "/output/summary: unknown summary \"fancy\" (footing, pipe, collapse, biaxial, none)"},
       {"/output/plot_body", kRemove, "/output/plot_body: required key is missing"},
       // Parameter sets and template files.
       {"/templates/0/parameter_set", "SET-foo",

@@ -5,6 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include <fstream>
+#include <iterator>
+
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
@@ -179,6 +182,11 @@ TEST(SimulationTest, SingleElementMatchesElementTestUpToPeak) {
   EXPECT_LT(syy.back(), 0.9 * mpm_peak);
   EXPECT_TRUE(fs::exists(out + "/plot.png"));
   EXPECT_TRUE(fs::exists(out + "/results.xdmf"));
+  // summary.json: the nominal peak (platen force over the width).
+  std::ifstream summary(out + "/summary.json");
+  const std::string text((std::istreambuf_iterator<char>(summary)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("\"peak_stress_Pa\""), std::string::npos) << text;
+  EXPECT_NE(text.find("\"final_strain\": 0.15"), std::string::npos) << text;
 }
 
 // A short single-element run: `steps` steps of the case.

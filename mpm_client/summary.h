@@ -1,0 +1,68 @@
+// The headline figures of a run (DIR/summary.json), from its timeseries.csv:
+// what a reader of the paper compares first. Pure functions over columns.
+#ifndef RVEHUB_MPM_CLIENT_SUMMARY_H_
+#define RVEHUB_MPM_CLIENT_SUMMARY_H_
+
+#include <cstddef>
+#include <map>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "mpm_client/model.h"
+
+namespace rvehub::mpm {
+
+// Prandtl's bearing capacity factor of a weightless cohesionless soil,
+// N_q = tan²(π/4 + φ/2)·exp(π tan φ), φ in radians.
+double PrandtlNq(double phi);
+
+// The ultimate load of a load–settlement curve as liang-zhao-mpm-dem §3.3
+// takes it: where the slope first reaches zero (the first peak) or, on a
+// curve that keeps rising, where the slope is smallest. The curve is first
+// smoothed, by a running median of 3 rows and a centred mean over `window`
+// rows (odd), so that the flicker of single rows does not pass for a peak. InvalidArgument for
+// fewer than 3 rows or columns of different lengths.
+struct UltimateLoad {
+  std::size_t row = 0;      // in the given columns
+  double load = 0.0;        // the smoothed load there
+  double settlement = 0.0;  // m
+  bool peak = false;        // a peak (slope zero); else the smallest slope
+};
+absl::StatusOr<UltimateLoad> FindUltimateLoad(std::span<const double> settlement,
+                                              std::span<const double> load, int window = 5);
+
+// The first time from which the front stays within `tolerance` (m) of its
+// last value; the last time if it never settles.
+double FrontStopTime(std::span<const double> time, std::span<const double> front,
+                     double tolerance);
+
+// The summary kind of a case: OutputSpec::summary, or from its plot.
+std::string SummaryKind(const OutputSpec& out);
+
+// Named figures in the order summary.json lists them (SI units in the names).
+using Summary = std::vector<std::pair<std::string, double>>;
+
+// The figures of a case's kind from its timeseries columns (by header):
+// footing: N_q, ultimate_load_Pa, settlement_at_ultimate_m, phi_deg and
+// N_q_prandtl (when the case gives φ'), surcharge_Pa; pipe:
+// peak_vertical_force_N, peak_horizontal_force_N (largest magnitudes of what
+// the soil exerts on the body, N for the domain thickness); collapse:
+// runout_normalised (d_f − d_0)/d_0 with d_0 the region's width and d_f the
+// front at the end plus the points' initial half spacing, front_stop_time_s;
+// biaxial: peak_stress_Pa and peak_strain (nominal: the platen's force over
+// the region's width, its travel over the region's height; compression +;
+// the mean σyy and εyy of the points without a platen), final_stress_Pa,
+// final_strain. Empty for "none".
+absl::StatusOr<Summary> Summarise(const CaseSpec& spec,
+                                  const std::map<std::string, std::vector<double>>& columns);
+
+// summary.json: {"case": name, then the figures as plain keys}.
+absl::Status WriteSummary(const std::string& path, const std::string& case_name,
+                          const Summary& summary);
+
+}  // namespace rvehub::mpm
+
+#endif  // RVEHUB_MPM_CLIENT_SUMMARY_H_

@@ -1,0 +1,155 @@
+// The headline figures of summary.json from hand-made timeseries columns.
+#include "mpm_client/summary.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+#include <numbers>
+#include <string>
+#include <vector>
+
+namespace rvehub::mpm {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+TEST(SummaryTest, PrandtlNqMatchesThePaper) {
+  // liang-zhao-mpm-dem §3.3: φ' = 28.1° gives 14.8; cases/friction_angle.py
+  // gives 22.31 for footing-dense's 31.67°.
+  EXPECT_NEAR(PrandtlNq(28.1 * kDeg), 14.88, 0.005);
+  EXPECT_NEAR(PrandtlNq(31.67 * kDeg), 22.30, 0.005);
+  EXPECT_DOUBLE_EQ(PrandtlNq(0.0), 1.0);
+}
+
+TEST(SummaryTest, UltimateLoadOfACurveWithAPeakIsThePeak) {
+  std::vector<double> d, q;
+  for (int i = 0; i <= 100; ++i) {
+    d.push_back(0.01 * i);
+    q.push_back(100.0 * (1.0 - (d.back() - 0.5) * (d.back() - 0.5) / 0.25));
+  }
+  absl::StatusOr<UltimateLoad> u = FindUltimateLoad(d, q);
+  ASSERT_TRUE(u.ok()) << u.status();
+  EXPECT_TRUE(u->peak);
+  // The smoothing flattens the top over a few rows: the peak within a row
+  // of d = 0.5 and within 0.1 % of the load there.
+  EXPECT_NEAR(u->settlement, 0.5, 0.0101);
+  EXPECT_NEAR(u->load, 100.0, 0.1);
+}
+
+TEST(SummaryTest, OneFlickeringRowIsNoPeakAndARisingCurveEndsAtItsSmallestSlope) {
+  // Slope 10 up to d = 0.3, then 1: the ultimate load is where the slope
+  // settles at its minimum, just past the knee (within the smoothing window).
+  std::vector<double> d, q;
+  for (int i = 0; i <= 100; ++i) {
+    d.push_back(0.01 * i);
+    q.push_back(d.back() <= 0.3 ? 10.0 * d.back() : 3.0 + (d.back() - 0.3));
+  }
+  absl::StatusOr<UltimateLoad> u = FindUltimateLoad(d, q);
+  ASSERT_TRUE(u.ok()) << u.status();
+  EXPECT_FALSE(u->peak);
+  EXPECT_GE(u->settlement, 0.3);
+  EXPECT_LE(u->settlement, 0.33) << u->settlement;
+  // One row on the rising part dips by 5 % (as a node row emptying makes
+  // it): no peak there.
+  q[20] *= 0.95;
+  u = FindUltimateLoad(d, q);
+  ASSERT_TRUE(u.ok()) << u.status();
+  EXPECT_FALSE(u->peak);
+  EXPECT_GE(u->settlement, 0.3);
+  EXPECT_FALSE(FindUltimateLoad(std::vector<double>{0, 1}, std::vector<double>{0, 1}).ok());
+}
+
+TEST(SummaryTest, FrontStopsWhenItStaysWithinTheTolerance) {
+  const std::vector<double> t = {0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8};
+  const std::vector<double> x = {1.0, 1.2, 1.5, 1.8, 1.9, 1.95, 1.96, 1.96, 1.96};
+  EXPECT_DOUBLE_EQ(FrontStopTime(t, x, 0.02), 0.5);
+  EXPECT_DOUBLE_EQ(FrontStopTime(t, x, 0.001), 0.6);
+}
+
+CaseSpec Region(double width, double height, int ppc, double h) {
+  CaseSpec spec;
+  spec.name = "test";
+  spec.grid.cell_size = h;
+  MaterialRegion r;
+  r.upper = Eigen::Vector2d(width, height);
+  r.points_per_cell_side = ppc;
+  spec.regions.push_back(r);
+  return spec;
+}
+
+TEST(SummaryTest, FootingCollapseBiaxialAndPipeFigures) {
+  // Footing: B·t = 0.5 m², 20 kPa surcharge, φ' 30°.
+  CaseSpec footing = Region(3, 2, 1, 0.25);
+  footing.output.plot = "load-settlement";
+  footing.output.plot_body = "footing";
+  footing.output.plot_width = 0.5;
+  footing.output.phi_deg = 30.0;
+  SurfaceTraction surcharge;
+  surcharge.normal_axis = 1;
+  surcharge.normal_sign = 1;
+  surcharge.traction = Eigen::Vector2d(0.0, -20e3);
+  footing.tractions.push_back(surcharge);
+  std::map<std::string, std::vector<double>> cols;
+  for (int i = 0; i <= 40; ++i) {
+    const double d = 0.005 * i;
+    cols["footing_dy"].push_back(-d);
+    cols["footing_fy"].push_back(0.5 * 200e3 * std::min(d, 0.1) / 0.1 * (d > 0.1 ? 1 - (d - 0.1) : 1));
+  }
+  absl::StatusOr<Summary> s = Summarise(footing, cols);
+  ASSERT_TRUE(s.ok()) << s.status();
+  std::map<std::string, double> m(s->begin(), s->end());
+  // A sharp peak (200 kPa at 0.1 m) is rounded off by the smoothing.
+  EXPECT_NEAR(m["ultimate_load_Pa"], 200e3, 0.02 * 200e3);
+  EXPECT_NEAR(m["settlement_at_ultimate_m"], 0.1, 0.0151);
+  EXPECT_NEAR(m["N_q"], m["ultimate_load_Pa"] / 20e3, 1e-12);
+  EXPECT_NEAR(m["N_q_prandtl"], 18.40, 0.01);
+  EXPECT_EQ(m["phi_deg"], 30.0);
+
+  // Collapse: a 1 m column of 0.25 m cells with 2 points per side (half
+  // spacing 0.0625 m), the front stopping at 1.7375 + 0.0625 = 1.8 m.
+  CaseSpec collapse = Region(1, 1, 2, 0.25);
+  collapse.output.summary = "collapse";
+  std::map<std::string, std::vector<double>> c;
+  c["time"] = {0.0, 0.5, 1.0, 1.5};
+  c["front_x"] = {0.9375, 1.5, 1.7375, 1.7375};
+  s = Summarise(collapse, c);
+  ASSERT_TRUE(s.ok()) << s.status();
+  m = std::map<std::string, double>(s->begin(), s->end());
+  EXPECT_NEAR(m["runout_normalised"], 0.8, 1e-12);
+  EXPECT_DOUBLE_EQ(m["front_stop_time_s"], 1.0);
+
+  // Biaxial with a platen: force over the width, travel over the height.
+  CaseSpec biaxial = Region(0.05, 0.1, 1, 0.0125);
+  biaxial.output.plot = "stress-strain";
+  RigidBody platen;
+  platen.name = "platen";
+  biaxial.bodies.push_back(platen);
+  std::map<std::string, std::vector<double>> b;
+  b["platen_dy"] = {0.0, -0.001, -0.002, -0.003};
+  b["platen_fy"] = {0.0, 10e3, 14e3, 12e3};
+  s = Summarise(biaxial, b);
+  ASSERT_TRUE(s.ok()) << s.status();
+  m = std::map<std::string, double>(s->begin(), s->end());
+  EXPECT_DOUBLE_EQ(m["peak_stress_Pa"], 14e3 / 0.05);
+  EXPECT_DOUBLE_EQ(m["peak_strain"], 0.02);
+  EXPECT_DOUBLE_EQ(m["final_strain"], 0.03);
+
+  // Pipe: the largest magnitudes.
+  biaxial.output.summary = "pipe";
+  b["platen_fx"] = {0.0, -3.0, 5.0, -7.0};
+  s = Summarise(biaxial, b);
+  ASSERT_TRUE(s.ok()) << s.status();
+  m = std::map<std::string, double>(s->begin(), s->end());
+  EXPECT_DOUBLE_EQ(m["peak_horizontal_force_N"], 7.0);
+  EXPECT_DOUBLE_EQ(m["peak_vertical_force_N"], 14e3);
+
+  // A missing column is named.
+  b.erase("platen_fx");
+  s = Summarise(biaxial, b);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.status().message().find("platen_fx"), std::string::npos) << s.status();
+}
+
+}  // namespace
+}  // namespace rvehub::mpm
