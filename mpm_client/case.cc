@@ -1049,7 +1049,10 @@ absl::Status ParseRve(const Json& j, const std::string& ptr, RveSpec* rve) {
 
 // Static storage for the list (the table outlives every read).
 const Table<std::string> kPlots = {
-    {"stress-strain", "stress-strain"}, {"load-settlement", "load-settlement"}, {"none", "none"}};
+    {"stress-strain", "stress-strain"},
+    {"load-settlement", "load-settlement"},
+    {"collapse", "collapse"},
+    {"none", "none"}};
 
 bool LoadSettlement(const OutputSpec& o) { return o.plot == "load-settlement"; }
 

@@ -59,7 +59,8 @@ Usage:
   mpm_client run CASE.json --out=DIR [options]   run a case
   mpm_client resume CHECKPOINT.h5 [options]       continue a run from its checkpoint
   mpm_client check CASE.json [--set=...]         validate a case file and print it in full
-  mpm_client summarise CASE.json --out=DIR       (re)write DIR/summary.json from DIR/timeseries.csv
+  mpm_client summarise CASE.json --out=DIR       (re)write DIR/summary.json and plot.png from
+                                                 DIR/timeseries.csv
   mpm_client --help
 
 Options (run, resume):
@@ -153,14 +154,16 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
   return c;
 }
 
-// summarise: summary.json of a finished run in `dir` from its timeseries.csv
-// (e.g. after giving the case its φ'), printed as the run prints it.
+// summarise: summary.json and plot.png of a finished run in `dir` from its
+// timeseries.csv (e.g. after giving the case its φ'), printed as the run
+// prints them.
 absl::Status Summarise(const std::string& case_path, const std::vector<CaseOverride>& overrides,
                        const std::string& dir) {
   ASSIGN_OR_RETURN(CaseSpec spec, LoadCase(case_path, overrides));
   ASSIGN_OR_RETURN(auto columns, ReadCsvColumns(dir + "/timeseries.csv"));
   ASSIGN_OR_RETURN(const Summary summary, mpm::Summarise(spec, columns));
   RETURN_IF_ERROR(WriteSummary(dir + "/summary.json", spec.name, summary));
+  RETURN_IF_ERROR(WriteCasePlot(spec, dir + "/timeseries.csv", dir + "/plot.png"));
   for (const auto& [key, value] : summary) std::printf("summary: %s = %.6g\n", key.c_str(), value);
   return absl::OkStatus();
 }

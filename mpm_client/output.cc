@@ -1,5 +1,6 @@
 #include "mpm_client/output.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <fstream>
@@ -9,6 +10,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
+#include "mpm_client/summary.h"
 #include "rve_server/common/plot.h"
 #include "rve_server/common/status_macros.h"
 
@@ -131,37 +133,87 @@ absl::Status WriteCasePlot(const CaseSpec& spec, const std::string& csv_path,
     for (double& x : v) x *= f;
     return v;
   };
+  const std::string& name = spec.name;
   std::vector<plot::Panel> panels;
   if (out.plot == "stress-strain") {
-    absl::StatusOr<std::vector<double>> eyy = column("mean_eyy");
-    absl::StatusOr<std::vector<double>> exx = column("mean_exx");
-    absl::StatusOr<std::vector<double>> syy = column("mean_syy");
-    absl::StatusOr<std::vector<double>> sxx = column("mean_sxx");
-    for (const auto* c : {&eyy, &exx, &syy, &sxx}) {
-      if (!c->ok()) return c->status();
+    ASSIGN_OR_RETURN(const std::vector<double> eyy, column("mean_eyy"));
+    ASSIGN_OR_RETURN(const std::vector<double> exx, column("mean_exx"));
+    ASSIGN_OR_RETURN(const std::vector<double> syy, column("mean_syy"));
+    ASSIGN_OR_RETURN(const std::vector<double> sxx, column("mean_sxx"));
+    std::vector<double> ev(eyy.size());
+    for (std::size_t i = 0; i < ev.size(); ++i) ev[i] = 100.0 * (eyy[i] + exx[i]);
+    const std::vector<double> axial = scaled(eyy, 100.0);
+    // The paper's nominal curve: the platen's force over the specimen's
+    // width against its travel over the height (the biaxial summary's).
+    if (!spec.bodies.empty()) {
+      const std::string body = out.plot_body.empty() ? spec.bodies.front().name : out.plot_body;
+      ASSIGN_OR_RETURN(const std::vector<double> fy, column(body + "_fy"));
+      ASSIGN_OR_RETURN(const std::vector<double> dy, column(body + "_dy"));
+      const MaterialRegion& r = spec.regions.front();
+      const double width = r.upper.x() - r.lower.x(), height = r.upper.y() - r.lower.y();
+      panels.push_back({absl::StrCat(name, ": nominal stress-strain"),
+                        "platen travel / height (%)",
+                        "platen force / width (kPa)",
+                        {{body, scaled(dy, -100.0 / height),
+                          scaled(fy, 1e-3 / (width * spec.solver.thickness))}}});
     }
-    std::vector<double> ev(eyy->size());
-    for (std::size_t i = 0; i < ev.size(); ++i) ev[i] = 100.0 * ((*eyy)[i] + (*exx)[i]);
-    const std::vector<double> axial = scaled(*eyy, 100.0);
-    panels.push_back({"Stress-strain (mean of all points)",
+    panels.push_back({absl::StrCat(name, ": mean of all points"),
                       "axial strain eyy (%)",
                       "stress (kPa, compression +)",
-                      {{"syy", axial, scaled(*syy, 1e-3)}, {"sxx", axial, scaled(*sxx, 1e-3)}}});
-    panels.push_back({"Volumetric strain",
+                      {{"syy", axial, scaled(syy, 1e-3)}, {"sxx", axial, scaled(sxx, 1e-3)}}});
+    panels.push_back({absl::StrCat(name, ": volumetric strain"),
                       "axial strain eyy (%)",
                       "ev = exx + eyy (%, compression +)",
                       {{"ev", axial, ev}}});
   } else if (out.plot == "load-settlement") {
-    absl::StatusOr<std::vector<double>> fy = column(out.plot_body + "_fy");
-    absl::StatusOr<std::vector<double>> dy = column(out.plot_body + "_dy");
-    if (!fy.ok()) return fy.status();
-    if (!dy.ok()) return dy.status();
+    ASSIGN_OR_RETURN(const std::vector<double> fy, column(out.plot_body + "_fy"));
+    ASSIGN_OR_RETURN(const std::vector<double> dy, column(out.plot_body + "_dy"));
     const double area = out.plot_width * spec.solver.thickness;  // m²
-    std::vector<double> q = scaled(*fy, 1e-3 / area);
-    panels.push_back({absl::StrCat("Load-settlement of ", out.plot_body),
-                      "settlement (m)",
-                      "q = fy / (B t) (kPa)",
-                      {{out.plot_body, scaled(*dy, -1.0), q}}});
+    const std::vector<double> d = scaled(dy, -1.0);
+    ASSIGN_OR_RETURN(const Summary summary, Summarise(spec, cols));
+    const std::map<std::string, double> figures(summary.begin(), summary.end());
+    if (SummaryKind(out) == "footing" && figures.contains("surcharge_Pa")) {
+      // q/q_s against d with Prandtl's N_q and the ultimate load marked.
+      const double qs = figures.at("surcharge_Pa");
+      plot::Panel panel{absl::StrCat(name, ": load-settlement of ", out.plot_body),
+                        "settlement d (m)",
+                        "q / q_s",
+                        {{"MPM x DEM", d, scaled(fy, 1.0 / (area * qs))}}};
+      const double d_end = d.empty() ? 0.0 : *std::max_element(d.begin(), d.end());
+      if (figures.contains("N_q_prandtl")) {
+        const double nq = figures.at("N_q_prandtl");
+        panel.series.push_back({"Prandtl N_q", {0.0, d_end}, {nq, nq}});
+      }
+      const double du = figures.at("settlement_at_ultimate_m"), nu = figures.at("N_q");
+      panel.series.push_back({"ultimate load", {du, du}, {0.0, nu}});
+      panels.push_back(std::move(panel));
+    } else if (SummaryKind(out) == "pipe") {
+      ASSIGN_OR_RETURN(const std::vector<double> fx, column(out.plot_body + "_fx"));
+      ASSIGN_OR_RETURN(const std::vector<double> dx, column(out.plot_body + "_dx"));
+      const double t = 1e-3 / spec.solver.thickness;  // kN per m of pipe
+      panels.push_back({absl::StrCat(name, ": vertical"),
+                        "downward displacement (m)",
+                        "vertical force of the soil (kN/m)",
+                        {{out.plot_body, d, scaled(fy, t)}}});
+      panels.push_back({absl::StrCat(name, ": horizontal"),
+                        "displacement to the left (m)",
+                        "horizontal force of the soil (kN/m)",
+                        {{out.plot_body, scaled(dx, -1.0), scaled(fx, t)}}});
+    } else {
+      panels.push_back({absl::StrCat(name, ": load-settlement of ", out.plot_body),
+                        "settlement (m)",
+                        "q = fy / (B t) (kPa)",
+                        {{out.plot_body, d, scaled(fy, 1e-3 / area)}}});
+    }
+  } else if (out.plot == "collapse") {
+    ASSIGN_OR_RETURN(const std::vector<double> t, column("time"));
+    ASSIGN_OR_RETURN(const std::vector<double> front, column("front_x"));
+    ASSIGN_OR_RETURN(const std::vector<double> ke, column("kinetic_energy"));
+    panels.push_back({absl::StrCat(name, ": front"), "time (s)", "front x (m)", {{"front", t, front}}});
+    panels.push_back({absl::StrCat(name, ": kinetic energy"),
+                      "time (s)",
+                      "kinetic energy (J)",
+                      {{"E_k", t, ke}}});
   } else {
     return absl::InvalidArgumentError(absl::StrCat("unknown plot kind '", out.plot, "'"));
   }
