@@ -611,22 +611,34 @@ TEST(BodyTest, PlatenStrainsAColumnAsItMovesBetweenNodeRows) {
 // Contacts are unilateral: a platen pressed into a block and then lifted
 // pulls nothing up. Its vertical reaction never turns tensile and is zero
 // once it has left the surface.
-TEST(BodyTest, SoilLetsGoOfARisingBody) {
-  const double rho = 2000.0, youngs = 2e6, nu = 0.3, h = 0.05;
-  CaseSpec spec = BlockCase(h, 8, 10, Vector2d(0.0, 0.0), Vector2d(0.4, 0.3), 2, rho);
+// An elastic block (E = 2 MPa, ν = 0.3, 0.3 m tall, from x0 to x1) on a
+// rough base, and a 0.1 m thick platen on its top, pressed down at 5 cm/s
+// for 0.1 s and then moved at `then`.
+constexpr double kPlatenYoungs = 2e6, kPlatenNu = 0.3;
+CaseSpec PlatenCase(double x0, double x1, double center_x, double half_width, ContactKind contact,
+                    double mu, const Vector2d& then) {
+  const double rho = 2000.0, h = 0.05;
+  CaseSpec spec = BlockCase(h, static_cast<int>(std::lround((x1 + 0.1) / h)), 10, Vector2d(x0, 0.0),
+                            Vector2d(x1, 0.3), 2, rho);
   spec.solver.pic_fraction = 0.05;
   spec.solver.shape = ShapeKind::kGimp;
-  spec.solver.time_step = 0.2 * h / std::sqrt(PWaveModulus(youngs, nu) / rho);
+  spec.solver.time_step = 0.2 * h / std::sqrt(PWaveModulus(kPlatenYoungs, kPlatenNu) / rho);
   spec.walls = {MakeWall(1, 0.0, ContactKind::kRough)};
   RigidBody platen;
   platen.name = "platen";
-  platen.center = Vector2d(0.2, 0.35);
-  platen.half_size = Vector2d(0.1, 0.05);
-  platen.contact = ContactKind::kRough;
-  platen.velocity = {
-      {0.0, Vector2d(0.0, -0.05)}, {0.1, Vector2d(0.0, -0.05)}, {0.1001, Vector2d(0.0, 0.05)}};
+  platen.center = Vector2d(center_x, 0.35);
+  platen.half_size = Vector2d(half_width, 0.05);
+  platen.contact = contact;
+  platen.friction = mu;
+  platen.velocity = {{0.0, Vector2d(0.0, -0.05)}, {0.1, Vector2d(0.0, -0.05)}, {0.1001, then}};
   spec.bodies = {platen};
-  LinearElasticModel model(youngs, nu);
+  return spec;
+}
+
+TEST(BodyTest, SoilLetsGoOfARisingBody) {
+  const CaseSpec spec =
+      PlatenCase(0.0, 0.4, 0.2, 0.1, ContactKind::kRough, 0.0, Vector2d(0.0, 0.05));
+  LinearElasticModel model(kPlatenYoungs, kPlatenNu);
   std::unique_ptr<Solver> solver = MakeSolver(spec, &model);
   double most_tensile = 0.0, pressed = 0.0;
   while (solver->time() < 0.3) {
@@ -646,22 +658,10 @@ TEST(BodyTest, SoilLetsGoOfARisingBody) {
 // onto it and then dragged sideways, pulls the block's top along with at
 // most μ times its normal force, and with μ times it once sliding.
 TEST(BodyTest, FrictionalPlatenDragsTheSurfaceWithMuTimesItsLoad) {
-  const double rho = 2000.0, youngs = 2e6, nu = 0.3, h = 0.05, mu = 0.3;
-  CaseSpec spec = BlockCase(h, 20, 10, Vector2d(0.1, 0.0), Vector2d(0.9, 0.3), 2, rho);
-  spec.solver.pic_fraction = 0.05;
-  spec.solver.shape = ShapeKind::kGimp;
-  spec.solver.time_step = 0.2 * h / std::sqrt(PWaveModulus(youngs, nu) / rho);
-  spec.walls = {MakeWall(1, 0.0, ContactKind::kRough)};
-  RigidBody platen;
-  platen.name = "platen";
-  platen.center = Vector2d(0.5, 0.35);
-  platen.half_size = Vector2d(0.5, 0.05);
-  platen.contact = ContactKind::kFrictional;
-  platen.friction = mu;
-  platen.velocity = {
-      {0.0, Vector2d(0.0, -0.05)}, {0.1, Vector2d(0.0, -0.05)}, {0.1001, Vector2d(0.5, 0.0)}};
-  spec.bodies = {platen};
-  LinearElasticModel model(youngs, nu);
+  const double mu = 0.3;
+  const CaseSpec spec =
+      PlatenCase(0.1, 0.9, 0.5, 0.5, ContactKind::kFrictional, mu, Vector2d(0.5, 0.0));
+  LinearElasticModel model(kPlatenYoungs, kPlatenNu);
   std::unique_ptr<Solver> solver = MakeSolver(spec, &model);
   double highest = 0.0, sliding = 0.0;
   int rows = 0;
