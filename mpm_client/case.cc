@@ -1048,11 +1048,10 @@ absl::Status ParseRve(const Json& j, const std::string& ptr, RveSpec* rve) {
 }
 
 // Static storage for the list (the table outlives every read).
-const Table<std::string> kPlots = {
-    {"stress-strain", "stress-strain"},
-    {"load-settlement", "load-settlement"},
-    {"collapse", "collapse"},
-    {"none", "none"}};
+const Table<std::string> kPlots = {{"stress-strain", "stress-strain"},
+                                   {"load-settlement", "load-settlement"},
+                                   {"collapse", "collapse"},
+                                   {"none", "none"}};
 
 bool LoadSettlement(const OutputSpec& o) { return o.plot == "load-settlement"; }
 

@@ -209,7 +209,8 @@ absl::Status WriteCasePlot(const CaseSpec& spec, const std::string& csv_path,
     ASSIGN_OR_RETURN(const std::vector<double> t, column("time"));
     ASSIGN_OR_RETURN(const std::vector<double> front, column("front_x"));
     ASSIGN_OR_RETURN(const std::vector<double> ke, column("kinetic_energy"));
-    panels.push_back({absl::StrCat(name, ": front"), "time (s)", "front x (m)", {{"front", t, front}}});
+    panels.push_back(
+        {absl::StrCat(name, ": front"), "time (s)", "front x (m)", {{"front", t, front}}});
     panels.push_back({absl::StrCat(name, ": kinetic energy"),
                       "time (s)",
                       "kinetic energy (J)",

@@ -595,7 +595,8 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
     if (!summary.empty()) {
       const std::string path = options_.out_dir + "/summary.json";
       RETURN_IF_ERROR(WriteSummary(path, spec_.name, summary));
-      for (const auto& [key, value] : summary) Log(absl::StrFormat("summary: %s = %.6g", key, value));
+      for (const auto& [key, value] : summary)
+        Log(absl::StrFormat("summary: %s = %.6g", key, value));
     }
   }
   return sum;

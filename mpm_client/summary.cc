@@ -71,7 +71,8 @@ absl::StatusOr<Summary> Pipe(const CaseSpec& spec, const Columns& columns) {
 }
 
 absl::StatusOr<Summary> Collapse(const CaseSpec& spec, const Columns& columns) {
-  if (spec.regions.empty()) return absl::InvalidArgumentError("the collapse summary needs a region");
+  if (spec.regions.empty())
+    return absl::InvalidArgumentError("the collapse summary needs a region");
   ASSIGN_OR_RETURN(const std::vector<double>* time, Column(columns, "time"));
   ASSIGN_OR_RETURN(const std::vector<double>* front, Column(columns, "front_x"));
   const MaterialRegion& column = spec.regions.front();

@@ -36,8 +36,7 @@ absl::StatusOr<UltimateLoad> FindUltimateLoad(std::span<const double> settlement
 
 // The first time from which the front stays within `tolerance` (m) of its
 // last value; the last time if it never settles.
-double FrontStopTime(std::span<const double> time, std::span<const double> front,
-                     double tolerance);
+double FrontStopTime(std::span<const double> time, std::span<const double> front, double tolerance);
 
 // The summary kind of a case: OutputSpec::summary, or from its plot.
 std::string SummaryKind(const OutputSpec& out);

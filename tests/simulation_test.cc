@@ -5,12 +5,11 @@
 
 #include <gtest/gtest.h>
 
-#include <fstream>
-#include <iterator>
-
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 
 #include "mpm_client/case.h"
@@ -184,7 +183,8 @@ TEST(SimulationTest, SingleElementMatchesElementTestUpToPeak) {
   EXPECT_TRUE(fs::exists(out + "/results.xdmf"));
   // summary.json: the nominal peak (platen force over the width).
   std::ifstream summary(out + "/summary.json");
-  const std::string text((std::istreambuf_iterator<char>(summary)), std::istreambuf_iterator<char>());
+  const std::string text((std::istreambuf_iterator<char>(summary)),
+                         std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("\"peak_stress_Pa\""), std::string::npos) << text;
   EXPECT_NE(text.find("\"final_strain\": 0.15"), std::string::npos) << text;
 }

@@ -94,7 +94,8 @@ TEST(SummaryTest, FootingCollapseBiaxialAndPipeFigures) {
   for (int i = 0; i <= 40; ++i) {
     const double d = 0.005 * i;
     cols["footing_dy"].push_back(-d);
-    cols["footing_fy"].push_back(0.5 * 200e3 * std::min(d, 0.1) / 0.1 * (d > 0.1 ? 1 - (d - 0.1) : 1));
+    cols["footing_fy"].push_back(0.5 * 200e3 * std::min(d, 0.1) / 0.1 *
+                                 (d > 0.1 ? 1 - (d - 0.1) : 1));
   }
   absl::StatusOr<Summary> s = Summarise(footing, cols);
   ASSERT_TRUE(s.ok()) << s.status();
