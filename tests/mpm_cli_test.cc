@@ -212,12 +212,27 @@ TEST(MpmCliTest, HelpDocumentsEveryCommandAndOption) {
   const Result r = RunClient("--help");
   EXPECT_EQ(r.exit_code, 0) << r;
   EXPECT_EQ(r.err, "");
-  for (const char* text :
-       {"mpm_client run CASE.json --out=DIR", "mpm_client resume CHECKPOINT.h5",
-        "mpm_client check CASE.json", "--out=DIR", "--servers=H:P,...", "--threads=N",
-        "--token-file=FILE", "--tls-ca=FILE", "--timeout=SECONDS", "--template-cache=DIR",
-        "--stop-after=N", "--quiet", "--set=PATH=VALUE", "results.h5", "results.xdmf",
-        "timeseries.csv", "plot.png", "run.json", "checkpoint.h5", "Exit status"}) {
+  for (const char* text : {"mpm_client run CASE.json --out=DIR",
+                           "mpm_client resume CHECKPOINT.h5",
+                           "mpm_client check CASE.json",
+                           "mpm_client summarise CASE.json",
+                           "--out=DIR",
+                           "--servers=H:P,...",
+                           "--threads=N",
+                           "--token-file=FILE",
+                           "--tls-ca=FILE",
+                           "--timeout=SECONDS",
+                           "--template-cache=DIR",
+                           "--stop-after=N",
+                           "--quiet",
+                           "--set=PATH=VALUE",
+                           "results.h5",
+                           "results.xdmf",
+                           "timeseries.csv",
+                           "plot.png",
+                           "run.json",
+                           "checkpoint.h5",
+                           "Exit status"}) {
     EXPECT_TRUE(absl::StrContains(r.out, text)) << "no " << text << " in\n" << r.out;
   }
   EXPECT_EQ(RunClient("-h").out, r.out);
@@ -405,6 +420,29 @@ TEST(MpmCliTest, RunWritesEveryOutput) {
   const std::string png = ReadFile(run.dir + "/plot.png");
   EXPECT_TRUE(png.starts_with("\x89PNG\r\n\x1a\n")) << "not a PNG";
   EXPECT_GT(png.size(), 1000u);
+}
+
+// summary.json: written by the run (the nominal biaxial peak), and again,
+// the same bytes, by `summarise` from the run's timeseries, which also prints
+// the figures; summarise needs --out and takes no run options.
+TEST(MpmCliTest, SummariseRewritesTheRunsSummary) {
+  const RunOutput& run = ReferenceRun();
+  ASSERT_EQ(run.result.exit_code, 0) << run.result;
+  const std::string written = ReadFile(run.dir + "/summary.json");
+  EXPECT_TRUE(absl::StrContains(written, "\"peak_stress_Pa\"")) << written;
+  EXPECT_TRUE(absl::StrContains(run.result.err, "summary: peak_stress_Pa = ")) << run.result.err;
+  const std::string case_path = WriteCase("reference", SmallCase());
+  fs::remove(run.dir + "/summary.json");
+  const Result r =
+      RunClient(absl::StrCat("summarise ", Quote(case_path), " --out=", Quote(run.dir)));
+  EXPECT_EQ(r.exit_code, 0) << r;
+  EXPECT_TRUE(absl::StrContains(r.out, "summary: final_strain = ")) << r.out;
+  EXPECT_EQ(ReadFile(run.dir + "/summary.json"), written);
+  EXPECT_EQ(RunClient(absl::StrCat("summarise ", Quote(case_path))).exit_code, 2);
+  EXPECT_EQ(RunClient(absl::StrCat("summarise ", Quote(case_path), " --out=", Quote(run.dir),
+                                   " --threads=2"))
+                .exit_code,
+            2);
 }
 
 // Stopped after 20 steps (its checkpoint there), then resumed into the same
