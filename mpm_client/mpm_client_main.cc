@@ -159,11 +159,8 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
 // prints them.
 absl::Status Summarise(const std::string& case_path, const std::vector<CaseOverride>& overrides,
                        const std::string& dir) {
-  ASSIGN_OR_RETURN(CaseSpec spec, LoadCase(case_path, overrides));
-  ASSIGN_OR_RETURN(auto columns, ReadCsvColumns(dir + "/timeseries.csv"));
-  ASSIGN_OR_RETURN(const Summary summary, mpm::Summarise(spec, columns));
-  RETURN_IF_ERROR(WriteSummary(dir + "/summary.json", spec.name, summary));
-  RETURN_IF_ERROR(WriteCasePlot(spec, dir + "/timeseries.csv", dir + "/plot.png"));
+  ASSIGN_OR_RETURN(const CaseSpec spec, LoadCase(case_path, overrides));
+  ASSIGN_OR_RETURN(const Summary summary, WriteRunOutputs(spec, dir));
   for (const auto& [key, value] : summary) std::printf("summary: %s = %.6g\n", key.c_str(), value);
   return absl::OkStatus();
 }

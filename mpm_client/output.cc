@@ -117,11 +117,14 @@ absl::StatusOr<std::map<std::string, std::vector<double>>> ReadCsvColumns(const 
   return columns;
 }
 
-absl::Status WriteCasePlot(const CaseSpec& spec, const std::string& csv_path,
+namespace {
+
+absl::Status WriteCasePlot(const CaseSpec& spec,
+                           const std::map<std::string, std::vector<double>>& cols,
+                           const Summary& summary, const std::string& csv_path,
                            const std::string& png_path) {
   const OutputSpec& out = spec.output;
   if (out.plot == "none") return absl::OkStatus();
-  ASSIGN_OR_RETURN(auto cols, ReadCsvColumns(csv_path));
   auto column = [&](const std::string& name) -> absl::StatusOr<std::vector<double>> {
     auto it = cols.find(name);
     if (it == cols.end()) {
@@ -146,16 +149,12 @@ absl::Status WriteCasePlot(const CaseSpec& spec, const std::string& csv_path,
     // The paper's nominal curve: the platen's force over the specimen's
     // width against its travel over the height (the biaxial summary's).
     if (!spec.bodies.empty()) {
-      const std::string body = out.plot_body.empty() ? spec.bodies.front().name : out.plot_body;
-      ASSIGN_OR_RETURN(const std::vector<double> fy, column(body + "_fy"));
-      ASSIGN_OR_RETURN(const std::vector<double> dy, column(body + "_dy"));
-      const MaterialRegion& r = spec.regions.front();
-      const double width = r.upper.x() - r.lower.x(), height = r.upper.y() - r.lower.y();
+      ASSIGN_OR_RETURN(NominalCurve curve, PlatenCurve(spec, cols));
       panels.push_back({absl::StrCat(name, ": nominal stress-strain"),
                         "platen travel / height (%)",
                         "platen force / width (kPa)",
-                        {{body, scaled(dy, -100.0 / height),
-                          scaled(fy, 1e-3 / (width * spec.solver.thickness))}}});
+                        {{"platen", scaled(std::move(curve.strain), 100.0),
+                          scaled(std::move(curve.stress), 1e-3)}}});
     }
     panels.push_back({absl::StrCat(name, ": mean of all points"),
                       "axial strain eyy (%)",
@@ -170,7 +169,6 @@ absl::Status WriteCasePlot(const CaseSpec& spec, const std::string& csv_path,
     ASSIGN_OR_RETURN(const std::vector<double> dy, column(out.plot_body + "_dy"));
     const double area = out.plot_width * spec.solver.thickness;  // m²
     const std::vector<double> d = scaled(dy, -1.0);
-    ASSIGN_OR_RETURN(const Summary summary, Summarise(spec, cols));
     const std::map<std::string, double> figures(summary.begin(), summary.end());
     if (SummaryKind(out) == "footing" && figures.contains("surcharge_Pa")) {
       // q/q_s against d with Prandtl's N_q and the ultimate load marked.
@@ -219,6 +217,17 @@ absl::Status WriteCasePlot(const CaseSpec& spec, const std::string& csv_path,
     return absl::InvalidArgumentError(absl::StrCat("unknown plot kind '", out.plot, "'"));
   }
   return plot::WritePng(png_path, panels);
+}
+
+}  // namespace
+
+absl::StatusOr<Summary> WriteRunOutputs(const CaseSpec& spec, const std::string& dir) {
+  const std::string csv = dir + "/timeseries.csv";
+  ASSIGN_OR_RETURN(const auto columns, ReadCsvColumns(csv));
+  ASSIGN_OR_RETURN(Summary summary, Summarise(spec, columns));
+  if (!summary.empty()) RETURN_IF_ERROR(WriteSummary(dir + "/summary.json", spec.name, summary));
+  RETURN_IF_ERROR(WriteCasePlot(spec, columns, summary, csv, dir + "/plot.png"));
+  return summary;
 }
 
 }  // namespace rvehub::mpm

@@ -14,6 +14,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "mpm_client/model.h"
+#include "mpm_client/summary.h"
 
 namespace rvehub::mpm {
 
@@ -45,12 +46,16 @@ class TimeseriesWriter {
 // The columns of a CSV file written by TimeseriesWriter, by header name.
 absl::StatusOr<std::map<std::string, std::vector<double>>> ReadCsvColumns(const std::string& path);
 
-// The case's standard plot (OutputSpec::plot) from its timeseries.csv:
-// "stress-strain": mean σyy and εv against mean εyy (biaxial, element);
-// "load-settlement": q = fy/(plot_width·t) of plot_body against its
-// settlement. Nothing is written for "none".
-absl::Status WriteCasePlot(const CaseSpec& spec, const std::string& csv_path,
-                           const std::string& png_path);
+// What a finished run (or `mpm_client summarise`) writes from
+// DIR/timeseries.csv, read once: DIR/summary.json with the case's headline
+// figures (mpm_client/summary.h; not written when its kind has none) and
+// DIR/plot.png, the case's standard plot (OutputSpec::plot; none for
+// "none"): "stress-strain": the nominal platen curve (with a body) and the
+// points' mean σyy, σxx and εv against εyy; "load-settlement": a footing's
+// q/q_s with Prandtl's N_q and the ultimate load, a pipe's forces against
+// its displacements, else q = fy/(plot_width·t) against settlement;
+// "collapse": front and kinetic energy against time. Returns the figures.
+absl::StatusOr<Summary> WriteRunOutputs(const CaseSpec& spec, const std::string& dir);
 
 }  // namespace rvehub::mpm
 

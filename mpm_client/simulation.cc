@@ -588,16 +588,8 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
   sum.finished = solver_->step() >= total_steps;
   RETURN_IF_ERROR(out_->results->Close());
   if (sum.finished) {
-    const std::string csv = options_.out_dir + "/timeseries.csv";
-    RETURN_IF_ERROR(WriteCasePlot(spec_, csv, options_.out_dir + "/plot.png"));
-    ASSIGN_OR_RETURN(auto columns, ReadCsvColumns(csv));
-    ASSIGN_OR_RETURN(const Summary summary, Summarise(spec_, columns));
-    if (!summary.empty()) {
-      const std::string path = options_.out_dir + "/summary.json";
-      RETURN_IF_ERROR(WriteSummary(path, spec_.name, summary));
-      for (const auto& [key, value] : summary)
-        Log(absl::StrFormat("summary: %s = %.6g", key, value));
-    }
+    ASSIGN_OR_RETURN(const Summary summary, WriteRunOutputs(spec_, options_.out_dir));
+    for (const auto& [key, value] : summary) Log(absl::StrFormat("summary: %s = %.6g", key, value));
   }
   return sum;
 }

@@ -88,13 +88,9 @@ absl::StatusOr<Summary> Collapse(const CaseSpec& spec, const Columns& columns) {
 absl::StatusOr<Summary> Biaxial(const CaseSpec& spec, const Columns& columns) {
   std::vector<double> stress, strain;  // Pa and [-], compression +
   if (!spec.bodies.empty() && !spec.regions.empty()) {
-    ASSIGN_OR_RETURN(const std::string body, SummaryBody(spec));
-    ASSIGN_OR_RETURN(const std::vector<double>* fy, Column(columns, body + "_fy"));
-    ASSIGN_OR_RETURN(const std::vector<double>* dy, Column(columns, body + "_dy"));
-    const MaterialRegion& r = spec.regions.front();
-    const double width = r.upper.x() - r.lower.x(), height = r.upper.y() - r.lower.y();
-    for (double f : *fy) stress.push_back(f / (width * spec.solver.thickness));
-    for (double d : *dy) strain.push_back(-d / height);
+    ASSIGN_OR_RETURN(NominalCurve curve, PlatenCurve(spec, columns));
+    stress = std::move(curve.stress);
+    strain = std::move(curve.strain);
   } else {
     ASSIGN_OR_RETURN(const std::vector<double>* syy, Column(columns, "mean_syy"));
     ASSIGN_OR_RETURN(const std::vector<double>* eyy, Column(columns, "mean_eyy"));
@@ -112,6 +108,19 @@ absl::StatusOr<Summary> Biaxial(const CaseSpec& spec, const Columns& columns) {
 }
 
 }  // namespace
+
+absl::StatusOr<NominalCurve> PlatenCurve(const CaseSpec& spec, const Columns& columns) {
+  if (spec.regions.empty()) return absl::InvalidArgumentError("the platen curve needs a region");
+  ASSIGN_OR_RETURN(const std::string body, SummaryBody(spec));
+  ASSIGN_OR_RETURN(const std::vector<double>* fy, Column(columns, body + "_fy"));
+  ASSIGN_OR_RETURN(const std::vector<double>* dy, Column(columns, body + "_dy"));
+  const MaterialRegion& r = spec.regions.front();
+  const double width = r.upper.x() - r.lower.x(), height = r.upper.y() - r.lower.y();
+  NominalCurve curve;
+  for (double f : *fy) curve.stress.push_back(f / (width * spec.solver.thickness));
+  for (double d : *dy) curve.strain.push_back(-d / height);
+  return curve;
+}
 
 double PrandtlNq(double phi) {
   const double t = std::tan(std::numbers::pi / 4 + phi / 2);

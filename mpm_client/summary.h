@@ -23,8 +23,8 @@ double PrandtlNq(double phi);
 // takes it: where the slope first reaches zero (the first peak) or, on a
 // curve that keeps rising, where the slope is smallest. The curve is first
 // smoothed, by a running median of 3 rows and a centred mean over `window`
-// rows (odd), so that the flicker of single rows does not pass for a peak. InvalidArgument for
-// fewer than 3 rows or columns of different lengths.
+// rows (odd), so that the flicker of single rows does not pass for a peak.
+// InvalidArgument for fewer than 3 rows or columns of different lengths.
 struct UltimateLoad {
   std::size_t row = 0;      // in the given columns
   double load = 0.0;        // the smoothed load there
@@ -40,6 +40,17 @@ double FrontStopTime(std::span<const double> time, std::span<const double> front
 
 // The summary kind of a case: OutputSpec::summary, or from its plot.
 std::string SummaryKind(const OutputSpec& out);
+
+// The paper's nominal biaxial curve of a case with a platen (plot_body, else
+// the first body): the platen's force over the first region's width (Pa,
+// compression +) against its travel over the region's height ([-]).
+// InvalidArgument without a body or region, or without the body's columns.
+struct NominalCurve {
+  std::vector<double> strain;  // [-]
+  std::vector<double> stress;  // Pa
+};
+absl::StatusOr<NominalCurve> PlatenCurve(const CaseSpec& spec,
+                                         const std::map<std::string, std::vector<double>>& columns);
 
 // Named figures in the order summary.json lists them (SI units in the names).
 using Summary = std::vector<std::pair<std::string, double>>;
