@@ -379,5 +379,90 @@ TEST(CellFlipApplyTest, SimpleShearThroughApplyIsContinuousAcrossAFlip) {
   EXPECT_LT(prev.MeanPressure(), 1e6);
 }
 
+// --- Cell doubling: two copies of the cell side by side are the same
+// infinite packing, so the homogenised state and F must not change, and the
+// doubled RVE must go on as the single one does (a wrong copy of the
+// contact history across the edge shows as a jump in σ). ---
+
+TEST(CellDoublingTest, DoubledCellIsTheSamePacking) {
+  ASSERT_FALSE(Prepared("SET-dense").radius.empty());
+  Rve sheared = CreateOrDie(Prepared("SET-dense"));
+  Eigen::Matrix3d df = Eigen::Matrix3d::Identity();
+  df(0, 1) = 0.02;  // simple shear: tangential history and a sheared cell
+  ASSERT_TRUE(sheared.Apply(df).ok());
+  ASSERT_TRUE(sheared.Apply(df).ok());
+  const RveState before = sheared.Observe();
+  const std::size_t history = sheared.ToSnapshot().contacts.size();
+  ASSERT_GT(history, 100u);
+  for (int axis : {0, 1}) {
+    SCOPED_TRACE(axis);
+    Rve single = sheared;
+    Rve doubled = sheared;
+    ASSERT_TRUE(doubled.DoubleCell(axis).ok());
+    EXPECT_EQ(doubled.num_particles(), 2 * single.num_particles());
+    EXPECT_EQ(doubled.ToSnapshot().contacts.size(), 2 * history);
+    EXPECT_LT((doubled.DeformationGradient() - single.DeformationGradient()).norm(), 1e-14);
+    const RveState after = doubled.Observe();
+    EXPECT_EQ(after.num_contacts, 2 * before.num_contacts);
+    EXPECT_LT((after.stress - before.stress).norm(), 1e-12 * before.stress.norm());
+    EXPECT_LT((after.fabric - before.fabric).norm(), 1e-12);
+    EXPECT_NEAR(after.void_ratio, before.void_ratio, 1e-14);
+    EXPECT_NEAR(after.coordination, before.coordination, 1e-12);
+    // A short increment more: both go on alike (over a long one, rounding
+    // differences of the summation order grow chaotically, ~1e-7 in 0.02).
+    Eigen::Matrix3d small = Eigen::Matrix3d::Identity();
+    small(0, 1) = 2e-4;
+    absl::StatusOr<RveState> a = single.Apply(small);
+    absl::StatusOr<RveState> b = doubled.Apply(small);
+    ASSERT_TRUE(a.ok() && b.ok());
+    EXPECT_EQ(a->steps, b->steps);
+    EXPECT_LE(a->steps, 100);
+    EXPECT_GT((a->stress - before.stress).norm(), 1e-3 * before.stress.norm());  // it moved
+    EXPECT_LT((b->stress - a->stress).norm(), 1e-9 * a->stress.norm());
+  }
+}
+
+TEST(CellDoublingTest, CellSqueezedFlatDoublesAndGoesOn) {
+  ASSERT_FALSE(Prepared("SET-dense").radius.empty());
+  Rve rve = CreateOrDie(Prepared("SET-dense"));
+  const int n0 = rve.num_particles();
+  const Eigen::Matrix2d h0 = rve.cell();
+  Eigen::Matrix3d df = Eigen::Matrix3d::Identity();
+  df(1, 1) = 0.975;  // isochoric squeeze: the cell gets thin in y
+  df(0, 0) = 1.0 / 0.975;
+  ApplyOptions fast;
+  fast.max_inertial_number = 1e-2;
+  RveState prev = rve.Observe();
+  std::vector<double> change;
+  int doubling_call = -1;
+  for (int k = 0; k < 120 && doubling_call < 0; ++k) {
+    absl::StatusOr<RveState> s = rve.Apply(df, fast);
+    ASSERT_TRUE(s.ok()) << "call " << k << ": " << s.status();
+    change.push_back((s->stress - prev.stress).norm());
+    prev = *s;
+    if (rve.num_particles() != n0) doubling_call = k;
+  }
+  ASSERT_GE(doubling_call, 5) << "the squeeze must double the cell";
+  EXPECT_EQ(rve.num_particles(), 2 * n0);
+  // F_yy = 0.975^(k+1): F follows the calls through the doubling.
+  EXPECT_NEAR(rve.DeformationGradient()(1, 1), std::pow(0.975, doubling_call + 1), 1e-9);
+  EXPECT_NEAR(rve.DeformationGradient()(0, 1), 0.0, 1e-12);
+  // Twice the area (isochoric ΔF), in whatever lattice basis it ended.
+  EXPECT_NEAR(rve.cell().determinant(), 2.0 * h0.determinant(), 1e-9 * h0.determinant());
+  for (int k = 0; k < 5; ++k) {
+    absl::StatusOr<RveState> s = rve.Apply(df, fast);
+    ASSERT_TRUE(s.ok()) << s.status();
+    change.push_back((s->stress - prev.stress).norm());
+    prev = *s;
+  }
+  double neighbours = 0.0;
+  for (int k = doubling_call - 5; k <= doubling_call + 5; ++k) {
+    if (k != doubling_call) neighbours = std::max(neighbours, change[k]);
+  }
+  EXPECT_LE(change[doubling_call], 3.0 * neighbours)
+      << "doubling in call " << doubling_call << " changed σ by " << change[doubling_call] << " Pa";
+  EXPECT_GT(prev.MeanPressure(), 10e3);
+}
+
 }  // namespace
 }  // namespace rvehub::dem

@@ -175,13 +175,16 @@ TEST(ApplyTest, ValidIncrementsAreAccepted) {
   EXPECT_TRUE(rve.Apply(With(Eigen::Matrix3d::Identity(), 2, 2, 1.0 + 1e-13)).ok());
 }
 
-TEST(ApplyTest, CellThinnerThanTheCutoffIsAFailedPrecondition) {
+// A thin cell is doubled (periodic_test.cc), at most twice per increment:
+// a cell still too thin after that is refused.
+TEST(ApplyTest, CellThinnerThanTheCutoffEvenDoubledIsAFailedPrecondition) {
   RveSnapshot p = Loaded();
   p.controls.max_stretch = 2.0;  // let the stretch limit pass
   Rve rve = CreateOrDie(p);
   const RveSnapshot before = rve.ToSnapshot();
-  // The 5×5 cell is ~10 radii wide; 0.4 of it is below 2 × (2 r_max + skin·r_min).
-  const absl::StatusOr<RveState> s = rve.Apply(Diag(0.4, 1.0));
+  // The 5×5 cell is ~10 radii wide; 0.4 of it is below 2 × (2 r_max + skin·r_min),
+  // and so is 4 × 0.1 of it.
+  const absl::StatusOr<RveState> s = rve.Apply(Diag(0.1, 1.0));
   ASSERT_FALSE(s.ok());
   EXPECT_EQ(s.status().code(), absl::StatusCode::kFailedPrecondition) << s.status();
   EXPECT_TRUE(HasSubstr(s.status().message(), "cutoff"));

@@ -1,5 +1,6 @@
-// Cell flips (an exact change of lattice basis that keeps a sheared cell
-// reduced) and rigid rotations of the whole RVE.
+// Exact changes of the periodic representation: cell flips (a change of
+// lattice basis that keeps a sheared cell reduced) and cell doubling (two
+// copies of the cell side by side), and rigid rotations of the whole RVE.
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -7,6 +8,7 @@
 #include <utility>
 #include <vector>
 
+#include "absl/strings/str_cat.h"
 #include "rve_server/engine/rve.h"
 #include "rve_server/engine/rve_internal.h"
 
@@ -40,6 +42,61 @@ void Rve::MaybeFlip() {
     p_.sy[i] -= std::floor(p_.sy[i]);
   }
   Rebuild(CollectHistory());
+}
+
+absl::Status Rve::DoubleCell(int axis) {
+  if (axis != 0 && axis != 1) {
+    return absl::InvalidArgumentError(absl::StrCat("cell axis ", axis, " is not 0 or 1"));
+  }
+  const std::size_t n = p_.radius.size();
+  if (2 * n > kMaxParticles) {
+    return absl::FailedPreconditionError(absl::StrCat("doubling the cell would give ", 2 * n,
+                                                      " particles; at most ", kMaxParticles));
+  }
+  RveSnapshot s = ToSnapshot();
+  // Wrapped coordinate along the axis, [0, 1): copy c of particle i sits at
+  // (w_i + c)/2 in the doubled cell.
+  std::vector<double>& along = axis == 0 ? s.sx : s.sy;
+  for (double& w : along) w -= std::floor(w);
+  // A pair whose nearest image crosses the cell edge along the axis
+  // (|w_j − w_i| > ½) joins copy c of i to copy 1 − c of j.
+  std::vector<ContactHistory> contacts;
+  contacts.reserve(2 * s.contacts.size());
+  for (const ContactHistory& h : s.contacts) {
+    const bool crosses = std::abs(along[h.j] - along[h.i]) > 0.5;
+    for (std::uint32_t c = 0; c < 2; ++c) {
+      const std::uint32_t i = h.i + c * static_cast<std::uint32_t>(n);
+      const std::uint32_t j = h.j + (c ^ static_cast<std::uint32_t>(crosses)) * n;
+      // Relabelled j < i: n and t both turn, so ft stays; the moment on the
+      // new i is the one that acted on j.
+      if (i < j) {
+        contacts.push_back(h);
+        contacts.back().i = i;
+        contacts.back().j = j;
+      } else {
+        contacts.push_back({j, i, h.tangential_force, -h.rolling_moment, h.bond_strength});
+      }
+    }
+  }
+  std::sort(contacts.begin(), contacts.end(), [](const ContactHistory& a, const ContactHistory& b) {
+    return a.i != b.i ? a.i < b.i : a.j < b.j;
+  });
+  s.contacts = std::move(contacts);
+  for (std::vector<double>* v : {&s.radius, &s.sx, &s.sy, &s.vx, &s.vy, &s.omega, &s.theta}) {
+    v->resize(2 * n);
+    std::copy_n(v->begin(), n, v->begin() + n);
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    along[i] *= 0.5;
+    along[n + i] = along[n + i] * 0.5 + 0.5;
+  }
+  s.cell.col(axis) *= 2.0;
+  s.reference_cell.col(axis) *= 2.0;  // F = cell·reference⁻¹ unchanged
+  const bool track = track_energy_;
+  *this = Rve(std::move(s));
+  track_energy_ = track;
+  MaybeFlip();  // [2a, b] may need a change of basis to stay reduced
+  return absl::OkStatus();
 }
 
 void Rve::ApplyRigidRotation(double angle) {

@@ -46,11 +46,30 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
                                                    " of ΔF exceeds the per-call limit ",
                                                    p_.controls.max_stretch));
   }
-  if (CellHeights(f * p_.cell).minCoeff() <= 2.0 * Cutoff()) {
+  // A cell that ΔF would squeeze thinner than the minimum image allows is
+  // first doubled along the thin direction (at most twice: ΔF's stretch is
+  // bounded by max_stretch); the checks below see the doubled cell.
+  Eigen::Matrix2d target = f * p_.cell;
+  std::size_t particles = p_.radius.size();
+  int doublings[2] = {-1, -1};
+  for (int& axis : doublings) {
+    const Eigen::Vector2d heights = CellHeights(target);
+    if (heights.minCoeff() > 2.0 * Cutoff()) break;
+    axis = heights.x() <= heights.y() ? 0 : 1;
+    target.col(axis) *= 2.0;
+    particles *= 2;
+  }
+  if (CellHeights(target).minCoeff() <= 2.0 * Cutoff()) {
     return absl::FailedPreconditionError(
         "ΔF would make the periodic cell thinner than twice the pair cutoff");
   }
-  if (!(GridCells(CellHeights(f * p_.cell), Cutoff()) <= MaxGridCells(p_.radius.size()))) {
+  if (particles > kMaxParticles) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("ΔF would make the periodic cell thinner than twice the pair cutoff, and "
+                     "doubling it would give ",
+                     particles, " particles; at most ", kMaxParticles));
+  }
+  if (!(GridCells(CellHeights(target), Cutoff()) <= MaxGridCells(particles))) {
     return absl::FailedPreconditionError(
         "ΔF would make the periodic cell too large for its particles (neighbour-grid limit)");
   }
@@ -77,6 +96,13 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
   const std::int64_t planned =
       std::max<std::int64_t>(p_.controls.min_steps, static_cast<std::int64_t>(steps_needed));
   if (interrupt && (planned > kInterruptCheckSteps || options.relax)) before.emplace(*this);
+  // The doublings sized above (recomputed: a doubling may change the basis).
+  for (int axis : doublings) {
+    if (axis < 0) break;
+    const Eigen::Vector2d heights = CellHeights(f * p_.cell);
+    if (heights.minCoeff() > 2.0 * Cutoff()) break;
+    RETURN_IF_ERROR(DoubleCell(heights.x() <= heights.y() ? 0 : 1));  // sized: cannot fail
+  }
   ApplyRigidRotation(angle);
   Eigen::Matrix2d start = p_.cell;
   const Eigen::Matrix2d identity = Eigen::Matrix2d::Identity();

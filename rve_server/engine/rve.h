@@ -153,9 +153,11 @@ class Rve {
 
   // F_new = ΔF·F_old. ΔF is 3×3 plane strain (ΔF_zz = 1, no out-of-plane
   // coupling). Rejects non-finite ΔF, det ≤ 0, or a stretch/rotation beyond
-  // the controls' limits with InvalidArgument, and a ΔF that would make the
-  // cell thinner than twice the pair cutoff with FailedPrecondition, leaving
-  // the RVE untouched. InvalidArgument too, before anything changes, when
+  // the controls' limits with InvalidArgument, leaving the RVE untouched.
+  // A ΔF that would make the cell thinner than twice the pair cutoff (the
+  // minimum image needs it) first doubles the cell along the thin direction
+  // (DoubleCell); FailedPrecondition, with the RVE untouched, only where that
+  // would pass kMaxParticles. InvalidArgument too, before anything changes, when
   // the increment would take more than kMaxStepsPerApply DEM steps or the
   // options are out of range. `interrupt` (optional) is asked between steps;
   // when it stops the increment, the RVE is restored to its state before
@@ -198,6 +200,14 @@ class Rve {
   // a few percent of the step).
   void set_track_energy(bool on) { track_energy_ = on; }
   const StepEnergy& last_step_energy() const { return energy_; }
+
+  // Tiles the cell twice along lattice vector `axis` (0: the first column
+  // of the cell, 1: the second): the same infinite periodic packing, with
+  // each particle, velocity and contact history twice. The homogenised
+  // state and F are unchanged (to rounding); the cost per step doubles. A
+  // cell squeezed flat (a point under a footing) goes on this way.
+  // FailedPrecondition (nothing changed) past kMaxParticles.
+  absl::Status DoubleCell(int axis);
 
   // Changes the friction μ of every contact and clamps the stored tangential
   // forces to the new Coulomb limit. InvalidArgument (nothing changed) for
