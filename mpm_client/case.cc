@@ -1040,6 +1040,7 @@ Fields<RveSpec> RveFields() {
       NumberField("max_inertial_number", &RveSpec::max_inertial_number, Need::kOptional,
                   Range{0.0, 0.1}),
       IntegerField("min_steps", &RveSpec::min_steps, 0, 100000),
+      FlagField("real_time", &RveSpec::real_time),
   };
 }
 

@@ -163,6 +163,11 @@ struct RveSpec {
   // Set in the controls of every RVE the case creates (0: the template's own).
   double max_inertial_number = 0.0;  // bound on I = γ̇·d·sqrt(ρ/p) per increment, [-]
   std::int64_t min_steps = 0;        // DEM steps per increment at least
+  // Cap every increment's DEM steps at the MPM step's own duration
+  // (ApplyOptions::duration = Δt): an RVE never deforms slower than the
+  // continuum, so a flowing or nearly stress-free RVE follows its inertial
+  // response at the real strain rate instead of the quasi-static bound.
+  bool real_time = false;
 };
 
 struct CaseSpec {

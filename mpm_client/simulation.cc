@@ -107,6 +107,12 @@ Simulation::~Simulation() {
   }
 }
 
+void Simulation::SetApplyOptions() {
+  dem::ApplyOptions apply;
+  if (spec_.rve.real_time) apply.duration = solver_->dt();
+  pool_->set_apply_options(apply);
+}
+
 void Simulation::Log(const std::string& line) const {
   if (options_.log) {
     options_.log(line);
@@ -477,6 +483,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver,
                    Solver::Create(spec, std::move(points), sim->model_.get(), dt));
   sim->solver_ = std::move(solver);
+  sim->SetApplyOptions();
   RETURN_IF_ERROR(sim->OpenOutputs(/*resume=*/false));
   return sim;
 }
@@ -509,6 +516,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
   ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver,
                    Solver::FromState(sim->spec_, c.doubles, c.ints, sim->model_.get()));
   sim->solver_ = std::move(solver);
+  sim->SetApplyOptions();
   sim->Log(absl::StrFormat("resumed %s at step %d, t = %.6g s", checkpoint_path,
                            sim->solver_->step(), sim->solver_->time()));
   RETURN_IF_ERROR(sim->OpenOutputs(/*resume=*/true));

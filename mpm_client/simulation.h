@@ -93,6 +93,8 @@ class Simulation {
   absl::Status WriteRow(double wall_per_step);
   absl::Status WriteCheckpoint();
   std::vector<std::string> Columns() const;
+  // The options sent with every Apply, from the case and the solver's Δt.
+  void SetApplyOptions();
   void Log(const std::string& line) const;
 
   CaseSpec spec_;

@@ -75,7 +75,7 @@ constexpr char kFullCase[] = R"json({
      "to": 0.5},
     {"name": "side", "region": "top", "surface": "-x", "pressure": 5e3}
   ],
-  "rve": {"max_inertial_number": 1e-3, "min_steps": 50},
+  "rve": {"max_inertial_number": 1e-3, "min_steps": 50, "real_time": true},
   "output": {"frame_every": 50, "timeseries_every": 5, "checkpoint_every": 1000,
              "progress_every": 10, "plot": "load-settlement", "plot_body": "footing",
              "plot_width": 0.5, "phi_deg": 30}
@@ -224,6 +224,7 @@ TEST_F(CaseTest, FullCaseParsesIntoExpectedSpec) {
 
   EXPECT_EQ(spec->rve.max_inertial_number, 1e-3);
   EXPECT_EQ(spec->rve.min_steps, 50);
+  EXPECT_TRUE(spec->rve.real_time);
 
   EXPECT_EQ(spec->output.frame_every, 50);
   EXPECT_EQ(spec->output.timeseries_every, 5);

@@ -123,6 +123,10 @@ TEST_F(HardeningTest, UnboundedWorkIsRefusedWithTheFieldNamed) {
   relax.mutable_options()->set_max_inertial_number(1e-42);
   ExpectError(h_.stub().Apply(h_.Context().get(), relax, &resp), grpc::StatusCode::INVALID_ARGUMENT,
               "max_inertial_number");
+  relax.mutable_options()->set_max_inertial_number(0);
+  relax.mutable_options()->set_duration(-1);
+  ExpectError(h_.stub().Apply(h_.Context().get(), relax, &resp), grpc::StatusCode::INVALID_ARGUMENT,
+              "duration");
 
   v1::ElementTestRequest test;
   test.set_template_name(kTemplate);

@@ -554,6 +554,18 @@ TEST(RvePoolTest, ControlsPerTemplate) {
   for (int p = 0; p < kPoints; ++p) {
     EXPECT_EQ((*s)[p].steps, p % 3 == 0 ? 12 : 1) << "point " << p;
   }
+  // The options go with every Apply: a duration of 2 DEM steps caps a
+  // strain that the criterion would spread over many (min_steps holds).
+  Eigen::Matrix3d big = Eigen::Matrix3d::Identity();
+  big(1, 1) = 1 - 1e-2;
+  dem::ApplyOptions capped;
+  capped.duration = 1.5 * (*s)[1].time_step;  // s, the RVEs' Δt
+  pool.set_apply_options(capped);
+  s = pool.Apply(2, std::vector<Eigen::Matrix3d>(kPoints, big));
+  ASSERT_TRUE(s.ok()) << s.status();
+  for (int p = 0; p < kPoints; ++p) {
+    EXPECT_EQ((*s)[p].steps, p % 3 == 0 ? 12 : 2) << "point " << p;
+  }
 }
 
 // Points with the same initial stress share one consolidation: their RVEs

@@ -175,6 +175,40 @@ TEST(ApplyTest, ValidIncrementsAreAccepted) {
   EXPECT_TRUE(rve.Apply(With(Eigen::Matrix3d::Identity(), 2, 2, 1.0 + 1e-13)).ok());
 }
 
+// duration caps the DEM steps at ⌈duration/Δt⌉ where the quasi-static bound
+// asks for more, and never goes below min_steps; out of range it is refused.
+TEST(ApplyTest, DurationCapsTheDemSteps) {
+  RveSnapshot p = Loaded();
+  p.controls.min_steps = 3;
+  Rve rve = CreateOrDie(p);
+  Rve twin = CreateOrDie(p);
+  const Eigen::Matrix3d df = Diag(0.99, 1.0);
+  absl::StatusOr<RveState> free = twin.Apply(df);
+  ASSERT_TRUE(free.ok()) << free.status();
+  ASSERT_GT(free->steps, 20);  // the quasi-static bound asks for many
+  ApplyOptions capped;
+  capped.duration = 7.5 * rve.time_step();
+  absl::StatusOr<RveState> s = rve.Apply(df, capped);
+  ASSERT_TRUE(s.ok()) << s.status();
+  EXPECT_EQ(s->steps, 8);
+  capped.duration = 0.5 * rve.time_step();
+  s = rve.Apply(df, capped);
+  ASSERT_TRUE(s.ok()) << s.status();
+  EXPECT_EQ(s->steps, 3);  // min_steps
+  capped.duration = 1.0;   // longer than the bound needs: no effect
+  Rve third = CreateOrDie(p);
+  s = third.Apply(df, capped);
+  ASSERT_TRUE(s.ok()) << s.status();
+  EXPECT_EQ(s->steps, free->steps);
+  for (double bad : {-1e-9, 2e6, std::nan("")}) {
+    capped.duration = bad;
+    s = rve.Apply(df, capped);
+    ASSERT_FALSE(s.ok()) << bad;
+    EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_TRUE(HasSubstr(s.status().message(), "duration")) << s.status();
+  }
+}
+
 // A thin cell is doubled (periodic_test.cc), at most twice per increment:
 // a cell still too thin after that is refused.
 TEST(ApplyTest, CellThinnerThanTheCutoffEvenDoubledIsAFailedPrecondition) {

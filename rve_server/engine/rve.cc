@@ -245,6 +245,11 @@ absl::Status Validate(const ApplyOptions& o) {
         "max_inertial_number = ", o.max_inertial_number, " is invalid: must be 0 or lie in [",
         kMinInertialNumber, ", ", kMaxInertialNumber, "]"));
   }
+  if (!(o.duration >= 0 && o.duration <= kMaxDuration)) {
+    return absl::InvalidArgumentError(absl::StrCat("duration = ", o.duration,
+                                                   " s is invalid: must lie in [0, ", kMaxDuration,
+                                                   "] s"));
+  }
   return absl::OkStatus();
 }
 

@@ -66,6 +66,12 @@ struct ApplyOptions {
   // Tighter bound on the inertial number for this call, [-]; 0 (or a value
   // above the RVE's Controls::max_inertial_number): the RVE's own bound.
   double max_inertial_number = 0.0;
+  // Physical duration of the increment, s; > 0: at most ⌈duration/Δt⌉ DEM
+  // steps (min_steps still holds), so the RVE never deforms slower than the
+  // continuum does. Where the quasi-static bound asks for more (a flowing
+  // packing, one near zero pressure) the RVE then follows its own inertial
+  // (rate-dependent) response at the continuum's strain rate. 0: no cap.
+  double duration = 0.0;
 };
 
 // Asked between DEM steps by the engine's long loops (Apply, Relax, Run,
@@ -83,9 +89,10 @@ inline constexpr std::int64_t kMaxRelaxSteps = 10'000'000;      // ApplyOptions:
 inline constexpr double kMinRelaxTolerance = 1e-12;             // ApplyOptions::relax_tolerance
 inline constexpr double kMinInertialNumber = 1e-6;              // any inertial number bound, [-]
 inline constexpr double kMaxInertialNumber = 1.0;
+inline constexpr double kMaxDuration = 1e6;  // s, ApplyOptions::duration
 
 // Ranges of ApplyOptions (relax_tolerance in [1e-12, 1], relax_max_steps in
-// [0, 1e7], max_inertial_number 0 or in [1e-6, 1]).
+// [0, 1e7], max_inertial_number 0 or in [1e-6, 1], duration in [0, 1e6] s).
 absl::Status Validate(const ApplyOptions& options);
 
 // The checks Apply makes on ΔF before touching anything: 9 finite values,

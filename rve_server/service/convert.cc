@@ -278,6 +278,7 @@ void ToProto(const dem::ApplyOptions& o, v1::ApplyOptions* out) {
   out->set_relax(o.relax);
   out->set_relax_tolerance(o.relax_tolerance);
   out->set_relax_max_steps(o.relax_max_steps);
+  out->set_duration(o.duration);
 }
 
 dem::ApplyOptions FromProto(const v1::ApplyOptions& o) {
@@ -288,6 +289,7 @@ dem::ApplyOptions FromProto(const v1::ApplyOptions& o) {
   if (o.max_inertial_number() != 0) out.max_inertial_number = o.max_inertial_number();
   if (o.relax_tolerance() != 0) out.relax_tolerance = o.relax_tolerance();
   if (o.relax_max_steps() != 0) out.relax_max_steps = o.relax_max_steps();
+  out.duration = o.duration();
   return out;
 }
 
