@@ -1134,6 +1134,102 @@ absl::Status ParseList(const Object& root, absl::string_view key, Need need, abs
   return CheckUnique(NamesOf(*items), ptr, what);
 }
 
+// ---------------------------------------------------------------- phases
+
+Fields<DrainedBoundary> DrainedFields(const GridLines* lines) {
+  return {
+      NameField<DrainedBoundary>(),
+      EnumField("line", &DrainedBoundary::axis, Need::kRequired, "drained line", kAxes, &AxisName),
+      {"position",
+       [lines](const Object& o, DrainedBoundary* d) -> absl::Status {
+         RETURN_IF_ERROR(GetNumber(o, "position", Need::kRequired, kAny, &d->position));
+         int index = 0;
+         return lines->Snap(d->position, d->axis, o.At("position"), &index, &d->position);
+       },
+       [](const DrainedBoundary& d, OrderedJson& j) { j["position"] = d.position; }},
+      NumberField("pressure", &DrainedBoundary::pressure, Need::kOptional, kAny),
+      OptionalFiniteField("from", &DrainedBoundary::from, kAny),
+      OptionalFiniteField("to", &DrainedBoundary::to, kAny),
+  };
+}
+
+Fields<PressureMonitor> MonitorFields() {
+  return {
+      NameField<PressureMonitor>(),
+      Vec2Field("position", &PressureMonitor::position, Need::kRequired, kAny),
+  };
+}
+
+// Fluid density up to that of mercury; k up to that of clean gravel (×10).
+constexpr Range kFluidDensity{0.0, 2e4, true, false};
+constexpr Range kPermeability{0.0, 10.0, true, false};
+constexpr Range kPorosity{0.0, 1.0, false, true};
+
+Fields<PhasesSpec> PhasesFields() {
+  return {
+      NumberField("fluid_density", &PhasesSpec::fluid_density, Need::kOptional, kFluidDensity),
+      NumberField("permeability", &PhasesSpec::permeability, Need::kRequired, kPermeability),
+      NumberField("porosity", &PhasesSpec::porosity, Need::kOptional, kPorosity),
+      OptionalFiniteField("water_table", &PhasesSpec::water_table, kAny),
+      FlagField("drained_free_surface", &PhasesSpec::drained_free_surface),
+      // Read by ParsePhases (lists); written here.
+      {"drained", [](const Object&, PhasesSpec*) { return absl::OkStatus(); },
+       [](const PhasesSpec& s, OrderedJson& j) {
+         OrderedJson& list = j["drained"] = OrderedJson::array();
+         for (const DrainedBoundary& d : s.drained)
+           list.push_back(WriteFields(DrainedFields(nullptr), d));
+       }},
+      {"monitors", [](const Object&, PhasesSpec*) { return absl::OkStatus(); },
+       [](const PhasesSpec& s, OrderedJson& j) {
+         OrderedJson& list = j["monitors"] = OrderedJson::array();
+         for (const PressureMonitor& m : s.monitors)
+           list.push_back(WriteFields(MonitorFields(), m));
+       }},
+  };
+}
+
+// The phases section: its fields, the drained boundaries (each on a grid
+// line that a region reaches) and the pressure monitors (inside a region).
+absl::Status ParsePhases(const Json& j, const std::string& ptr, const GridLines& lines,
+                         const std::vector<MaterialRegion>& regions, PhasesSpec* phases) {
+  phases->saturated = true;
+  ASSIGN_OR_RETURN(Object o, ReadFields(j, ptr, PhasesFields(), phases));
+  RETURN_IF_ERROR(ParseList(
+      o, "drained", Need::kOptional, "drained boundary", &phases->drained,
+      [&](const Json& e, const std::string& at, size_t, DrainedBoundary* d) {
+        RETURN_IF_ERROR(ReadFields(e, at, DrainedFields(&lines), d).status());
+        if (!(d->from < d->to)) {
+          return Bad(Child(at, "to"), "must be > from = ", Num(d->from), " m, got ", Num(d->to));
+        }
+        const int along = 1 - d->axis;
+        for (const MaterialRegion& r : regions) {
+          if (d->position >= r.lower[d->axis] && d->position <= r.upper[d->axis] &&
+              std::max(d->from, r.lower[along]) <= std::min(d->to, r.upper[along])) {
+            return absl::OkStatus();
+          }
+        }
+        return Bad(Child(at, "position"), "no region reaches the line ", kAxisName[d->axis], " = ",
+                   Num(d->position), " m: a drained boundary must touch the soil");
+      }));
+  if (phases->drained.empty() && !phases->drained_free_surface) {
+    return Bad(o.At("drained"),
+               "a saturated case needs at least one drained boundary (or drained_free_surface): "
+               "the pore pressure is otherwise undetermined");
+  }
+  return ParseList(o, "monitors", Need::kOptional, "monitor", &phases->monitors,
+                   [&](const Json& e, const std::string& at, size_t, PressureMonitor* m) {
+                     RETURN_IF_ERROR(ReadFields(e, at, MonitorFields(), m).status());
+                     for (const MaterialRegion& r : regions) {
+                       if ((m->position.array() >= r.lower.array()).all() &&
+                           (m->position.array() <= r.upper.array()).all()) {
+                         return absl::OkStatus();
+                       }
+                     }
+                     return Bad(Child(at, "position"), "(", Num(m->position.x()), ", ",
+                                Num(m->position.y()), ") m is in no region");
+                   });
+}
+
 // Tracks the path during parsing to report duplicate keys, which
 // nlohmann::json would otherwise resolve silently to the last value.
 class DuplicateKeys {
@@ -1371,7 +1467,7 @@ absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::strin
   ASSIGN_OR_RETURN(Object root, Object::Open(doc, "",
                                              {"name", "description", "expected_runtime_s", "grid",
                                               "solver", "templates", "regions", "walls", "bodies",
-                                              "tractions", "rve", "output"}));
+                                              "tractions", "rve", "phases", "output"}));
   CaseSpec spec;
   RETURN_IF_ERROR(GetString(root, "name", Need::kOptional, false, &spec.name));
   RETURN_IF_ERROR(GetString(root, "description", Need::kOptional, false, &spec.description));
@@ -1417,6 +1513,9 @@ absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::strin
 
   if (const Json* rve = root.Get("rve")) {
     RETURN_IF_ERROR(ParseRve(*rve, root.At("rve"), &spec.rve));
+  }
+  if (const Json* phases = root.Get("phases")) {
+    RETURN_IF_ERROR(ParsePhases(*phases, root.At("phases"), lines, spec.regions, &spec.phases));
   }
   if (const Json* output = root.Get("output")) {
     RETURN_IF_ERROR(ParseOutput(*output, root.At("output"), spec.bodies, &spec.output));
@@ -1479,6 +1578,7 @@ std::string ToJson(const CaseSpec& spec) {
   }
 
   doc["rve"] = WriteFields(RveFields(), spec.rve);
+  if (spec.phases.saturated) doc["phases"] = WriteFields(PhasesFields(), spec.phases);
   doc["output"] = WriteFields(OutputFields(nullptr), spec.output);
   std::string out;
   Write(doc, 0, &out);

@@ -170,6 +170,45 @@ struct RveSpec {
   bool real_time = false;
 };
 
+// A drained boundary of a saturated case: the grid nodes of a grid line
+// (within [from, to] along it) that carry material hold the pore pressure.
+struct DrainedBoundary {
+  std::string name;
+  int axis = 1;           // 0: the line x = position; 1: the line y = position
+  double position = 0.0;  // m, on a grid line
+  double pressure = 0.0;  // Pa, compression + (0: free drainage)
+  double from = -std::numeric_limits<double>::infinity();  // m, along the line
+  double to = std::numeric_limits<double>::infinity();
+};
+
+// A point of a saturated case whose pore pressure timeseries.csv records
+// (the material point nearest to `position` at the start).
+struct PressureMonitor {
+  std::string name;
+  Eigen::Vector2d position = Eigen::Vector2d::Zero();  // m
+};
+
+// Saturated soil, one-point two-phase u–v–p MPM (liang-zhao-wu-soga-2023
+// §2.2–3): present when the case has a "phases" section. Grains and fluid
+// are incompressible; the fluid drags on the skeleton by Darcy's law with a
+// permeability k = c·e³/(1 + e) that follows the void ratio. Every face that
+// is not drained is impermeable.
+struct PhasesSpec {
+  bool saturated = false;
+  double fluid_density = 1000.0;  // ρ_f, kg/m³
+  double permeability = 1e-3;     // k (hydraulic conductivity) at the initial void ratio, m/s
+  // Initial porosity n0, [-]; 0: each point's from its RVE, n0 = e0/(1 + e0).
+  double porosity = 0.0;
+  // y of the free water surface for a hydrostatic start, p = ρ_f·g·(y_w − y)
+  // below it (g = |gravity|), m; absent (+∞): p = 0 at the start.
+  double water_table = std::numeric_limits<double>::infinity();
+  // The nodes at the material's free surface (active nodes next to an empty
+  // one) hold p = 0 as well: a surface that moves (a collapse).
+  bool drained_free_surface = false;
+  std::vector<DrainedBoundary> drained;
+  std::vector<PressureMonitor> monitors;
+};
+
 struct CaseSpec {
   std::string name;
   std::string description;
@@ -182,6 +221,7 @@ struct CaseSpec {
   std::vector<RigidBody> bodies;
   std::vector<SurfaceTraction> tractions;
   RveSpec rve;
+  PhasesSpec phases;
   OutputSpec output;
 };
 

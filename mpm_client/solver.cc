@@ -125,6 +125,9 @@ void MaterialPoints::Resize(std::size_t n) {
   half_size0.resize(n, Vector2d::Zero());
   region.resize(n, 0);
   response.resize(n);
+  fluid_velocity.resize(n, Vector2d::Zero());
+  pore_pressure.resize(n, 0.0);
+  porosity0.resize(n, 0.0);
 }
 
 double CflTimeStep(double cfl, double cell_size, double wave_modulus, double density) {
@@ -214,6 +217,16 @@ absl::StatusOr<MaterialPoints> FillRegions(const CaseSpec& spec, const RegionDen
         points.volume0[p] = volume;
         points.half_size0[p] = Vector2d(0.5 * s, 0.5 * s);
         points.region[p] = static_cast<std::int32_t>(r);
+        if (spec.phases.saturated) {
+          // n0 from the case (else the driver sets it from the RVEs), and a
+          // hydrostatic start below the water table.
+          points.porosity0[p] = spec.phases.porosity;
+          const double depth = spec.phases.water_table - points.position[p].y();
+          if (std::isfinite(depth) && depth > 0.0) {
+            points.pore_pressure[p] =
+                spec.phases.fluid_density * spec.solver.gravity.norm() * depth;
+          }
+        }
       }
     }
     first[r + 1] = points.size();
@@ -265,7 +278,8 @@ absl::Status ValidatePoints(const MaterialPoints& points, ShapeKind shape) {
   for (std::size_t size :
        {points.velocity.size(), points.mass.size(), points.volume.size(), points.volume0.size(),
         points.F.size(), points.stress.size(), points.half_size0.size(), points.region.size(),
-        points.response.size()}) {
+        points.response.size(), points.fluid_velocity.size(), points.pore_pressure.size(),
+        points.porosity0.size()}) {
     if (size != n) return Invalid("material points", "arrays differ in length");
   }
   for (std::size_t p = 0; p < n; ++p) {
@@ -341,6 +355,34 @@ absl::StatusOr<std::unique_ptr<Solver>> Solver::Init(const CaseSpec& spec, Stres
     RETURN_IF_ERROR(ValidateHistory(what, body.velocity));
   }
   solver->reactions_.assign(spec.walls.size() + spec.bodies.size(), Vector2d::Zero());
+  solver->phases_ = spec.phases;
+  if (spec.phases.saturated) {
+    if (!spec.bodies.empty()) {
+      return Invalid("bodies", "rigid bodies in a saturated case are not supported yet");
+    }
+    const PhasesSpec& ph = spec.phases;
+    if (!(ph.fluid_density > 0.0) || !(ph.permeability > 0.0) ||
+        !(ph.porosity >= 0.0 && ph.porosity < 1.0)) {
+      return Invalid("phases", "fluid_density and permeability must be > 0, porosity in [0, 1)");
+    }
+    for (const DrainedBoundary& d : ph.drained) {
+      const std::string what = absl::StrCat("drained boundary ", d.name);
+      const int line = GridLineIndex(d.position, spec.grid.origin[d.axis], h,
+                                     d.axis == 0 ? spec.grid.nx : spec.grid.ny);
+      if ((d.axis != 0 && d.axis != 1) || line < 0 || !std::isfinite(d.pressure)) {
+        return Invalid(what, "must lie on a grid line with a finite pressure");
+      }
+      std::vector<std::int32_t> nodes;
+      const int along = d.axis == 0 ? spec.grid.ny : spec.grid.nx;
+      for (int k = 0; k <= along; ++k) {
+        const double s = spec.grid.origin[1 - d.axis] + k * h;  // m, along the line
+        if (s < d.from - kGridTolerance * h || s > d.to + kGridTolerance * h) continue;
+        nodes.push_back(d.axis == 0 ? line + (spec.grid.nx + 1) * k
+                                    : k + (spec.grid.nx + 1) * line);
+      }
+      solver->drained_nodes_.push_back(std::move(nodes));
+    }
+  }
   return solver;
 }
 
@@ -348,6 +390,16 @@ absl::StatusOr<std::unique_ptr<Solver>> Solver::Create(const CaseSpec& spec, Mat
                                                        StressModel* model, double dt) {
   ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver, Init(spec, model));
   RETURN_IF_ERROR(ValidatePoints(initial, spec.solver.shape));
+  if (spec.phases.saturated) {
+    for (std::size_t p = 0; p < initial.size(); ++p) {
+      if (!(initial.porosity0[p] > 0.0 && initial.porosity0[p] < 1.0) ||
+          !std::isfinite(initial.pore_pressure[p])) {
+        return Invalid(absl::StrCat("material point ", p),
+                       absl::StrCat("porosity ", initial.porosity0[p],
+                                    " must lie in (0, 1) and the pore pressure be finite"));
+      }
+    }
+  }
   Solver& sv = *solver;
   sv.points_ = std::move(initial);
   sv.Prepare();
@@ -391,6 +443,15 @@ void Solver::Prepare() {
   body_velocity_.resize(bodies_.size());
   delta_f_.resize(n);
   response_.resize(n);
+  if (phases_.saturated) {
+    for (auto* v : {&node_fluid_velocity_, &node_fluid_force_, &node_fluid_velocity_new_}) {
+      v->resize(nodes);
+    }
+    for (auto* v : {&node_fluid_mass_, &node_drag_, &node_pressure_, &node_volume_,
+                    &node_divergence_, &pressure_fixed_, &node_dp_}) {
+      v->resize(nodes);
+    }
+  }
 }
 
 absl::Status Solver::EvaluateShapes() {
@@ -518,6 +579,7 @@ absl::Status Solver::Step() {
   if (shape_.size() != points_.size() || load_shape_.size() != points_.loads.size()) {
     return absl::FailedPreconditionError("the number of material points or loads changed");
   }
+  if (phases_.saturated) return StepSaturated();
   RETURN_IF_ERROR(EvaluateShapes());
   MaterialPoints& mp = points_;
   const std::size_t n = mp.size();
@@ -640,7 +702,8 @@ double Solver::KineticEnergy() const {
 // major), stress, response_stress (9, row major), void_ratio,
 // fabric_anisotropy, mean_rotation, coordination, permeability; per load:
 // load_traction (2), load_length0, load_ramp_time; reactions (2 per wall and
-// body). ints: step (1); region per point; load_point, load_normal_axis,
+// body); saturated cases also fluid_velocity (2), pore_pressure, porosity0
+// per point. ints: step (1); region per point; load_point, load_normal_axis,
 // load_normal_sign per load.
 void Solver::ExportState(std::map<std::string, std::vector<double>>& doubles,
                          std::map<std::string, std::vector<std::int64_t>>& ints) const {
@@ -679,6 +742,11 @@ void Solver::ExportState(std::map<std::string, std::vector<double>>& doubles,
       [&](std::size_t p, auto& o) { o.push_back(mp.response[p].mean_rotation); });
   put("coordination", 1, [&](std::size_t p, auto& o) { o.push_back(mp.response[p].coordination); });
   put("permeability", 1, [&](std::size_t p, auto& o) { o.push_back(mp.response[p].permeability); });
+  if (phases_.saturated) {
+    put("fluid_velocity", 2, [&](std::size_t p, auto& o) { vec2(mp.fluid_velocity[p], o); });
+    put("pore_pressure", 1, [&](std::size_t p, auto& o) { o.push_back(mp.pore_pressure[p]); });
+    put("porosity0", 1, [&](std::size_t p, auto& o) { o.push_back(mp.porosity0[p]); });
+  }
   std::vector<double>& traction = doubles["load_traction"];
   std::vector<double>& length0 = doubles["load_length0"];
   std::vector<double>& ramp = doubles["load_ramp_time"];
@@ -737,6 +805,13 @@ absl::Status Solver::ImportState(const std::map<std::string, std::vector<double>
     ASSIGN_OR_RETURN(const std::vector<double>* f, Field(doubles, key, size));
     d[key] = f;
   }
+  if (phases_.saturated) {
+    for (const auto& [key, size] :
+         {std::pair{"fluid_velocity", 2 * n}, {"pore_pressure", n}, {"porosity0", n}}) {
+      ASSIGN_OR_RETURN(const std::vector<double>* f, Field(doubles, key, size));
+      d[key] = f;
+    }
+  }
   std::map<std::string, const std::vector<std::int64_t>*> i;
   const std::pair<const char*, std::size_t> int_fields[] = {{"step", 1},
                                                             {"region", n},
@@ -775,6 +850,15 @@ absl::Status Solver::ImportState(const std::map<std::string, std::vector<double>
     r.coordination = (*d["coordination"])[p];
     r.permeability = (*d["permeability"])[p];
     mp.region[p] = static_cast<std::int32_t>((*i["region"])[p]);
+    if (phases_.saturated) {
+      mp.fluid_velocity[p] = vec2(*d["fluid_velocity"], p);
+      mp.pore_pressure[p] = (*d["pore_pressure"])[p];
+      mp.porosity0[p] = (*d["porosity0"])[p];
+      if (!(mp.porosity0[p] > 0.0 && mp.porosity0[p] < 1.0)) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("state porosity0[", p, "] = ", mp.porosity0[p], " is not in (0, 1)"));
+      }
+    }
   }
   mp.loads.resize(nl);
   for (std::size_t k = 0; k < nl; ++k) {

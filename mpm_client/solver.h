@@ -68,6 +68,10 @@ struct MaterialPoints {
   std::vector<std::int32_t> region;         // index into CaseSpec::regions
   std::vector<PointResponse> response;      // last response of the model
   std::vector<SurfaceLoad> loads;           // any number per point
+  // Saturated cases only (zero in dry ones): `mass` is then the solids'.
+  std::vector<Eigen::Vector2d> fluid_velocity;  // m/s
+  std::vector<double> pore_pressure;            // p, Pa, compression +
+  std::vector<double> porosity0;                // n at the start, [-]
 
   std::size_t size() const { return position.size(); }
   // Resizes every per-point array (new points: zero, F = I).
@@ -112,10 +116,20 @@ class Solver {
       const CaseSpec& spec, const std::map<std::string, std::vector<double>>& doubles,
       const std::map<std::string, std::vector<std::int64_t>>& ints, StressModel* model);
 
-  // One explicit USF step of size dt. On error (a point outside the grid, an
+  // One explicit USF step of size dt (a saturated case: the semi-implicit
+  // two-phase step, StepSaturated). On error (a point outside the grid, an
   // inverted point, the model's error) the points are unchanged, but the
   // model may have advanced.
   absl::Status Step();
+
+  // Saturated cases: each point's porosity n = 1 − (1 − n0)/J (grains
+  // incompressible), [-], and permeability k = c·e³/(1 + e), m/s.
+  double Porosity(std::size_t p) const;
+  double Permeability(std::size_t p) const;
+  // Solids' plus fluid's mass, kg.
+  double MixtureMass() const;
+  // CG iterations of the last pressure solve (saturated), for diagnostics.
+  int pressure_iterations() const { return pressure_iterations_; }
 
   double time() const { return time_; }        // s
   std::int64_t step() const { return step_; }  // steps done
@@ -164,6 +178,13 @@ class Solver {
   // vanish at a wall line its domain reaches past: without this its centre
   // creeps through the wall (and, at the grid's edge, off the grid).
   Eigen::Vector2d KeepOffWalls(const Eigen::Vector2d& from, Eigen::Vector2d to) const;
+  // The two-phase step (saturated.cc).
+  absl::Status StepSaturated();
+  // Impermeable walls: the fluid's velocity normal to each wall's line is 0.
+  void ConstrainFluid(std::vector<Eigen::Vector2d>& velocity) const;
+  // The nodes whose pore pressure is prescribed this step (drained lines,
+  // the free surface), into pressure_fixed_ (NaN: free).
+  void FindDrainedNodes();
 
   GridSpec grid_;
   SolverSpec solver_;
@@ -194,6 +215,21 @@ class Solver {
   std::vector<Eigen::Vector2d> body_velocity_;      // per body, m/s
   std::vector<Eigen::Matrix3d> delta_f_;
   std::vector<PointResponse> response_;
+
+  // Saturated cases (saturated.cc).
+  PhasesSpec phases_;
+  std::vector<std::vector<std::int32_t>> drained_nodes_;  // per drained boundary
+  std::vector<double> node_fluid_mass_;                   // kg
+  std::vector<Eigen::Vector2d> node_fluid_velocity_;      // v_f^n, then v_f*, m/s
+  std::vector<Eigen::Vector2d> node_fluid_force_;         // N
+  std::vector<Eigen::Vector2d> node_fluid_velocity_new_;  // v_f^{n+1}
+  std::vector<double> node_drag_;                         // Δt·Σ S·drag·V, kg
+  std::vector<double> node_pressure_;                     // p^n, Pa
+  std::vector<double> node_volume_;                       // Σ S V, m³
+  std::vector<double> node_divergence_;                   // Poisson right-hand side
+  std::vector<double> pressure_fixed_;                    // prescribed p, Pa, or NaN
+  std::vector<double> node_dp_;                           // p^{n+1} − p^n, Pa
+  int pressure_iterations_ = 0;
 };
 
 }  // namespace rvehub::mpm

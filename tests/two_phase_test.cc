@@ -1,0 +1,292 @@
+// The saturated (two-phase u–v–p) MPM step (mpm_client/saturated.cc): its
+// kernels, Terzaghi's consolidation with an elastic skeleton, a hydrostatic
+// column at rest, one time step for permeabilities from 1e-2 to 1e-6 m/s,
+// mass conservation and checkpoint round trips.
+#include "mpm_client/two_phase.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "mpm_client/elastic.h"
+#include "mpm_client/model.h"
+#include "mpm_client/solver.h"
+
+namespace rvehub::mpm {
+namespace {
+
+using Eigen::Matrix3d;
+using Eigen::Vector2d;
+
+// --- kernels
+
+TEST(TwoPhaseKernelTest, IntermediateVelocitiesLimits) {
+  const double ms = 3.0, mf = 1.0;
+  const Vector2d rs(0.6, -0.3), rf(0.5, 0.1);  // kg·m/s
+  // No drag: each phase on its own.
+  PhaseVelocities free = IntermediateVelocities(ms, mf, 0.0, rs, rf);
+  EXPECT_NEAR((free.solid - rs / ms).norm(), 0.0, 1e-15);
+  EXPECT_NEAR((free.fluid - rf / mf).norm(), 0.0, 1e-15);
+  // Any drag keeps the mixture's momentum; an enormous one (k → 0) moves
+  // the phases together at the mixture's velocity.
+  for (double drag : {1e-3, 1.0, 1e3, 1e12}) {
+    const PhaseVelocities v = IntermediateVelocities(ms, mf, drag, rs, rf);
+    EXPECT_NEAR((ms * v.solid + mf * v.fluid - (rs + rf)).norm(), 0.0, 1e-13) << drag;
+  }
+  const PhaseVelocities locked = IntermediateVelocities(ms, mf, 1e12, rs, rf);
+  EXPECT_NEAR((locked.solid - (rs + rf) / (ms + mf)).norm(), 0.0, 1e-11);
+  EXPECT_NEAR((locked.fluid - locked.solid).norm(), 0.0, 1e-11);
+}
+
+TEST(TwoPhaseKernelTest, PermeabilityAndTerzaghi) {
+  const double e0 = 0.25, k0 = 1e-3;
+  const double c = KozenyCarmanCoefficient(e0, k0);
+  EXPECT_NEAR(KozenyCarmanPermeability(c, e0), k0, 1e-18);
+  EXPECT_GT(KozenyCarmanPermeability(c, 0.3), k0);
+  EXPECT_NEAR(PorosityAt(0.2, 1.0), 0.2, 1e-16);
+  EXPECT_NEAR(PorosityAt(0.2, 0.9), 1.0 - 0.8 / 0.9, 1e-16);
+  // Textbook values: U(0.197) = 0.50, U(0.848) = 0.90 (Terzaghi's table).
+  EXPECT_NEAR(TerzaghiDegreeOfConsolidation(0.197), 0.50, 1e-3);
+  EXPECT_NEAR(TerzaghiDegreeOfConsolidation(0.848), 0.90, 1e-3);
+  // At the impermeable base and Tv = 0.2: (4/π)Σ ... = 0.7723 p0 (series).
+  EXPECT_NEAR(TerzaghiExcessPressure(1.0, 1.0, 0.2), 0.7723, 2e-4);
+  EXPECT_NEAR(TerzaghiExcessPressure(1.0, 0.0, 0.5), 0.0, 1e-15);  // drained face
+  EXPECT_NEAR(TerzaghiExcessPressure(1.0, 0.5, 1e-4), 1.0, 1e-6);  // not yet reached
+}
+
+// --- columns
+
+// A 1 m column of nx = 1 cell of h = 0.02 m (50 cells, 2 × 2 points each)
+// on a fixed base between smooth walls, saturated, drained at the top.
+struct Column {
+  static constexpr double kH = 1.0, kCell = 0.02, kPorosity = 0.3, kRhoS = 2650.0;
+  static constexpr double kRhoF = 1000.0, kYoungs = 25.06e6 * 0.52 / 0.7, kPoisson = 0.3;
+  CaseSpec spec;
+  Column(double permeability, double gravity) {
+    spec.grid.cell_size = kCell;
+    spec.grid.nx = 1;
+    spec.grid.ny = 50;
+    spec.solver.shape = ShapeKind::kGimp;
+    spec.solver.pic_fraction = 0.0;
+    spec.solver.gravity = Vector2d(0.0, -gravity);
+    spec.solver.wave_modulus = PWaveModulus(kYoungs, kPoisson);
+    spec.solver.cfl = 0.5;
+    MaterialRegion soil;
+    soil.name = "soil";
+    soil.lower = Vector2d(0.0, 0.0);
+    soil.upper = Vector2d(kCell, kH);
+    soil.points_per_cell_side = 2;
+    soil.density = (1.0 - kPorosity) * kRhoS;  // the solids' mass per volume
+    spec.regions = {soil};
+    Wall base, left, right;
+    base.name = "base";
+    base.axis = 1;
+    base.contact = ContactKind::kRough;
+    left.name = "left";
+    left.axis = 0;
+    right = left;
+    right.name = "right";
+    right.position = kCell;
+    spec.walls = {base, left, right};
+    spec.phases.saturated = true;
+    spec.phases.fluid_density = kRhoF;
+    spec.phases.permeability = permeability;
+    spec.phases.porosity = kPorosity;
+    DrainedBoundary top;
+    top.name = "top";
+    top.axis = 1;
+    top.position = kH;
+    spec.phases.drained = {top};
+  }
+};
+
+std::unique_ptr<Solver> MakeSolver(const CaseSpec& spec, StressModel* model,
+                                   MaterialPoints* points_out = nullptr) {
+  absl::StatusOr<MaterialPoints> points = FillRegions(spec);
+  EXPECT_TRUE(points.ok()) << points.status();
+  if (points_out != nullptr) *points_out = *points;
+  absl::StatusOr<std::unique_ptr<Solver>> solver = Solver::Create(spec, *std::move(points), model);
+  EXPECT_TRUE(solver.ok()) << solver.status();
+  return solver.ok() ? *std::move(solver) : nullptr;
+}
+
+// Terzaghi: a sudden surcharge p0 on the drained top of an elastic column
+// (M = K + 4G/3 = 25.06 MPa, the consolidation RVE's) is carried by the
+// fluid at first and then by the skeleton as the water drains, with
+// c_v = k·M/(ρ_f g). The isochrones of the paper's Fig. 5 within 3 % of p0
+// (measured: 0.10–0.64 % from Tv = 0.041 on), except the first, Tv = 0.010
+// (t = 3.9 ms), within 3.5 %: 3.09 % here. That one is inertia, which
+// Terzaghi leaves out: the skeleton's wave needs ~1.7 ms to cross the 0.2-m
+// front, and the error stays with a finer grid (2.43 % with 100 cells) and a
+// smaller step (3.36 % at CFL 0.2).
+TEST(TwoPhaseSolverTest, TerzaghiConsolidationOfAnElasticColumn) {
+  const double k = 1e-3, p0 = 10e3;
+  Column column(k, 0.0);
+  SurfaceTraction load;
+  load.name = "surcharge";
+  load.region = "soil";
+  load.normal_axis = 1;
+  load.traction = Vector2d(0.0, -p0);
+  column.spec.tractions = {load};
+  LinearElasticModel model(Column::kYoungs, Column::kPoisson);
+  std::unique_ptr<Solver> solver = MakeSolver(column.spec, &model);
+  ASSERT_NE(solver, nullptr);
+  const double modulus = PWaveModulus(Column::kYoungs, Column::kPoisson);
+  ASSERT_NEAR(modulus, 25.06e6, 0.01e6);
+  const double cv = k * modulus / (Column::kRhoF * kDarcyGravity);  // m²/s
+  const double mass0 = solver->MixtureMass();
+  double worst = 0.0;
+  for (double tv : {0.010, 0.041, 0.10, 0.21, 0.31, 0.52, 0.72, 1.02}) {
+    double worst_here = 0.0;
+    const double t = tv * Column::kH * Column::kH / cv;
+    while (solver->time() + 0.5 * solver->dt() < t) ASSERT_TRUE(solver->Step().ok());
+    const double tv_now = solver->time() * cv / (Column::kH * Column::kH);
+    const MaterialPoints& mp = solver->points();
+    for (std::size_t p = 0; p < mp.size(); ++p) {
+      const double z = Column::kH - mp.position[p].y();  // from the drained top
+      const double exact = TerzaghiExcessPressure(p0, z / Column::kH, tv_now);
+      worst_here = std::max(worst_here, std::abs(mp.pore_pressure[p] - exact) / p0);
+      EXPECT_NEAR(mp.pore_pressure[p], exact, (tv < 0.02 ? 0.035 : 0.03) * p0)
+          << "Tv " << tv_now << " z " << z << " m";
+    }
+    std::printf("Tv %.3f: worst |p - exact| = %.2f %% of p0\n", tv_now, 100 * worst_here);
+    worst = std::max(worst, worst_here);
+  }
+  RecordProperty("worst_error_of_p0", std::to_string(worst));
+  std::printf("Terzaghi, elastic column: worst |p - exact| = %.3f %% of p0\n", 100 * worst);
+  // The skeleton carries the load at the end: settlement p0 H/M (1-D).
+  const MaterialPoints& mp = solver->points();
+  double top = 0.0;
+  for (std::size_t p = 0; p < mp.size(); ++p) top = std::max(top, mp.position[p].y());
+  const double settlement = (Column::kH - 0.5 * Column::kCell / 2) - top;
+  const double u_final = p0 * Column::kH / modulus;
+  EXPECT_NEAR(settlement / u_final, TerzaghiDegreeOfConsolidation(1.02), 0.03);
+  // The solids are conserved exactly; the mixture loses the water drained.
+  double solids = 0.0;
+  for (double m : mp.mass) solids += m;
+  EXPECT_NEAR(solids, (1 - Column::kPorosity) * Column::kRhoS * Column::kCell * Column::kH,
+              1e-12 * solids);
+  const double drained = Column::kRhoF * settlement * Column::kCell;  // kg of water out
+  EXPECT_NEAR(mass0 - solver->MixtureMass(), drained, 0.05 * drained);
+}
+
+// A saturated column under gravity, started hydrostatic with the skeleton at
+// its effective geostatic stress, stays at rest with p = ρ_f g (y_w − y).
+TEST(TwoPhaseSolverTest, HydrostaticColumnStaysAtRest) {
+  const double g = 9.81;
+  Column column(1e-3, g);
+  column.spec.phases.water_table = Column::kH;
+  LinearElasticModel model(Column::kYoungs, Column::kPoisson);
+  MaterialPoints start;
+  std::unique_ptr<Solver> solver = MakeSolver(column.spec, &model, &start);
+  ASSERT_NE(solver, nullptr);
+  // σ'v = (ρ_sat − ρ_f) g depth, σ'h = K0 σ'v (tension +).
+  const double rho_sat =
+      (1 - Column::kPorosity) * Column::kRhoS + Column::kPorosity * Column::kRhoF;
+  const double k0 = Column::kPoisson / (1 - Column::kPoisson);
+  std::vector<Matrix3d> stress(start.size(), Matrix3d::Zero());
+  for (std::size_t p = 0; p < start.size(); ++p) {
+    const double depth = Column::kH - start.position[p].y();
+    EXPECT_NEAR(start.pore_pressure[p], Column::kRhoF * g * depth, 1e-9);
+    const double sv = (rho_sat - Column::kRhoF) * g * depth;
+    stress[p](1, 1) = -sv;
+    stress[p](0, 0) = stress[p](2, 2) = -k0 * sv;
+    solver->mutable_points().stress[p] = stress[p];
+  }
+  model.SetStress(stress);
+  for (int i = 0; i < 400; ++i) ASSERT_TRUE(solver->Step().ok()) << i;
+  const MaterialPoints& mp = solver->points();
+  double vmax = 0.0, worst = 0.0;
+  for (std::size_t p = 0; p < mp.size(); ++p) {
+    vmax = std::max({vmax, mp.velocity[p].norm(), mp.fluid_velocity[p].norm()});
+    const double hydrostatic = Column::kRhoF * g * (Column::kH - mp.position[p].y());
+    worst = std::max(
+        worst, std::abs(mp.pore_pressure[p] - hydrostatic) / (Column::kRhoF * g * Column::kH));
+  }
+  std::printf("hydrostatic column after 400 steps: max speed %.3g m/s, worst p error %.3g\n", vmax,
+              worst);
+  EXPECT_LT(worst, 1e-6);
+  EXPECT_LT(vmax, 1e-6);
+}
+
+// The step does not depend on k: the same Δt (the skeleton's CFL step) runs
+// k = 1e-2 … 1e-6 m/s stably, and a tighter soil drains more slowly.
+TEST(TwoPhaseSolverTest, OneTimeStepForEveryPermeability) {
+  double previous = -1.0, dt = 0.0;
+  for (double k : {1e-2, 1e-3, 1e-4, 1e-5, 1e-6}) {
+    Column column(k, 0.0);
+    SurfaceTraction load;
+    load.name = "surcharge";
+    load.region = "soil";
+    load.normal_axis = 1;
+    load.traction = Vector2d(0.0, -10e3);
+    column.spec.tractions = {load};
+    LinearElasticModel model(Column::kYoungs, Column::kPoisson);
+    std::unique_ptr<Solver> solver = MakeSolver(column.spec, &model);
+    ASSERT_NE(solver, nullptr);
+    if (dt == 0.0) dt = solver->dt();
+    EXPECT_EQ(solver->dt(), dt);
+    for (int i = 0; i < 500; ++i) ASSERT_TRUE(solver->Step().ok()) << "k " << k << " step " << i;
+    // The excess pore pressure at the base: finite, at most p0 (+ the
+    // dynamic overshoot of a sudden load), decreasing with k.
+    double base = 0.0;
+    for (std::size_t p = 0; p < solver->points().size(); ++p) {
+      if (solver->points().position[p].y() < 0.01) base = solver->points().pore_pressure[p];
+    }
+    EXPECT_TRUE(std::isfinite(base));
+    EXPECT_LT(base, 10e3 * 1.2) << k;
+    EXPECT_GT(base, previous - 1e-4 * 10e3) << k;  // undrained from 1e-5 on
+    previous = base;
+  }
+  EXPECT_GT(previous, 0.99 * 10e3);  // k = 1e-6: undrained after 500 steps
+}
+
+TEST(TwoPhaseSolverTest, ExportImportContinuesBitIdentically) {
+  Column column(1e-3, 9.81);
+  column.spec.phases.water_table = 0.8;
+  SurfaceTraction load;
+  load.name = "surcharge";
+  load.region = "soil";
+  load.normal_axis = 1;
+  load.traction = Vector2d(0.0, -5e3);
+  load.ramp_time = 0.01;
+  column.spec.tractions = {load};
+  LinearElasticModel model(Column::kYoungs, Column::kPoisson);
+  std::unique_ptr<Solver> a = MakeSolver(column.spec, &model);
+  ASSERT_NE(a, nullptr);
+  for (int i = 0; i < 30; ++i) ASSERT_TRUE(a->Step().ok());
+  std::map<std::string, std::vector<double>> doubles;
+  std::map<std::string, std::vector<std::int64_t>> ints;
+  a->ExportState(doubles, ints);
+  ASSERT_TRUE(doubles.contains("pore_pressure"));
+  LinearElasticModel model_b = model;
+  absl::StatusOr<std::unique_ptr<Solver>> b =
+      Solver::FromState(column.spec, doubles, ints, &model_b);
+  ASSERT_TRUE(b.ok()) << b.status();
+  for (int i = 0; i < 30; ++i) {
+    ASSERT_TRUE(a->Step().ok());
+    ASSERT_TRUE((*b)->Step().ok());
+  }
+  std::map<std::string, std::vector<double>> da, db;
+  std::map<std::string, std::vector<std::int64_t>> ia, ib;
+  a->ExportState(da, ia);
+  (*b)->ExportState(db, ib);
+  for (const auto& [key, values] : da) {
+    ASSERT_EQ(values.size(), db.at(key).size()) << key;
+    EXPECT_EQ(std::memcmp(values.data(), db.at(key).data(), values.size() * sizeof(double)), 0)
+        << key;
+  }
+  // A saturated state without its pore pressures is refused.
+  doubles.erase("pore_pressure");
+  EXPECT_EQ((*b)->ImportState(doubles, ints).code(), absl::StatusCode::kInvalidArgument);
+}
+
+}  // namespace
+}  // namespace rvehub::mpm
