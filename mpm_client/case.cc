@@ -1085,6 +1085,25 @@ Fields<OutputSpec> OutputFields(const std::vector<RigidBody>* bodies) {
   };
   return {
       IntegerField("frame_every", &OutputSpec::frame_every, 1, kMax),
+      {"frame_times",
+       [](const Object& o, OutputSpec* out) -> absl::Status {
+         const Json* v = o.Get("frame_times");
+         if (v == nullptr) return absl::OkStatus();
+         if (!v->is_array()) return Bad(o.At("frame_times"), "must be an array of times (s)");
+         for (std::size_t i = 0; i < v->size(); ++i) {
+           double t = 0.0;
+           RETURN_IF_ERROR(ReadNumber((*v)[i], Child(o.At("frame_times"), i), kNonNegative, &t));
+           if (!out->frame_times.empty() && !(t > out->frame_times.back())) {
+             return Bad(Child(o.At("frame_times"), i), "times must increase, got ", Num(t),
+                        " s after ", Num(out->frame_times.back()), " s");
+           }
+           out->frame_times.push_back(t);
+         }
+         return absl::OkStatus();
+       },
+       [](const OutputSpec& out, OrderedJson& j) {
+         if (!out.frame_times.empty()) j["frame_times"] = out.frame_times;
+       }},
       IntegerField("timeseries_every", &OutputSpec::timeseries_every, 1, kMax),
       IntegerField("checkpoint_every", &OutputSpec::checkpoint_every, 0, kMax),
       IntegerField("progress_every", &OutputSpec::progress_every, 1, kMax),

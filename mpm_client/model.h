@@ -143,6 +143,9 @@ struct SurfaceTraction {
 
 struct OutputSpec {
   std::int64_t frame_every = 100;      // MPM steps between results.h5 frames
+  // Frames also at the steps nearest to these times (s, increasing): the
+  // published instants of a validation (consolidation isochrones).
+  std::vector<double> frame_times;
   std::int64_t timeseries_every = 10;  // MPM steps between timeseries.csv rows
   std::int64_t checkpoint_every = 0;   // MPM steps between checkpoints; 0: none
   std::int64_t progress_every = 100;   // MPM steps between progress lines

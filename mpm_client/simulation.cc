@@ -171,8 +171,37 @@ std::vector<std::string> Simulation::Columns() const {
         "mean_void_ratio", "kinetic_energy", "front_x", "top_y", "wall_per_step_s"}) {
     c.push_back(name);
   }
+  if (spec_.phases.saturated) {
+    c.push_back("surface_settlement");
+    for (const PressureMonitor& m : spec_.phases.monitors) {
+      c.push_back(m.name + "_p");
+      c.push_back(m.name + "_excess_ratio");
+    }
+  }
   return c;
 }
+
+namespace {
+
+// The material point that started nearest to `x` (the first of equals).
+std::size_t NearestPoint(const MaterialPoints& mp, const Eigen::Vector2d& x) {
+  std::size_t best = 0;
+  for (std::size_t p = 1; p < mp.size(); ++p) {
+    if ((mp.position0[p] - x).squaredNorm() < (mp.position0[best] - x).squaredNorm()) best = p;
+  }
+  return best;
+}
+
+// Pore pressure of the water at rest, ρ_f·|g|·(y_w − y) below the water
+// table (0 without one), Pa: what the excess pore pressure is counted from.
+double HydrostaticPressure(const CaseSpec& spec, double y) {
+  const double depth = spec.phases.water_table - y;
+  return std::isfinite(depth) && depth > 0
+             ? spec.phases.fluid_density * spec.solver.gravity.norm() * depth
+             : 0.0;
+}
+
+}  // namespace
 
 // Made before any expensive setup, so an unusable --out fails at once.
 static absl::Status MakeOutputDir(const std::string& dir) {
@@ -246,6 +275,20 @@ absl::Status Simulation::WriteFrame() {
   f.fields = {std::move(velocity), std::move(stress), std::move(p), std::move(q),
               std::move(eq),       std::move(ev),     std::move(e), std::move(fa),
               std::move(rot),      std::move(z),      std::move(id)};
+  if (spec_.phases.saturated) {
+    store::ResultField pore{"pore_pressure", 1, {}}, excess{"excess_pore_pressure", 1, {}},
+        fluid{"fluid_velocity", 2, {}}, k{"permeability", 1, {}}, porosity{"porosity", 1, {}};
+    for (std::size_t i = 0; i < n; ++i) {
+      pore.values.push_back(mp.pore_pressure[i]);
+      excess.values.push_back(mp.pore_pressure[i] - HydrostaticPressure(spec_, mp.position[i].y()));
+      fluid.values.push_back(mp.fluid_velocity[i].x());
+      fluid.values.push_back(mp.fluid_velocity[i].y());
+      k.values.push_back(solver_->Permeability(i));
+      porosity.values.push_back(solver_->Porosity(i));
+    }
+    for (auto* field : {&pore, &excess, &fluid, &k, &porosity})
+      f.fields.push_back(std::move(*field));
+  }
   RETURN_IF_ERROR(out_->results->Append(f));
   out_->last_frame_step = solver_->step();
   return absl::OkStatus();
@@ -288,6 +331,26 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
              {-sigma(0, 0), -sigma(1, 1), -sigma(0, 1), strain(0, 0), strain(1, 1), strain(0, 1),
               dem::InPlaneMeanPressure(sigma), dem::InPlaneDeviatorStress(sigma), e,
               solver_->KineticEnergy(), front_x, top_y, wall_per_step});
+  if (spec_.phases.saturated) {
+    // The surface's settlement: the mean of (y0 − y) over the points that
+    // started in the top row, m (down +).
+    double top0 = -std::numeric_limits<double>::infinity(), settlement = 0.0;
+    for (std::size_t i = 0; i < mp.size(); ++i) top0 = std::max(top0, mp.position0[i].y());
+    int count = 0;
+    for (std::size_t i = 0; i < mp.size(); ++i) {
+      if (mp.position0[i].y() < top0 - 1e-9) continue;
+      settlement += mp.position0[i].y() - mp.position[i].y();
+      ++count;
+    }
+    row.push_back(count > 0 ? settlement / count : 0.0);
+    // Each monitor's pore pressure (Pa) and excess ratio Δp/σ'yy,0 [-].
+    for (const PressureMonitor& m : spec_.phases.monitors) {
+      const std::size_t i = NearestPoint(mp, m.position);
+      const double excess = mp.pore_pressure[i] - HydrostaticPressure(spec_, mp.position[i].y());
+      row.push_back(mp.pore_pressure[i]);
+      row.push_back(mp.vertical_stress0[i] > 0 ? excess / mp.vertical_stress0[i] : 0.0);
+    }
+  }
   for (double& v : row) v += 0.0;  // −0 (a negated zero) reads as 0
   RETURN_IF_ERROR(out_->timeseries->Append(row));
   out_->last_row_step = solver_->step();
@@ -373,8 +436,20 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   const std::size_t n = points.size();
 
   // RVEs: one per point, consolidated to the geostatic stress of its depth
-  // when the region asks for it (σv = ρ·|g|·depth + surcharge).
+  // when the region asks for it (σv = ρ·|g|·depth + surcharge). Saturated:
+  // the effective stress, with the buoyant density ρ − (1 − n0)·ρ_f (the
+  // water table at or above the surface; mixed dry and saturated soil is
+  // out of scope), the pore pressure hydrostatic (FillRegions).
   const double g = spec.solver.gravity.norm();
+  std::vector<double> stress_density = density;  // kg/m³
+  if (spec.phases.saturated) {
+    for (std::size_t r = 0; r < spec.regions.size(); ++r) {
+      const dem::RveSnapshot& t = by_name.at(spec.regions[r].rve_template)->packing;
+      const double n0 = spec.phases.porosity > 0 ? spec.phases.porosity
+                                                 : 1.0 - BulkDensity(t) / t.material.density;
+      stress_density[r] -= (1.0 - n0) * spec.phases.fluid_density;
+    }
+  }
   std::vector<std::string> template_of(n);
   std::vector<client::InitialStress> initial(n);
   std::vector<double> cost(n);
@@ -384,7 +459,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
     cost[p] = static_cast<double>(by_name.at(r.rve_template)->packing.radius.size());
     const double depth = std::max(0.0, r.surface_y - points.position[p].y());
     const double sv =
-        std::max(r.minimum_stress, density[points.region[p]] * g * depth + r.surcharge);
+        std::max(r.minimum_stress, stress_density[points.region[p]] * g * depth + r.surcharge);
     client::InitialStress& s = initial[p];
     s.kind = r.initial_stress;
     switch (r.initial_stress) {
@@ -457,6 +532,12 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   for (std::size_t p = 0; p < n; ++p) {
     points.stress[p] = (*states)[p].stress;
     points.response[p] = RveStressModel::ToResponse((*states)[p]);
+    if (spec.phases.saturated) {
+      // n0 = e0/(1 + e0) of the point's own RVE unless the case gives it.
+      const double e0 = (*states)[p].void_ratio;
+      if (spec.phases.porosity == 0) points.porosity0[p] = e0 / (1.0 + e0);
+      points.vertical_stress0[p] = -(*states)[p].stress(1, 1);
+    }
   }
 
   // Time step: fixed, or Δt = cfl·h/c with c = sqrt(M/ρ) from the stiffest
@@ -559,7 +640,12 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
       row_clock = t_out;
       row_step = step;
     }
-    if (step % o.frame_every == 0 || last) {
+    // A frame time t is due at the step nearest to it: t_n ≥ t − Δt/2 > t_{n−1}.
+    const double t_now = solver_->time(), half = 0.5 * solver_->dt();
+    const bool due = std::any_of(o.frame_times.begin(), o.frame_times.end(), [&](double t) {
+      return t_now >= t - half && t_now - 2 * half < t - half;
+    });
+    if (step % o.frame_every == 0 || last || due) {
       RETURN_IF_ERROR(WriteFrame());
     }
     // Where --stop-after stops there is always a checkpoint, checkpoints on

@@ -128,6 +128,8 @@ void MaterialPoints::Resize(std::size_t n) {
   fluid_velocity.resize(n, Vector2d::Zero());
   pore_pressure.resize(n, 0.0);
   porosity0.resize(n, 0.0);
+  position0.resize(n, Vector2d::Zero());
+  vertical_stress0.resize(n, 0.0);
 }
 
 double CflTimeStep(double cfl, double cell_size, double wave_modulus, double density) {
@@ -221,6 +223,7 @@ absl::StatusOr<MaterialPoints> FillRegions(const CaseSpec& spec, const RegionDen
           // n0 from the case (else the driver sets it from the RVEs), and a
           // hydrostatic start below the water table.
           points.porosity0[p] = spec.phases.porosity;
+          points.position0[p] = points.position[p];
           const double depth = spec.phases.water_table - points.position[p].y();
           if (std::isfinite(depth) && depth > 0.0) {
             points.pore_pressure[p] =
@@ -279,7 +282,7 @@ absl::Status ValidatePoints(const MaterialPoints& points, ShapeKind shape) {
        {points.velocity.size(), points.mass.size(), points.volume.size(), points.volume0.size(),
         points.F.size(), points.stress.size(), points.half_size0.size(), points.region.size(),
         points.response.size(), points.fluid_velocity.size(), points.pore_pressure.size(),
-        points.porosity0.size()}) {
+        points.porosity0.size(), points.position0.size(), points.vertical_stress0.size()}) {
     if (size != n) return Invalid("material points", "arrays differ in length");
   }
   for (std::size_t p = 0; p < n; ++p) {
@@ -702,9 +705,9 @@ double Solver::KineticEnergy() const {
 // major), stress, response_stress (9, row major), void_ratio,
 // fabric_anisotropy, mean_rotation, coordination, permeability; per load:
 // load_traction (2), load_length0, load_ramp_time; reactions (2 per wall and
-// body); saturated cases also fluid_velocity (2), pore_pressure, porosity0
-// per point. ints: step (1); region per point; load_point, load_normal_axis,
-// load_normal_sign per load.
+// body); saturated cases also fluid_velocity (2), pore_pressure, porosity0,
+// position0 (2), vertical_stress0 per point. ints: step (1); region per point; load_point,
+// load_normal_axis, load_normal_sign per load.
 void Solver::ExportState(std::map<std::string, std::vector<double>>& doubles,
                          std::map<std::string, std::vector<std::int64_t>>& ints) const {
   const MaterialPoints& mp = points_;
@@ -746,6 +749,9 @@ void Solver::ExportState(std::map<std::string, std::vector<double>>& doubles,
     put("fluid_velocity", 2, [&](std::size_t p, auto& o) { vec2(mp.fluid_velocity[p], o); });
     put("pore_pressure", 1, [&](std::size_t p, auto& o) { o.push_back(mp.pore_pressure[p]); });
     put("porosity0", 1, [&](std::size_t p, auto& o) { o.push_back(mp.porosity0[p]); });
+    put("position0", 2, [&](std::size_t p, auto& o) { vec2(mp.position0[p], o); });
+    put("vertical_stress0", 1,
+        [&](std::size_t p, auto& o) { o.push_back(mp.vertical_stress0[p]); });
   }
   std::vector<double>& traction = doubles["load_traction"];
   std::vector<double>& length0 = doubles["load_length0"];
@@ -806,8 +812,11 @@ absl::Status Solver::ImportState(const std::map<std::string, std::vector<double>
     d[key] = f;
   }
   if (phases_.saturated) {
-    for (const auto& [key, size] :
-         {std::pair{"fluid_velocity", 2 * n}, {"pore_pressure", n}, {"porosity0", n}}) {
+    for (const auto& [key, size] : {std::pair{"fluid_velocity", 2 * n},
+                                    {"pore_pressure", n},
+                                    {"porosity0", n},
+                                    {"position0", 2 * n},
+                                    {"vertical_stress0", n}}) {
       ASSIGN_OR_RETURN(const std::vector<double>* f, Field(doubles, key, size));
       d[key] = f;
     }
@@ -854,6 +863,8 @@ absl::Status Solver::ImportState(const std::map<std::string, std::vector<double>
       mp.fluid_velocity[p] = vec2(*d["fluid_velocity"], p);
       mp.pore_pressure[p] = (*d["pore_pressure"])[p];
       mp.porosity0[p] = (*d["porosity0"])[p];
+      mp.position0[p] = vec2(*d["position0"], p);
+      mp.vertical_stress0[p] = (*d["vertical_stress0"])[p];
       if (!(mp.porosity0[p] > 0.0 && mp.porosity0[p] < 1.0)) {
         return absl::InvalidArgumentError(
             absl::StrCat("state porosity0[", p, "] = ", mp.porosity0[p], " is not in (0, 1)"));

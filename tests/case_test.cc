@@ -366,6 +366,26 @@ void ExpectSameSpec(const CaseSpec& a, const CaseSpec& b) {
   }
   EXPECT_EQ(a.rve.max_inertial_number, b.rve.max_inertial_number);
   EXPECT_EQ(a.rve.min_steps, b.rve.min_steps);
+  EXPECT_EQ(a.rve.real_time, b.rve.real_time);
+  EXPECT_EQ(a.phases.saturated, b.phases.saturated);
+  EXPECT_EQ(a.phases.fluid_density, b.phases.fluid_density);
+  EXPECT_EQ(a.phases.permeability, b.phases.permeability);
+  EXPECT_EQ(a.phases.porosity, b.phases.porosity);
+  EXPECT_EQ(a.phases.water_table, b.phases.water_table);
+  EXPECT_EQ(a.phases.drained_free_surface, b.phases.drained_free_surface);
+  ASSERT_EQ(a.phases.drained.size(), b.phases.drained.size());
+  for (std::size_t i = 0; i < a.phases.drained.size(); ++i) {
+    EXPECT_EQ(a.phases.drained[i].name, b.phases.drained[i].name);
+    EXPECT_EQ(a.phases.drained[i].axis, b.phases.drained[i].axis);
+    EXPECT_EQ(a.phases.drained[i].position, b.phases.drained[i].position);
+    EXPECT_EQ(a.phases.drained[i].pressure, b.phases.drained[i].pressure);
+  }
+  ASSERT_EQ(a.phases.monitors.size(), b.phases.monitors.size());
+  for (std::size_t i = 0; i < a.phases.monitors.size(); ++i) {
+    EXPECT_EQ(a.phases.monitors[i].name, b.phases.monitors[i].name);
+    EXPECT_EQ(a.phases.monitors[i].position, b.phases.monitors[i].position);
+  }
+  EXPECT_EQ(a.output.frame_times, b.output.frame_times);
   EXPECT_EQ(a.output.frame_every, b.output.frame_every);
   EXPECT_EQ(a.output.timeseries_every, b.output.timeseries_every);
   EXPECT_EQ(a.output.checkpoint_every, b.output.checkpoint_every);
@@ -591,6 +611,58 @@ TEST(ShippedCases, ParseAndRoundTrip) {
     ExpectSameSpec(*spec, *again);
   }
   EXPECT_GT(count, 0);
+}
+
+// Bad hydraulic input in a saturated case (the shipped consolidation-1d-ci)
+// names its pointer: k <= 0, porosity outside (0, 1), a drained line no soil
+// reaches, no drained boundary at all, a monitor outside the soil.
+TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
+  const fs::path path = fs::path(RVEHUB_SOURCE_DIR) / "cases" / "consolidation-1d-ci.json";
+  std::ifstream in(path);
+  const Json base = Json::parse(in);
+  ASSERT_TRUE(ParseCase(base.dump(), path.parent_path().string()).ok());
+  const std::vector<std::pair<std::string, Json>> edits = {
+      {"/phases/permeability", 0},
+      {"/phases/permeability", -1e-3},
+      {"/phases/porosity", 1.0},
+      {"/phases/porosity", -0.1},
+      {"/phases/fluid_density", 0},
+      {"/phases/drained/0/position", 2.0},
+      {"/phases/drained/0/position", 0.55},
+      {"/phases/drained", Json::array()},
+      {"/phases/monitors/0/position", {0.5, 0.5}},
+      {"/phases/drainage", true},
+  };
+  const std::vector<std::string> messages = {
+      "/phases/permeability: must be in (0, 10], got 0",
+      "/phases/permeability: must be in (0, 10], got -0.001",
+      "/phases/porosity: must be in [0, 1), got 1",
+      "/phases/porosity: must be in [0, 1), got -0.1",
+      "/phases/fluid_density: must be in (0, 20000], got 0",
+      "/phases/drained/0/position: y = 2 m is outside the grid",
+      "/phases/drained/0/position: y = 0.55 m is not on a grid line",
+      "/phases/drained: a saturated case needs at least one drained boundary",
+      "/phases/monitors/0/position: (0.5, 0.5) m is in no region",
+      "/phases/drainage: unknown key",
+  };
+  for (std::size_t i = 0; i < edits.size(); ++i) {
+    SCOPED_TRACE(edits[i].first);
+    Json doc = base;
+    doc[Json::json_pointer(edits[i].first)] = edits[i].second;
+    absl::StatusOr<CaseSpec> spec = ParseCase(doc.dump(), path.parent_path().string());
+    ASSERT_FALSE(spec.ok());
+    EXPECT_EQ(spec.status().code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_TRUE(MessageStartsWith(spec.status(), messages[i])) << spec.status();
+  }
+  // A drained line on the grid but away from the soil: widen the grid.
+  Json doc = base;
+  doc["grid"]["cells"][0] = 3;
+  doc["phases"]["drained"][0] = {{"name", "far"}, {"line", "x"}, {"position", 0.3}};
+  absl::StatusOr<CaseSpec> spec = ParseCase(doc.dump(), path.parent_path().string());
+  ASSERT_FALSE(spec.ok());
+  EXPECT_TRUE(MessageStartsWith(spec.status(),
+                                "/phases/drained/0/position: no region reaches the line x = 0.3 m"))
+      << spec.status();
 }
 
 TEST(CaseOverride, ParsesPointerAndDottedPaths) {

@@ -1,0 +1,111 @@
+#!/usr/bin/env python3
+"""1-D consolidation runs against Terzaghi: pore-pressure isochrones at the frames of the run
+and the degree of consolidation from the surface settlement, with the worst error per Tv.
+
+  /usr/bin/python3 cases/consolidation_compare.py RUN_DIR[=LABEL] ... [--out=consolidation.png]
+      [--modulus=25.08e6] [--permeability=1e-3] [--surcharge=110e3] [--height=1]
+
+Terzaghi's p0 is the load the water carries at first: the surcharge less the RVEs' initial
+effective σyy (the first row of timeseries.csv; the RVEs are consolidated to 100 kPa within
+1 %, so p0 is ~10.6 kPa rather than the nominal 10). c_v = k·M/(ρ_f·g) with M = K + 4G/3 of the
+RVE (25.08 MPa measured by `rve_cli element-test oedometer` on the consolidation set; the
+paper's 25.06), ρ_f = 1000 kg/m³, g = 9.81 m/s². Reads RUN_DIR/results.h5 (frames: position,
+pore_pressure) and RUN_DIR/timeseries.csv (time, mean_syy, surface_settlement). Needs numpy,
+h5py and matplotlib (Debian's python3-numpy, python3-h5py, python3-matplotlib).
+"""
+import argparse
+import csv
+import os
+
+import h5py
+import matplotlib
+import numpy as np
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+RHO_F, G = 1000.0, 9.81
+
+
+def terzaghi_p(p0, z_over_h, tv):
+    """Excess pore pressure of a layer drained at z = 0, impermeable at z = H."""
+    total = np.zeros_like(z_over_h, dtype=float)
+    for m in range(2000):
+        a = (2 * m + 1) * np.pi / 2
+        total += 2 / a * np.sin(a * z_over_h) * np.exp(-a * a * tv)
+        if 2 / a * np.exp(-a * a * tv) < 1e-12:
+            break
+    return p0 * total
+
+
+def terzaghi_u(tv):
+    total = np.zeros_like(tv, dtype=float)
+    for m in range(2000):
+        a = (2 * m + 1) * np.pi / 2
+        total += 2 / (a * a) * np.exp(-a * a * tv)
+    return 1 - total
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("runs", nargs="+", help="RUN_DIR or RUN_DIR=LABEL")
+    ap.add_argument("--out", default="consolidation.png")
+    ap.add_argument("--modulus", type=float, default=25.08e6, help="M = K + 4G/3, Pa")
+    ap.add_argument("--permeability", type=float, default=1e-3, help="k, m/s")
+    ap.add_argument("--surcharge", type=float, default=110e3, help="total load on the top, Pa")
+    ap.add_argument("--height", type=float, default=1.0, help="H, m")
+    a = ap.parse_args()
+    cv = a.permeability * a.modulus / (RHO_F * G)
+    fig, (ax_p, ax_u) = plt.subplots(1, 2, figsize=(12, 5))
+    z = np.linspace(0, 1, 201)
+    for index, run in enumerate(a.runs):
+        path, label = (run.split("=", 1) + [os.path.basename(run.rstrip("/"))])[:2]
+        with open(os.path.join(path, "timeseries.csv")) as f:
+            rows = list(csv.DictReader(f))
+        p0 = a.surcharge - float(rows[0]["mean_syy"])
+        t = np.array([float(r["time"]) for r in rows])
+        settlement = np.array([float(r["surface_settlement"]) for r in rows])
+        tv_rows = cv * t / a.height**2
+        u = settlement / (p0 * a.height / a.modulus)
+        mask = tv_rows > 0
+        ax_u.semilogx(tv_rows[mask], u[mask], "o" if index == 0 else "s", ms=2, label=label)
+        worst_u = np.max(np.abs(u[mask] - terzaghi_u(tv_rows[mask]))[tv_rows[mask] > 0.01])
+        print(f"{label}: p0 = {p0:.1f} Pa, c_v = {cv:.4f} m2/s, worst |U - Terzaghi| = "
+              f"{worst_u:.4f} for Tv > 0.01")
+        with h5py.File(os.path.join(path, "results.h5"), "r") as h5:
+            for step in sorted(h5["frames"].keys(), key=int):
+                frame = h5["frames"][step]
+                tv = cv * frame.attrs["time"] / a.height**2
+                if tv <= 0:
+                    continue
+                y = frame["position"][:, 1]
+                p = frame["pore_pressure"][:]
+                exact = terzaghi_p(p0, (a.height - y) / a.height, tv)
+                worst = np.max(np.abs(p - exact)) / p0
+                print(f"  Tv = {tv:.4f}: worst |p - Terzaghi| = {100 * worst:.2f} % of p0")
+                order = np.argsort(y)
+                ax_p.plot(p[order] / p0, (a.height - y[order]) / a.height,
+                          "o" if index == 0 else "s", ms=3, mfc="none",
+                          label=label if step == sorted(h5["frames"].keys(), key=int)[1] else None)
+                if index == 0:
+                    ax_p.plot(terzaghi_p(1.0, z, tv), z, "k-", lw=0.8)
+                    ax_p.annotate(f"{tv:.3g}", (terzaghi_p(1.0, np.array([0.6]), tv)[0], 0.6),
+                                  fontsize=7)
+    tv_line = np.logspace(-3, 0.5, 200)
+    ax_u.semilogx(tv_line, terzaghi_u(tv_line), "k-", lw=0.8, label="Terzaghi")
+    ax_p.set_xlabel("excess pore pressure p / p0 (-)")
+    ax_p.set_ylabel("depth z / H (-)")
+    ax_p.invert_yaxis()
+    ax_p.set_title("consolidation-1d: isochrones (lines: Terzaghi, labels: Tv)")
+    ax_p.legend(loc="lower left")
+    ax_u.set_xlabel("time factor Tv = c_v t / H^2 (-)")
+    ax_u.set_ylabel("degree of consolidation U = s / s_final (-)")
+    ax_u.set_title("consolidation-1d: degree of consolidation")
+    ax_u.legend()
+    fig.tight_layout()
+    fig.savefig(a.out, dpi=110)
+    print(f"wrote {a.out}")
+
+
+if __name__ == "__main__":
+    main()
