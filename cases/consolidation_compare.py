@@ -2,12 +2,13 @@
 """1-D consolidation runs against Terzaghi: pore-pressure isochrones at the frames of the run
 and the degree of consolidation from the surface settlement, with the worst error per Tv.
 
-  /usr/bin/python3 cases/consolidation_compare.py RUN_DIR[=LABEL] ... [--out=consolidation.png]
+  /usr/bin/python3 cases/consolidation_compare.py RUN_DIR[=LABEL[=K]] ... [--out=consolidation.png]
       [--modulus=25.08e6] [--permeability=1e-3] [--surcharge=110e3] [--height=1]
 
 Terzaghi's p0 is the load the water carries at first: the surcharge less the RVEs' initial
 effective σyy (the first row of timeseries.csv; the RVEs are consolidated to 100 kPa within
-1 %, so p0 is ~10.6 kPa rather than the nominal 10). c_v = k·M/(ρ_f·g) with M = K + 4G/3 of the
+1 %, so p0 is ~10.6 kPa rather than the nominal 10). c_v = k·M/(ρ_f·g) (k from --permeability, or K after a run's label: a permeability
+sweep on one figure) with M = K + 4G/3 of the
 RVE (25.08 MPa measured by `rve_cli element-test oedometer` on the consolidation set; the
 paper's 25.06), ρ_f = 1000 kg/m³, g = 9.81 m/s². Reads RUN_DIR/results.h5 (frames: position,
 pore_pressure) and RUN_DIR/timeseries.csv (time, mean_syy, surface_settlement). Needs numpy,
@@ -33,7 +34,7 @@ def terzaghi_p(p0, z_over_h, tv):
     for m in range(2000):
         a = (2 * m + 1) * np.pi / 2
         total += 2 / a * np.sin(a * z_over_h) * np.exp(-a * a * tv)
-        if 2 / a * np.exp(-a * a * tv) < 1e-12:
+        if np.all(2 / a * np.exp(-a * a * np.asarray(tv)) < 1e-12):
             break
     return p0 * total
 
@@ -48,18 +49,21 @@ def terzaghi_u(tv):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("runs", nargs="+", help="RUN_DIR or RUN_DIR=LABEL")
+    ap.add_argument("runs", nargs="+", help="RUN_DIR, RUN_DIR=LABEL or RUN_DIR=LABEL=K (m/s)")
     ap.add_argument("--out", default="consolidation.png")
     ap.add_argument("--modulus", type=float, default=25.08e6, help="M = K + 4G/3, Pa")
     ap.add_argument("--permeability", type=float, default=1e-3, help="k, m/s")
     ap.add_argument("--surcharge", type=float, default=110e3, help="total load on the top, Pa")
     ap.add_argument("--height", type=float, default=1.0, help="H, m")
     a = ap.parse_args()
-    cv = a.permeability * a.modulus / (RHO_F * G)
-    fig, (ax_p, ax_u) = plt.subplots(1, 2, figsize=(12, 5))
+    fig, (ax_p, ax_u, ax_b) = plt.subplots(1, 3, figsize=(18, 5))
     z = np.linspace(0, 1, 201)
     for index, run in enumerate(a.runs):
-        path, label = (run.split("=", 1) + [os.path.basename(run.rstrip("/"))])[:2]
+        parts = run.split("=")
+        path = parts[0]
+        label = parts[1] if len(parts) > 1 else os.path.basename(path.rstrip("/"))
+        k = float(parts[2]) if len(parts) > 2 else a.permeability
+        cv = k * a.modulus / (RHO_F * G)
         with open(os.path.join(path, "timeseries.csv")) as f:
             rows = list(csv.DictReader(f))
         p0 = a.surcharge - float(rows[0]["mean_syy"])
@@ -69,9 +73,15 @@ def main():
         u = settlement / (p0 * a.height / a.modulus)
         mask = tv_rows > 0
         ax_u.semilogx(tv_rows[mask], u[mask], "o" if index == 0 else "s", ms=2, label=label)
-        worst_u = np.max(np.abs(u[mask] - terzaghi_u(tv_rows[mask]))[tv_rows[mask] > 0.01])
-        print(f"{label}: p0 = {p0:.1f} Pa, c_v = {cv:.4f} m2/s, worst |U - Terzaghi| = "
-              f"{worst_u:.4f} for Tv > 0.01")
+        late = tv_rows[mask] > 0.01
+        worst_u = np.max(np.abs(u[mask] - terzaghi_u(tv_rows[mask]))[late]) if late.any() else 0
+        print(f"{label}: k = {k:g} m/s, p0 = {p0:.1f} Pa, c_v = {cv:.4f} m2/s, worst "
+              f"|U - Terzaghi| = {worst_u:.4f} for Tv > 0.01")
+        if "base_p" in rows[0]:
+            base = np.array([float(r["base_p"]) for r in rows]) / p0
+            line = ax_b.semilogx(t[mask], base[mask], lw=1, label=f"{label} (k = {k:g} m/s)")
+            ax_b.semilogx(t[mask], terzaghi_p(1.0, np.ones(mask.sum()) * 0.9975, tv_rows[mask]),
+                          "--", color=line[0].get_color(), lw=0.8)
         with h5py.File(os.path.join(path, "results.h5"), "r") as h5:
             for step in sorted(h5["frames"].keys(), key=int):
                 frame = h5["frames"][step]
@@ -102,6 +112,10 @@ def main():
     ax_u.set_ylabel("degree of consolidation U = s / s_final (-)")
     ax_u.set_title("consolidation-1d: degree of consolidation")
     ax_u.legend()
+    ax_b.set_xlabel("time t (s)")
+    ax_b.set_ylabel("excess pore pressure at the base p / p0 (-)")
+    ax_b.set_title("base point (dashed: Terzaghi)")
+    ax_b.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(a.out, dpi=110)
     print(f"wrote {a.out}")
