@@ -1,0 +1,113 @@
+#!/usr/bin/env python3
+"""Column-collapse runs side by side: front and kinetic energy against time, the final
+deposit coloured by deviatoric strain, and per run the normalised run-out d* and the
+angle of the dead zone (the wedge of points that never moved).
+
+  /usr/bin/python3 cases/collapse_compare.py RUN_DIR[=LABEL] ... [--out=collapse.png]
+      [--dead=0.01]
+
+Reads each RUN_DIR's timeseries.csv (time, front_x, kinetic_energy) and results.h5
+(frames/STEP/position, eps_q). d0 is the column's initial width: the largest initial x of
+the points plus their half spacing, as summary.json's run-out (cases/FORMAT.md). A point is
+in the dead zone when its displacement from its initial position never exceeded
+`--dead`·d0 in any frame; the dead zone's angle to the base is that of a straight line
+fitted to its upper edge (per row of points, the rightmost dead point). Needs numpy, h5py
+and matplotlib (Debian's python3-numpy, python3-h5py, python3-matplotlib).
+"""
+import argparse
+import csv
+import os
+
+import h5py
+import matplotlib
+import numpy as np
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+
+def read_series(run):
+    with open(os.path.join(run, "timeseries.csv")) as f:
+        rows = list(csv.DictReader(f))
+    t = np.array([float(r["time"]) for r in rows])
+    front = np.array([float(r["front_x"]) for r in rows])
+    ke = np.array([float(r["kinetic_energy"]) for r in rows])
+    return t, front, ke
+
+
+def read_frames(run):
+    """Positions (m) of every frame in step order, and the last frame's eps_q."""
+    with h5py.File(os.path.join(run, "results.h5"), "r") as f:
+        steps = sorted(f["frames"].keys(), key=int)
+        pos = np.stack([f["frames"][s]["position"][:, :2] for s in steps])
+        eps_q = f["frames"][steps[-1]]["eps_q"][:]
+    return pos, eps_q
+
+
+def dead_zone(pos, d0, dead):
+    """Mask of the points that never moved more than dead·d0, and the angle (deg) of the
+    line fitted to the dead zone's upper-right edge (None when too few rows)."""
+    moved = np.linalg.norm(pos - pos[0], axis=2).max(axis=0)
+    mask = moved < dead * d0
+    x0, y0 = pos[0, :, 0], pos[0, :, 1]
+    edge_x, edge_y = [], []
+    for y in np.unique(np.round(y0[mask], 9)):
+        row = mask & (np.abs(y0 - y) < 1e-9)
+        edge_x.append(x0[row].max())
+        edge_y.append(y)
+    if len(edge_x) < 3:
+        return mask, None
+    slope = np.polyfit(edge_x, edge_y, 1)[0]  # dy/dx of the edge (negative: falls to the right)
+    return mask, float(np.degrees(np.arctan(abs(slope))))
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("runs", nargs="+", help="RUN_DIR or RUN_DIR=LABEL")
+    ap.add_argument("--out", default="collapse.png")
+    ap.add_argument("--dead", type=float, default=0.01,
+                    help="dead-zone displacement threshold as a fraction of d0")
+    a = ap.parse_args()
+    runs = [(r.split("=", 1) + [os.path.basename(r.rstrip("/"))])[:2] for r in a.runs]
+    fig, axes = plt.subplots(1, 2 + len(runs), figsize=(5 * (2 + len(runs)), 4))
+    for run, label in runs:
+        t, front, ke = read_series(run)
+        pos, eps_q = read_frames(run)
+        x0 = pos[0, :, 0]
+        spacing = np.diff(np.unique(np.round(x0, 9))).min()
+        d0 = x0.max() + spacing / 2
+        d_f = pos[-1, :, 0].max() + spacing / 2
+        runout = (d_f - d0) / d0
+        mask, angle = dead_zone(pos, d0, a.dead)
+        angle_text = "n/a" if angle is None else f"{angle:.1f} deg"
+        print(f"{label}: d* = {runout:.3f} at t = {t[-1]:.3f} s, front {d_f:.3f} m, "
+              f"peak KE {ke.max():.4g} J at {t[ke.argmax()]:.3f} s, dead zone {mask.sum()} "
+              f"points, angle {angle_text}")
+        axes[0].plot(t, front + spacing / 2, label=label)
+        axes[1].plot(t, ke, label=label)
+        ax = axes[2 + runs.index([run, label])]
+        sc = ax.scatter(pos[-1, :, 0], pos[-1, :, 1], c=eps_q, s=8, cmap="viridis", vmin=0,
+                        vmax=max(1.0, np.percentile(eps_q, 95)))
+        ax.scatter(pos[-1, mask, 0], pos[-1, mask, 1], s=8, facecolors="none",
+                   edgecolors="red", linewidths=0.5, label=f"dead zone ({angle_text})")
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+        ax.set_title(f"{label}: deposit at {t[-1]:.2f} s, d* = {runout:.2f}")
+        ax.legend(loc="upper right", fontsize=8)
+        fig.colorbar(sc, ax=ax, label="eps_q (-)", shrink=0.7)
+    axes[0].set_xlabel("time (s)")
+    axes[0].set_ylabel("front d_f (m)")
+    axes[0].set_title("front")
+    axes[0].legend()
+    axes[1].set_xlabel("time (s)")
+    axes[1].set_ylabel("kinetic energy (J)")
+    axes[1].set_title("kinetic energy")
+    axes[1].legend()
+    fig.tight_layout()
+    fig.savefig(a.out, dpi=110)
+    print(f"wrote {a.out}")
+
+
+if __name__ == "__main__":
+    main()
