@@ -205,8 +205,9 @@ struct PhasesSpec {
   // y of the free water surface for a hydrostatic start, p = ρ_f·g·(y_w − y)
   // below it (g = |gravity|), m; absent (+∞): p = 0 at the start.
   double water_table = std::numeric_limits<double>::infinity();
-  // The nodes at the material's free surface (active nodes next to an empty
-  // one) hold p = 0 as well: a surface that moves (a collapse).
+  // The nodes at the material's free surface (less than 0.55 of their
+  // volume in soil: ½ on a flat face) hold p = 0 as well: a surface that
+  // moves (a collapse).
   bool drained_free_surface = false;
   std::vector<DrainedBoundary> drained;
   std::vector<PressureMonitor> monitors;

@@ -24,6 +24,13 @@ constexpr double kFree = std::numeric_limits<double>::quiet_NaN();
 // Relative residual of the pressure solve: far below what the step's other
 // errors are, and reached in a few dozen iterations on the grids of the cases.
 constexpr double kPressureTolerance = 1e-12;
+// Free surface: nodes with less than this share of soil around them (a flat
+// face has ½, a corner ¼, a node just reached by a moving face ~0).
+constexpr double kSurfaceFraction = 0.55;
+// Nodes with less than this share hold their pressure (FindDrainedNodes).
+constexpr double kEmptyFraction = 1e-3;
+// Tikhonov weight of the nodal pressure fit, relative to the lumped diagonal.
+constexpr double kFitRegularisation = 1e-9;
 
 }  // namespace
 
@@ -47,29 +54,34 @@ double Solver::MixtureMass() const {
   return m;
 }
 
-void Solver::ConstrainFluid(std::vector<Vector2d>& velocity) const {
+void Solver::ConstrainFluid(std::vector<Vector2d>& velocity) {
+  std::fill(fluid_fixed_.begin(), fluid_fixed_.end(), std::uint8_t{0});
   for (std::size_t w = 0; w < walls_.size(); ++w) {
     if (walls_[w].remove_time <= time_) continue;
-    for (std::int32_t node : wall_nodes_[w]) velocity[node][walls_[w].axis] = 0.0;
+    const int axis = walls_[w].axis;
+    for (std::int32_t node : wall_nodes_[w]) {
+      velocity[node][axis] = 0.0;
+      fluid_fixed_[node] |= static_cast<std::uint8_t>(1 << axis);
+    }
   }
 }
 
 void Solver::FindDrainedNodes() {
   std::fill(pressure_fixed_.begin(), pressure_fixed_.end(), kFree);
   const int nx = grid_.nx + 1, ny = grid_.ny + 1;
-  if (phases_.drained_free_surface) {
-    // An active node next to an inactive one (4-neighbourhood, inside the
-    // grid) is on the free surface: p = 0 there.
-    for (int j = 0; j < ny; ++j) {
-      for (int i = 0; i < nx; ++i) {
-        const int node = i + nx * j;
-        if (!(node_mass_[node] > min_node_mass_)) continue;
-        const bool surface = (i > 0 && !(node_mass_[node - 1] > min_node_mass_)) ||
-                             (i + 1 < nx && !(node_mass_[node + 1] > min_node_mass_)) ||
-                             (j > 0 && !(node_mass_[node - nx] > min_node_mass_)) ||
-                             (j + 1 < ny && !(node_mass_[node + nx] > min_node_mass_));
-        if (surface) pressure_fixed_[node] = 0.0;
-      }
+  // A node's share of soil: Σ_p S_Ip V_p over its own volume h²·t, [-] (1
+  // inside the soil, ½ on a flat face, ¼ at a corner).
+  const double full = grid_.cell_size * grid_.cell_size * solver_.thickness;
+  for (int node = 0; node < nx * ny; ++node) {
+    if (!(node_mass_[node] > min_node_mass_)) continue;
+    const double fraction = node_volume_[node] / full;
+    if (phases_.drained_free_surface && fraction < kSurfaceFraction) {
+      pressure_fixed_[node] = 0.0;  // on the free surface (or outside it)
+    } else if (fraction < kEmptyFraction) {
+      // A node that only the edge of a point's domain reaches (a face that
+      // just moved into a new cell) barely takes part in the pressure
+      // equation: its pressure is held, not solved for.
+      pressure_fixed_[node] = node_pressure_[node];
     }
   }
   for (std::size_t b = 0; b < drained_nodes_.size(); ++b) {
@@ -77,6 +89,52 @@ void Solver::FindDrainedNodes() {
       if (node_mass_[node] > min_node_mass_) pressure_fixed_[node] = phases_.drained[b].pressure;
     }
   }
+}
+
+absl::Status Solver::FitNodalPressure() {
+  // Least squares: the nodal p_I whose interpolation Σ_I S_Ip p_I best
+  // matches the points' p_p, weighted by volume: (Σ_p V_p S_Ip S_Jp) p_J =
+  // Σ_p V_p S_Ip p_p. Exact for any field the shape functions can represent
+  // (a hydrostatic pressure is linear), where an average is not at a
+  // boundary. A small multiple of the lumped diagonal keeps a node that only
+  // the edge of a point's domain reaches well-posed.
+  const MaterialPoints& mp = points_;
+  const int nodes = NodeCount(grid_);
+  std::vector<int> index(nodes, -1);
+  int count = 0;
+  for (int i = 0; i < nodes; ++i) {
+    if (node_mass_[i] > min_node_mass_ && node_fluid_mass_[i] > 0.0) index[i] = count++;
+  }
+  std::vector<Eigen::Triplet<double>> entries;
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(count);
+  for (std::size_t p = 0; p < mp.size(); ++p) {
+    const ShapeValues& s = shape_[p];
+    for (int a = 0; a < s.count; ++a) {
+      const int row = index[s.node[a]];
+      if (row < 0) continue;
+      rhs[row] += mp.volume[p] * s.weight[a] * mp.pore_pressure[p];
+      entries.emplace_back(row, row, kFitRegularisation * mp.volume[p] * s.weight[a]);
+      for (int b = 0; b < s.count; ++b) {
+        const int col = index[s.node[b]];
+        if (col >= 0) entries.emplace_back(row, col, mp.volume[p] * s.weight[a] * s.weight[b]);
+      }
+    }
+  }
+  Eigen::SparseMatrix<double> m(count, count);
+  m.setFromTriplets(entries.begin(), entries.end());
+  Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper> cg;
+  cg.setTolerance(kPressureTolerance);
+  cg.setMaxIterations(std::max(1000, 4 * count));
+  cg.compute(m);
+  const Eigen::VectorXd fitted = cg.solve(rhs);
+  if (cg.info() != Eigen::Success || !fitted.allFinite()) {
+    return absl::InternalError(absl::StrCat("the fit of the nodal pore pressure did not converge (",
+                                            cg.iterations(), " iterations)"));
+  }
+  for (int i = 0; i < nodes; ++i) {
+    if (index[i] >= 0 && std::isnan(node_pressure_[i])) node_pressure_[i] = fitted[index[i]];
+  }
+  return absl::OkStatus();
 }
 
 absl::Status Solver::StepSaturated() {
@@ -94,7 +152,7 @@ absl::Status Solver::StepSaturated() {
   std::fill(node_fluid_mass_.begin(), node_fluid_mass_.end(), 0.0);
   std::fill(node_velocity_.begin(), node_velocity_.end(), Vector2d::Zero());
   std::fill(node_fluid_velocity_.begin(), node_fluid_velocity_.end(), Vector2d::Zero());
-  std::fill(node_pressure_.begin(), node_pressure_.end(), 0.0);
+  std::fill(node_pressure_.begin(), node_pressure_.end(), 0.0);  // set below
   std::fill(node_volume_.begin(), node_volume_.end(), 0.0);
   for (std::size_t p = 0; p < n; ++p) {
     const ShapeValues& s = shape_[p];
@@ -107,20 +165,27 @@ absl::Status Solver::StepSaturated() {
       node_fluid_mass_[i] += w * fluid_mass;
       node_fluid_velocity_[i] += w * fluid_mass * mp.fluid_velocity[p];
       node_volume_[i] += w * mp.volume[p];
-      node_pressure_[i] += w * mp.volume[p] * mp.pore_pressure[p];
     }
   }
+  // p^n of a node: its p^{n+1} of the last step where it was active then
+  // (the grid is fixed), else fitted to the points (FitNodalPressure). A
+  // plain average mapped afresh every step would bias the nodes at a
+  // boundary (an average from one side), and the points, which take their
+  // pressure from the nodes, would drift by that bias step after step.
+  bool fit = false;
   for (int i = 0; i < nodes; ++i) {
     if (active(i) && node_fluid_mass_[i] > 0.0) {
       node_velocity_[i] /= node_mass_[i];
       node_fluid_velocity_[i] /= node_fluid_mass_[i];
-      node_pressure_[i] /= node_volume_[i];
+      fit = fit || std::isnan(node_pressure_last_[i]);
+      node_pressure_[i] = node_pressure_last_[i];
     } else {
       node_velocity_[i].setZero();
       node_fluid_velocity_[i].setZero();
       node_pressure_[i] = 0.0;
     }
   }
+  if (fit) RETURN_IF_ERROR(FitNodalPressure());
   std::fill(impulse_.begin(), impulse_.end(), Vector2d::Zero());
   Constrain(node_velocity_, time_, alpha);
   ConstrainFluid(node_fluid_velocity_);
@@ -217,13 +282,14 @@ absl::Status Solver::StepSaturated() {
       unknown[i] = count++;
     }
   }
-  // A drained node's p^n is its prescribed value, not the points' average
-  // mapped there (which differs by the pressure over half a point spacing):
-  // an increment at the boundary would spread through the Laplacian and
-  // shift the whole field by that gap every step.
+  // A drained node holds its prescribed pressure: Δp = p_b − p^n there (0
+  // once it has it; at the start its p^n is taken as p_b, as the fitted
+  // value carries the fit's error at a boundary).
   for (int i = 0; i < nodes; ++i) {
-    if (!std::isnan(pressure_fixed_[i])) node_pressure_[i] = pressure_fixed_[i];
     node_dp_[i] = 0.0;
+    if (std::isnan(pressure_fixed_[i])) continue;
+    if (std::isnan(node_pressure_last_[i])) node_pressure_[i] = pressure_fixed_[i];
+    node_dp_[i] = pressure_fixed_[i] - node_pressure_[i];
   }
   Eigen::VectorXd rhs = Eigen::VectorXd::Zero(count);
   std::vector<Eigen::Triplet<double>> entries;
@@ -247,7 +313,7 @@ absl::Status Solver::StepSaturated() {
         if (col >= 0) {
           entries.emplace_back(row, col, l);
         } else {
-          rhs[row] -= l * node_dp_[s.node[b]];  // a drained neighbour (Δp = 0 for now)
+          rhs[row] -= l * node_dp_[s.node[b]];  // a drained neighbour
         }
       }
     }
@@ -293,15 +359,21 @@ absl::Status Solver::StepSaturated() {
   Constrain(node_velocity_new_, time_ + dt_, 1.0);
   ConstrainFluid(node_fluid_velocity_new_);
 
-  // (7) G2P (eqs. 32–34): both phases' velocities (PIC fraction α), the
-  // position with the solid's, the pore pressure by its nodal increment (an
-  // interpolation of the nodal p^{n+1} would smooth p at every step, by
-  // ~0.6 % of the hydrostatic pressure at an impermeable base).
+  // (7) G2P (eqs. 33–34): both phases' velocities (PIC fraction α), the
+  // position with the solid's. The pore pressure is interpolated from the
+  // nodes' p^{n+1} rather than incremented (eq. 32): a point then sees a
+  // drained node's value at once, also where a free surface opens (a gate
+  // removed), where an increment would leave it its old pressure.
+  for (int i = 0; i < nodes; ++i) {
+    node_pressure_last_[i] = active(i) && node_fluid_mass_[i] > 0.0
+                                 ? node_pressure_[i] + node_dp_[i]
+                                 : std::numeric_limits<double>::quiet_NaN();
+  }
   for (std::size_t p = 0; p < n; ++p) {
     const ShapeValues& s = shape_[p];
     Vector2d vs = Vector2d::Zero(), dvs = Vector2d::Zero();
     Vector2d vf = Vector2d::Zero(), dvf = Vector2d::Zero();
-    double dp = 0.0;  // Pa
+    double pressure = 0.0, weight = 0.0;  // Pa, [-]
     for (int k = 0; k < s.count; ++k) {
       const int i = s.node[k];
       const double w = s.weight[k];
@@ -309,12 +381,15 @@ absl::Status Solver::StepSaturated() {
       dvs += w * (node_velocity_new_[i] - node_velocity_[i]);
       vf += w * node_fluid_velocity_new_[i];
       dvf += w * (node_fluid_velocity_new_[i] - node_fluid_velocity_[i]);
-      dp += w * node_dp_[i];
+      if (!std::isnan(node_pressure_last_[i])) {  // a node too light to be active: left out
+        pressure += w * node_pressure_last_[i];
+        weight += w;
+      }
     }
     mp.position[p] = KeepOffWalls(mp.position[p], mp.position[p] + dt_ * vs);
     mp.velocity[p] = alpha * vs + (1.0 - alpha) * (mp.velocity[p] + dvs);
     mp.fluid_velocity[p] = alpha * vf + (1.0 - alpha) * (mp.fluid_velocity[p] + dvf);
-    mp.pore_pressure[p] += dp;
+    mp.pore_pressure[p] = weight > 0.0 ? pressure / weight : mp.pore_pressure[p];
   }
   for (std::size_t k = 0; k < reactions_.size(); ++k) reactions_[k] = impulse_[k] / -dt_;
   time_ += dt_;

@@ -450,10 +450,12 @@ void Solver::Prepare() {
     for (auto* v : {&node_fluid_velocity_, &node_fluid_force_, &node_fluid_velocity_new_}) {
       v->resize(nodes);
     }
-    for (auto* v : {&node_fluid_mass_, &node_drag_, &node_pressure_, &node_volume_,
-                    &node_divergence_, &pressure_fixed_, &node_dp_}) {
+    for (auto* v : {&node_fluid_mass_, &node_drag_, &node_pressure_, &pressure_fixed_, &node_dp_,
+                    &node_volume_}) {
       v->resize(nodes);
     }
+    node_pressure_last_.resize(nodes, std::numeric_limits<double>::quiet_NaN());
+    fluid_fixed_.resize(nodes);
   }
 }
 
@@ -706,8 +708,9 @@ double Solver::KineticEnergy() const {
 // fabric_anisotropy, mean_rotation, coordination, permeability; per load:
 // load_traction (2), load_length0, load_ramp_time; reactions (2 per wall and
 // body); saturated cases also fluid_velocity (2), pore_pressure, porosity0,
-// position0 (2), vertical_stress0 per point. ints: step (1); region per point; load_point,
-// load_normal_axis, load_normal_sign per load.
+// position0 (2), vertical_stress0 per point and node_pressure per grid node
+// (NaN: inactive in the last step). ints: step (1); region per point;
+// load_point, load_normal_axis, load_normal_sign per load.
 void Solver::ExportState(std::map<std::string, std::vector<double>>& doubles,
                          std::map<std::string, std::vector<std::int64_t>>& ints) const {
   const MaterialPoints& mp = points_;
@@ -752,6 +755,7 @@ void Solver::ExportState(std::map<std::string, std::vector<double>>& doubles,
     put("position0", 2, [&](std::size_t p, auto& o) { vec2(mp.position0[p], o); });
     put("vertical_stress0", 1,
         [&](std::size_t p, auto& o) { o.push_back(mp.vertical_stress0[p]); });
+    doubles["node_pressure"] = node_pressure_last_;
   }
   std::vector<double>& traction = doubles["load_traction"];
   std::vector<double>& length0 = doubles["load_length0"];
@@ -890,12 +894,19 @@ absl::Status Solver::ImportState(const std::map<std::string, std::vector<double>
     }
   }
   RETURN_IF_ERROR(ValidatePoints(mp, solver_.shape));
+  std::vector<double> node_pressure;
+  if (phases_.saturated) {
+    ASSIGN_OR_RETURN(const std::vector<double>* f,
+                     Field(doubles, "node_pressure", static_cast<std::size_t>(NodeCount(grid_))));
+    node_pressure = *f;
+  }
   points_ = std::move(mp);
   for (std::size_t k = 0; k < reactions_.size(); ++k) reactions_[k] = vec2(*d["reactions"], k);
   time_ = (*d["time"])[0];
   dt_ = (*d["dt"])[0];
   step_ = (*i["step"])[0];
   Prepare();
+  if (phases_.saturated) node_pressure_last_ = std::move(node_pressure);
   return absl::OkStatus();
 }
 

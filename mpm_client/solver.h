@@ -182,11 +182,15 @@ class Solver {
   Eigen::Vector2d KeepOffWalls(const Eigen::Vector2d& from, Eigen::Vector2d to) const;
   // The two-phase step (saturated.cc).
   absl::Status StepSaturated();
-  // Impermeable walls: the fluid's velocity normal to each wall's line is 0.
-  void ConstrainFluid(std::vector<Eigen::Vector2d>& velocity) const;
+  // Impermeable walls: the fluid's velocity normal to each wall's line is 0
+  // (fluid_fixed_ records the components held).
+  void ConstrainFluid(std::vector<Eigen::Vector2d>& velocity);
   // The nodes whose pore pressure is prescribed this step (drained lines,
   // the free surface), into pressure_fixed_ (NaN: free).
   void FindDrainedNodes();
+  // p^n at the active nodes that lack one (NaN in node_pressure_), fitted
+  // to the points' pressures.
+  absl::Status FitNodalPressure();
 
   GridSpec grid_;
   SolverSpec solver_;
@@ -227,10 +231,13 @@ class Solver {
   std::vector<Eigen::Vector2d> node_fluid_velocity_new_;  // v_f^{n+1}
   std::vector<double> node_drag_;                         // Δt·Σ S·drag·V, kg
   std::vector<double> node_pressure_;                     // p^n, Pa
-  std::vector<double> node_volume_;                       // Σ S V, m³
-  std::vector<double> node_divergence_;                   // Poisson right-hand side
+  // p^{n+1} of the last step per node, Pa; NaN where the node was inactive.
+  // Part of the state: the next step's p^n where the node is still active.
+  std::vector<double> node_pressure_last_;
   std::vector<double> pressure_fixed_;                    // prescribed p, Pa, or NaN
   std::vector<double> node_dp_;                           // p^{n+1} − p^n, Pa
+  std::vector<double> node_volume_;                       // Σ_p S_Ip V_p, m³
+  std::vector<std::uint8_t> fluid_fixed_;                 // per node: components walls hold
   int pressure_iterations_ = 0;
 };
 

@@ -121,7 +121,7 @@ std::unique_ptr<Solver> MakeSolver(const CaseSpec& spec, StressModel* model,
 // (M = K + 4G/3 = 25.06 MPa, the consolidation RVE's) is carried by the
 // fluid at first and then by the skeleton as the water drains, with
 // c_v = k·M/(ρ_f g). The isochrones of the paper's Fig. 5 within 3 % of p0
-// (measured: 0.10–0.64 % from Tv = 0.041 on), except the first, Tv = 0.010
+// (measured: 0.03–0.64 % from Tv = 0.041 on), except the first, Tv = 0.010
 // (t = 3.9 ms), within 3.5 %: 3.09 % here. That one is inertia, which
 // Terzaghi leaves out: the skeleton's wave needs ~1.7 ms to cross the 0.2-m
 // front, and the error stays with a finer grid (2.43 % with 100 cells) and a
