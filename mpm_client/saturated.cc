@@ -190,27 +190,10 @@ absl::Status Solver::StepSaturated() {
   Constrain(node_velocity_, time_, alpha);
   ConstrainFluid(node_fluid_velocity_);
 
-  // (2) ΔF from the solid's velocity (eq. 31); effective stress from the model.
+  // (2) ΔF from the solid's velocity (eq. 31), volumes (eq. 35); the
+  // effective stress from the model.
+  RETURN_IF_ERROR(UpdateStress());
   for (std::size_t p = 0; p < n; ++p) {
-    const ShapeValues& s = shape_[p];
-    Matrix2d l = Matrix2d::Zero();
-    for (int k = 0; k < s.count; ++k) l += node_velocity_[s.node[k]] * s.gradient[k].transpose();
-    const Matrix2d df = Matrix2d::Identity() + dt_ * l;
-    if (!(df.determinant() > 0.0)) {
-      return absl::FailedPreconditionError(
-          absl::StrCat("material point ", p, " would invert: det ΔF = ", df.determinant(),
-                       " (time step too large?)"));
-    }
-    delta_f_[p].setIdentity();
-    delta_f_[p].topLeftCorner<2, 2>() = df;
-  }
-  RETURN_IF_ERROR(model_->Update(step_ + 1, delta_f_, response_));
-  for (std::size_t p = 0; p < n; ++p) {
-    Matrix2d& f = mp.F[p];
-    f = (delta_f_[p].topLeftCorner<2, 2>() * f).eval();
-    mp.volume[p] = mp.volume0[p] * f.determinant();  // eq. 35
-    mp.response[p] = response_[p];
-    mp.stress[p] = response_[p].stress;
     if (!(Porosity(p) > 0.0)) {
       return absl::FailedPreconditionError(absl::StrCat(
           "material point ", p, " compacted below its solid volume (porosity ", Porosity(p), ")"));

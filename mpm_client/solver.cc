@@ -577,6 +577,33 @@ Eigen::Vector2d Solver::KeepOffWalls(const Eigen::Vector2d& from, Eigen::Vector2
   return to;
 }
 
+absl::Status Solver::UpdateStress() {
+  MaterialPoints& mp = points_;
+  const std::size_t n = mp.size();
+  for (std::size_t p = 0; p < n; ++p) {
+    const ShapeValues& s = shape_[p];
+    Matrix2d l = Matrix2d::Zero();
+    for (int k = 0; k < s.count; ++k) l += node_velocity_[s.node[k]] * s.gradient[k].transpose();
+    const Matrix2d df = Matrix2d::Identity() + dt_ * l;
+    if (!(df.determinant() > 0.0)) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "material point ", p, " at ", Format(mp.position[p]), " m would invert: det ",
+          "ΔF = ", df.determinant(), " (time step too large?)"));
+    }
+    delta_f_[p].setIdentity();
+    delta_f_[p].topLeftCorner<2, 2>() = df;
+  }
+  RETURN_IF_ERROR(model_->Update(step_ + 1, delta_f_, response_));
+  for (std::size_t p = 0; p < n; ++p) {
+    Matrix2d& f = mp.F[p];
+    f = (delta_f_[p].topLeftCorner<2, 2>() * f).eval();
+    mp.volume[p] = mp.volume0[p] * f.determinant();
+    mp.response[p] = response_[p];
+    mp.stress[p] = response_[p].stress;
+  }
+  return absl::OkStatus();
+}
+
 absl::Status Solver::Step() {
   if (!(dt_ > 0.0) || !std::isfinite(dt_)) {
     return absl::FailedPreconditionError(absl::StrCat("time step dt = ", dt_, " must be > 0"));
@@ -613,27 +640,7 @@ absl::Status Solver::Step() {
   Constrain(node_velocity_, time_, alpha);
 
   // (b) ΔF = I + Δt·L, L = Σ v_I ⊗ ∇S_Ip; one batched stress update.
-  for (std::size_t p = 0; p < n; ++p) {
-    const ShapeValues& s = shape_[p];
-    Matrix2d l = Matrix2d::Zero();
-    for (int k = 0; k < s.count; ++k) l += node_velocity_[s.node[k]] * s.gradient[k].transpose();
-    const Matrix2d df = Matrix2d::Identity() + dt_ * l;
-    if (!(df.determinant() > 0.0)) {
-      return absl::FailedPreconditionError(absl::StrCat(
-          "material point ", p, " at ", Format(mp.position[p]), " m would invert: det ",
-          "ΔF = ", df.determinant(), " (time step too large?)"));
-    }
-    delta_f_[p].setIdentity();
-    delta_f_[p].topLeftCorner<2, 2>() = df;
-  }
-  RETURN_IF_ERROR(model_->Update(step_ + 1, delta_f_, response_));
-  for (std::size_t p = 0; p < n; ++p) {
-    Matrix2d& f = mp.F[p];
-    f = (delta_f_[p].topLeftCorner<2, 2>() * f).eval();
-    mp.volume[p] = mp.volume0[p] * f.determinant();
-    mp.response[p] = response_[p];
-    mp.stress[p] = response_[p].stress;
-  }
+  RETURN_IF_ERROR(UpdateStress());
 
   // (c) Nodal forces: internal −Σ σ_p·∇S_Ip V_p (in-plane part), gravity
   // Σ m_p g S_Ip = m_I g, tractions; then v^{n+1} = v^n + Δt f/m.

@@ -180,6 +180,10 @@ class Solver {
   // vanish at a wall line its domain reaches past: without this its centre
   // creeps through the wall (and, at the grid's edge, off the grid).
   Eigen::Vector2d KeepOffWalls(const Eigen::Vector2d& from, Eigen::Vector2d to) const;
+  // ΔF = I + Δt·L with L = Σ_I v_I ⊗ ∇S_Ip from node_velocity_ (the
+  // solid's), one batched model update, then F, volumes, responses and
+  // stresses; FailedPrecondition for a point that would invert.
+  absl::Status UpdateStress();
   // The two-phase step (saturated.cc).
   absl::Status StepSaturated();
   // Impermeable walls: the fluid's velocity normal to each wall's line is 0

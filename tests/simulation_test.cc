@@ -249,6 +249,24 @@ TEST(SimulationTest, ResumeFromCheckpointIsBitIdentical) {
   EXPECT_EQ(ts->at("step"), (std::vector<double>{0, 5, 10, 15, 20, 25, 30, 35, 40}));
 }
 
+// `count` RVE servers of one thread each on loopback ports, added to
+// o.servers (fewer on a failure, which the caller's size check reports).
+std::vector<std::unique_ptr<service::RveServer>> StartLoopbackServers(int count,
+                                                                      SimulationOptions& o) {
+  std::vector<std::unique_ptr<service::RveServer>> servers;
+  for (int i = 0; i < count; ++i) {
+    service::ServerConfig config;
+    config.listen = "127.0.0.1:0";
+    config.registry.threads = 1;
+    absl::StatusOr<std::unique_ptr<service::RveServer>> s = service::RveServer::Start(config);
+    EXPECT_TRUE(s.ok()) << s.status();
+    if (!s.ok()) break;
+    o.servers.push_back((*s)->address());
+    servers.push_back(*std::move(s));
+  }
+  return servers;
+}
+
 TEST(SimulationTest, TwoServersOnLoopbackGiveTheSameResultAsOneEmbedded) {
   setenv("GRPC_CLIENT_CHANNEL_BACKUP_POLL_INTERVAL_MS", "50", 1);
   const CaseSpec spec = ShortCase(20);
@@ -258,17 +276,9 @@ TEST(SimulationTest, TwoServersOnLoopbackGiveTheSameResultAsOneEmbedded) {
   absl::StatusOr<store::SimCheckpoint> one = embedded->Snapshot();
   ASSERT_TRUE(one.ok()) << one.status();
 
-  std::vector<std::unique_ptr<service::RveServer>> servers;
   SimulationOptions o = Options(FreshDir("two"));
-  for (int i = 0; i < 2; ++i) {
-    service::ServerConfig config;
-    config.listen = "127.0.0.1:0";
-    config.registry.threads = 1;
-    absl::StatusOr<std::unique_ptr<service::RveServer>> s = service::RveServer::Start(config);
-    ASSERT_TRUE(s.ok()) << s.status();
-    o.servers.push_back((*s)->address());
-    servers.push_back(*std::move(s));
-  }
+  std::vector<std::unique_ptr<service::RveServer>> servers = StartLoopbackServers(2, o);
+  ASSERT_EQ(servers.size(), 2u);
   {
     std::unique_ptr<Simulation> remote = StartOrDie(spec, o);
     ASSERT_NE(remote, nullptr);
@@ -368,17 +378,9 @@ TEST(SimulationTest, SaturatedResumeAndRemoteAreBitIdentical) {
   ASSERT_TRUE(end_c.ok()) << end_c.status();
   ExpectSameSnapshots(*end_a, *end_c);
 
-  std::vector<std::unique_ptr<service::RveServer>> servers;
   SimulationOptions o = Options(FreshDir("sat_two"));
-  for (int i = 0; i < 2; ++i) {
-    service::ServerConfig config;
-    config.listen = "127.0.0.1:0";
-    config.registry.threads = 1;
-    absl::StatusOr<std::unique_ptr<service::RveServer>> s = service::RveServer::Start(config);
-    ASSERT_TRUE(s.ok()) << s.status();
-    o.servers.push_back((*s)->address());
-    servers.push_back(*std::move(s));
-  }
+  std::vector<std::unique_ptr<service::RveServer>> servers = StartLoopbackServers(2, o);
+  ASSERT_EQ(servers.size(), 2u);
   {
     std::unique_ptr<Simulation> remote = StartOrDie(spec, o);
     ASSERT_NE(remote, nullptr);
