@@ -572,6 +572,26 @@ absl::Status ParseSolver(const Json& j, const std::string& ptr, SolverSpec* solv
 
 bool FromSet(const TemplateSpec& t) { return t.file.empty(); }
 
+// A file named by `key`, relative to `base_dir` (the case file's directory)
+// unless absolute, as an absolute normal path (a checkpointed spec does not
+// depend on the working directory); it must exist.
+absl::Status GetFile(const Object& o, absl::string_view key, const std::string& base_dir,
+                     std::string* out) {
+  std::string file;
+  RETURN_IF_ERROR(GetString(o, key, Need::kRequired, true, &file));
+  std::filesystem::path path(file);
+  if (path.is_relative()) path = std::filesystem::path(base_dir) / path;
+  std::error_code error;
+  std::filesystem::path absolute = std::filesystem::absolute(path, error);
+  if (!error) path = absolute;
+  path = path.lexically_normal();
+  if (!std::filesystem::is_regular_file(path, error)) {
+    return Bad(o.At(key), "no such file ", Quote(path.string()));
+  }
+  *out = path.string();
+  return absl::OkStatus();
+}
+
 // `base_dir`: the case file's directory, for relative template files.
 Fields<TemplateSpec> TemplateFields(const std::string& base_dir) {
   return {
@@ -610,20 +630,7 @@ Fields<TemplateSpec> TemplateFields(const std::string& base_dir) {
        }},
       {"file",
        [base_dir](const Object& o, TemplateSpec* t) -> absl::Status {
-         if (!o.Has("file")) return absl::OkStatus();
-         std::string file;
-         RETURN_IF_ERROR(GetString(o, "file", Need::kRequired, true, &file));
-         std::filesystem::path path(file);
-         if (path.is_relative()) path = std::filesystem::path(base_dir) / path;
-         std::error_code error;
-         std::filesystem::path absolute = std::filesystem::absolute(path, error);
-         if (!error) path = absolute;
-         path = path.lexically_normal();
-         if (!std::filesystem::is_regular_file(path, error)) {
-           return Bad(o.At("file"), "no such file ", Quote(path.string()));
-         }
-         t->file = path.string();
-         return absl::OkStatus();
+         return o.Has("file") ? GetFile(o, "file", base_dir, &t->file) : absl::OkStatus();
        },
        [](const TemplateSpec& t, OrderedJson& j) {
          if (!FromSet(t)) j["file"] = t.file;
@@ -1055,6 +1062,7 @@ const Table<std::string> kPlots = {{"stress-strain", "stress-strain"},
                                    {"none", "none"}};
 
 bool LoadSettlement(const OutputSpec& o) { return o.plot == "load-settlement"; }
+bool StressStrain(const OutputSpec& o) { return o.plot == "stress-strain"; }
 
 const Table<std::string> kSummaries = {{"footing", "footing"},
                                        {"pipe", "pipe"},
@@ -1067,7 +1075,8 @@ bool FootingSummary(const OutputSpec& o) {
 }
 
 // `bodies`: the case's, for the plot body's check (null when only writing).
-Fields<OutputSpec> OutputFields(const std::vector<RigidBody>* bodies) {
+// `base_dir`: the case file's directory, for a relative reference curve.
+Fields<OutputSpec> OutputFields(const std::vector<RigidBody>* bodies, const std::string& base_dir) {
   constexpr std::int64_t kMax = std::numeric_limits<std::int64_t>::max();
   constexpr absl::string_view kOnlyLoadSettlement = "only for plot \"load-settlement\"";
   Field<OutputSpec> plot_body = TextField("plot_body", &OutputSpec::plot_body, Need::kRequired,
@@ -1131,12 +1140,23 @@ Fields<OutputSpec> OutputFields(const std::vector<RigidBody>* bodies) {
             [](const OutputSpec& out, OrderedJson& j) {
               if (out.phi_deg > 0.0) j["phi_deg"] = out.phi_deg;
             }}),
+      Only(&StressStrain, "only for plot \"stress-strain\"",
+           {"reference_curve",
+            [base_dir](const Object& o, OutputSpec* out) {
+              return o.Has("reference_curve")
+                         ? GetFile(o, "reference_curve", base_dir, &out->reference_curve)
+                         : absl::OkStatus();
+            },
+            [](const OutputSpec& out, OrderedJson& j) {
+              if (!out.reference_curve.empty()) j["reference_curve"] = out.reference_curve;
+            }}),
   };
 }
 
 absl::Status ParseOutput(const Json& j, const std::string& ptr,
-                         const std::vector<RigidBody>& bodies, OutputSpec* out) {
-  return ReadFields(j, ptr, OutputFields(&bodies), out).status();
+                         const std::vector<RigidBody>& bodies, const std::string& base_dir,
+                         OutputSpec* out) {
+  return ReadFields(j, ptr, OutputFields(&bodies, base_dir), out).status();
 }
 
 // Parses a list section: each element with `parse`, then unique names.
@@ -1537,7 +1557,7 @@ absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::strin
     RETURN_IF_ERROR(ParsePhases(*phases, root.At("phases"), lines, spec.regions, &spec.phases));
   }
   if (const Json* output = root.Get("output")) {
-    RETURN_IF_ERROR(ParseOutput(*output, root.At("output"), spec.bodies, &spec.output));
+    RETURN_IF_ERROR(ParseOutput(*output, root.At("output"), spec.bodies, base_dir, &spec.output));
   }
   // Refused here rather than as std::bad_alloc an hour into setting up.
   if (const CaseSize size = EstimateSize(spec); size.bytes > kMaxCaseBytes) {
@@ -1598,7 +1618,7 @@ std::string ToJson(const CaseSpec& spec) {
 
   doc["rve"] = WriteFields(RveFields(), spec.rve);
   if (spec.phases.saturated) doc["phases"] = WriteFields(PhasesFields(), spec.phases);
-  doc["output"] = WriteFields(OutputFields(nullptr), spec.output);
+  doc["output"] = WriteFields(OutputFields(nullptr, ""), spec.output);
   std::string out;
   Write(doc, 0, &out);
   return out;

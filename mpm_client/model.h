@@ -160,6 +160,10 @@ struct OutputSpec {
   std::string summary;
   // φ' of the soil for Prandtl's N_q (footing summary), degrees; 0: not given.
   double phi_deg = 0.0;
+  // An `rve_cli element-test` CSV (absolute path; the case file may give it
+  // relative to itself) drawn on the stress-strain plot's nominal curve as
+  // the DEM element test on the same RVE: syy (Pa) against axial_strain.
+  std::string reference_curve;
 };
 
 struct RveSpec {

@@ -150,11 +150,24 @@ absl::Status WriteCasePlot(const CaseSpec& spec,
     // width against its travel over the height (the biaxial summary's).
     if (!spec.bodies.empty()) {
       ASSIGN_OR_RETURN(NominalCurve curve, PlatenCurve(spec, cols));
-      panels.push_back({absl::StrCat(name, ": nominal stress-strain"),
-                        "platen travel / height (%)",
-                        "platen force / width (kPa)",
-                        {{"platen", scaled(std::move(curve.strain), 100.0),
-                          scaled(std::move(curve.stress), 1e-3)}}});
+      plot::Panel nominal{absl::StrCat(name, ": nominal stress-strain"),
+                          "platen travel / height (%)",
+                          "platen force / width (kPa)",
+                          {{"platen", scaled(std::move(curve.strain), 100.0),
+                            scaled(std::move(curve.stress), 1e-3)}}};
+      if (!out.reference_curve.empty()) {
+        // The DEM element test on the same RVE (rve_cli element-test CSV).
+        ASSIGN_OR_RETURN(const auto reference, ReadCsvColumns(out.reference_curve));
+        const auto strain = reference.find("axial_strain"), syy = reference.find("syy");
+        if (strain == reference.end() || syy == reference.end()) {
+          return absl::InvalidArgumentError(
+              absl::StrCat(out.reference_curve,
+                           " has no axial_strain or syy column (rve_cli element-test CSV)"));
+        }
+        nominal.series.push_back(
+            {"DEM element test", scaled(strain->second, 100.0), scaled(syy->second, 1e-3)});
+      }
+      panels.push_back(std::move(nominal));
     }
     panels.push_back({absl::StrCat(name, ": mean of all points"),
                       "axial strain eyy (%)",

@@ -386,6 +386,7 @@ void ExpectSameSpec(const CaseSpec& a, const CaseSpec& b) {
     EXPECT_EQ(a.phases.monitors[i].position, b.phases.monitors[i].position);
   }
   EXPECT_EQ(a.output.frame_times, b.output.frame_times);
+  EXPECT_EQ(a.output.reference_curve, b.output.reference_curve);
   EXPECT_EQ(a.output.frame_every, b.output.frame_every);
   EXPECT_EQ(a.output.timeseries_every, b.output.timeseries_every);
   EXPECT_EQ(a.output.checkpoint_every, b.output.checkpoint_every);
@@ -483,6 +484,8 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
       {"/tractions/0/region", "rock", "/tractions/0/region: no region named \"rock\""},
       {"/output/plot_body", "pile", "/output/plot_body: no body named \"pile\" (bodies: footing"},
       {"/output/phi_deg", 95, "/output/phi_deg: must be in (0, 90), got 95"},
+      {"/output/reference_curve", "reference.csv",
+       "/output/reference_curve: only for plot \"stress-strain\""},
       {"/output/summary", "fancy",
        "/output/summary: unknown summary \"fancy\" (footing, pipe, collapse, biaxial, none)"},
       {"/output/plot_body", kRemove, "/output/plot_body: required key is missing"},
@@ -663,6 +666,25 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
   EXPECT_TRUE(MessageStartsWith(spec.status(),
                                 "/phases/drained/0/position: no region reaches the line x = 0.3 m"))
       << spec.status();
+}
+
+// A reference curve is resolved against the case file's directory and
+// must exist; the shipped biaxial cases name one that does.
+TEST(ReferenceCurve, ResolvedAgainstTheCaseAndChecked) {
+  const fs::path path = fs::path(RVEHUB_SOURCE_DIR) / "cases" / "single-element-biaxial.json";
+  absl::StatusOr<CaseSpec> spec = LoadCase(path.string());
+  ASSERT_TRUE(spec.ok()) << spec.status();
+  EXPECT_EQ(spec->output.reference_curve,
+            (path.parent_path() / "reference" / "set-dense-drained-biaxial-100kPa.csv")
+                .lexically_normal()
+                .string());
+  std::ifstream in(path);
+  Json doc = Json::parse(in);
+  doc["output"]["reference_curve"] = "reference/missing.csv";
+  absl::StatusOr<CaseSpec> bad = ParseCase(doc.dump(), path.parent_path().string());
+  ASSERT_FALSE(bad.ok());
+  EXPECT_TRUE(MessageStartsWith(bad.status(), "/output/reference_curve: no such file"))
+      << bad.status();
 }
 
 TEST(CaseOverride, ParsesPointerAndDottedPaths) {
