@@ -32,6 +32,25 @@ constexpr double kEmptyFraction = 1e-3;
 // Tikhonov weight of the nodal pressure fit, relative to the lumped diagonal.
 constexpr double kFitRegularisation = 1e-9;
 
+// Solves the symmetric positive-definite system a x = b by conjugate
+// gradients to kPressureTolerance; InternalError naming `what` if it does
+// not converge. `iterations` (optional) gets the count.
+absl::StatusOr<Eigen::VectorXd> SolveSpd(const Eigen::SparseMatrix<double>& a,
+                                         const Eigen::VectorXd& b, absl::string_view what,
+                                         int* iterations = nullptr) {
+  Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper> cg;
+  cg.setTolerance(kPressureTolerance);
+  cg.setMaxIterations(std::max<Eigen::Index>(1000, 4 * a.rows()));
+  cg.compute(a);
+  Eigen::VectorXd x = cg.solve(b);
+  if (iterations != nullptr) *iterations = static_cast<int>(cg.iterations());
+  if (cg.info() != Eigen::Success || !x.allFinite()) {
+    return absl::InternalError(absl::StrCat(what, " did not converge (", cg.iterations(),
+                                            " iterations, error ", cg.error(), ")"));
+  }
+  return x;
+}
+
 }  // namespace
 
 double Solver::Porosity(std::size_t p) const {
@@ -103,7 +122,7 @@ absl::Status Solver::FitNodalPressure() {
   std::vector<int> index(nodes, -1);
   int count = 0;
   for (int i = 0; i < nodes; ++i) {
-    if (node_mass_[i] > min_node_mass_ && node_fluid_mass_[i] > 0.0) index[i] = count++;
+    if (node_mass_[i] > min_node_mass_) index[i] = count++;
   }
   std::vector<Eigen::Triplet<double>> entries;
   Eigen::VectorXd rhs = Eigen::VectorXd::Zero(count);
@@ -122,15 +141,8 @@ absl::Status Solver::FitNodalPressure() {
   }
   Eigen::SparseMatrix<double> m(count, count);
   m.setFromTriplets(entries.begin(), entries.end());
-  Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper> cg;
-  cg.setTolerance(kPressureTolerance);
-  cg.setMaxIterations(std::max(1000, 4 * count));
-  cg.compute(m);
-  const Eigen::VectorXd fitted = cg.solve(rhs);
-  if (cg.info() != Eigen::Success || !fitted.allFinite()) {
-    return absl::InternalError(absl::StrCat("the fit of the nodal pore pressure did not converge (",
-                                            cg.iterations(), " iterations)"));
-  }
+  ASSIGN_OR_RETURN(const Eigen::VectorXd fitted,
+                   SolveSpd(m, rhs, "the fit of the nodal pore pressure"));
   for (int i = 0; i < nodes; ++i) {
     if (index[i] >= 0 && std::isnan(node_pressure_[i])) node_pressure_[i] = fitted[index[i]];
   }
@@ -144,15 +156,16 @@ absl::Status Solver::StepSaturated() {
   const int nodes = NodeCount(grid_);
   const double alpha = solver_.pic_fraction;
   const double rho_f = phases_.fluid_density;
+  // Porosity stays > 0 (checked at the start and after every update), so a
+  // node with the solids' mass also has the water's.
   auto active = [&](int i) { return node_mass_[i] > min_node_mass_; };
 
-  // (1) P2G of both phases (eqs. 29–30) and of the pore pressure (volume
-  // weighted): m_s = the point's mass, m_f = n ρ_f V.
+  // (1) P2G of both phases (eqs. 29–30): m_s = the point's mass,
+  // m_f = n ρ_f V; each node's share of soil Σ S V.
   std::fill(node_mass_.begin(), node_mass_.end(), 0.0);
   std::fill(node_fluid_mass_.begin(), node_fluid_mass_.end(), 0.0);
   std::fill(node_velocity_.begin(), node_velocity_.end(), Vector2d::Zero());
   std::fill(node_fluid_velocity_.begin(), node_fluid_velocity_.end(), Vector2d::Zero());
-  std::fill(node_pressure_.begin(), node_pressure_.end(), 0.0);  // set below
   std::fill(node_volume_.begin(), node_volume_.end(), 0.0);
   for (std::size_t p = 0; p < n; ++p) {
     const ShapeValues& s = shape_[p];
@@ -174,7 +187,7 @@ absl::Status Solver::StepSaturated() {
   // pressure from the nodes, would drift by that bias step after step.
   bool fit = false;
   for (int i = 0; i < nodes; ++i) {
-    if (active(i) && node_fluid_mass_[i] > 0.0) {
+    if (active(i)) {
       node_velocity_[i] /= node_mass_[i];
       node_fluid_velocity_[i] /= node_fluid_mass_[i];
       fit = fit || std::isnan(node_pressure_last_[i]);
@@ -221,24 +234,11 @@ absl::Status Solver::StepSaturated() {
       node_drag_[i] += s.weight[k] * drag_v;
     }
   }
-  for (std::size_t k = 0; k < mp.loads.size(); ++k) {
-    const ShapeValues& s = load_shape_[k];
-    double weight = 0.0;
-    for (int q = 0; q < s.count; ++q) {
-      if (active(s.node[q])) weight += s.weight[q];
-    }
-    if (!(weight > 0.0)) {
-      return absl::FailedPreconditionError(absl::StrCat(
-          "surface load of material point ", mp.loads[k].point, " has no node with mass"));
-    }
-    for (int q = 0; q < s.count; ++q) {
-      if (active(s.node[q])) node_force_[s.node[q]] += (s.weight[q] / weight) * load_force_[k];
-    }
-  }
+  RETURN_IF_ERROR(AddLoadForces());
 
   // (4) Intermediate velocities (eqs. 6, 8), drag implicit.
   for (int i = 0; i < nodes; ++i) {
-    if (!active(i) || !(node_fluid_mass_[i] > 0.0)) {
+    if (!active(i)) {
       node_velocity_new_[i].setZero();
       node_fluid_velocity_new_[i].setZero();
       continue;
@@ -261,7 +261,7 @@ absl::Status Solver::StepSaturated() {
   std::vector<int> unknown(nodes, -1);
   int count = 0;
   for (int i = 0; i < nodes; ++i) {
-    if (active(i) && node_fluid_mass_[i] > 0.0 && std::isnan(pressure_fixed_[i])) {
+    if (active(i) && std::isnan(pressure_fixed_[i])) {
       unknown[i] = count++;
     }
   }
@@ -304,17 +304,11 @@ absl::Status Solver::StepSaturated() {
   if (count > 0) {
     Eigen::SparseMatrix<double> laplacian(count, count);
     laplacian.setFromTriplets(entries.begin(), entries.end());
-    Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper> cg;
-    cg.setTolerance(kPressureTolerance);
-    cg.setMaxIterations(std::max(1000, 4 * count));
-    cg.compute(laplacian);
-    const Eigen::VectorXd dp = cg.solve(rhs);
-    pressure_iterations_ = static_cast<int>(cg.iterations());
-    if (cg.info() != Eigen::Success || !dp.allFinite()) {
-      return absl::InternalError(absl::StrCat(
-          "the pore-pressure solve did not converge (", cg.iterations(), " iterations, error ",
-          cg.error(), "): is every part of the soil connected to a drained boundary?"));
-    }
+    ASSIGN_OR_RETURN(const Eigen::VectorXd dp,
+                     SolveSpd(laplacian, rhs,
+                              "the pore-pressure solve (is every part of the soil connected to a "
+                              "drained boundary?)",
+                              &pressure_iterations_));
     for (int i = 0; i < nodes; ++i) {
       if (unknown[i] >= 0) node_dp_[i] = dp[unknown[i]];
     }
@@ -335,7 +329,7 @@ absl::Status Solver::StepSaturated() {
     }
   }
   for (int i = 0; i < nodes; ++i) {
-    if (!active(i) || !(node_fluid_mass_[i] > 0.0)) continue;
+    if (!active(i)) continue;
     node_velocity_new_[i] += (dt_ / node_mass_[i]) * node_force_[i];
     node_fluid_velocity_new_[i] += (dt_ / node_fluid_mass_[i]) * node_fluid_force_[i];
   }
@@ -348,9 +342,8 @@ absl::Status Solver::StepSaturated() {
   // drained node's value at once, also where a free surface opens (a gate
   // removed), where an increment would leave it its old pressure.
   for (int i = 0; i < nodes; ++i) {
-    node_pressure_last_[i] = active(i) && node_fluid_mass_[i] > 0.0
-                                 ? node_pressure_[i] + node_dp_[i]
-                                 : std::numeric_limits<double>::quiet_NaN();
+    node_pressure_last_[i] =
+        active(i) ? node_pressure_[i] + node_dp_[i] : std::numeric_limits<double>::quiet_NaN();
   }
   for (std::size_t p = 0; p < n; ++p) {
     const ShapeValues& s = shape_[p];

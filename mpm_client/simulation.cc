@@ -20,6 +20,7 @@
 #include "mpm_client/output.h"
 #include "mpm_client/summary.h"
 #include "mpm_client/templates.h"
+#include "mpm_client/two_phase.h"
 #include "rve_server/client/endpoint.h"
 #include "rve_server/common/status_macros.h"
 #include "store/results.h"
@@ -97,6 +98,9 @@ struct Simulation::Outputs {
   std::unique_ptr<TimeseriesWriter> timeseries;
   std::int64_t last_frame_step = -1;
   std::int64_t last_row_step = -1;
+  // Saturated cases: the points of the surface settlement and of each
+  // monitor, chosen by their starting positions (the same after a resume).
+  std::vector<std::size_t> top_row, monitor_points;
 };
 
 Simulation::~Simulation() {
@@ -183,6 +187,17 @@ std::vector<std::string> Simulation::Columns() const {
 
 namespace {
 
+// The material points that started in the top row (largest y0).
+std::vector<std::size_t> TopRow(const MaterialPoints& mp) {
+  double top0 = -std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < mp.size(); ++i) top0 = std::max(top0, mp.position0[i].y());
+  std::vector<std::size_t> row;
+  for (std::size_t i = 0; i < mp.size(); ++i) {
+    if (mp.position0[i].y() >= top0 - 1e-9) row.push_back(i);
+  }
+  return row;
+}
+
 // The material point that started nearest to `x` (the first of equals).
 std::size_t NearestPoint(const MaterialPoints& mp, const Eigen::Vector2d& x) {
   std::size_t best = 0;
@@ -192,13 +207,11 @@ std::size_t NearestPoint(const MaterialPoints& mp, const Eigen::Vector2d& x) {
   return best;
 }
 
-// Pore pressure of the water at rest, ρ_f·|g|·(y_w − y) below the water
-// table (0 without one), Pa: what the excess pore pressure is counted from.
-double HydrostaticPressure(const CaseSpec& spec, double y) {
-  const double depth = spec.phases.water_table - y;
-  return std::isfinite(depth) && depth > 0
-             ? spec.phases.fluid_density * spec.solver.gravity.norm() * depth
-             : 0.0;
+// Pore pressure of the water at rest at height y, Pa: what the excess pore
+// pressure is counted from.
+double RestPressure(const CaseSpec& spec, double y) {
+  return HydrostaticPressure(spec.phases.fluid_density, spec.solver.gravity.norm(),
+                             spec.phases.water_table, y);
 }
 
 }  // namespace
@@ -216,6 +229,13 @@ static absl::Status MakeOutputDir(const std::string& dir) {
 
 absl::Status Simulation::OpenOutputs(bool resume) {
   out_ = std::make_unique<Outputs>();
+  if (spec_.phases.saturated) {
+    const MaterialPoints& mp = solver_->points();
+    out_->top_row = TopRow(mp);
+    for (const PressureMonitor& m : spec_.phases.monitors) {
+      out_->monitor_points.push_back(NearestPoint(mp, m.position));
+    }
+  }
   const std::string dir = options_.out_dir;
   const std::string h5 = dir + "/results.h5", xdmf = dir + "/results.xdmf";
   const std::string csv = dir + "/timeseries.csv";
@@ -280,7 +300,7 @@ absl::Status Simulation::WriteFrame() {
         fluid{"fluid_velocity", 2, {}}, k{"permeability", 1, {}}, porosity{"porosity", 1, {}};
     for (std::size_t i = 0; i < n; ++i) {
       pore.values.push_back(mp.pore_pressure[i]);
-      excess.values.push_back(mp.pore_pressure[i] - HydrostaticPressure(spec_, mp.position[i].y()));
+      excess.values.push_back(mp.pore_pressure[i] - RestPressure(spec_, mp.position[i].y()));
       fluid.values.push_back(mp.fluid_velocity[i].x());
       fluid.values.push_back(mp.fluid_velocity[i].y());
       k.values.push_back(solver_->Permeability(i));
@@ -334,19 +354,12 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
   if (spec_.phases.saturated) {
     // The surface's settlement: the mean of (y0 − y) over the points that
     // started in the top row, m (down +).
-    double top0 = -std::numeric_limits<double>::infinity(), settlement = 0.0;
-    for (std::size_t i = 0; i < mp.size(); ++i) top0 = std::max(top0, mp.position0[i].y());
-    int count = 0;
-    for (std::size_t i = 0; i < mp.size(); ++i) {
-      if (mp.position0[i].y() < top0 - 1e-9) continue;
-      settlement += mp.position0[i].y() - mp.position[i].y();
-      ++count;
-    }
-    row.push_back(count > 0 ? settlement / count : 0.0);
+    double settlement = 0.0;
+    for (std::size_t i : out_->top_row) settlement += mp.position0[i].y() - mp.position[i].y();
+    row.push_back(out_->top_row.empty() ? 0.0 : settlement / out_->top_row.size());
     // Each monitor's pore pressure (Pa) and excess ratio Δp/σ'yy,0 [-].
-    for (const PressureMonitor& m : spec_.phases.monitors) {
-      const std::size_t i = NearestPoint(mp, m.position);
-      const double excess = mp.pore_pressure[i] - HydrostaticPressure(spec_, mp.position[i].y());
+    for (std::size_t i : out_->monitor_points) {
+      const double excess = mp.pore_pressure[i] - RestPressure(spec_, mp.position[i].y());
       row.push_back(mp.pore_pressure[i]);
       row.push_back(mp.vertical_stress0[i] > 0 ? excess / mp.vertical_stress0[i] : 0.0);
     }

@@ -8,6 +8,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "mpm_client/body_contact.h"
+#include "mpm_client/two_phase.h"
 #include "rve_server/common/status_macros.h"
 
 namespace rvehub::mpm {
@@ -224,11 +225,9 @@ absl::StatusOr<MaterialPoints> FillRegions(const CaseSpec& spec, const RegionDen
           // hydrostatic start below the water table.
           points.porosity0[p] = spec.phases.porosity;
           points.position0[p] = points.position[p];
-          const double depth = spec.phases.water_table - points.position[p].y();
-          if (std::isfinite(depth) && depth > 0.0) {
-            points.pore_pressure[p] =
-                spec.phases.fluid_density * spec.solver.gravity.norm() * depth;
-          }
+          points.pore_pressure[p] =
+              HydrostaticPressure(spec.phases.fluid_density, spec.solver.gravity.norm(),
+                                  spec.phases.water_table, points.position[p].y());
         }
       }
     }
@@ -604,6 +603,31 @@ absl::Status Solver::UpdateStress() {
   return absl::OkStatus();
 }
 
+absl::Status Solver::AddLoadForces() {
+  // A traction goes to the nodes around the surface position that carry
+  // mass, weights renormalised over them: once the surface has moved into a
+  // cell the soil's points do not reach, the share of its empty nodes would
+  // otherwise be lost (a confined element that dilates would lose σxx).
+  for (std::size_t k = 0; k < points_.loads.size(); ++k) {
+    const ShapeValues& s = load_shape_[k];
+    double active = 0.0;
+    for (int q = 0; q < s.count; ++q) {
+      if (node_mass_[s.node[q]] > min_node_mass_) active += s.weight[q];
+    }
+    if (!(active > 0.0)) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("surface load of material point ", points_.loads[k].point,
+                       " has no node with mass around its surface position (points too sparse?)"));
+    }
+    for (int q = 0; q < s.count; ++q) {
+      if (node_mass_[s.node[q]] > min_node_mass_) {
+        node_force_[s.node[q]] += (s.weight[q] / active) * load_force_[k];
+      }
+    }
+  }
+  return absl::OkStatus();
+}
+
 absl::Status Solver::Step() {
   if (!(dt_ > 0.0) || !std::isfinite(dt_)) {
     return absl::FailedPreconditionError(absl::StrCat("time step dt = ", dt_, " must be > 0"));
@@ -650,27 +674,7 @@ absl::Status Solver::Step() {
     const Matrix2d sigma_v = mp.stress[p].topLeftCorner<2, 2>() * mp.volume[p];
     for (int k = 0; k < s.count; ++k) node_force_[s.node[k]] -= sigma_v * s.gradient[k];
   }
-  // A traction goes to the nodes around the surface position that carry
-  // mass, weights renormalised over them: once the surface has moved into a
-  // cell the soil's points do not reach, the share of its empty nodes would
-  // otherwise be lost (a confined element that dilates would lose σxx).
-  for (std::size_t k = 0; k < mp.loads.size(); ++k) {
-    const ShapeValues& s = load_shape_[k];
-    double active = 0.0;
-    for (int q = 0; q < s.count; ++q) {
-      if (node_mass_[s.node[q]] > min_node_mass_) active += s.weight[q];
-    }
-    if (!(active > 0.0)) {
-      return absl::FailedPreconditionError(
-          absl::StrCat("surface load of material point ", mp.loads[k].point,
-                       " has no node with mass around its surface position (points too sparse?)"));
-    }
-    for (int q = 0; q < s.count; ++q) {
-      if (node_mass_[s.node[q]] > min_node_mass_) {
-        node_force_[s.node[q]] += (s.weight[q] / active) * load_force_[k];
-      }
-    }
-  }
+  RETURN_IF_ERROR(AddLoadForces());
   for (int i = 0; i < nodes; ++i) {
     node_velocity_new_[i] =
         node_mass_[i] > min_node_mass_

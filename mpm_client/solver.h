@@ -184,6 +184,10 @@ class Solver {
   // solid's), one batched model update, then F, volumes, responses and
   // stresses; FailedPrecondition for a point that would invert.
   absl::Status UpdateStress();
+  // Adds each surface load's force (load_force_) to node_force_, spread
+  // over the nodes around its surface position that carry mass;
+  // FailedPrecondition where none does.
+  absl::Status AddLoadForces();
   // The two-phase step (saturated.cc).
   absl::Status StepSaturated();
   // Impermeable walls: the fluid's velocity normal to each wall's line is 0

@@ -6,6 +6,7 @@
 #define RVEHUB_MPM_CLIENT_TWO_PHASE_H_
 
 #include <Eigen/Dense>
+#include <cmath>
 
 namespace rvehub::mpm {
 
@@ -16,6 +17,14 @@ inline constexpr double kDarcyGravity = 9.81;
 // Porosity of a point whose volume is J times its initial one, the grains
 // incompressible: n = 1 − (1 − n0)/J, [-].
 inline double PorosityAt(double n0, double volume_ratio) { return 1.0 - (1.0 - n0) / volume_ratio; }
+
+// Pore pressure of water at rest, ρ_f·g·(y_w − y) below the water table
+// y_w and 0 above it or without one (y_w = +∞): Pa, compression +.
+inline double HydrostaticPressure(double fluid_density, double gravity, double water_table,
+                                  double y) {
+  const double depth = water_table - y;  // m
+  return std::isfinite(depth) && depth > 0.0 ? fluid_density * gravity * depth : 0.0;
+}
 
 // Void ratio e = n/(1 − n), [-].
 inline double VoidRatio(double porosity) { return porosity / (1.0 - porosity); }
