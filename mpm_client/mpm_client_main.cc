@@ -47,6 +47,8 @@ ABSL_FLAG(double, timeout, 600, "deadline of one batched RVE call, s");
 ABSL_FLAG(std::string, template_cache, "", "template cache directory");
 ABSL_FLAG(int64_t, stop_after, 0, "stop after N steps");
 ABSL_FLAG(bool, quiet, false, "no progress lines");
+ABSL_FLAG(bool, no_recovery, false, "a lost server ends the run");
+ABSL_FLAG(double, min_timeout, 10, "floor of the adaptive RVE call deadline, s");
 // Repeatable: cli::ParseArgs keeps each occurrence as typed (Args::repeated).
 ABSL_FLAG(std::vector<std::string>, set, {}, "case overrides PATH=VALUE");
 
@@ -75,7 +77,15 @@ Options (run, resume):
   --threads=N          workers of the embedded server (default: all cores)
   --token-file=FILE    bearer token for the servers
   --tls-ca=FILE        CA certificate (PEM) to verify TLS servers
-  --timeout=SECONDS    deadline of one batched RVE call (default 600)
+  --timeout=SECONDS    deadline of one batched RVE call at most (default 600)
+  --min-timeout=SECONDS
+                       with --servers, the deadline adapts to the measured calls (20 × the
+                       slowest of the last steps) but is never below this (default 10): a
+                       hung server is given up on after two such deadlines
+  --no-recovery        with --servers, a lost server ends the run. Default: the client keeps
+                       a recovery point in memory (about 2 % of the run time), moves a lost
+                       server's RVEs onto the others, replays the steps since, and lets the
+                       server rejoin when it answers again; results are bit-identical
   --template-cache=DIR where prepared RVE templates are cached (default DIR/templates)
   --stop-after=N       stop after N steps, writing DIR/checkpoint.h5 there (to resume)
   --quiet              no progress lines
@@ -110,11 +120,14 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
     return c;
   }
   cli::ArgSpec spec;
-  spec.allowed = {"out",    "servers", "threads",        "token-file", "tls-ca",
-                  "timeout", "template-cache", "stop-after", "quiet", "set"};
+  spec.allowed = {"out",        "servers", "threads",     "token-file",
+                  "tls-ca",     "timeout", "min-timeout", "template-cache",
+                  "stop-after", "quiet",   "no-recovery", "set"};
   spec.repeatable = {"set"};
-  spec.bare = {"quiet"};
-  spec.rules = {{"threads", kThreadsRule}, {"timeout", kTimeoutRule},
+  spec.bare = {"quiet", "no-recovery"};
+  spec.rules = {{"threads", kThreadsRule},
+                {"timeout", kTimeoutRule},
+                {"min-timeout", kTimeoutRule},
                 {"stop-after", kStopAfterRule}};
   ASSIGN_OR_RETURN(Args args, cli::ParseArgs(argc, argv, 1, spec));
   c.args = std::move(args);
@@ -204,6 +217,13 @@ absl::StatusOr<SimulationOptions> Options(const Args& a) {
       return absl::InvalidArgumentError(absl::StrCat("--timeout ", kTimeoutRule));
     }
   }
+  if (a.contains("min-timeout")) {
+    o.min_apply_timeout_s = absl::GetFlag(FLAGS_min_timeout);
+    if (!(o.min_apply_timeout_s > 0) || o.min_apply_timeout_s > 1e7) {
+      return absl::InvalidArgumentError(absl::StrCat("--min-timeout ", kTimeoutRule));
+    }
+  }
+  o.recovery = !a.contains("no-recovery");
   if (a.contains("stop-after")) {
     o.stop_after_steps = absl::GetFlag(FLAGS_stop_after);
     if (o.stop_after_steps < 1) {
@@ -369,6 +389,16 @@ int Main(int argc, char** argv) {
                summary->wall_s > 0 ? 100.0 * summary->rve_s / summary->wall_s : 0.0,
                static_cast<long long>(summary->rve_evaluations));
   std::fprintf(stderr, "mpm_client: %s\n", FormatTimeSplit(*summary).c_str());
+  if (summary->recovery_points > 0) {
+    std::fprintf(stderr,
+                 "mpm_client: servers lost %d, rejoined %d; %lld steps replayed; %lld RVEs moved "
+                 "between servers; %d recovery points, %.2f s with recoveries (%.1f %% of wall)\n",
+                 summary->servers_lost, summary->servers_rejoined,
+                 static_cast<long long>(summary->steps_replayed),
+                 static_cast<long long>(summary->rves_moved), summary->recovery_points,
+                 summary->recovery_s,
+                 summary->wall_s > 0 ? 100.0 * summary->recovery_s / summary->wall_s : 0.0);
+  }
   std::fprintf(stderr, "mpm_client: outputs in %s\n", options->out_dir.c_str());
   return 0;
 }

@@ -53,12 +53,42 @@ RvePool::RvePool(std::vector<std::unique_ptr<client::RveEndpoint>> endpoints, st
       run_id_(std::move(run_id)),
       options_(options),
       points_(endpoints_.size()),
-      last_apply_seconds_(endpoints_.size(), 0.0) {}
+      last_apply_seconds_(endpoints_.size(), 0.0),
+      lost_(endpoints_.size(), false),
+      busy_seconds_(endpoints_.size(), 0.0),
+      engine_seconds_(endpoints_.size(), 0.0) {}
+
+void RvePool::NoteFailure(int k, const absl::Status& s) {
+  if (s.ok() || !IsTransient(s)) return;
+  if (std::find(failed_.begin(), failed_.end(), k) == failed_.end()) {
+    failed_.insert(std::upper_bound(failed_.begin(), failed_.end(), k), k);
+  }
+}
+
+std::vector<int> RvePool::TakeFailed() { return std::exchange(failed_, {}); }
+
+void RvePool::MarkLost(int k) { lost_[k] = true; }
+void RvePool::MarkAlive(int k) { lost_[k] = false; }
+
+int RvePool::num_alive() const {
+  return static_cast<int>(std::count(lost_.begin(), lost_.end(), false));
+}
+
+absl::Duration RvePool::NextApplyDeadline() const {
+  if (options_.deadline_factor <= 0 || recent_batch_seconds_.empty())
+    return options_.apply_deadline;
+  const double slowest =
+      *std::max_element(recent_batch_seconds_.begin(), recent_batch_seconds_.end());
+  const absl::Duration d =
+      std::max(options_.min_apply_deadline, absl::Seconds(options_.deadline_factor * slowest)) *
+      deadline_scale_;
+  return std::min(d, options_.apply_deadline);
+}
 
 absl::Status RvePool::ForEachEndpoint(const std::function<absl::Status(int)>& fn) {
   std::vector<absl::Status> status(endpoints_.size());
   if (endpoints_.size() == 1) {
-    status[0] = fn(0);
+    if (!lost_[0]) status[0] = fn(0);
   } else {
     // Setup and checkpoint calls only (templates, creation, export, import,
     // drop: a few per run, not per step): a thread per endpoint for the
@@ -66,35 +96,66 @@ absl::Status RvePool::ForEachEndpoint(const std::function<absl::Status(int)>& fn
     // The per-step Apply needs none (asynchronous calls).
     std::vector<std::thread> threads;
     threads.reserve(endpoints_.size());
-    for (int k = 0; k < num_endpoints(); ++k)
-      threads.emplace_back([&fn, &status, k] { status[k] = fn(k); });
+    for (int k = 0; k < num_endpoints(); ++k) {
+      if (!lost_[k]) threads.emplace_back([&fn, &status, k] { status[k] = fn(k); });
+    }
     for (std::thread& t : threads) t.join();
   }
+  for (int k = 0; k < num_endpoints(); ++k) NoteFailure(k, status[k]);
   for (const absl::Status& s : status)
     if (!s.ok()) return s;
   return absl::OkStatus();
 }
 
-void RvePool::Assign(std::span<const double> cost) {
-  if (endpoints_.empty()) return;
+namespace {
+double CostOf(double c) { return std::isfinite(c) && c > 0 ? c : 0.0; }
+}  // namespace
+
+std::vector<int> RvePool::PlanAssignment(std::span<const double> cost) const {
+  if (num_alive() == 0) return {};
   const std::size_t n = cost.size();
-  std::vector<double> c(n);
-  for (std::size_t p = 0; p < n; ++p) c[p] = std::isfinite(cost[p]) && cost[p] > 0 ? cost[p] : 0.0;
   std::vector<std::int64_t> order(n);
   std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(),
-            [&](std::int64_t a, std::int64_t b) { return c[a] != c[b] ? c[a] > c[b] : a < b; });
+  std::sort(order.begin(), order.end(), [&](std::int64_t a, std::int64_t b) {
+    const double ca = CostOf(cost[a]), cb = CostOf(cost[b]);
+    return ca != cb ? ca > cb : a < b;
+  });
   std::vector<double> load(endpoints_.size(), 0.0);
   std::vector<int> assignment(n);
   for (std::int64_t p : order) {
-    int best = 0;
-    for (int k = 1; k < num_endpoints(); ++k)
-      if (load[k] < load[best]) best = k;
+    const double c = CostOf(cost[p]);
+    int best = -1;
+    double best_load = 0.0;
+    for (int k = 0; k < num_endpoints(); ++k) {
+      if (lost_[k]) continue;
+      const double l = (load[k] + c) / std::max(1, endpoints_[k]->workers());
+      if (best < 0 || l < best_load) {
+        best = k;
+        best_load = l;
+      }
+    }
     assignment[p] = best;
-    load[best] += c[p];
+    load[best] += c;
   }
-  // In range by construction.
-  (void)SetAssignment(std::move(assignment));
+  return assignment;
+}
+
+void RvePool::Assign(std::span<const double> cost) {
+  if (num_alive() == 0) return;
+  // In range and live by construction.
+  (void)SetAssignment(PlanAssignment(cost));
+}
+
+double RvePool::Makespan(std::span<const int> assignment, std::span<const double> cost) const {
+  std::vector<double> load(endpoints_.size(), 0.0);
+  for (std::size_t p = 0; p < assignment.size() && p < cost.size(); ++p) {
+    load[assignment[p]] += CostOf(cost[p]);
+  }
+  double makespan = 0.0;
+  for (int k = 0; k < num_endpoints(); ++k) {
+    makespan = std::max(makespan, load[k] / std::max(1, endpoints_[k]->workers()));
+  }
+  return makespan;
 }
 
 absl::Status RvePool::SetAssignment(std::vector<int> endpoint_of_point) {
@@ -105,10 +166,17 @@ absl::Status RvePool::SetAssignment(std::vector<int> endpoint_of_point) {
       return absl::InvalidArgumentError(absl::StrCat(
           "material point ", p, " is assigned to endpoint ", k, " of ", num_endpoints()));
     }
+    if (lost_[k]) {
+      return absl::InvalidArgumentError(absl::StrCat("material point ", p,
+                                                     " is assigned to lost endpoint ", k, " (",
+                                                     endpoints_[k]->label(), ")"));
+    }
     points[k].push_back(static_cast<std::int64_t>(p));
   }
   assignment_ = std::move(endpoint_of_point);
   points_ = std::move(points);
+  point_seconds_.resize(assignment_.size(), 0.0);
+  point_work_.resize(assignment_.size(), 0.0);
   return absl::OkStatus();
 }
 
@@ -305,8 +373,7 @@ int RvePool::total_workers() const {
 
 absl::Status RvePool::Judge(int k, std::int64_t step,
                             absl::StatusOr<std::vector<client::RveOutcome>>& result,
-                            std::vector<dem::RveState>& out, ApplyStats& stats,
-                            bool& transient) const {
+                            std::vector<dem::RveState>& out, ApplyStats& stats, bool& transient) {
   const std::vector<std::int64_t>& ids = points_[k];
   const std::string what = absl::StrCat("step ", step);
   transient = false;
@@ -331,6 +398,10 @@ absl::Status RvePool::Judge(int k, std::int64_t step,
     ++stats.increments;
     stats.dem_steps += o.state.steps;
     stats.engine_seconds += o.engine_seconds;
+    point_seconds_[o.id] += o.engine_seconds;
+    const std::size_t id = static_cast<std::size_t>(o.id);
+    point_work_[id] +=
+        static_cast<double>(o.state.steps) * (id < point_size_.size() ? point_size_[id] : 1.0);
     ++stats.histogram[ApplyStats::Bin(o.state.steps)];
   }
   return absl::OkStatus();
@@ -373,6 +444,7 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(
   }
   const int max_attempts = std::max(1, options_.max_attempts);
   absl::Duration backoff = options_.backoff;
+  const absl::Duration deadline = NextApplyDeadline();
   for (bool pending = true; pending;) {
     for (bool in_process : {false, true}) {
       for (int k = 0; k < num_endpoints(); ++k) {
@@ -380,7 +452,7 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(
         if (b.done || endpoints_[k]->in_process() != in_process) continue;
         ++b.attempts;
         b.call = endpoints_[k]->StartApply(run_id_, step, b.increments, options_.apply_options,
-                                           options_.apply_deadline);
+                                           deadline);
       }
     }
     pending = false;
@@ -396,6 +468,7 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(
         b.done = true;
       } else if (b.attempts >= max_attempts) {
         b.done = true;
+        NoteFailure(k, b.status);
         b.status = absl::Status(b.status.code(),
                                 absl::StrCat(b.status.message(), " (gave up after ", max_attempts,
                                              max_attempts == 1 ? " attempt)" : " attempts)"));
@@ -413,9 +486,20 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(
     stats_.Add(st);
   }
   total_apply_seconds_ += SecondsSince(start);
+  double slowest = 0.0;
+  for (int k = 0; k < num_endpoints(); ++k) {
+    busy_seconds_[k] += last_apply_seconds_[k];
+    engine_seconds_[k] += stats[k].engine_seconds;
+    slowest = std::max(slowest, last_apply_seconds_[k]);
+  }
   for (const Batch& b : batches) {
     if (!b.status.ok()) return b.status;  // the first error by endpoint index
   }
+  // Successful steps only: a missed deadline must not stretch the next one.
+  constexpr std::size_t kRecentSteps = 8;
+  if (recent_batch_seconds_.size() == kRecentSteps)
+    recent_batch_seconds_.erase(recent_batch_seconds_.begin());
+  recent_batch_seconds_.push_back(slowest);
   return out;
 }
 
@@ -503,6 +587,51 @@ absl::Status RvePool::DropAll() {
     if (s.ok() || absl::IsNotFound(s)) return absl::OkStatus();
     return CallError(k, s, "dropping the run");
   });
+}
+
+absl::Status RvePool::Restore(std::vector<store::RveRecord> records) {
+  RETURN_IF_ERROR(DropAll());
+  return ImportAll(std::move(records));
+}
+
+absl::Status RvePool::Migrate(std::vector<int> endpoint_of_point,
+                              std::span<const store::RveRecord> records) {
+  const std::size_t n = assignment_.size();
+  if (endpoint_of_point.size() != n || records.size() != n) {
+    return absl::InvalidArgumentError(absl::StrCat("migration of ", records.size(), " RVEs to ",
+                                                   endpoint_of_point.size(), " places for ", n,
+                                                   " material points"));
+  }
+  std::vector<std::vector<store::RveRecord>> arriving(endpoints_.size());
+  std::vector<std::vector<std::int64_t>> leaving(endpoints_.size());
+  for (std::size_t p = 0; p < n; ++p) {
+    const int to = endpoint_of_point[p], from = assignment_[p];
+    if (to < 0 || to >= num_endpoints() || lost_[to]) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("migration: material point ", p, " to endpoint ", to, ", not a live one"));
+    }
+    if (records[p].id != static_cast<std::int64_t>(p)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("migration: record ", p, " is for material point ", records[p].id));
+    }
+    if (to == from) continue;
+    store::RveRecord& r = arriving[to].emplace_back(records[p]);
+    r.run_id = run_id_;
+    leaving[from].push_back(static_cast<std::int64_t>(p));
+  }
+  RETURN_IF_ERROR(ForEachEndpoint([&](int k) -> absl::Status {
+    if (arriving[k].empty()) return absl::OkStatus();
+    if (absl::Status s = endpoints_[k]->Import(std::move(arriving[k])); !s.ok())
+      return CallError(k, s, "moving RVEs in");
+    return absl::OkStatus();
+  }));
+  RETURN_IF_ERROR(ForEachEndpoint([&](int k) -> absl::Status {
+    if (leaving[k].empty()) return absl::OkStatus();
+    if (absl::Status s = endpoints_[k]->Drop(run_id_, leaving[k]); !s.ok())
+      return CallError(k, s, "moving RVEs out");
+    return absl::OkStatus();
+  }));
+  return SetAssignment(std::move(endpoint_of_point));
 }
 
 }  // namespace rvehub::mpm

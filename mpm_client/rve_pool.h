@@ -52,6 +52,13 @@ struct PoolOptions {
   int max_attempts = 4;  // tries of a batch that fails transiently, at least 1
   absl::Duration backoff = absl::Milliseconds(200);  // before the 2nd try; doubled after each
   dem::ApplyOptions apply_options;                   // sent with every Apply
+  // Adaptive deadline of an Apply attempt: `deadline_factor` × the slowest
+  // endpoint batch of the last few steps, at least min_apply_deadline, at
+  // most apply_deadline (which alone applies before the first step and when
+  // the factor is 0). A hung server is then found in seconds, not minutes;
+  // a batch that is slow for good reason costs a replay (RelaxDeadline).
+  double deadline_factor = 0.0;
+  absl::Duration min_apply_deadline = absl::Seconds(10);
 };
 
 // Worth retrying the same COMMIT: the server may be restarting, the reply
@@ -74,15 +81,48 @@ class RvePool {
   // E.g. to ask for tangents from some step on.
   void set_apply_options(const dem::ApplyOptions& apply) { options_.apply_options = apply; }
 
-  // Material points 0..n−1 onto endpoints, balancing the summed cost (any
-  // unit, e.g. expected DEM steps): greedy longest processing time — points
-  // by cost descending (ties: lower index first), each to the endpoint with
-  // the least cost so far (ties: lower endpoint index). A cost that is not
-  // finite and >= 0 counts as 0. Without endpoints, nothing is assigned.
+  // Material points 0..n−1 onto the live endpoints, balancing the summed
+  // cost per worker (any unit, e.g. expected DEM steps or measured engine
+  // seconds): greedy longest processing time — points by cost descending
+  // (ties: lower index first), each to the endpoint whose cost per worker
+  // would be least (ties: lower endpoint index). A cost that is not finite
+  // and >= 0 counts as 0. Without live endpoints, nothing is assigned.
   void Assign(std::span<const double> cost);
+  // The assignment Assign would make, without making it.
+  std::vector<int> PlanAssignment(std::span<const double> cost) const;
   // An explicit assignment (point → endpoint index), e.g. on resume;
-  // InvalidArgument (nothing changed) for an index out of range.
+  // InvalidArgument (nothing changed) for an index out of range or a lost
+  // endpoint.
   absl::Status SetAssignment(std::vector<int> endpoint_of_point);
+  // Σ cost per worker of the busiest endpoint under `assignment`: a step's
+  // makespan in the cost's unit.
+  double Makespan(std::span<const int> assignment, std::span<const double> cost) const;
+
+  // Endpoint liveness. An endpoint whose call failed for good with a
+  // transient error (unreachable, connection reset, deadline passed, after
+  // the retries) is reported by TakeFailed; the caller decides to MarkLost
+  // it. A lost endpoint gets no points and no calls until MarkAlive.
+  std::vector<int> TakeFailed();
+  void MarkLost(int k);
+  void MarkAlive(int k);
+  bool lost(int k) const { return lost_[k]; }
+  int num_alive() const;
+  // Doubles the adaptive Apply deadline from now on (up to apply_deadline):
+  // after a deadline missed by a server that was slow, not hung.
+  void RelaxDeadline() { deadline_scale_ *= 2; }
+  // The deadline the next Apply attempt gets.
+  absl::Duration NextApplyDeadline() const;
+
+  // Moves RVEs to `endpoint_of_point` (live endpoints): each moved point's
+  // record (of `records`, the full states of every point, by id, as
+  // ExportAll gives them) is imported on its new endpoint, then dropped
+  // from its old one. On error the assignment is unchanged and RVEs may be
+  // on both endpoints: Restore puts everything right.
+  absl::Status Migrate(std::vector<int> endpoint_of_point,
+                       std::span<const store::RveRecord> records);
+  // Every RVE replaced by `records` (one per point): the run is dropped on
+  // every live endpoint, then ImportAll.
+  absl::Status Restore(std::vector<store::RveRecord> records);
   const std::vector<int>& assignment() const { return assignment_; }
   std::int64_t num_points() const { return static_cast<std::int64_t>(assignment_.size()); }
   // The points on endpoint k, ascending (the order they are sent in).
@@ -140,17 +180,34 @@ class RvePool {
   const std::vector<double>& last_apply_seconds() const { return last_apply_seconds_; }
   // Wall time spent inside Apply overall, s.
   double total_apply_seconds() const { return total_apply_seconds_; }
+  // Engine seconds per point since construction (measured by the servers).
+  const std::vector<double>& point_engine_seconds() const { return point_seconds_; }
+  // Work per point since construction: Σ DEM steps × the point's size (see
+  // SetPointSizes; 1 until set), particle-steps. What balancing goes by: it
+  // follows the engine time (a step costs about the same per particle) but
+  // is exact, where time measured beside other processes on shared cores is
+  // noisy.
+  const std::vector<double>& point_work() const { return point_work_; }
+  // Particles per point (e.g. from the templates or exported records).
+  void SetPointSizes(std::vector<double> sizes) { point_size_ = std::move(sizes); }
+  // Per endpoint since construction: wall time of its Apply batches and its
+  // RVEs' engine seconds, s.
+  const std::vector<double>& endpoint_busy_seconds() const { return busy_seconds_; }
+  const std::vector<double>& endpoint_engine_seconds() const { return engine_seconds_; }
 
  private:
-  // Runs fn(k) for every endpoint k, concurrently when there are several;
-  // the first error by endpoint index.
+  // Runs fn(k) for every live endpoint k, concurrently when there are
+  // several; the first error by endpoint index. Endpoints failing
+  // transiently are noted for TakeFailed.
   absl::Status ForEachEndpoint(const std::function<absl::Status(int)>& fn);
   // The result of endpoint k's batch of a step: OK with states into `out`
   // and counts into `stats`, or the error, `transient` when a retry of the
   // same batch may cure it.
   absl::Status Judge(int k, std::int64_t step,
                      absl::StatusOr<std::vector<client::RveOutcome>>& result,
-                     std::vector<dem::RveState>& out, ApplyStats& stats, bool& transient) const;
+                     std::vector<dem::RveState>& out, ApplyStats& stats, bool& transient);
+  // Notes endpoint k for TakeFailed when `s` is transient.
+  void NoteFailure(int k, const absl::Status& s);
   // A whole-call error of endpoint k, with what was being done and the
   // endpoint named (endpoints name themselves; a wrapper might not).
   absl::Status CallError(int k, const absl::Status& s, absl::string_view what) const;
@@ -171,6 +228,11 @@ class RvePool {
   ApplyStats stats_;
   std::vector<double> last_apply_seconds_;
   double total_apply_seconds_ = 0.0;
+  std::vector<bool> lost_;
+  std::vector<int> failed_;                   // noted since the last TakeFailed, ascending
+  std::vector<double> recent_batch_seconds_;  // the slowest batch of the last few steps
+  double deadline_scale_ = 1.0;
+  std::vector<double> point_seconds_, point_work_, point_size_, busy_seconds_, engine_seconds_;
 };
 
 }  // namespace rvehub::mpm

@@ -11,6 +11,7 @@
 #include <system_error>
 #include <thread>
 
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/synchronization/mutex.h"
@@ -154,7 +155,15 @@ absl::Status Simulation::Connect() {
   }
   PoolOptions po;
   po.apply_deadline = absl::Seconds(options_.apply_timeout_s);
+  if (RecoveryOn()) {
+    // A failed server is recovered from, not waited for: one retry for a
+    // lost reply, and a deadline that follows the measured batch times.
+    po.max_attempts = 2;
+    po.deadline_factor = options_.deadline_factor;
+    po.min_apply_deadline = absl::Seconds(options_.min_apply_timeout_s);
+  }
   pool_ = std::make_unique<RvePool>(std::move(endpoints), run_id_, po);
+  last_probe_s_.assign(pool_->num_endpoints(), 0.0);
   return absl::OkStatus();
 }
 
@@ -488,6 +497,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
     }
   }
   sim->pool_->Assign(cost);
+  sim->pool_->SetPointSizes(cost);
   // Each template's own controls with the case's DEM steps per increment
   // and inertial-number bound, where the case sets them.
   std::map<std::string, dem::Controls> controls;
@@ -605,6 +615,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
     cost.push_back(static_cast<double>(r.packing.radius.size()));
   }
   sim->pool_->Assign(cost);
+  sim->pool_->SetPointSizes(cost);
   RETURN_IF_ERROR(sim->pool_->ImportAll(std::move(c.rves)));
   sim->model_ = std::make_unique<RveStressModel>(sim->pool_.get(), &sim->rve_seconds_);
   ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver,
@@ -615,6 +626,199 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
                            sim->solver_->step(), sim->solver_->time()));
   RETURN_IF_ERROR(sim->OpenOutputs(/*resume=*/true));
   return sim;
+}
+
+struct Simulation::RecoveryPoint {
+  std::int64_t step = -1;
+  std::map<std::string, std::vector<double>> doubles;
+  std::map<std::string, std::vector<std::int64_t>> ints;
+  std::vector<store::RveRecord> rves;  // every point's, by id
+};
+
+bool Simulation::RecoveryOn() const { return options_.recovery && !options_.servers.empty(); }
+
+namespace {
+
+double WallSeconds() { return Seconds(Clock::now().time_since_epoch()); }
+
+// What a point costs per step for placing it: its measured work in
+// `measured` (RvePool::point_work) where there is any, else its RVE's
+// particle count (before the first step). Only the ratios matter.
+std::vector<double> PlacementCost(std::span<const double> measured,
+                                  std::span<const store::RveRecord> rves) {
+  const bool any = std::any_of(measured.begin(), measured.end(), [](double c) { return c > 0; });
+  std::vector<double> cost(rves.size());
+  for (std::size_t p = 0; p < rves.size(); ++p) {
+    cost[p] = any && p < measured.size() ? measured[p]
+                                         : static_cast<double>(rves[p].packing.radius.size());
+  }
+  return cost;
+}
+
+}  // namespace
+
+absl::Status Simulation::TakeRecoveryPoint(SimulationSummary& sum) {
+  const Clock::time_point t0 = Clock::now();
+  auto point = std::make_unique<RecoveryPoint>();
+  point->step = solver_->step();
+  solver_->ExportState(point->doubles, point->ints);
+  ASSIGN_OR_RETURN(point->rves, pool_->ExportAll());
+  recovery_ = std::move(point);
+  // Sizes change where an RVE's cell doubled.
+  std::vector<double> sizes;
+  for (const store::RveRecord& r : recovery_->rves) {
+    sizes.push_back(static_cast<double>(r.packing.radius.size()));
+  }
+  pool_->SetPointSizes(std::move(sizes));
+  ++sum.recovery_points;
+  // Servers back from a loss take RVEs again; otherwise balance by cost.
+  const bool rejoined = ProbeLost(/*force=*/false, sum);
+  RETURN_IF_ERROR(Rebalance(/*force=*/rejoined, sum));
+  sum.recovery_s += Seconds(Clock::now() - t0);
+  return absl::OkStatus();
+}
+
+bool Simulation::ProbeLost(bool force, SimulationSummary& sum) {
+  bool rejoined = false;
+  for (int k = 0; k < pool_->num_endpoints(); ++k) {
+    if (!pool_->lost(k)) continue;
+    const double now = WallSeconds();
+    if (!force && now - last_probe_s_[k] < options_.probe_interval_s) continue;
+    last_probe_s_[k] = now;
+    client::RveEndpoint& e = pool_->endpoint(k);
+    if (!e.Ping(absl::Seconds(1)).ok()) continue;
+    // What it may still hold of this run is stale: it starts empty.
+    if (absl::Status s = e.Drop(pool_->run_id()); !s.ok() && !absl::IsNotFound(s)) continue;
+    pool_->MarkAlive(k);
+    ++sum.servers_rejoined;
+    rejoined = true;
+    Log(absl::StrFormat("server %s answers again: it rejoins the run", e.name()));
+  }
+  return rejoined;
+}
+
+absl::Status Simulation::Rebalance(bool force, SimulationSummary& sum) {
+  if (recovery_ == nullptr || pool_->num_alive() < 2) return absl::OkStatus();
+  if (!force && options_.rebalance_threshold <= 0) return absl::OkStatus();
+  const std::vector<double>& total = pool_->point_work();
+  std::vector<double> cost(total.size(), 0.0);
+  for (std::size_t p = 0; p < total.size(); ++p) {
+    cost[p] = total[p] - (p < cost_checked_.size() ? cost_checked_[p] : 0.0);
+  }
+  cost_checked_ = total;
+  cost = PlacementCost(cost, recovery_->rves);
+  std::vector<int> plan = pool_->PlanAssignment(cost);
+  const double now = pool_->Makespan(pool_->assignment(), cost);
+  const double planned = pool_->Makespan(plan, cost);
+  imbalance_streak_ =
+      planned < (1.0 - options_.rebalance_threshold) * now ? imbalance_streak_ + 1 : 0;
+  if (!force && imbalance_streak_ < 2) return absl::OkStatus();
+  imbalance_streak_ = 0;
+  std::int64_t moved = 0;
+  for (std::size_t p = 0; p < plan.size(); ++p) moved += plan[p] != pool_->assignment()[p];
+  if (moved == 0) return absl::OkStatus();
+  RETURN_IF_ERROR(pool_->Migrate(std::move(plan), recovery_->rves));
+  sum.rves_moved += moved;
+  Log(
+      absl::StrFormat("balanced at step %d: %d RVEs moved; measured makespan %.3g -> %.3g s per "
+                      "interval",
+                      solver_->step(), moved, now, planned));
+  return absl::OkStatus();
+}
+
+absl::Status Simulation::Recover(const absl::Status& cause, SimulationSummary& sum) {
+  std::vector<int> failed = pool_->TakeFailed();
+  if (failed.empty() || recovery_ == nullptr) return cause;
+  const Clock::time_point t0 = Clock::now();
+  const std::int64_t lost_at = solver_->step();
+  const bool deadline = absl::IsDeadlineExceeded(cause) ||
+                        absl::StrContains(cause.message(), "Deadline Exceeded") ||
+                        absl::StrContains(cause.message(), "deadline");
+  // A deadline missed by a server that was only slow must not be missed
+  // again in the replay.
+  if (deadline) pool_->RelaxDeadline();
+  for (int attempt = 0;; ++attempt) {
+    for (int k : failed) {
+      pool_->MarkLost(k);
+      last_probe_s_[k] = WallSeconds();
+      ++sum.servers_lost;
+      Log(absl::StrFormat("server %s lost at step %d: %s", pool_->endpoint(k).name(), lost_at + 1,
+                          cause.message()));
+    }
+    // One restarted at once (a supervisor) takes its share again.
+    if (attempt > 0 || pool_->num_alive() == 0) ProbeLost(/*force=*/true, sum);
+    const Clock::time_point wait_start = Clock::now();
+    while (pool_->num_alive() == 0 && Seconds(Clock::now() - wait_start) < options_.server_wait_s) {
+      absl::SleepFor(absl::Seconds(1));
+      ProbeLost(/*force=*/true, sum);
+    }
+    if (pool_->num_alive() == 0) {
+      return absl::UnavailableError(absl::StrFormat(
+          "every RVE server is lost (none answered within %.0f s); last error: %s. Resume from a "
+          "checkpoint (mpm_client resume) once servers run again",
+          options_.server_wait_s, cause.message()));
+    }
+    pool_->Assign(PlacementCost(pool_->point_work(), recovery_->rves));
+    absl::Status restored = pool_->Restore(recovery_->rves);
+    if (restored.ok()) break;
+    failed = pool_->TakeFailed();
+    if (failed.empty() || attempt >= pool_->num_endpoints()) {
+      return absl::Status(restored.code(),
+                          absl::StrCat("recovering from a lost server: ", restored.message(),
+                                       " (after: ", cause.message(), ")"));
+    }
+  }
+  ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver,
+                   Solver::FromState(spec_, recovery_->doubles, recovery_->ints, model_.get()));
+  solver_ = std::move(solver);
+  SetApplyOptions();
+  RETURN_IF_ERROR(out_->results->Close());
+  RETURN_IF_ERROR(OpenOutputs(/*resume=*/true));
+  const std::int64_t replay = lost_at - recovery_->step;
+  sum.steps -= replay;
+  sum.steps_replayed += replay;
+  cost_checked_ = pool_->point_work();
+  sum.recovery_s += Seconds(Clock::now() - t0);
+  std::string hosts;
+  for (int k = 0; k < pool_->num_endpoints(); ++k) {
+    if (pool_->lost(k)) continue;
+    absl::StrAppend(&hosts, hosts.empty() ? "" : ", ", pool_->endpoint(k).name(), " (",
+                    pool_->points_of(k).size(), ")");
+  }
+  Log(
+      absl::StrFormat("recovered in %.2f s: %d RVEs restored from step %d onto %s; replaying "
+                      "steps %d..%d",
+                      Seconds(Clock::now() - t0), recovery_->rves.size(), recovery_->step, hosts,
+                      recovery_->step + 1, lost_at));
+  return absl::OkStatus();
+}
+
+std::string Simulation::ServerLoadLine() {
+  const int n = pool_->num_endpoints();
+  if (n < 2) return "";
+  const std::vector<double>& busy = pool_->endpoint_busy_seconds();
+  const std::vector<double>& engine = pool_->endpoint_engine_seconds();
+  busy_shown_.resize(n, 0.0);
+  engine_shown_.resize(n, 0.0);
+  const double apply = pool_->total_apply_seconds() - apply_shown_;
+  double engine_total = 0.0;
+  for (int k = 0; k < n; ++k) engine_total += engine[k] - engine_shown_[k];
+  std::string line = "  servers:";
+  for (int k = 0; k < n; ++k) {
+    if (pool_->lost(k)) {
+      absl::StrAppend(&line, " ", pool_->endpoint(k).name(), " lost;");
+    } else {
+      const double load = engine_total > 0 ? (engine[k] - engine_shown_[k]) / engine_total : 0.0;
+      const double idle = apply > 0 ? 1.0 - (busy[k] - busy_shown_[k]) / apply : 0.0;
+      absl::StrAppendFormat(&line, " %s load %.0f %% idle %.0f %%;", pool_->endpoint(k).name(),
+                            100 * load, 100 * std::max(0.0, idle));
+    }
+    busy_shown_[k] = busy[k];
+    engine_shown_[k] = engine[k];
+  }
+  apply_shown_ = pool_->total_apply_seconds();
+  line.pop_back();
+  return line;
 }
 
 absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
@@ -638,8 +842,13 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
   Clock::time_point row_clock = start;
   std::int64_t row_step = solver_->step();
   auto output_time = Clock::duration::zero();
-  while (solver_->step() < total_steps) {
-    if (options_.stop_after_steps > 0 && sum.steps >= options_.stop_after_steps) break;
+  // Recovery points: one now, then every recovery_interval_ steps, chosen
+  // from what taking one costs against a step.
+  Clock::time_point point_clock = start;
+  if (RecoveryOn()) RETURN_IF_ERROR(TakeRecoveryPoint(sum));
+  // One step with its outputs; an error leaves the outputs and checkpoint
+  // as they were at some step (a recovery rewrites them from its point).
+  auto step_once = [&]() -> absl::Status {
     if (absl::Status s = solver_->Step(); !s.ok()) {
       return absl::Status(s.code(), absl::StrCat("step ", solver_->step() + 1, ": ", s.message()));
     }
@@ -675,14 +884,34 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
                           step, options_.stop_after_steps, path, path));
     }
     output_time += Clock::now() - t_out;
+    if (RecoveryOn() && !last && !stopping && step - recovery_->step >= recovery_interval_) {
+      const double per_step =
+          Seconds(Clock::now() - point_clock) / static_cast<double>(step - recovery_->step);
+      const Clock::time_point t0 = Clock::now();
+      RETURN_IF_ERROR(TakeRecoveryPoint(sum));
+      const double taking = Seconds(Clock::now() - t0);
+      recovery_interval_ = static_cast<std::int64_t>(std::clamp(
+          std::ceil(taking / (options_.recovery_share * std::max(per_step, 1e-9))), 1.0, 1e5));
+      point_clock = Clock::now();
+    }
     if (options_.progress && (step % o.progress_every == 0 || last)) {
       const double wall = Seconds(Clock::now() - start);
       const double rate = wall > 0 ? (pool_->evaluations() - evals_start) / wall : 0.0;
-      const double eta =
-          wall / static_cast<double>(sum.steps) * static_cast<double>(total_steps - step);
-      Log(absl::StrFormat("step %d/%d  t = %.4g s  wall %.1f s  ETA %.0f s  %.0f RVE evals/s", step,
-                          total_steps, solver_->time(), wall, eta, rate));
+      const double eta = wall / static_cast<double>(std::max<std::int64_t>(1, sum.steps)) *
+                         static_cast<double>(total_steps - step);
+      Log(absl::StrFormat("step %d/%d  t = %.4g s  wall %.1f s  ETA %.0f s  %.0f RVE evals/s%s",
+                          step, total_steps, solver_->time(), wall, eta, rate, ServerLoadLine()));
     }
+    return absl::OkStatus();
+  };
+  while (solver_->step() < total_steps) {
+    if (options_.stop_after_steps > 0 && sum.steps >= options_.stop_after_steps) break;
+    const absl::Status s = step_once();
+    if (s.ok()) continue;
+    if (!RecoveryOn()) return s;
+    RETURN_IF_ERROR(Recover(s, sum));
+    row_clock = point_clock = Clock::now();
+    row_step = solver_->step();
   }
   sum.wall_s = Seconds(Clock::now() - start);
   sum.rve_s = rve_seconds_ - rve_start;

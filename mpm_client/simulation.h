@@ -26,7 +26,32 @@ struct SimulationOptions {
   std::vector<std::string> servers;  // HOST:PORT each; empty: one embedded server
   int threads = 0;                   // embedded server's workers; 0: all cores
   client::ClientOptions client;      // token, TLS, message size for remote servers
-  double apply_timeout_s = 600;      // deadline of one batched Apply call, s
+  double apply_timeout_s = 600;      // deadline of one batched Apply call at most, s
+  // Remote servers only. The client keeps a recovery point in memory (the
+  // MPM state and every RVE's full state), refreshed so that taking it costs
+  // about `recovery_share` of the stepping time. A server that fails for
+  // good (refused, reset, or a missed deadline after the retries) is
+  // dropped: its RVEs and everyone else's go back to the recovery point on
+  // the servers left, the MPM state rolls back and the steps are replayed,
+  // bit-identical to a run without the failure. A lost server that answers
+  // again (probed every few seconds at recovery points) rejoins and takes
+  // RVEs. false: a lost server ends the run (resume from a checkpoint).
+  bool recovery = true;
+  double recovery_share = 0.02;
+  // The deadline of an Apply attempt adapts: `deadline_factor` × the slowest
+  // server batch of the last steps, at least min_apply_timeout_s, at most
+  // apply_timeout_s (a hung server is found in seconds).
+  double deadline_factor = 20;
+  double min_apply_timeout_s = 10;
+  // Balancing by measured cost: at a recovery point, points move between
+  // servers (longest first by the work the servers reported since the last
+  // point, DEM steps × particles) when that plan's makespan beats the
+  // current one by more than this share at two points in a row. 0: never.
+  double rebalance_threshold = 0.1;
+  // With every server lost, how long to wait for one to answer again, s.
+  double server_wait_s = 60;
+  // A lost server is asked whether it is back at most this often, s.
+  double probe_interval_s = 5;
   // Prepared templates are cached here; empty: <out_dir>/templates.
   std::string template_cache_dir;
   // Stop after this many MPM steps of this invocation (0: run to the end),
@@ -52,6 +77,13 @@ struct SimulationSummary {
   // the engine's time summed over the workers (rve_workers of them).
   ApplyStats rve_stats;
   int rve_workers = 1;
+  // Faults and balancing in this invocation.
+  int servers_lost = 0;
+  int servers_rejoined = 0;
+  std::int64_t steps_replayed = 0;
+  std::int64_t rves_moved = 0;  // by rebalancing and rejoining
+  int recovery_points = 0;
+  double recovery_s = 0.0;  // s, of wall_s taking recovery points and recovering
 };
 
 // Where the wall time went, two lines for people: DEM engine (the engine's
@@ -92,6 +124,25 @@ class Simulation {
   absl::Status WriteFrame();
   absl::Status WriteRow(double wall_per_step);
   absl::Status WriteCheckpoint();
+
+  // Surviving lost servers (SimulationOptions::recovery).
+  struct RecoveryPoint;
+  bool RecoveryOn() const;
+  // Takes the MPM state and every RVE's state at the current step; probes
+  // lost servers and rebalances. An error from a server is left for Recover.
+  absl::Status TakeRecoveryPoint(SimulationSummary& sum);
+  // After `cause`: drops the servers that failed, restores every RVE from
+  // the recovery point onto the servers left and rolls the MPM state and the
+  // outputs back to it. `cause` itself when no server failed (not a loss).
+  absl::Status Recover(const absl::Status& cause, SimulationSummary& sum);
+  // Lost servers that answer again rejoin (empty, RVE-less); `force`:
+  // probe now, else at most every few seconds each. Whether one rejoined.
+  bool ProbeLost(bool force, SimulationSummary& sum);
+  // Moves points between servers by the measured cost since the last
+  // check (see SimulationOptions::rebalance_threshold); `force`: now.
+  absl::Status Rebalance(bool force, SimulationSummary& sum);
+  // Per-server load and idle share since the last progress line.
+  std::string ServerLoadLine();
   std::vector<std::string> Columns() const;
   // The options sent with every Apply, from the case and the solver's Δt.
   void SetApplyOptions();
@@ -108,6 +159,15 @@ class Simulation {
   struct Outputs;
   std::unique_ptr<Outputs> out_;
   double rve_seconds_ = 0.0;  // total wall time inside RVE Apply calls
+  std::unique_ptr<RecoveryPoint> recovery_;
+  std::int64_t recovery_interval_ = 10;  // MPM steps between recovery points
+  std::vector<double> cost_checked_;     // RvePool::point_work at the last balance check
+  int imbalance_streak_ = 0;
+  std::vector<double> last_probe_s_;  // per server, wall clock of its last probe, s
+  // At the last progress line: per server busy and engine seconds, and the
+  // pool's Apply wall time.
+  std::vector<double> busy_shown_, engine_shown_;
+  double apply_shown_ = 0.0;
 };
 
 }  // namespace rvehub::mpm

@@ -52,6 +52,14 @@ absl::Status WriteTemplates(const std::string& path, std::span<const TemplateRec
 absl::StatusOr<std::vector<TemplateRecord>> ReadTemplates(const std::string& path,
                                                           FileInfo* info = nullptr);
 
+// Removes the temporaries PATH.tmp-PID next to `path` that writers killed
+// mid-write (kill -9, power loss) left behind: those whose PID names no
+// live process, and, with `own_too`, this process's own (a process that
+// starts after a crash may have the crashed one's PID, as in a container:
+// before it writes anything itself, a temporary under its PID is stale).
+// Others (a writer in another live process) are left alone.
+void RemoveStaleTemporaries(const std::string& path, bool own_too = false);
+
 }  // namespace rvehub::store
 
 #endif  // RVEHUB_STORE_CHECKPOINT_H_

@@ -395,6 +395,30 @@ std::string ReaderFor(absl::string_view kind) {
 
 }  // namespace
 
+// Declared in checkpoint.h: servers call it on start.
+void RemoveStaleTemporaries(const std::string& path, bool own_too) {
+  namespace fs = std::filesystem;
+  const fs::path target(path);
+  const std::string prefix = absl::StrCat(target.filename().string(), ".tmp-");
+  const fs::path dir = target.parent_path().empty() ? fs::path(".") : target.parent_path();
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    int pid = 0;
+    if (!absl::StartsWith(name, prefix) || !absl::SimpleAtoi(name.substr(prefix.size()), &pid) ||
+        pid <= 0 || (pid == ::getpid() && !own_too)) {
+      continue;
+    }
+    // kill(pid, 0) probes without signalling: ESRCH means no such process.
+    std::error_code type_ec;
+    const bool stale = pid == ::getpid() || (::kill(pid, 0) != 0 && errno == ESRCH);
+    if (stale && it->is_regular_file(type_ec)) {
+      std::error_code ignored;
+      fs::remove(it->path(), ignored);
+    }
+  }
+}
+
 namespace internal {
 
 std::mutex& StoreMutex() {
@@ -546,28 +570,6 @@ absl::StatusOr<std::vector<TemplateRecord>> ReadTemplateRecords(const h5::File& 
     templates[k].packing = std::move((packings)[k]);
   }
   return templates;
-}
-
-void RemoveStaleTemporaries(const std::string& path) {
-  namespace fs = std::filesystem;
-  const fs::path target(path);
-  const std::string prefix = absl::StrCat(target.filename().string(), ".tmp-");
-  const fs::path dir = target.parent_path().empty() ? fs::path(".") : target.parent_path();
-  std::error_code ec;
-  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
-    const std::string name = it->path().filename().string();
-    int pid = 0;
-    if (!absl::StartsWith(name, prefix) || !absl::SimpleAtoi(name.substr(prefix.size()), &pid) ||
-        pid <= 0 || pid == ::getpid()) {
-      continue;
-    }
-    // kill(pid, 0) probes without signalling: ESRCH means no such process.
-    std::error_code type_ec;
-    if (::kill(pid, 0) != 0 && errno == ESRCH && it->is_regular_file(type_ec)) {
-      std::error_code ignored;
-      fs::remove(it->path(), ignored);
-    }
-  }
 }
 
 absl::Status WriteAtomically(const std::string& path, const char* kind,

@@ -16,6 +16,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "store/checkpoint.h"
 #include "store/hdf5.h"
 #include "store/record.h"
 
@@ -57,11 +58,6 @@ absl::Status WriteTemplateRecords(h5::File& file, const std::string& group,
 absl::StatusOr<std::vector<TemplateRecord>> ReadTemplateRecords(const h5::File& file,
                                                                 const std::string& group,
                                                                 std::size_t n);
-
-// Removes the temporaries PATH.tmp-PID next to `path` that writers killed
-// mid-write (kill -9, power loss) left behind: those whose PID names no
-// live process. Others (a writer in another live process) are left alone.
-void RemoveStaleTemporaries(const std::string& path);
 
 // Builds a store file under a temporary name next to `path` with the root
 // attributes format_version, kind, created_by, created_at, the integer

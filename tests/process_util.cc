@@ -87,9 +87,20 @@ ServerProcess::ServerProcess(const std::string& server_path, std::string log_pat
 
 ServerProcess::~ServerProcess() { Stop(); }
 
+void ServerProcess::Signal(int signal) {
+  if (pid_ <= 0) return;
+  kill(pid_, signal);
+  if (signal != SIGKILL) return;
+  int status = 0;
+  waitpid(pid_, &status, 0);
+  pid_ = -1;
+  exit_code_ = -1;
+}
+
 int ServerProcess::Stop() {
   if (pid_ <= 0) return exit_code_;
   kill(pid_, SIGTERM);
+  kill(pid_, SIGCONT);  // a stopped server must see its SIGTERM
   int status = 0;
   waitpid(pid_, &status, 0);
   pid_ = -1;

@@ -36,8 +36,12 @@ class ServerProcess {
   ServerProcess(const ServerProcess&) = delete;
   ServerProcess& operator=(const ServerProcess&) = delete;
 
-  // SIGTERM and wait; the exit status (−1 when it did not exit normally).
+  // SIGTERM (and SIGCONT, should it be stopped) and wait; the exit status
+  // (−1 when it did not exit normally).
   int Stop();
+  // Sends `signal` (SIGKILL, SIGSTOP, SIGCONT…); after SIGKILL, waits for it.
+  void Signal(int signal);
+  pid_t pid() const { return pid_; }
 
   // "127.0.0.1:PORT" as the server reported it; "" when it did not start.
   const std::string& address() const { return address_; }

@@ -10,9 +10,11 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <memory>
 #include <string>
@@ -263,7 +265,10 @@ class FaultyEndpoint final : public client::RveEndpoint {
   absl::Status Import(std::vector<store::RveRecord> records) override {
     return inner_->Import(std::move(records));
   }
-  absl::Status Drop(absl::string_view run) override { return inner_->Drop(run); }
+  absl::Status Drop(absl::string_view run, std::span<const std::int64_t> ids) override {
+    return inner_->Drop(run, ids);
+  }
+  absl::Status Ping(absl::Duration timeout) override { return inner_->Ping(timeout); }
 
  private:
   std::unique_ptr<client::RveEndpoint> inner_;
@@ -417,6 +422,206 @@ TEST(RvePoolTest, RetriesALostReplyButNotABadRequest) {
     ExpectContains(s.status().message(), "faulty endpoint");
     EXPECT_EQ(raw->apply_calls(), calls);
   }
+}
+
+// What a client needs to survive a lost server: the endpoint that gave up
+// is reported (a refusal is not a loss), gets no points once marked lost,
+// and the RVEs restored from an earlier export onto the others continue
+// bit-identically.
+TEST(RvePoolTest, AnEndpointThatGaveUpIsReportedAndTheRunRestoredOnTheOthers) {
+  RvePool reference(EmbeddedEndpoints(1), kRun);
+  Start(reference);
+  std::vector<std::unique_ptr<client::RveEndpoint>> e = EmbeddedEndpoints(1);
+  auto faulty = std::make_unique<FaultyEndpoint>(client::MakeEmbeddedEndpoint(NewRegistry()),
+                                                 FaultyEndpoint::Fault::kAlwaysUnavailable);
+  FaultyEndpoint* dead = faulty.get();
+  e.push_back(std::move(faulty));
+  e.push_back(client::MakeEmbeddedEndpoint(NewRegistry()));
+  PoolOptions o = QuickRetries();
+  o.max_attempts = 2;
+  RvePool pool(std::move(e), kRun, o);
+  Start(pool);
+  ASSERT_EQ(pool.points_of(1).size(), 2u);
+  absl::StatusOr<std::vector<store::RveRecord>> at0 = pool.ExportAll();
+  ASSERT_TRUE(at0.ok()) << at0.status();
+  EXPECT_TRUE(pool.TakeFailed().empty());
+
+  absl::StatusOr<std::vector<dem::RveState>> failed = pool.Apply(1, DeltaFs(1));
+  EXPECT_TRUE(absl::IsUnavailable(failed.status())) << failed.status();
+  EXPECT_EQ(pool.TakeFailed(), std::vector<int>{1});
+  EXPECT_TRUE(pool.TakeFailed().empty());  // taken
+  EXPECT_EQ(dead->apply_calls(), 2);
+
+  pool.MarkLost(1);
+  EXPECT_EQ(pool.num_alive(), 2);
+  EXPECT_TRUE(absl::IsInvalidArgument(pool.SetAssignment({0, 1, 2, 0, 1, 2})));
+  pool.Assign(std::vector<double>(kPoints, 1.0));
+  EXPECT_TRUE(pool.points_of(1).empty());
+  EXPECT_EQ(pool.points_of(0).size() + pool.points_of(2).size(), static_cast<std::size_t>(kPoints));
+  // Endpoints 0 and 2 hold RVEs at step 0 or 1: all go back to step 0.
+  ASSERT_TRUE(pool.Restore(*at0).ok());
+  for (std::int64_t step = 1; step <= 3; ++step) {
+    ExpectSameStates(ApplyOrDie(reference, step), ApplyOrDie(pool, step),
+                     absl::StrCat("restored, step ", step));
+  }
+  EXPECT_EQ(dead->apply_calls(), 2);  // never asked again
+  EXPECT_TRUE(pool.TakeFailed().empty());
+
+  // A refusal is final but no loss.
+  std::vector<std::unique_ptr<client::RveEndpoint>> r;
+  r.push_back(std::make_unique<FaultyEndpoint>(client::MakeEmbeddedEndpoint(NewRegistry()),
+                                               FaultyEndpoint::Fault::kRefuse));
+  RvePool refusing(std::move(r), kRun, QuickRetries());
+  Start(refusing);
+  EXPECT_TRUE(absl::IsInvalidArgument(refusing.Apply(1, DeltaFs(1)).status()));
+  EXPECT_TRUE(refusing.TakeFailed().empty());
+}
+
+TEST(RvePoolTest, MigrationMovesRvesBetweenEndpointsBitIdentically) {
+  RvePool reference(EmbeddedEndpoints(1), kRun);
+  RvePool pool(EmbeddedEndpoints(3), kRun);
+  Start(reference);
+  Start(pool);
+  ExpectSameStates(ApplyOrDie(reference, 1), ApplyOrDie(pool, 1), "step 1");
+  absl::StatusOr<std::vector<store::RveRecord>> records = pool.ExportAll();
+  ASSERT_TRUE(records.ok()) << records.status();
+  const std::vector<int> before = pool.assignment();
+
+  // Records that do not match the points are refused, nothing moved.
+  std::vector<store::RveRecord> shuffled = *records;
+  std::swap(shuffled[0], shuffled[1]);
+  EXPECT_TRUE(absl::IsInvalidArgument(pool.Migrate({2, 2, 2, 2, 2, 2}, shuffled)));
+  EXPECT_EQ(pool.assignment(), before);
+
+  const std::vector<int> plan = {2, 2, 2, 0, 0, 1};
+  ASSERT_TRUE(pool.Migrate(plan, *records).ok());
+  EXPECT_EQ(pool.assignment(), plan);
+  // Moved RVEs left their old endpoints: point 0 was on endpoint 0.
+  ASSERT_EQ(before[0], 0);
+  const std::int64_t moved = 0;
+  absl::StatusOr<std::vector<client::RveOutcome>> gone =
+      pool.endpoint(0).Get(kRun, std::span<const std::int64_t>(&moved, 1), false);
+  ASSERT_TRUE(gone.ok()) << gone.status();
+  EXPECT_TRUE(absl::IsNotFound((*gone)[0].status)) << (*gone)[0].status;
+  for (std::int64_t step = 2; step <= 3; ++step) {
+    ExpectSameStates(ApplyOrDie(reference, step), ApplyOrDie(pool, step),
+                     absl::StrCat("migrated, step ", step));
+  }
+}
+
+TEST(RvePoolTest, ApplyDeadlineFollowsTheMeasuredBatches) {
+  PoolOptions o;
+  o.apply_deadline = absl::Seconds(600);
+  o.deadline_factor = 20;
+  o.min_apply_deadline = absl::Seconds(3);
+  RvePool pool(EmbeddedEndpoints(2), kRun, o);
+  Start(pool);
+  // Nothing measured yet: the configured deadline.
+  EXPECT_EQ(pool.NextApplyDeadline(), absl::Seconds(600));
+  ApplyOrDie(pool, 1);
+  // Batches of milliseconds: 20 × that is below the floor.
+  ASSERT_LT(*std::max_element(pool.last_apply_seconds().begin(), pool.last_apply_seconds().end()),
+            0.15);
+  EXPECT_EQ(pool.NextApplyDeadline(), absl::Seconds(3));
+  pool.RelaxDeadline();
+  EXPECT_EQ(pool.NextApplyDeadline(), absl::Seconds(6));
+  for (int k = 0; k < 10; ++k) pool.RelaxDeadline();
+  EXPECT_EQ(pool.NextApplyDeadline(), absl::Seconds(600));  // capped
+
+  RvePool fixed(EmbeddedEndpoints(1), kRun);  // deadline_factor 0
+  Start(fixed);
+  ApplyOrDie(fixed, 1);
+  EXPECT_EQ(fixed.NextApplyDeadline(), fixed.options().apply_deadline);
+}
+
+// Balancing by measured cost (issue 13): a skewed mix of 400- and 1600-disc
+// RVEs placed as if they cost the same lands the big ones on one server;
+// planned from the work the servers reported (DEM steps × particles), the
+// makespan per step comes within 10 % of ideal (Σ work / 3) on 3 loopback
+// servers of 1 worker each, and the moved RVEs continue bit-identically.
+// The engine seconds the servers measured are printed beside: on 2 shared
+// cores they are noisy (a plan from 5 steps of them gave 1.00–1.37).
+TEST(RvePoolTest, SkewedLoadIsBalancedByMeasuredCost) {
+  dem::RveSnapshot small = Prepared("SET-dense");
+  small.controls.min_steps = 10;
+  absl::StatusOr<dem::Rve> big_rve = dem::Rve::Create(small);
+  ASSERT_TRUE(big_rve.ok()) << big_rve.status();
+  ASSERT_TRUE(big_rve->DoubleCell(0).ok());
+  ASSERT_TRUE(big_rve->DoubleCell(1).ok());  // the same packing, 2 × 2 tiles
+  const dem::RveSnapshot big = big_rve->ToSnapshot();
+  ASSERT_EQ(big.radius.size(), 4 * small.radius.size());
+  const std::vector<store::TemplateRecord> templates = {{"small", "400 discs", small},
+                                                        {"big", "1600 discs", big}};
+  // 12 points, every third big: round robin puts all 4 big ones on server 0.
+  constexpr int kSkewed = 12;
+  std::vector<std::string> names;
+  for (int p = 0; p < kSkewed; ++p) names.push_back(p % 3 == 0 ? "big" : "small");
+  Servers servers(3);
+  ASSERT_EQ(servers.size(), 3);
+  RvePool pool(RemoteEndpoints(servers), kRun);
+  ASSERT_TRUE(pool.UploadTemplates(templates).ok());
+  ASSERT_TRUE(pool.SetAssignment({0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2}).ok());
+  ASSERT_TRUE(pool.Create(names).ok());
+  std::vector<double> sizes;
+  for (const std::string& n : names) sizes.push_back(n == "big" ? 1600.0 : 400.0);
+  pool.SetPointSizes(sizes);
+  auto delta = [](std::int64_t step) {
+    std::vector<Eigen::Matrix3d> f;
+    for (int p = 0; p < kSkewed; ++p) f.push_back(DeltaF(p, step));
+    return f;
+  };
+  // Engine seconds per point over `steps` steps from `first`.
+  std::vector<dem::RveState> last;
+  std::vector<double> seconds;
+  auto measure = [&](std::int64_t first, int steps) {
+    const std::vector<double> start = pool.point_work();
+    const std::vector<double> start_s = pool.point_engine_seconds();
+    for (std::int64_t step = first; step < first + steps; ++step) {
+      absl::StatusOr<std::vector<dem::RveState>> s = pool.Apply(step, delta(step));
+      EXPECT_TRUE(s.ok()) << s.status();
+      if (s.ok()) last = *std::move(s);
+    }
+    std::vector<double> cost = pool.point_work();
+    seconds = pool.point_engine_seconds();
+    for (int p = 0; p < kSkewed; ++p) {
+      cost[p] -= start[p];
+      seconds[p] -= start_s[p];
+    }
+    return cost;
+  };
+  auto ideal = [](const std::vector<double>& cost) {
+    double sum = 0;
+    for (double c : cost) sum += c;
+    return sum / 3;
+  };
+  const std::vector<double> naive_cost = measure(1, 5);
+  const double naive = pool.Makespan(pool.assignment(), naive_cost) / ideal(naive_cost);
+  const double naive_s = pool.Makespan(pool.assignment(), seconds) / ideal(seconds);
+  EXPECT_GT(naive, 1.5);
+  std::vector<int> plan = pool.PlanAssignment(naive_cost);
+  absl::StatusOr<std::vector<store::RveRecord>> records = pool.ExportAll();
+  ASSERT_TRUE(records.ok()) << records.status();
+  ASSERT_TRUE(pool.Migrate(plan, *records).ok());
+  const std::vector<double> balanced_cost = measure(6, 5);
+  const double balanced = pool.Makespan(pool.assignment(), balanced_cost) / ideal(balanced_cost);
+  const double balanced_s = pool.Makespan(pool.assignment(), seconds) / ideal(seconds);
+  std::printf(
+      "skewed load: makespan / ideal %.3f placed naively, %.3f balanced (by engine seconds: "
+      "%.3f, %.3f)\n",
+      naive, balanced, naive_s, balanced_s);
+  EXPECT_LT(balanced, 1.10);
+
+  // The RVEs that moved continue as if they had stayed.
+  RvePool one(EmbeddedEndpoints(1), kRun);
+  ASSERT_TRUE(one.UploadTemplates(templates).ok());
+  ASSERT_TRUE(one.Create(names).ok());
+  std::vector<dem::RveState> expected;
+  for (std::int64_t step = 1; step <= 10; ++step) {
+    absl::StatusOr<std::vector<dem::RveState>> s = one.Apply(step, delta(step));
+    ASSERT_TRUE(s.ok()) << s.status();
+    expected = *std::move(s);
+  }
+  ExpectSameStates(expected, last, "after balancing");
 }
 
 TEST(RvePoolTest, RvesSkippedAtTheDeadlineAreRetried) {

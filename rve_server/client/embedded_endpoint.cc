@@ -120,9 +120,11 @@ class EmbeddedEndpoint final : public RveEndpoint {
     return Error(registry_->Import(std::move(records)).status());
   }
 
-  absl::Status Drop(absl::string_view run) override {
-    return Error(registry_->Drop(run, {}).status());
+  absl::Status Drop(absl::string_view run, std::span<const std::int64_t> ids) override {
+    return Error(registry_->Drop(run, ids).status());
   }
+
+  absl::Status Ping(absl::Duration) override { return absl::OkStatus(); }
 
  private:
   absl::Status Error(const absl::Status& s) const { return Labelled(label(), s); }

@@ -102,8 +102,14 @@ class RveEndpoint {
   // when a (run, id) is hosted.
   virtual absl::Status Import(std::vector<store::RveRecord> records) = 0;
 
-  // Drops every RVE of the run; NotFound when the endpoint hosts none.
-  virtual absl::Status Drop(absl::string_view run) = 0;
+  // Drops RVEs of the run (empty ids: all of them); NotFound when the
+  // endpoint hosts none of the run or not one of `ids` (then nothing is
+  // dropped).
+  virtual absl::Status Drop(absl::string_view run, std::span<const std::int64_t> ids = {}) = 0;
+
+  // OK when the endpoint answers a cheap call within `timeout`: a client
+  // asks a server it lost whether it is back. Unavailable otherwise.
+  virtual absl::Status Ping(absl::Duration timeout) = 0;
 };
 
 // An RVE registry of this process's own, with `threads` workers.

@@ -335,7 +335,20 @@ class RemoteEndpoint final : public RveEndpoint {
         chunk_budget_bytes_, FromGrpc));
   }
 
-  absl::Status Drop(absl::string_view run) override { return DropIds(run, {}); }
+  absl::Status Drop(absl::string_view run, std::span<const std::int64_t> ids) override {
+    return InBatches(ids.size(), [&](std::size_t begin, std::size_t end) {
+      return DropIds(run, ids.subspan(begin, end - begin));
+    });
+  }
+
+  absl::Status Ping(absl::Duration timeout) override {
+    grpc::ClientContext ctx;
+    Ready(ctx, timeout);
+    v1::ServerInfo info;
+    const absl::Status s = FromGrpc(stub_->GetServerInfo(&ctx, v1::ServerInfoRequest(), &info));
+    if (s.ok()) return s;
+    return absl::UnavailableError(absl::StrCat(label(), " does not answer: ", s.message()));
+  }
 
  private:
   // Calls `send(begin, end)` for consecutive batches [begin, end) of `n`

@@ -313,6 +313,10 @@ absl::Status RveServer::SaveCheckpoint(const std::string& dir) {
 absl::Status RveServer::LoadCheckpoint(const std::string& dir) {
   const std::string templates_path = (std::filesystem::path(dir) / kTemplatesFile).string();
   const std::string rves_path = (std::filesystem::path(dir) / kRvesFile).string();
+  // What a write killed mid-way (kill -9, power loss) left: the checkpoint
+  // itself is the previous one, whole (written aside, then renamed).
+  store::RemoveStaleTemporaries(templates_path, /*own_too=*/true);
+  store::RemoveStaleTemporaries(rves_path, /*own_too=*/true);
   std::int64_t num_templates = 0, num_rves = 0;
   if (std::filesystem::exists(templates_path)) {
     ASSIGN_OR_RETURN(std::vector<store::TemplateRecord> t, store::ReadTemplates(templates_path));
