@@ -7,6 +7,7 @@
 // The small case is cases/single-element-biaxial.json with a fixed 2 ms time
 // step and 35 steps (0.07 s); prepared templates are shared by every test
 // process through one cache directory.
+#include <signal.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -711,6 +712,42 @@ TEST(MpmCliTest, RemoteServersGiveTheEmbeddedResult) {
   EXPECT_EQ(WithoutWallTime(ReadFile(dir + "/timeseries.csv")), expected);
   EXPECT_EQ(a.Stop(), 0) << a.Log();
   EXPECT_EQ(b.Stop(), 0) << b.Log();
+}
+
+// deploy/local_cluster.sh: N servers on loopback ports, the case across
+// them (mpm_client options passed on), every server stopped at the end; the
+// result is the embedded run's.
+TEST(MpmCliTest, LocalClusterScriptRunsACaseOnLoopbackServersAndStopsThem) {
+  const RunOutput& reference = ReferenceRun();
+  ASSERT_EQ(reference.result.exit_code, 0) << reference.result;
+  const std::string dir = TempPath("local_cluster");
+  const std::string build = fs::path(MPM_CLIENT_PATH).parent_path().parent_path().string();
+  const std::string err_path = TempPath("local_cluster_stderr.txt");
+  testing_util::CommandResult run = testing_util::RunCommand(absl::StrCat(
+      "RVEHUB_BUILD=", Quote(build), " bash ", Quote(RVEHUB_SOURCE_DIR "/deploy/local_cluster.sh"),
+      " 3 ", Quote(WriteCase("local_cluster", SmallCase())), " ", Quote(dir), " --quiet",
+      CommonFlags(), " 2>", Quote(err_path)));
+  const std::string err = ReadFile(err_path);
+  ASSERT_EQ(run.exit_code, 0) << err;
+  EXPECT_TRUE(absl::StrContains(err, "creating 4 RVEs on 3 server(s)")) << err;
+  const std::vector<std::string> addresses =
+      absl::StrSplit(ReadFile(dir + "/servers/addresses"), '\n', absl::SkipEmpty());
+  ASSERT_EQ(addresses.size(), 3u);
+  for (const std::string& a : addresses) EXPECT_TRUE(absl::StartsWith(a, "127.0.0.1:")) << a;
+  for (absl::string_view pid :
+       absl::StrSplit(ReadFile(dir + "/servers/pids"), '\n', absl::SkipEmpty())) {
+    int p = 0;
+    ASSERT_TRUE(absl::SimpleAtoi(pid, &p));
+    EXPECT_NE(kill(p, 0), 0) << "server " << p << " still runs";
+  }
+  EXPECT_EQ(WithoutWallTime(ReadFile(dir + "/timeseries.csv")),
+            WithoutWallTime(ReadFile(reference.dir + "/timeseries.csv")));
+  // A usage error is the script's own.
+  EXPECT_EQ(testing_util::RunCommand(
+                absl::StrCat("bash ", Quote(RVEHUB_SOURCE_DIR "/deploy/local_cluster.sh"),
+                             " zero x y 2>/dev/null"))
+                .exit_code,
+            2);
 }
 
 TEST(MpmCliTest, TokenFileIsSentToTheServers) {

@@ -486,6 +486,28 @@ TEST(ServiceAuth, TokenRequiredWhenSet) {
   EXPECT_EQ(hresp.status(), grpc::health::v1::HealthCheckResponse::SERVING);
 }
 
+// For orchestrators' probes (Kubernetes' gRPC probes send no metadata):
+// health answers without the token, nothing else does.
+TEST(ServiceAuth, HealthWithoutTokenOpensHealthOnly) {
+  ServerConfig config;
+  config.auth_token = "s3cret-token";
+  config.health_without_token = true;
+  ServerHarness h(config);
+  auto health = grpc::health::v1::Health::NewStub(h.channel());
+  grpc::health::v1::HealthCheckRequest hreq;
+  hreq.set_service("rvehub.v1.RveService");
+  grpc::health::v1::HealthCheckResponse hresp;
+  {
+    grpc::ClientContext ctx;
+    ASSERT_TRUE(health->Check(&ctx, hreq, &hresp).ok());
+    EXPECT_EQ(hresp.status(), grpc::health::v1::HealthCheckResponse::SERVING);
+  }
+  grpc::ClientContext ctx;
+  v1::ServerInfo info;
+  ExpectError(h.stub().GetServerInfo(&ctx, {}, &info), grpc::StatusCode::UNAUTHENTICATED,
+              "Bearer");
+}
+
 TEST(ServiceAuth, OpenWithoutToken) {
   ServerHarness h;
   grpc::ClientContext ctx;

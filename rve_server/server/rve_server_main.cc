@@ -31,6 +31,9 @@ ABSL_FLAG(int64_t, max_batch, 100000, "RVEs per call at most");
 ABSL_FLAG(int64_t, max_message_mb, 64, "gRPC message size limit, MiB, both ways");
 ABSL_FLAG(std::string, auth_token_file, "",
           "file holding a bearer token; calls must then carry \"authorization: Bearer <token>\"");
+ABSL_FLAG(bool, health_without_token, false,
+          "with --auth_token_file, grpc.health.v1.Health answers without the token (for "
+          "Kubernetes' gRPC probes, which send none); every other call still needs it");
 ABSL_FLAG(std::string, tls_cert, "", "PEM certificate chain file (with --tls_key: TLS)");
 ABSL_FLAG(std::string, tls_key, "", "PEM private key file");
 ABSL_FLAG(std::string, checkpoint_dir, "",
@@ -105,6 +108,7 @@ int main(int argc, char** argv) {
     if (!token.ok()) return Fail(token.status());
     config.auth_token = *token;
   }
+  config.health_without_token = absl::GetFlag(FLAGS_health_without_token);
   if (!absl::GetFlag(FLAGS_tls_cert).empty() || !absl::GetFlag(FLAGS_tls_key).empty()) {
     absl::StatusOr<std::string> cert =
         rvehub::ReadTextFile(absl::GetFlag(FLAGS_tls_cert), "TLS certificate");

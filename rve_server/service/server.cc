@@ -33,13 +33,16 @@ constexpr char kTemplatesFile[] = "templates.h5";
 // INVALID_ARGUMENT: bad input is the client's error, not the server's.
 class AuthInterceptor final : public grpc::experimental::Interceptor {
  public:
-  AuthInterceptor(grpc::experimental::ServerRpcInfo* info, const std::string* token)
-      : info_(info), token_(token) {}
+  AuthInterceptor(grpc::experimental::ServerRpcInfo* info, const std::string* token,
+                  bool open_health)
+      : info_(info), token_(token), open_health_(open_health) {}
 
   void Intercept(grpc::experimental::InterceptorBatchMethods* methods) override {
     using grpc::experimental::InterceptionHookPoints;
     if (methods->QueryInterceptionHookPoint(InterceptionHookPoints::POST_RECV_INITIAL_METADATA)) {
-      denied_ = !Authorized(*methods->GetRecvInitialMetadata(), *token_);
+      denied_ = !Authorized(*methods->GetRecvInitialMetadata(), *token_) &&
+                !(open_health_ &&
+                  std::string_view(info_->method()).starts_with("/grpc.health.v1.Health/"));
       // Only Watch: our own streaming methods refuse with UNAUTHENTICATED.
       if (denied_ && std::string_view(info_->method()) == "/grpc.health.v1.Health/Watch" &&
           info_->server_context() != nullptr) {
@@ -79,20 +82,23 @@ class AuthInterceptor final : public grpc::experimental::Interceptor {
  private:
   grpc::experimental::ServerRpcInfo* info_;
   const std::string* token_;
+  const bool open_health_;
   bool denied_ = false;
   bool unparsed_ = false;  // the request message did not parse
 };
 
 class AuthInterceptorFactory final : public grpc::experimental::ServerInterceptorFactoryInterface {
  public:
-  explicit AuthInterceptorFactory(std::string token) : token_(std::move(token)) {}
+  AuthInterceptorFactory(std::string token, bool open_health)
+      : token_(std::move(token)), open_health_(open_health) {}
   grpc::experimental::Interceptor* CreateServerInterceptor(
       grpc::experimental::ServerRpcInfo* info) override {
-    return new AuthInterceptor(info, &token_);
+    return new AuthInterceptor(info, &token_, open_health_);
   }
 
  private:
   const std::string token_;
+  const bool open_health_;
 };
 
 // grpc.reflection.v1, which current tools ask for first. This gRPC (1.51)
@@ -202,7 +208,8 @@ absl::StatusOr<std::unique_ptr<RveServer>> RveServer::Start(const ServerConfig& 
   builder.SetMaxSendMessageSize(static_cast<int>(config.max_message_bytes));
   {  // also without a token: it maps unparseable requests (see AuthInterceptor)
     std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> f;
-    f.push_back(std::make_unique<AuthInterceptorFactory>(config.auth_token));
+    f.push_back(
+        std::make_unique<AuthInterceptorFactory>(config.auth_token, config.health_without_token));
     builder.experimental().SetInterceptorCreators(std::move(f));
   }
   s->server_ = builder.BuildAndStart();

@@ -25,6 +25,10 @@ struct ServerConfig {
   RegistryOptions registry;
   std::int64_t max_message_bytes = 64 << 20;  // per message, both ways
   std::string auth_token;                     // empty: no authentication
+  // With a token: grpc.health.v1.Health answers without it (it tells only
+  // SERVING or NOT_SERVING), for orchestrators' probes (Kubernetes' gRPC
+  // probes carry no metadata). Everything else still needs the token.
+  bool health_without_token = false;
   std::string tls_cert_pem;                   // both set: TLS; else plaintext
   std::string tls_key_pem;
   std::string checkpoint_dir;  // set: load on start, save on Stop
