@@ -742,7 +742,7 @@ absl::Status Simulation::Recover(const absl::Status& cause, SimulationSummary& s
       pool_->MarkLost(k);
       last_probe_s_[k] = WallSeconds();
       ++sum.servers_lost;
-      Log(absl::StrFormat("server %s lost at step %d: %s", pool_->endpoint(k).name(), lost_at + 1,
+      Log(absl::StrFormat("server %s lost (run at step %d): %s", pool_->endpoint(k).name(), lost_at,
                           cause.message()));
     }
     // One restarted at once (a supervisor) takes its share again.
@@ -850,7 +850,10 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
   // as they were at some step (a recovery rewrites them from its point).
   auto step_once = [&]() -> absl::Status {
     if (absl::Status s = solver_->Step(); !s.ok()) {
-      return absl::Status(s.code(), absl::StrCat("step ", solver_->step() + 1, ": ", s.message()));
+      // The RVE pool's errors name the step already.
+      const std::string step = absl::StrCat("step ", solver_->step() + 1, ": ");
+      if (absl::StartsWith(s.message(), step)) return s;
+      return absl::Status(s.code(), absl::StrCat(step, s.message()));
     }
     ++sum.steps;
     const std::int64_t step = solver_->step();

@@ -101,7 +101,7 @@ CaseSpec LoadOrDie() {
   return spec.ok() ? *spec : CaseSpec{};
 }
 
-absl::StatusOr<SimulationSummary> Run(const SimulationOptions& o) {
+absl::StatusOr<SimulationSummary> RunCase(const SimulationOptions& o) {
   absl::StatusOr<std::unique_ptr<Simulation>> sim = Simulation::Start(LoadOrDie(), o);
   if (!sim.ok()) return sim.status();
   return (*sim)->StepToEnd();
@@ -174,7 +174,7 @@ std::int64_t StrikeStep(std::int64_t lo, std::int64_t hi) {
 std::string Reference(const std::string& name) {
   const std::string dir = FreshDir("reference_" + name);
   LogLines log;
-  absl::StatusOr<SimulationSummary> s = Run(Options(dir, &log));
+  absl::StatusOr<SimulationSummary> s = RunCase(Options(dir, &log));
   EXPECT_TRUE(s.ok() && s->finished) << s.status();
   return dir;
 }
@@ -217,7 +217,7 @@ void RunWithFault(const std::string& name, std::int64_t at, int victim,
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
   });
-  f.summary = Run(o);
+  f.summary = RunCase(o);
   done = true;
   striker.join();
 }
@@ -235,7 +235,7 @@ TEST(FaultTest, ServerKilledAtARandomStepIsRecoveredFromBitIdentically) {
   EXPECT_TRUE(f.summary->finished);
   EXPECT_EQ(f.summary->servers_lost, 1) << f.log.All();
   EXPECT_GE(f.summary->steps_replayed, 0);
-  EXPECT_TRUE(f.log.Has("lost at step")) << f.log.All();
+  EXPECT_TRUE(f.log.Has("lost (run at step")) << f.log.All();
   EXPECT_TRUE(f.log.Has("recovered in")) << f.log.All();
   EXPECT_TRUE(f.log.Has(" lost;")) << f.log.All();  // the progress line says so
   ExpectSameOutputs(reference, f.out);
@@ -254,7 +254,7 @@ TEST(FaultTest, StoppedServerIsFoundAtTheDeadlineAndRejoinsAfterSigcont) {
         s.Signal(SIGSTOP);
         const auto t0 = std::chrono::steady_clock::now();
         // Bounded wait for the client to give the server up, then wake it.
-        for (int i = 0; i < 3000 && !log.Has("lost at step"); ++i) {
+        for (int i = 0; i < 3000 && !log.Has("lost (run at step"); ++i) {
           std::this_thread::sleep_for(std::chrono::milliseconds(10));
         }
         detected_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -278,6 +278,50 @@ TEST(FaultTest, StoppedServerIsFoundAtTheDeadlineAndRejoinsAfterSigcont) {
   EXPECT_GT(f.summary->rves_moved, 0) << f.log.All();
   EXPECT_TRUE(f.log.Has("answers again")) << f.log.All();
   ExpectSameOutputs(reference, f.out);
+}
+
+// The only server killed: the client waits for one to answer (probing every
+// second, up to server_wait_s); a server restarted on the same address (a
+// supervisor's restart) is empty, takes every RVE from the recovery point,
+// and the run ends as if nothing had happened.
+TEST(FaultTest, OnlyServerKilledAndRestartedOnItsAddressTakesTheRunBack) {
+  const std::string reference = Reference("restart");
+  const std::int64_t at = StrikeStep(50, 750);
+  std::printf("SIGKILL after step %lld, restart on the same port (RVEHUB_FAULT_STEP=%lld)\n",
+              static_cast<long long>(at), static_cast<long long>(at));
+  const std::string out = FreshDir("restart");
+  auto server = std::make_unique<ServerProcess>(RVE_SERVER_PATH, out + "/server.log");
+  ASSERT_FALSE(server->address().empty());
+  const std::string address = server->address();
+  LogLines log;
+  SimulationOptions o = Options(out, &log);
+  o.servers = {address};
+  std::unique_ptr<ServerProcess> restarted;
+  std::atomic<bool> done{false};
+  std::thread striker([&] {
+    for (int i = 0; i < 120000 && !done; ++i) {  // bounded: 120 s
+      if (LastRowStep(out) >= at) {
+        server->Signal(SIGKILL);
+        // Down for a moment, as under a supervisor.
+        std::this_thread::sleep_for(std::chrono::milliseconds(500));
+        restarted =
+            std::make_unique<ServerProcess>(RVE_SERVER_PATH, out + "/restarted.log",
+                                            std::vector<std::string>{"--listen=" + address});
+        return;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+  });
+  absl::StatusOr<SimulationSummary> sum = RunCase(o);
+  done = true;
+  striker.join();
+  ASSERT_NE(restarted, nullptr);
+  EXPECT_EQ(restarted->address(), address);
+  ASSERT_TRUE(sum.ok()) << sum.status() << "\n" << log.All();
+  EXPECT_TRUE(sum->finished);
+  EXPECT_EQ(sum->servers_lost, 1) << log.All();
+  EXPECT_EQ(sum->servers_rejoined, 1) << log.All();
+  ExpectSameOutputs(reference, out);
 }
 
 // A server killed (SIGKILL) while it writes its checkpoint on SIGTERM: the
