@@ -26,6 +26,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -39,6 +40,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "mpm_client/case.h"
+#include "mpm_client/output.h"
 #include "mpm_client/simulation.h"
 
 extern char** environ;
@@ -113,14 +115,10 @@ struct Log {
 };
 
 std::int64_t LastRowStep(const std::string& out) {
-  std::ifstream in(out + "/timeseries.csv");
-  std::string line, last;
-  while (std::getline(in, line))
-    if (!line.empty()) last = line;
-  const std::vector<std::string> cells = absl::StrSplit(last, ',');
-  std::int64_t step = 0;
-  if (cells.size() < 2 || !absl::SimpleAtoi(cells[1], &step)) return 0;
-  return step;
+  absl::StatusOr<std::map<std::string, std::vector<double>>> ts =
+      mpm::ReadCsvColumns(out + "/timeseries.csv");
+  if (!ts.ok() || !ts->contains("step") || ts->at("step").empty()) return 0;  // none yet
+  return static_cast<std::int64_t>(ts->at("step").back());
 }
 
 struct Result {

@@ -31,6 +31,7 @@
 #include "absl/synchronization/mutex.h"
 #include "absl/time/clock.h"
 #include "mpm_client/case.h"
+#include "mpm_client/output.h"
 #include "mpm_client/simulation.h"
 #include "rve_server/client/endpoint.h"
 #include "store/checkpoint.h"
@@ -109,14 +110,10 @@ absl::StatusOr<SimulationSummary> RunCase(const SimulationOptions& o) {
 
 // The step of the last row of a run's timeseries.csv so far (0 before any).
 std::int64_t LastRowStep(const std::string& out) {
-  std::ifstream in(out + "/timeseries.csv");
-  std::string line, last;
-  while (std::getline(in, line))
-    if (!line.empty()) last = line;
-  const std::vector<std::string> cells = absl::StrSplit(last, ',');
-  std::int64_t step = 0;
-  if (cells.size() > 1 && !absl::SimpleAtoi(cells[1], &step)) return 0;
-  return step;
+  absl::StatusOr<std::map<std::string, std::vector<double>>> ts =
+      ReadCsvColumns(out + "/timeseries.csv");
+  if (!ts.ok() || !ts->contains("step") || ts->at("step").empty()) return 0;  // none yet
+  return static_cast<std::int64_t>(ts->at("step").back());
 }
 
 // timeseries.csv without its wall-time column (the only one that may differ).
