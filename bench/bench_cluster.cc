@@ -278,10 +278,10 @@ int main(int argc, char** argv) {
         Run(*spec, std::min(max_servers, 3), std::string("strike_") + label, at, signal, floor);
     if (!r.ok) return 1;
     std::printf(
-        "%s to server 1 of 3 after step %lld (deadline floor %.0f s): lost after %.2f s, "
+        "%s to server 1 of %d after step %lld (deadline floor %.0f s): lost after %.2f s, "
         "recovered %.3f s later; %lld steps replayed; rejoined %d, RVEs moved %lld; "
         "wall %.2f s against %.2f s without the fault (+%.2f s)\n",
-        label, static_cast<long long>(at), floor, r.detect_s, r.recover_s,
+        label, std::min(max_servers, 3), static_cast<long long>(at), floor, r.detect_s, r.recover_s,
         static_cast<long long>(r.sum.steps_replayed), r.sum.servers_rejoined,
         static_cast<long long>(r.sum.rves_moved), r.sum.wall_s, clean.sum.wall_s,
         r.sum.wall_s - clean.sum.wall_s);
