@@ -11,7 +11,9 @@
 // share of the compute of a default increment (full − zero + engine). Runs
 // with 1 worker thread and with all cores.
 //
-//   build/bench/bench_service [--rves=256] [--reps=20]
+//   build/bench/bench_service [--rves=256] [--reps=20] [--zero-only]
+// --zero-only: only the zero-step calls over gRPC, 1 thread (for a profile
+// of the service path alone, e.g. under perf record).
 #include <grpcpp/grpcpp.h>
 
 #include <algorithm>
@@ -59,7 +61,8 @@ v1::ApplyRequest Batch(const std::string& run, std::int64_t step, int rves, doub
   return req;
 }
 
-Figures Measure(const dem::RveSnapshot& packing, int threads, int rves, int reps) {
+Figures Measure(const dem::RveSnapshot& packing, int threads, int rves, int reps,
+                bool zero_only = false) {
   service::ServerConfig config;
   config.listen = "127.0.0.1:0";
   config.registry.threads = threads;
@@ -107,7 +110,11 @@ Figures Measure(const dem::RveSnapshot& packing, int threads, int rves, int reps
   };
   for (int r = 0; r < reps; ++r) {
     f.zero_us = std::min(f.zero_us, time_call(Batch("zero", r + 1, rves, 0.0)));
-    f.full_us = std::min(f.full_us, time_call(Batch("full", r + 1, rves, 1e-5)));
+    if (!zero_only) f.full_us = std::min(f.full_us, time_call(Batch("full", r + 1, rves, 1e-5)));
+  }
+  if (zero_only) {
+    (void)(*server)->Stop(std::chrono::seconds(1));
+    return f;
   }
   f.ping_us = 1e30;
   for (int r = 0; r < reps; ++r) {
@@ -156,7 +163,9 @@ Figures Measure(const dem::RveSnapshot& packing, int threads, int rves, int reps
 
 int main(int argc, char** argv) {
   int rves = 256, reps = 20;
+  bool zero_only = false;
   for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--zero-only") == 0) zero_only = true;
     if (std::strncmp(argv[i], "--rves=", 7) == 0) rves = std::atoi(argv[i] + 7);
     if (std::strncmp(argv[i], "--reps=", 7) == 0) reps = std::atoi(argv[i] + 7);
   }
@@ -172,6 +181,11 @@ int main(int argc, char** argv) {
               packing->radius.size(), reps);
   std::printf("%8s %12s %12s %12s %12s %14s %14s %10s\n", "threads", "zero us/RVE", "registry us",
               "engine us", "full us/RVE", "overhead us", "compute us", "share");
+  if (zero_only) {
+    const Figures f = Measure(*packing, 1, rves, reps, /*zero_only=*/true);
+    std::printf("zero-step calls over gRPC, 1 thread: %.2f us per RVE\n", f.zero_us);
+    return 0;
+  }
   const int cores = std::max(1u, std::thread::hardware_concurrency());
   std::vector<int> thread_counts = {1};
   if (cores > 1) thread_counts.push_back(cores);
