@@ -164,6 +164,7 @@ absl::Status Simulation::Connect() {
   }
   pool_ = std::make_unique<RvePool>(std::move(endpoints), run_id_, po);
   last_probe_s_.assign(pool_->num_endpoints(), 0.0);
+  probe_wait_s_.assign(pool_->num_endpoints(), options_.probe_interval_s);
   return absl::OkStatus();
 }
 
@@ -683,10 +684,14 @@ bool Simulation::ProbeLost(bool force, SimulationSummary& sum) {
   for (int k = 0; k < pool_->num_endpoints(); ++k) {
     if (!pool_->lost(k)) continue;
     const double now = WallSeconds();
-    if (!force && now - last_probe_s_[k] < options_.probe_interval_s) continue;
+    if (!force && now - last_probe_s_[k] < probe_wait_s_[k]) continue;
     last_probe_s_[k] = now;
     client::RveEndpoint& e = pool_->endpoint(k);
-    if (!e.Ping(absl::Seconds(1)).ok()) continue;
+    if (!e.Ping(absl::Seconds(1)).ok()) {
+      probe_wait_s_[k] = std::min(2 * probe_wait_s_[k], 12 * options_.probe_interval_s);
+      continue;
+    }
+    probe_wait_s_[k] = options_.probe_interval_s;
     // What it may still hold of this run is stale: it starts empty.
     if (absl::Status s = e.Drop(pool_->run_id()); !s.ok() && !absl::IsNotFound(s)) continue;
     pool_->MarkAlive(k);

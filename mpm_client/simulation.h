@@ -50,7 +50,8 @@ struct SimulationOptions {
   double rebalance_threshold = 0.1;
   // With every server lost, how long to wait for one to answer again, s.
   double server_wait_s = 60;
-  // A lost server is asked whether it is back at most this often, s.
+  // A lost server is asked whether it is back at most this often, s (the
+  // wait doubles while it does not answer, up to 12 × this).
   double probe_interval_s = 5;
   // Prepared templates are cached here; empty: <out_dir>/templates.
   std::string template_cache_dir;
@@ -164,6 +165,10 @@ class Simulation {
   std::vector<double> cost_checked_;     // RvePool::point_work at the last balance check
   int imbalance_streak_ = 0;
   std::vector<double> last_probe_s_;  // per server, wall clock of its last probe, s
+  // Per server, the wait before its next probe, s: probe_interval_s, doubled
+  // after each unanswered probe up to 12 × that (a hung server costs its
+  // probe's deadline each time).
+  std::vector<double> probe_wait_s_;
   // At the last progress line: per server busy and engine seconds, and the
   // pool's Apply wall time.
   std::vector<double> busy_shown_, engine_shown_;
