@@ -848,6 +848,11 @@ Field<S> OptionalFiniteField(absl::string_view key, double S::*m, Range range) {
       }};
 }
 
+bool IsShaken(const Wall& w) { return !w.shaking_amplitude.isZero(0.0); }
+// A shaking table's speeds are of cm/s to m/s; its frequencies of Hz.
+constexpr Range kShakingSpeed{-100.0, 100.0, false, false};   // m/s
+constexpr Range kShakingFrequency{0.0, 1000.0, true, false};  // Hz
+
 // `lines`: the grid's, for snapping the position (null when only writing).
 Fields<Wall> WallFields(const GridLines* lines) {
   return {
@@ -864,6 +869,17 @@ Fields<Wall> WallFields(const GridLines* lines) {
       FrictionField<Wall>("kind"),
       OptionalFiniteField("remove_time", &Wall::remove_time, kNonNegative),
       FlagField("unilateral", &Wall::unilateral),
+      {"shaking_amplitude",
+       [](const Object& o, Wall* w) {
+         return GetVec2(o, "shaking_amplitude", Need::kOptional, kShakingSpeed,
+                        &w->shaking_amplitude);
+       },
+       [](const Wall& w, OrderedJson& j) {
+         if (IsShaken(w)) j["shaking_amplitude"] = Vec(w.shaking_amplitude);
+       }},
+      Only(&IsShaken, "only with a shaking_amplitude other than [0, 0]",
+           NumberField("shaking_frequency", &Wall::shaking_frequency, Need::kRequired,
+                       kShakingFrequency)),
   };
 }
 

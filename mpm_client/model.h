@@ -8,8 +8,10 @@
 #define RVEHUB_MPM_CLIENT_MODEL_H_
 
 #include <Eigen/Dense>
+#include <cmath>
 #include <cstdint>
 #include <limits>
+#include <numbers>
 #include <string>
 #include <vector>
 
@@ -105,7 +107,18 @@ struct Wall {
   double friction = 0.0;        // μ for kFrictional, [-]
   double remove_time = kNever;  // s: the wall is gone from then on (a gate)
   bool unilateral = false;
+  // A shaken wall (a shaking table, a shaken box): its velocity is
+  // amplitude · sin(2π · frequency · t), m/s, held by the nodes of its grid
+  // line (the line stays where it is: for displacements well below a cell).
+  Eigen::Vector2d shaking_amplitude = Eigen::Vector2d::Zero();  // m/s
+  double shaking_frequency = 0.0;                               // Hz
 };
+
+// The velocity of `wall` at time t (s), m/s: zero unless shaken.
+inline Eigen::Vector2d WallVelocity(const Wall& wall, double t) {
+  if (!(wall.shaking_frequency > 0.0)) return Eigen::Vector2d::Zero();
+  return wall.shaking_amplitude * std::sin(2.0 * std::numbers::pi * wall.shaking_frequency * t);
+}
 
 // A rigid body with a prescribed velocity history. It meets the soil at the
 // soil's surface (mpm_client/body_contact.h): the faces of the material

@@ -79,13 +79,15 @@ double Solver::MixtureMass() const {
   return m;
 }
 
-void Solver::ConstrainFluid(std::vector<Vector2d>& velocity) {
+void Solver::ConstrainFluid(std::vector<Vector2d>& velocity, double wall_time) {
   std::fill(fluid_fixed_.begin(), fluid_fixed_.end(), std::uint8_t{0});
   for (std::size_t w = 0; w < walls_.size(); ++w) {
     if (walls_[w].remove_time <= time_) continue;
     const int axis = walls_[w].axis;
+    // Impermeable: the water's normal velocity is the wall's.
+    const double normal = WallVelocity(walls_[w], wall_time)[axis];
     for (std::int32_t node : wall_nodes_[w]) {
-      velocity[node][axis] = 0.0;
+      velocity[node][axis] = normal;
       fluid_fixed_[node] |= static_cast<std::uint8_t>(1 << axis);
     }
   }
@@ -207,7 +209,7 @@ absl::Status Solver::StepSaturated() {
   if (fit) RETURN_IF_ERROR(FitNodalPressure());
   std::fill(impulse_.begin(), impulse_.end(), Vector2d::Zero());
   Constrain(node_velocity_, time_, alpha);
-  ConstrainFluid(node_fluid_velocity_);
+  ConstrainFluid(node_fluid_velocity_, time_);
 
   // (2) ΔF from the solid's velocity (eq. 31), volumes (eq. 35); the
   // effective stress from the model.
@@ -258,7 +260,7 @@ absl::Status Solver::StepSaturated() {
     node_fluid_velocity_new_[i] = v.fluid;
   }
   Constrain(node_velocity_new_, time_ + dt_, 1.0);
-  ConstrainFluid(node_fluid_velocity_new_);
+  ConstrainFluid(node_fluid_velocity_new_, time_ + dt_);
 
   // (5) Pressure Poisson (eq. 17): Σ_J L_IJ Δp_J = −(1/Δt) Σ_p S_Ip V_p
   // [(1 − n)∇·v_s* + n ∇·v_f*]_p, L_IJ = Σ_p mobility_p ∇S_Ip·∇S_Jp V_p;
@@ -340,7 +342,7 @@ absl::Status Solver::StepSaturated() {
     node_fluid_velocity_new_[i] += (dt_ / node_fluid_mass_[i]) * node_fluid_force_[i];
   }
   Constrain(node_velocity_new_, time_ + dt_, 1.0);
-  ConstrainFluid(node_fluid_velocity_new_);
+  ConstrainFluid(node_fluid_velocity_new_, time_ + dt_);
 
   // (7) G2P (eqs. 33–34): both phases' velocities (PIC fraction α), the
   // position with the solid's. The pore pressure is interpolated from the

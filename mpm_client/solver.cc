@@ -537,16 +537,19 @@ void Solver::Constrain(std::vector<Eigen::Vector2d>& velocity, double body_time,
     // What a wall holds, the body contacts below leave alone: the normal
     // velocity, and the tangential one of a rough wall.
     const std::uint8_t held = wall.contact == ContactKind::kRough ? 3 : (wall.axis == 0 ? 1 : 2);
+    // A shaken wall: the contact acts on the velocity relative to it.
+    const Vector2d moving = WallVelocity(wall, body_time);
     for (std::int32_t node : wall_nodes_[w]) {
       if (node_mass_[node] <= min_node_mass_) continue;
+      const Vector2d relative = velocity[node] - moving;
       const double m_plus = wall_lines_[w] < last_line ? node_mass_[node + stride] : 0.0;
       const double m_minus = wall_lines_[w] > 0 ? node_mass_[node - stride] : 0.0;
       const double side = m_plus > m_minus   ? 1.0
                           : m_plus < m_minus ? -1.0
-                                             : (velocity[node].dot(axis) <= 0.0 ? 1.0 : -1.0);
-      if (wall.unilateral && velocity[node].dot(side * axis) >= 0.0) continue;  // separating
-      const Vector2d v = ContactVelocity(velocity[node], side * axis, wall.contact, wall.friction,
-                                         !wall.unilateral);
+                                             : (relative.dot(axis) <= 0.0 ? 1.0 : -1.0);
+      if (wall.unilateral && relative.dot(side * axis) >= 0.0) continue;  // separating
+      const Vector2d v = moving + ContactVelocity(relative, side * axis, wall.contact,
+                                                  wall.friction, !wall.unilateral);
       impulse_[w] += (weight * node_mass_[node]) * (v - velocity[node]);
       velocity[node] = v;
       node_fixed_[node] |= held;

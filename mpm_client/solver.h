@@ -169,7 +169,8 @@ class Solver {
   // loads' forces; OutOfRange for a point off the grid.
   absl::Status EvaluateShapes();
   // Applies the walls' and bodies' constraints at time t to the nodal
-  // velocities, with the bodies moving at their velocity at body_time;
+  // velocities, with the bodies and shaken walls moving at their velocity
+  // at body_time;
   // adds weight × (momentum change) of each to impulse_.
   void Constrain(std::vector<Eigen::Vector2d>& velocity, double body_time, double weight);
   // The points' faces near each body at the step's start (contacts_).
@@ -190,9 +191,10 @@ class Solver {
   absl::Status AddLoadForces();
   // The two-phase step (saturated.cc).
   absl::Status StepSaturated();
-  // Impermeable walls: the fluid's velocity normal to each wall's line is 0
-  // (fluid_fixed_ records the components held).
-  void ConstrainFluid(std::vector<Eigen::Vector2d>& velocity);
+  // Impermeable walls: the fluid's velocity normal to each wall's line is the
+  // wall's at wall_time (0 unless shaken; fluid_fixed_ records the
+  // components held).
+  void ConstrainFluid(std::vector<Eigen::Vector2d>& velocity, double wall_time);
   // The nodes whose pore pressure is prescribed this step (drained lines,
   // the free surface), into pressure_fixed_ (NaN: free).
   void FindDrainedNodes();

@@ -60,7 +60,8 @@ constexpr char kFullCase[] = R"json({
   "walls": [
     {"name": "base", "kind": "fixed", "line": "y", "position": 0, "unilateral": true},
     {"name": "left", "kind": "roller", "line": "x", "position": 0, "remove_time": 0.1},
-    {"name": "right", "kind": "frictional", "line": "x", "position": 2, "friction": 0.4}
+    {"name": "right", "kind": "frictional", "line": "x", "position": 2, "friction": 0.4,
+     "shaking_amplitude": [0.0785, 0], "shaking_frequency": 2.5}
   ],
   "bodies": [
     {"name": "footing", "shape": "rectangle", "center": [0.5, 1.75], "half_size": [0.25, 0.25],
@@ -185,6 +186,9 @@ TEST_F(CaseTest, FullCaseParsesIntoExpectedSpec) {
   EXPECT_EQ(spec->walls[2].position, 2.0);
   EXPECT_EQ(spec->walls[2].contact, ContactKind::kFrictional);
   EXPECT_EQ(spec->walls[2].friction, 0.4);
+  EXPECT_EQ(spec->walls[2].shaking_amplitude, Eigen::Vector2d(0.0785, 0.0));
+  EXPECT_EQ(spec->walls[2].shaking_frequency, 2.5);
+  EXPECT_EQ(spec->walls[0].shaking_frequency, 0.0);
 
   ASSERT_EQ(spec->bodies.size(), 2u);
   const RigidBody& footing = spec->bodies[0];
@@ -331,6 +335,8 @@ void ExpectSameSpec(const CaseSpec& a, const CaseSpec& b) {
     EXPECT_EQ(a.walls[i].friction, b.walls[i].friction);
     EXPECT_EQ(a.walls[i].remove_time, b.walls[i].remove_time);
     EXPECT_EQ(a.walls[i].unilateral, b.walls[i].unilateral);
+    EXPECT_EQ(a.walls[i].shaking_amplitude, b.walls[i].shaking_amplitude);
+    EXPECT_EQ(a.walls[i].shaking_frequency, b.walls[i].shaking_frequency);
   }
   ASSERT_EQ(a.bodies.size(), b.bodies.size());
   for (size_t i = 0; i < a.bodies.size(); ++i) {
@@ -468,6 +474,11 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
       {"/walls/2/friction", 0, "/walls/2/friction: must be > 0, got 0"},
       {"/walls/0/unilateral", "yes",
        "/walls/0/unilateral: must be true or false, got string \"yes\""},
+      {"/walls/2/shaking_frequency", 0, "/walls/2/shaking_frequency: must be in (0, 1000], got 0"},
+      {"/walls/2/shaking_amplitude", Json::array({500, 0}),
+       "/walls/2/shaking_amplitude/0: must be in [-100, 100], got 500"},
+      {"/walls/0/shaking_frequency", 2,
+       "/walls/0/shaking_frequency: only with a shaking_amplitude other than [0, 0]"},
       {"/bodies/0/half_size/1", -1, "/bodies/0/half_size/1: must be > 0, got -1"},
       {"/output/frame_every", 0, "/output/frame_every: must be an integer >= 1, got 0"},
       {"/output/checkpoint_every", -1, "/output/checkpoint_every: must be an integer >= 0, got -1"},
