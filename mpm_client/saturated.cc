@@ -96,12 +96,30 @@ void Solver::ConstrainFluid(std::vector<Vector2d>& velocity, double wall_time) {
 void Solver::FindDrainedNodes() {
   std::fill(pressure_fixed_.begin(), pressure_fixed_.end(), kFree);
   const int nx = grid_.nx + 1, ny = grid_.ny + 1;
-  // A node's share of soil: Σ_p S_Ip V_p over its own volume h²·t, [-] (1
-  // inside the soil, ½ on a flat face, ¼ at a corner).
+  // A node's share of soil: Σ_p S_Ip V_p over the part of its volume h²·t
+  // that lies inside the domain, [-] (1 inside the soil, ½ on a flat free
+  // face, ¼ at a free corner). A wall or the grid's edge bounds the domain:
+  // a node on it has half its volume (a quarter in a corner of two), so the
+  // soil along a wall is no free surface (the wall is impermeable).
   const double full = grid_.cell_size * grid_.cell_size * solver_.thickness;
+  std::fill(node_domain_.begin(), node_domain_.end(), 1.0);
+  for (int i = 0; i < nx; ++i) {
+    for (int j : {0, ny - 1}) node_domain_[j * nx + i] *= 0.5;
+  }
+  for (int j = 0; j < ny; ++j) {
+    for (int i : {0, nx - 1}) node_domain_[j * nx + i] *= 0.5;
+  }
+  for (std::size_t w = 0; w < walls_.size(); ++w) {
+    const int last_line = walls_[w].axis == 0 ? grid_.nx : grid_.ny;
+    // Walls on the grid's edge are counted there already.
+    if (walls_[w].remove_time <= time_ || wall_lines_[w] == 0 || wall_lines_[w] == last_line) {
+      continue;
+    }
+    for (std::int32_t node : wall_nodes_[w]) node_domain_[node] *= 0.5;
+  }
   for (int node = 0; node < nx * ny; ++node) {
     if (!(node_mass_[node] > min_node_mass_)) continue;
-    const double fraction = node_volume_[node] / full;
+    const double fraction = node_volume_[node] / (full * node_domain_[node]);
     if (phases_.drained_free_surface && fraction < kSurfaceFraction) {
       pressure_fixed_[node] = 0.0;  // on the free surface (or outside it)
     } else if (fraction < kEmptyFraction) {

@@ -247,6 +247,7 @@ class Solver {
   std::vector<double> pressure_fixed_;                    // prescribed p, Pa, or NaN
   std::vector<double> node_dp_;                           // p^{n+1} − p^n, Pa
   std::vector<double> node_volume_;                       // Σ_p S_Ip V_p, m³
+  std::vector<double> node_domain_;  // share of a node's volume inside walls and grid, [-]
   std::vector<std::uint8_t> fluid_fixed_;                 // per node: components walls hold
   int pressure_iterations_ = 0;
 };

@@ -354,9 +354,9 @@ TEST(SimulationTest, SaturatedConsolidationFollowsTerzaghi) {
 // (it blew up at 0.094 s before the free-surface nodes were taken as those
 // under 0.9 of soil). The dilating dense column draws the water in: excess
 // pore pressure negative at both monitors from the first steps (measured:
-// Δp/σ'v0 = −1.63 in the middle, −0.97 at the base at 0.06 s), and it moves
+// Δp/σ'v0 = −1.71 in the middle, −1.16 at the base at 0.06 s), and it moves
 // far more slowly than the dry column with the same Δt (front 1.516 m,
-// kinetic-energy peak 845 J at 0.6 s): measured 1.088 m and 139 J.
+// kinetic-energy peak 845 J at 0.6 s): measured 1.081 m and 126 J.
 TEST(SimulationTest, SaturatedDenseColumnCollapsesSlowlyWithSuction) {
   CaseSpec spec = LoadOrDie("collapse-saturated-ci");
   ASSERT_TRUE(spec.phases.saturated);

@@ -50,6 +50,13 @@ std::vector<ParameterSet> AllSets() {
   sets.back().preparation.pressure = 20e3;
   // liang-zhao-wu-soga Table 1: μ = 0.545, porosity n = 0.161 at 100 kPa.
   sets.push_back(Make("consolidation", 600e6, 0.8, 0.545, 0.161 / (1.0 - 0.161)));
+  // liang-zhao-wu-soga §4.2–4.3: Table 1's material, packed to the dense,
+  // medium and loose void ratios of the cyclic shaking and the saturated
+  // collapse (at 100 kPa).
+  for (auto [name, e0] : {std::tuple{"saturated-dense", 0.21}, std::tuple{"saturated-medium", 0.23},
+                          std::tuple{"saturated-loose", 0.24}}) {
+    sets.push_back(Make(name, 600e6, 0.8, 0.545, e0));
+  }
   // guo-zhao-2014 §5: loose RVEs for cyclic shear (strain / stress control).
   sets.push_back(Make("cyclic-loose", 600e6, 0.8, TanDeg(28.6), 0.223));
   sets.push_back(Make("cyclic-loose-stress", 600e6, 0.8, TanDeg(28.6), 0.209));
