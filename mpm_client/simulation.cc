@@ -190,6 +190,8 @@ std::vector<std::string> Simulation::Columns() const {
     for (const PressureMonitor& m : spec_.phases.monitors) {
       c.push_back(m.name + "_p");
       c.push_back(m.name + "_excess_ratio");
+      c.push_back(m.name + "_sxy");
+      c.push_back(m.name + "_ux");
     }
   }
   return c;
@@ -367,11 +369,15 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
     double settlement = 0.0;
     for (std::size_t i : out_->top_row) settlement += mp.position0[i].y() - mp.position[i].y();
     row.push_back(out_->top_row.empty() ? 0.0 : settlement / out_->top_row.size());
-    // Each monitor's pore pressure (Pa) and excess ratio Δp/σ'yy,0 [-].
+    // Each monitor's pore pressure (Pa) and excess ratio Δp/σ'yy,0 [-],
     for (std::size_t i : out_->monitor_points) {
       const double excess = mp.pore_pressure[i] - RestPressure(spec_, mp.position[i].y());
       row.push_back(mp.pore_pressure[i]);
       row.push_back(mp.vertical_stress0[i] > 0 ? excess / mp.vertical_stress0[i] : 0.0);
+      // Its effective shear stress (Pa) and horizontal displacement (m): the
+      // σxy–u_x loops of cyclic loading.
+      row.push_back(mp.stress[i](0, 1));
+      row.push_back(mp.position[i].x() - mp.position0[i].x());
     }
   }
   for (double& v : row) v += 0.0;  // −0 (a negated zero) reads as 0
