@@ -149,7 +149,8 @@ void RvePool::Assign(std::span<const double> cost) {
 double RvePool::Makespan(std::span<const int> assignment, std::span<const double> cost) const {
   std::vector<double> load(endpoints_.size(), 0.0);
   for (std::size_t p = 0; p < assignment.size() && p < cost.size(); ++p) {
-    load[assignment[p]] += CostOf(cost[p]);
+    const int k = assignment[p];
+    if (k >= 0 && k < num_endpoints()) load[k] += CostOf(cost[p]);  // else it counts nothing
   }
   double makespan = 0.0;
   for (int k = 0; k < num_endpoints(); ++k) {
@@ -398,8 +399,8 @@ absl::Status RvePool::Judge(int k, std::int64_t step,
     ++stats.increments;
     stats.dem_steps += o.state.steps;
     stats.engine_seconds += o.engine_seconds;
-    point_seconds_[o.id] += o.engine_seconds;
-    const std::size_t id = static_cast<std::size_t>(o.id);
+    const std::size_t id = static_cast<std::size_t>(o.id);  // checked by Collect
+    point_seconds_[id] += o.engine_seconds;
     point_work_[id] +=
         static_cast<double>(o.state.steps) * (id < point_size_.size() ? point_size_[id] : 1.0);
     ++stats.histogram[ApplyStats::Bin(o.state.steps)];

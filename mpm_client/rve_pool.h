@@ -95,7 +95,8 @@ class RvePool {
   // endpoint.
   absl::Status SetAssignment(std::vector<int> endpoint_of_point);
   // Σ cost per worker of the busiest endpoint under `assignment`: a step's
-  // makespan in the cost's unit.
+  // makespan in the cost's unit. An endpoint index out of range counts
+  // nothing.
   double Makespan(std::span<const int> assignment, std::span<const double> cost) const;
 
   // Endpoint liveness. An endpoint whose call failed for good with a

@@ -731,8 +731,8 @@ absl::Status Simulation::Rebalance(bool force, SimulationSummary& sum) {
   RETURN_IF_ERROR(pool_->Migrate(std::move(plan), recovery_->rves));
   sum.rves_moved += moved;
   Log(
-      absl::StrFormat("balanced at step %d: %d RVEs moved; measured makespan %.3g -> %.3g s per "
-                      "interval",
+      absl::StrFormat("balanced at step %d: %d RVEs moved; makespan %.4g -> %.4g particle-steps "
+                      "per worker since the last check",
                       solver_->step(), moved, now, planned));
   return absl::OkStatus();
 }

@@ -185,18 +185,18 @@ std::vector<std::unique_ptr<ServerProcess>> StartServers(int n, const std::strin
   return servers;
 }
 
-// Runs the case on 3 server processes while `strike` (from another thread)
-// hits server `victim` once the run has passed step `at`.
+// Runs the case on `count` server processes while `strike` (from another
+// thread) hits server `victim` once the run has passed step `at`.
 struct Faulted {
   absl::StatusOr<SimulationSummary> summary;
   std::string out;
   LogLines log;
 };
-void RunWithFault(const std::string& name, std::int64_t at, int victim,
+void RunWithFault(const std::string& name, int count, std::int64_t at, int victim,
                   const std::function<void(ServerProcess&, const LogLines&)>& strike,
                   const std::function<void(SimulationOptions&)>& tune, Faulted& f) {
   f.out = FreshDir(name);
-  std::vector<std::unique_ptr<ServerProcess>> servers = StartServers(3, f.out);
+  std::vector<std::unique_ptr<ServerProcess>> servers = StartServers(count, f.out);
   SimulationOptions o = Options(f.out, &f.log);
   for (const auto& s : servers) {
     ASSERT_FALSE(s->address().empty());
@@ -226,7 +226,7 @@ TEST(FaultTest, ServerKilledAtARandomStepIsRecoveredFromBitIdentically) {
               static_cast<long long>(at), static_cast<long long>(at));
   Faulted f;
   RunWithFault(
-      "kill", at, 1, [](ServerProcess& s, const LogLines&) { s.Signal(SIGKILL); },
+      "kill", 3, at, 1, [](ServerProcess& s, const LogLines&) { s.Signal(SIGKILL); },
       [](SimulationOptions&) {}, f);
   ASSERT_TRUE(f.summary.ok()) << f.summary.status() << "\n" << f.log.All();
   EXPECT_TRUE(f.summary->finished);
@@ -246,7 +246,7 @@ TEST(FaultTest, StoppedServerIsFoundAtTheDeadlineAndRejoinsAfterSigcont) {
   double detected_s = -1;
   Faulted f;
   RunWithFault(
-      "stop", at, 2,
+      "stop", 3, at, 2,
       [&](ServerProcess& s, const LogLines& log) {
         s.Signal(SIGSTOP);
         const auto t0 = std::chrono::steady_clock::now();
@@ -289,39 +289,28 @@ TEST(FaultTest, OnlyServerKilledAndRestartedOnItsAddressTakesTheRunBack) {
   const std::int64_t at = StrikeStep(50, 750);
   std::printf("SIGKILL after step %lld, restart on the same port (RVEHUB_FAULT_STEP=%lld)\n",
               static_cast<long long>(at), static_cast<long long>(at));
-  const std::string out = FreshDir("restart");
-  auto server = std::make_unique<ServerProcess>(RVE_SERVER_PATH, out + "/server.log");
-  ASSERT_FALSE(server->address().empty());
-  const std::string address = server->address();
-  LogLines log;
-  SimulationOptions o = Options(out, &log);
-  o.servers = {address};
   std::unique_ptr<ServerProcess> restarted;
-  std::atomic<bool> done{false};
-  std::thread striker([&] {
-    for (int i = 0; i < 120000 && !done; ++i) {  // bounded: 120 s
-      if (LastRowStep(out) >= at) {
-        server->Signal(SIGKILL);
+  std::string address;
+  Faulted f;
+  RunWithFault(
+      "restart", 1, at, 0,
+      [&](ServerProcess& s, const LogLines&) {
+        address = s.address();
+        s.Signal(SIGKILL);
         // Down for a moment, as under a supervisor.
         std::this_thread::sleep_for(std::chrono::milliseconds(500));
         restarted =
-            std::make_unique<ServerProcess>(RVE_SERVER_PATH, out + "/restarted.log",
+            std::make_unique<ServerProcess>(RVE_SERVER_PATH, f.out + "/restarted.log",
                                             std::vector<std::string>{"--listen=" + address});
-        return;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    }
-  });
-  absl::StatusOr<SimulationSummary> sum = RunCase(o);
-  done = true;
-  striker.join();
+      },
+      [](SimulationOptions&) {}, f);
   ASSERT_NE(restarted, nullptr);
   EXPECT_EQ(restarted->address(), address);
-  ASSERT_TRUE(sum.ok()) << sum.status() << "\n" << log.All();
-  EXPECT_TRUE(sum->finished);
-  EXPECT_EQ(sum->servers_lost, 1) << log.All();
-  EXPECT_EQ(sum->servers_rejoined, 1) << log.All();
-  ExpectSameOutputs(reference, out);
+  ASSERT_TRUE(f.summary.ok()) << f.summary.status() << "\n" << f.log.All();
+  EXPECT_TRUE(f.summary->finished);
+  EXPECT_EQ(f.summary->servers_lost, 1) << f.log.All();
+  EXPECT_EQ(f.summary->servers_rejoined, 1) << f.log.All();
+  ExpectSameOutputs(reference, f.out);
 }
 
 // A server killed (SIGKILL) while it writes its checkpoint on SIGTERM: the

@@ -66,6 +66,20 @@ TEST(TwoPhaseKernelTest, PermeabilityAndTerzaghi) {
 
 // --- columns
 
+// A rough base at y = 0 and smooth walls at x = 0 and x = width.
+std::vector<Wall> BoxWalls(double width) {
+  Wall base, left, right;
+  base.name = "base";
+  base.axis = 1;
+  base.contact = ContactKind::kRough;
+  left.name = "left";
+  left.axis = 0;
+  right = left;
+  right.name = "right";
+  right.position = width;
+  return {base, left, right};
+}
+
 // A 1 m column of nx = 1 cell of h = 0.02 m (50 cells, 2 × 2 points each)
 // on a fixed base between smooth walls, saturated, drained at the top.
 struct Column {
@@ -88,16 +102,7 @@ struct Column {
     soil.points_per_cell_side = 2;
     soil.density = (1.0 - kPorosity) * kRhoS;  // the solids' mass per volume
     spec.regions = {soil};
-    Wall base, left, right;
-    base.name = "base";
-    base.axis = 1;
-    base.contact = ContactKind::kRough;
-    left.name = "left";
-    left.axis = 0;
-    right = left;
-    right.name = "right";
-    right.position = kCell;
-    spec.walls = {base, left, right};
+    spec.walls = BoxWalls(kCell);
     spec.phases.saturated = true;
     spec.phases.fluid_density = kRhoF;
     spec.phases.permeability = permeability;
@@ -270,17 +275,11 @@ CaseSpec SaturatedBlock(double width, bool gate_removed, double k, double dt) {
   soil.points_per_cell_side = 2;
   soil.density = 0.8 * 2650.0;
   spec.regions = {soil};
-  Wall base, left, right;
-  base.name = "base";
-  base.axis = 1;
-  base.contact = ContactKind::kRough;
-  left.name = "left";
-  left.axis = 0;
-  right = left;
-  right.name = gate_removed ? "gate" : "right";
-  right.position = width;
-  if (gate_removed) right.remove_time = 0.0;
-  spec.walls = {base, left, right};
+  spec.walls = BoxWalls(width);
+  if (gate_removed) {
+    spec.walls[2].name = "gate";
+    spec.walls[2].remove_time = 0.0;
+  }
   spec.phases.saturated = true;
   spec.phases.permeability = k;
   spec.phases.porosity = 0.2;
