@@ -910,6 +910,28 @@ absl::Status ParseVelocity(const Json& j, const std::string& ptr,
   return absl::OkStatus();
 }
 
+absl::Status ParseLoadHistory(const Json& j, const std::string& ptr,
+                              std::vector<LoadFactorPoint>* history) {
+  if (!j.is_array() || j.empty()) {
+    return Bad(ptr, "must be a non-empty array of [t, factor] (s, -), got ", Got(j));
+  }
+  for (size_t i = 0; i < j.size(); ++i) {
+    const std::string at = Child(ptr, i);
+    if (!j[i].is_array() || j[i].size() != 2) {
+      return Bad(at, "must be an array of 2 numbers [t, factor] (s, -), got ", Got(j[i]));
+    }
+    LoadFactorPoint p;
+    RETURN_IF_ERROR(ReadNumber(j[i][0], Child(at, 0), kNonNegative, &p.time));
+    RETURN_IF_ERROR(ReadNumber(j[i][1], Child(at, 1), kAny, &p.factor));
+    if (!history->empty() && p.time <= history->back().time) {
+      return Bad(Child(at, 0), "times must increase strictly, got ", Num(p.time), " s after ",
+                 Num(history->back().time), " s");
+    }
+    history->push_back(p);
+  }
+  return absl::OkStatus();
+}
+
 constexpr Table<RigidBody::Shape> kBodyShapes = {{"rectangle", RigidBody::Shape::kRectangle},
                                                  {"circle", RigidBody::Shape::kCircle}};
 absl::string_view BodyShapeName(RigidBody::Shape shape) {
@@ -1009,6 +1031,22 @@ Fields<SurfaceTraction> TractionFields(const std::vector<MaterialRegion>* region
        },
        [](const SurfaceTraction& t, OrderedJson& j) { j["traction"] = Vec(t.traction); }},
       NumberField("ramp_time", &SurfaceTraction::ramp_time, Need::kOptional, kNonNegative),
+      {"history",
+       [](const Object& o, SurfaceTraction* t) -> absl::Status {
+         const Json* h = o.Get("history");
+         if (h == nullptr) return absl::OkStatus();
+         if (t->ramp_time > 0.0) {
+           return Bad(o.At("history"), "give either \"history\" or \"ramp_time\", not both");
+         }
+         return ParseLoadHistory(*h, o.At("history"), &t->history);
+       },
+       [](const SurfaceTraction& t, OrderedJson& j) {
+         if (t.history.empty()) return;
+         OrderedJson& history = j["history"] = OrderedJson::array();
+         for (const LoadFactorPoint& p : t.history) {
+           history.push_back(OrderedJson::array({p.time, p.factor}));
+         }
+       }},
       OptionalFiniteField("from", &SurfaceTraction::from, kAny),
       OptionalFiniteField("to", &SurfaceTraction::to, kAny),
   };

@@ -136,12 +136,19 @@ struct RigidBody {
   std::vector<VelocityPoint> velocity;  // empty: at rest
 };
 
+// A point of a load's time history: at `time` the load is `factor` × its
+// traction, interpolated linearly between points.
+struct LoadFactorPoint {
+  double time = 0.0;    // s
+  double factor = 0.0;  // [-]
+};
+
 // A traction on the free surface of a region, carried by the material points
 // within one point spacing of the surface: force = traction × surface length
 // per point (current length) × thickness, applied at the point's surface
 // position. Traction in Pa, as a vector (tension +: a 100 kPa pressure on a
 // surface with outward normal +x is (−1e5, 0)). Ramped linearly from zero
-// over ramp_time.
+// over ramp_time, or scaled by `history` when that is given (an impulse).
 struct SurfaceTraction {
   std::string name;
   std::string region;                                  // a MaterialRegion name
@@ -149,6 +156,9 @@ struct SurfaceTraction {
   int normal_sign = 1;                                 // +1 or −1
   Eigen::Vector2d traction = Eigen::Vector2d::Zero();  // Pa
   double ramp_time = 0.0;                              // s
+  // Times strictly increasing; the factor is held at the first value before
+  // the first time and at the last after the last. Empty: the ramp.
+  std::vector<LoadFactorPoint> history;
   // Only points whose coordinate along the surface lies in [from, to], m.
   double from = -std::numeric_limits<double>::infinity();
   double to = std::numeric_limits<double>::infinity();

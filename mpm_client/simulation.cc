@@ -192,6 +192,7 @@ std::vector<std::string> Simulation::Columns() const {
       c.push_back(m.name + "_excess_ratio");
       c.push_back(m.name + "_sxy");
       c.push_back(m.name + "_ux");
+      c.push_back(m.name + "_uy");
     }
   }
   return c;
@@ -374,10 +375,11 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
       const double excess = mp.pore_pressure[i] - RestPressure(spec_, mp.position[i].y());
       row.push_back(mp.pore_pressure[i]);
       row.push_back(mp.vertical_stress0[i] > 0 ? excess / mp.vertical_stress0[i] : 0.0);
-      // Its effective shear stress (Pa) and horizontal displacement (m): the
-      // σxy–u_x loops of cyclic loading.
+      // Its effective shear stress (Pa) and displacement (m): the σxy–u_x
+      // loops of cyclic loading, a surface point's orbit in a wave.
       row.push_back(mp.stress[i](0, 1));
       row.push_back(mp.position[i].x() - mp.position0[i].x());
+      row.push_back(mp.position[i].y() - mp.position0[i].y());
     }
   }
   for (double& v : row) v += 0.0;  // −0 (a negated zero) reads as 0

@@ -69,11 +69,6 @@ Vector2d BodyExtent(const RigidBody& body) {
                                                  : body.half_size;
 }
 
-// Linear ramp factor of a load at time t, [0, 1].
-double RampFactor(double ramp_time, double t) {
-  return ramp_time > 0.0 ? std::min(1.0, t / ramp_time) : 1.0;
-}
-
 absl::Status Invalid(absl::string_view what, absl::string_view why) {
   return absl::InvalidArgumentError(absl::StrCat(what, ": ", why));
 }
@@ -147,6 +142,18 @@ Eigen::Vector2d VelocityAt(const std::vector<VelocityPoint>& history, double t) 
     }
   }
   return history.back().velocity;
+}
+
+double LoadFactorAt(const std::vector<LoadFactorPoint>& history, double ramp_time, double t) {
+  if (history.empty()) return ramp_time > 0.0 ? std::min(1.0, t / ramp_time) : 1.0;
+  if (t <= history.front().time) return history.front().factor;
+  for (std::size_t k = 0; k + 1 < history.size(); ++k) {
+    const LoadFactorPoint &a = history[k], &b = history[k + 1];
+    if (t >= a.time && t < b.time) {
+      return a.factor + (b.factor - a.factor) * ((t - a.time) / (b.time - a.time));
+    }
+  }
+  return history.back().factor;
 }
 
 Eigen::Vector2d DisplacementAt(const std::vector<VelocityPoint>& history, double t) {
@@ -233,7 +240,8 @@ absl::StatusOr<MaterialPoints> FillRegions(const CaseSpec& spec, const RegionDen
     }
     first[r + 1] = points.size();
   }
-  for (const SurfaceTraction& traction : spec.tractions) {
+  for (std::size_t source = 0; source < spec.tractions.size(); ++source) {
+    const SurfaceTraction& traction = spec.tractions[source];
     const std::string what = absl::StrCat("traction ", traction.name);
     std::size_t r = 0;
     while (r < spec.regions.size() && spec.regions[r].name != traction.region) ++r;
@@ -256,7 +264,8 @@ absl::StatusOr<MaterialPoints> FillRegions(const CaseSpec& spec, const RegionDen
         continue;
       }
       points.loads.push_back({static_cast<std::int32_t>(p), traction.traction, s, a,
-                              traction.normal_sign, traction.ramp_time});
+                              traction.normal_sign, traction.ramp_time,
+                              static_cast<std::int32_t>(source)});
       any = true;
     }
     if (!any) return Invalid(what, "selects no material points");
@@ -275,7 +284,9 @@ absl::StatusOr<MaterialPoints> FillRegions(const CaseSpec& spec,
 
 namespace {
 
-absl::Status ValidatePoints(const MaterialPoints& points, ShapeKind shape) {
+// num_sources: the case's tractions, which a load's source indexes.
+absl::Status ValidatePoints(const MaterialPoints& points, ShapeKind shape,
+                            std::size_t num_sources) {
   const std::size_t n = points.size();
   for (std::size_t size :
        {points.velocity.size(), points.mass.size(), points.volume.size(), points.volume0.size(),
@@ -297,7 +308,8 @@ absl::Status ValidatePoints(const MaterialPoints& points, ShapeKind shape) {
     if (load.point < 0 || static_cast<std::size_t>(load.point) >= n ||
         (load.normal_axis != 0 && load.normal_axis != 1) ||
         (load.normal_sign != 1 && load.normal_sign != -1) || !(load.length0 >= 0.0) ||
-        !(load.ramp_time >= 0.0)) {
+        !(load.ramp_time >= 0.0) || load.source < -1 ||
+        load.source >= static_cast<std::int64_t>(num_sources)) {
       return Invalid(absl::StrCat("surface load of point ", load.point), "invalid");
     }
   }
@@ -325,6 +337,17 @@ absl::StatusOr<std::unique_ptr<Solver>> Solver::Init(const CaseSpec& spec, Stres
   solver->solver_ = sv;
   solver->walls_ = spec.walls;
   solver->bodies_ = spec.bodies;
+  for (const SurfaceTraction& traction : spec.tractions) {
+    const std::vector<LoadFactorPoint>& history = traction.history;
+    for (std::size_t k = 0; k < history.size(); ++k) {
+      if (!(history[k].time >= 0.0) || !std::isfinite(history[k].factor) ||
+          (k > 0 && !(history[k].time > history[k - 1].time))) {
+        return Invalid(absl::StrCat("traction ", traction.name),
+                       "history times must be >= 0 and increase strictly, factors finite");
+      }
+    }
+    solver->load_histories_.push_back(history);
+  }
   solver->model_ = model;
   const double h = spec.grid.cell_size;
   for (const Wall& wall : spec.walls) {
@@ -391,7 +414,7 @@ absl::StatusOr<std::unique_ptr<Solver>> Solver::Init(const CaseSpec& spec, Stres
 absl::StatusOr<std::unique_ptr<Solver>> Solver::Create(const CaseSpec& spec, MaterialPoints initial,
                                                        StressModel* model, double dt) {
   ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver, Init(spec, model));
-  RETURN_IF_ERROR(ValidatePoints(initial, spec.solver.shape));
+  RETURN_IF_ERROR(ValidatePoints(initial, spec.solver.shape, spec.tractions.size()));
   if (spec.phases.saturated) {
     for (std::size_t p = 0; p < initial.size(); ++p) {
       if (!(initial.porosity0[p] > 0.0 && initial.porosity0[p] < 1.0) ||
@@ -484,8 +507,10 @@ absl::Status Solver::EvaluateShapes() {
                                                 Format(x), " m left the grid"));
     }
     const double length = load.length0 * f.col(1 - a).norm();
-    load_force_[k] =
-        load.traction * (RampFactor(load.ramp_time, time_) * length * solver_.thickness);
+    const double factor = load.source >= 0
+                              ? LoadFactorAt(load_histories_[load.source], load.ramp_time, time_)
+                              : LoadFactorAt({}, load.ramp_time, time_);
+    load_force_[k] = load.traction * (factor * length * solver_.thickness);
   }
   FindContacts();
   return absl::OkStatus();
@@ -724,7 +749,7 @@ double Solver::KineticEnergy() const {
 // body); saturated cases also fluid_velocity (2), pore_pressure, porosity0,
 // position0 (2), vertical_stress0 per point and node_pressure per grid node
 // (NaN: inactive in the last step). ints: step (1); region per point;
-// load_point, load_normal_axis, load_normal_sign per load.
+// load_point, load_normal_axis, load_normal_sign, load_source per load.
 void Solver::ExportState(std::map<std::string, std::vector<double>>& doubles,
                          std::map<std::string, std::vector<std::int64_t>>& ints) const {
   const MaterialPoints& mp = points_;
@@ -777,7 +802,9 @@ void Solver::ExportState(std::map<std::string, std::vector<double>>& doubles,
   std::vector<std::int64_t>& point = ints["load_point"];
   std::vector<std::int64_t>& axis = ints["load_normal_axis"];
   std::vector<std::int64_t>& sign = ints["load_normal_sign"];
+  std::vector<std::int64_t>& source = ints["load_source"];
   traction.clear(), length0.clear(), ramp.clear(), point.clear(), axis.clear(), sign.clear();
+  source.clear();
   for (std::size_t k = 0; k < nl; ++k) {
     const SurfaceLoad& load = mp.loads[k];
     vec2(load.traction, traction);
@@ -786,6 +813,7 @@ void Solver::ExportState(std::map<std::string, std::vector<double>>& doubles,
     point.push_back(load.point);
     axis.push_back(load.normal_axis);
     sign.push_back(load.normal_sign);
+    source.push_back(load.source);
   }
   std::vector<double>& reactions = doubles["reactions"];
   reactions.clear();
@@ -849,6 +877,10 @@ absl::Status Solver::ImportState(const std::map<std::string, std::vector<double>
     ASSIGN_OR_RETURN(const std::vector<std::int64_t>* f, Field(ints, key, size));
     i[key] = f;
   }
+  const std::vector<std::int64_t>* source = nullptr;
+  if (ints.contains("load_source")) {
+    ASSIGN_OR_RETURN(source, Field(ints, "load_source", nl));
+  }
   MaterialPoints mp;
   mp.Resize(n);
   auto vec2 = [](const std::vector<double>& v, std::size_t p) {
@@ -902,12 +934,18 @@ absl::Status Solver::ImportState(const std::map<std::string, std::vector<double>
     load.ramp_time = (*d["load_ramp_time"])[k];
     load.normal_axis = static_cast<int>((*i["load_normal_axis"])[k]);
     load.normal_sign = static_cast<int>((*i["load_normal_sign"])[k]);
+    // States written before load histories existed have no sources.
+    const std::int64_t from = source == nullptr ? -1 : (*source)[k];
+    if (from < -1 || from >= static_cast<std::int64_t>(load_histories_.size())) {
+      return absl::InvalidArgumentError(absl::StrCat("state load ", k, " names traction ", from));
+    }
+    load.source = static_cast<std::int32_t>(from);
     if ((load.normal_axis != 0 && load.normal_axis != 1) ||
         (load.normal_sign != 1 && load.normal_sign != -1)) {
       return absl::InvalidArgumentError(absl::StrCat("state load ", k, " has a bad normal"));
     }
   }
-  RETURN_IF_ERROR(ValidatePoints(mp, solver_.shape));
+  RETURN_IF_ERROR(ValidatePoints(mp, solver_.shape, load_histories_.size()));
   std::vector<double> node_pressure;
   if (phases_.saturated) {
     ASSIGN_OR_RETURN(const std::vector<double>* f,

@@ -53,6 +53,7 @@ struct SurfaceLoad {
   int normal_axis = 0;                                 // outward normal along x (0) or y (1)
   int normal_sign = 1;                                 // +1 or −1
   double ramp_time = 0.0;                              // s, linear ramp from zero
+  std::int32_t source = -1;  // index into CaseSpec::tractions (its history), −1: none
 };
 
 // Material points as structure of arrays (all arrays have size()).
@@ -102,6 +103,9 @@ double CflTimeStep(double cfl, double cell_size, double wave_modulus, double den
 // first point and at the last after it), m/s, and its integral from 0 to t, m.
 Eigen::Vector2d VelocityAt(const std::vector<VelocityPoint>& history, double t);
 Eigen::Vector2d DisplacementAt(const std::vector<VelocityPoint>& history, double t);
+// A load's factor at time t: its history interpolated (held at the ends), or
+// the linear ramp min(1, t/ramp_time) when the history is empty, [-].
+double LoadFactorAt(const std::vector<LoadFactorPoint>& history, double ramp_time, double t);
 
 class Solver {
  public:
@@ -206,6 +210,7 @@ class Solver {
   SolverSpec solver_;
   std::vector<Wall> walls_;
   std::vector<RigidBody> bodies_;
+  std::vector<std::vector<LoadFactorPoint>> load_histories_;  // per CaseSpec traction
   std::vector<std::vector<std::int32_t>> wall_nodes_;  // nodes on each wall's line
   std::vector<int> wall_lines_;                        // grid line index of each wall
   StressModel* model_ = nullptr;

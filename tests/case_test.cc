@@ -74,7 +74,8 @@ constexpr char kFullCase[] = R"json({
      "ramp_time": 0.01},
     {"name": "load", "region": "top", "surface": "+y", "traction": [0, -2e4], "from": 0,
      "to": 0.5},
-    {"name": "side", "region": "top", "surface": "-x", "pressure": 5e3}
+    {"name": "side", "region": "top", "surface": "-x", "pressure": 5e3,
+     "history": [[0, 0], [0.01, 1], [0.02, 0]]}
   ],
   "rve": {"max_inertial_number": 1e-3, "min_steps": 50, "real_time": true},
   "output": {"frame_every": 50, "timeseries_every": 5, "checkpoint_every": 1000,
@@ -225,6 +226,10 @@ TEST_F(CaseTest, FullCaseParsesIntoExpectedSpec) {
   // On −x the outward normal is (−1, 0): the pressure pushes along +x.
   EXPECT_EQ(spec->tractions[2].normal_sign, -1);
   EXPECT_EQ(spec->tractions[2].traction, Eigen::Vector2d(5e3, 0));
+  EXPECT_TRUE(confining.history.empty());
+  ASSERT_EQ(spec->tractions[2].history.size(), 3u);
+  EXPECT_EQ(spec->tractions[2].history[1].time, 0.01);
+  EXPECT_EQ(spec->tractions[2].history[1].factor, 1.0);
 
   EXPECT_EQ(spec->rve.max_inertial_number, 1e-3);
   EXPECT_EQ(spec->rve.min_steps, 50);
@@ -367,6 +372,11 @@ void ExpectSameSpec(const CaseSpec& a, const CaseSpec& b) {
     EXPECT_EQ(p.normal_sign, q.normal_sign);
     EXPECT_EQ(p.traction, q.traction);
     EXPECT_EQ(p.ramp_time, q.ramp_time);
+    ASSERT_EQ(p.history.size(), q.history.size());
+    for (size_t k = 0; k < p.history.size(); ++k) {
+      EXPECT_EQ(p.history[k].time, q.history[k].time);
+      EXPECT_EQ(p.history[k].factor, q.history[k].factor);
+    }
     EXPECT_EQ(p.from, q.from);
     EXPECT_EQ(p.to, q.to);
   }
@@ -542,6 +552,14 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
        "/tractions/0/surface: the +y face of region \"soil\" touches region \"top\" (/regions/1) "
        "for x in [0, 1] m"},
       {"/tractions/1/from", 2, "/tractions/1/to: must be > from = 2 m, got 0.5"},
+      // Load histories: [t, factor] pairs, times increasing, not with a ramp.
+      {"/tractions/2/history/1/0", 0,
+       "/tractions/2/history/1/0: times must increase strictly, got 0 s after 0 s"},
+      {"/tractions/2/history/1", {0.2}, "/tractions/2/history/1: must be an array of 2 numbers"},
+      {"/tractions/2/history", Json::array(), "/tractions/2/history: must be a non-empty array"},
+      {"/tractions/0/history",
+       {{0, 1}},
+       "/tractions/0/history: give either \"history\" or \"ramp_time\", not both"},
   };
   for (const BadEdit& edit : edits) {
     SCOPED_TRACE(edit.pointer);

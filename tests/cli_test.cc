@@ -195,7 +195,7 @@ TEST(CliTest, MaterialsListsTheParameterSets) {
   const Result r = RunCli("materials");
   EXPECT_EQ(r.exit_code, 0);
   const std::vector<std::string> lines = absl::StrSplit(r.output, '\n', absl::SkipEmpty());
-  ASSERT_EQ(lines.size(), 13u) << r.output;
+  ASSERT_EQ(lines.size(), 14u) << r.output;  // the header and 13 sets
   EXPECT_TRUE(lines[0].starts_with("NAME ")) << lines[0];
   for (const char* column : {" E_MPA ", " MU ", " RMIN_MM ", " P0_KPA ", " E0 "}) {
     EXPECT_TRUE(absl::StrContains(lines[0], column)) << column << " in " << lines[0];

@@ -459,9 +459,9 @@ TEST(ParameterSetTest, UnknownNameIsNotFoundAndListsTheNames) {
   EXPECT_EQ(set.status().code(), absl::StatusCode::kNotFound);
   EXPECT_TRUE(HasSubstr(set.status().message(), "'nope'"));
   const std::vector<std::string> names = ParameterSetNames();
-  // shared/reference/README.md's nine sets and the saturated dense, medium
-  // and loose ones of liang-zhao-wu-soga §4.2–4.3.
-  EXPECT_EQ(names.size(), 12u);
+  // shared/reference/README.md's nine sets, the saturated dense, medium
+  // and loose ones of liang-zhao-wu-soga §4.2–4.3 and its §4.4 wave set.
+  EXPECT_EQ(names.size(), 13u);
   for (const std::string& name : names) EXPECT_TRUE(HasSubstr(set.status().message(), name));
   EXPECT_FALSE(FindParameterSet("set-dense").ok());  // names are case-sensitive
 }

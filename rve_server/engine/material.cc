@@ -57,6 +57,15 @@ std::vector<ParameterSet> AllSets() {
                           std::tuple{"saturated-loose", 0.24}}) {
     sets.push_back(Make(name, 600e6, 0.8, 0.545, e0));
   }
+  // liang-zhao-wu-soga Table 2 (wave propagation) with discs for its
+  // elliptic grains: kn = kt = 6e6 N/m (E·r* at r* = 5 mm, the ellipses'
+  // semi-major axis), μ = 0.6, radii 4–6 mm around 5 mm; the isotropic
+  // packing compacted without friction (the paper: "randomly compressed").
+  ParameterSet wave = Make("wave-isotropic", 1.2e9, 1.0, 0.6, 0.0);
+  wave.preparation.radius_min = 4e-3;
+  wave.preparation.radius_max = 6e-3;
+  wave.preparation.initial_permeability = 1e-2;
+  sets.push_back(wave);
   // guo-zhao-2014 §5: loose RVEs for cyclic shear (strain / stress control).
   sets.push_back(Make("cyclic-loose", 600e6, 0.8, TanDeg(28.6), 0.223));
   sets.push_back(Make("cyclic-loose-stress", 600e6, 0.8, TanDeg(28.6), 0.209));

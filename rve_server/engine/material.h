@@ -54,7 +54,8 @@ absl::Status Validate(const Material& m);
 absl::Status Validate(const PreparationSpec& p);
 
 // The sets of shared/reference/README.md: SET-dense, SPFEM-biaxial,
-// footing-dense, footing-medium, footing-soft, consolidation, cyclic-loose,
+// footing-dense, footing-medium, footing-soft, consolidation,
+// saturated-dense/-medium/-loose, wave-isotropic, cyclic-loose,
 // cyclic-loose-stress, collapse. NotFound lists the known names.
 absl::StatusOr<ParameterSet> FindParameterSet(absl::string_view name);
 std::vector<std::string> ParameterSetNames();
