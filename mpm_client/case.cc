@@ -1258,8 +1258,17 @@ constexpr Range kFluidDensity{0.0, 2e4, true, false};
 constexpr Range kPermeability{0.0, 10.0, true, false};
 constexpr Range kPorosity{0.0, 1.0, false, true};
 
+constexpr Table<Projection> kProjections = {{"incremental", Projection::kIncremental},
+                                            {"stabilised", Projection::kStabilised}};
+
+absl::string_view ProjectionName(Projection p) {
+  return p == Projection::kStabilised ? "stabilised" : "incremental";
+}
+
 Fields<PhasesSpec> PhasesFields() {
   return {
+      EnumField("projection", &PhasesSpec::projection, Need::kOptional, "projection", kProjections,
+                &ProjectionName),
       NumberField("fluid_density", &PhasesSpec::fluid_density, Need::kOptional, kFluidDensity),
       NumberField("permeability", &PhasesSpec::permeability, Need::kRequired, kPermeability),
       NumberField("porosity", &PhasesSpec::porosity, Need::kOptional, kPorosity),

@@ -3,6 +3,34 @@
 // The effective stress is explicit (from the model, as in the dry step);
 // the Darcy drag and the pore pressure are implicit, so the time step does
 // not depend on the permeability or on the fluid's incompressibility.
+//
+// Two projections (PhasesSpec::projection). kIncremental is the paper's
+// eqs. 6–10. kStabilised departs from them twice, both needed for a stable
+// step at small k in two dimensions (a surface impulse on a half-space,
+// 0.25–0.5 m cells, k ≤ 1e-4 m/s: with kIncremental the kinetic energy grew
+// ×10³ within 0.3 s, faster on finer grids and with larger steps; stable at
+// 1e-2 and 1e-3):
+// - the projection is non-incremental in the excess pore pressure: the
+//   intermediate velocities carry only the water at rest's pressure p_r
+//   (hydrostatic below the water table, known in closed form) and the
+//   Poisson equation gives p^{n+1} − p_r itself. Solving for p^{n+1} − p^n
+//   leaves the pressure of equal-order interpolation without the
+//   stabilising Δt-Laplacian, and its spurious modes grew there; solving for
+//   the whole p^{n+1} would impose ∂p/∂n = 0 at impermeable walls, 23 % off
+//   a hydrostatic base pressure;
+// - the correction keeps the drag implicit (the same 2×2 system per node as
+//   the intermediate velocities), and the Poisson mobility follows
+//   (PressureMobility). Without drag, and without p^n in the intermediate
+//   step, the correction would move the water through the skeleton at a
+//   rate set by Δt, not k: a seepage error of Δt·n·g, 30 % of k = 1e-3 m/s
+//   in the consolidation test. With it a steady seepage obeys Darcy's law
+//   exactly, and at k → 0 the phases move together.
+// kStabilised's price is its Δt-Laplacian on the whole excess pressure: an
+// artificial drainage of order Δt. Measured on collapse-saturated-ci at the
+// paper's Δt = 2e-4 s: front at 0.6 s 1.301 m against 1.143 m incremental
+// (1.227 and 1.132 m at Δt = 5e-5 s), the dilatant suction relieved sooner.
+// So kIncremental stays the default and kStabilised is for dynamic cases
+// at small k (the wave propagation).
 #include <Eigen/Sparse>
 #include <algorithm>
 #include <cmath>
@@ -58,6 +86,14 @@ absl::StatusOr<Eigen::VectorXd> SolveSpd(const Eigen::SparseMatrix<double>& a,
 }
 
 }  // namespace
+
+double Solver::RestPressure(double y) const {
+  return HydrostaticPressure(phases_.fluid_density, solver_.gravity.norm(), phases_.water_table, y);
+}
+
+double Solver::NodeRest(int node) const {
+  return RestPressure(grid_.origin.y() + (node / (grid_.nx + 1)) * grid_.cell_size);
+}
 
 double Solver::Porosity(std::size_t p) const {
   const MaterialPoints& mp = points_;
@@ -185,6 +221,7 @@ absl::Status Solver::StepSaturated() {
   // Porosity stays > 0 (checked at the start and after every update), so a
   // node with the solids' mass also has the water's.
   auto active = [&](int i) { return node_mass_[i] > min_node_mass_; };
+  const bool incremental = phases_.projection == Projection::kIncremental;
 
   // (1) P2G of both phases (eqs. 29–30): m_s = the point's mass,
   // m_f = n ρ_f V; each node's share of soil Σ S V.
@@ -239,9 +276,10 @@ absl::Status Solver::StepSaturated() {
     }
   }
 
-  // (3) Nodal forces (eq. 16): the mixture's from the total stress σ' − p I,
-  // gravity on both phases and the tractions; the fluid's Σ n p ∇S V and its
-  // weight. R_s = M_s v_s + Δt (F_mixture − F_fluid), R_f = M_f v_f + Δt F_fluid.
+  // (3) Nodal forces (eq. 16; kStabilised: p_r for p^n): the mixture's from
+  // the total stress σ' − p I, gravity on both phases and the tractions; the
+  // fluid's Σ n p ∇S V and its weight. R_s = M_s v_s + Δt (F_mixture −
+  // F_fluid), R_f = M_f v_f + Δt F_fluid.
   std::fill(node_drag_.begin(), node_drag_.end(), 0.0);
   for (int i = 0; i < nodes; ++i) {
     node_force_[i] = (node_mass_[i] + node_fluid_mass_[i]) * solver_.gravity;
@@ -249,7 +287,9 @@ absl::Status Solver::StepSaturated() {
   }
   for (std::size_t p = 0; p < n; ++p) {
     const ShapeValues& s = shape_[p];
-    const double porosity = Porosity(p), v = mp.volume[p], pressure = mp.pore_pressure[p];
+    const double porosity = Porosity(p), v = mp.volume[p];
+    // kIncremental: p^n; kStabilised: the water at rest's p_r.
+    const double pressure = incremental ? mp.pore_pressure[p] : RestPressure(mp.position[p].y());
     const Matrix2d total_v =
         (mp.stress[p].topLeftCorner<2, 2>() - pressure * Matrix2d::Identity()) * v;
     const double drag_v = dt_ * DarcyDrag(porosity, rho_f, Permeability(p)) * v;
@@ -280,9 +320,12 @@ absl::Status Solver::StepSaturated() {
   Constrain(node_velocity_new_, time_ + dt_, 1.0);
   ConstrainFluid(node_fluid_velocity_new_, time_ + dt_);
 
-  // (5) Pressure Poisson (eq. 17): Σ_J L_IJ Δp_J = −(1/Δt) Σ_p S_Ip V_p
-  // [(1 − n)∇·v_s* + n ∇·v_f*]_p, L_IJ = Σ_p mobility_p ∇S_Ip·∇S_Jp V_p;
-  // drained nodes hold their pressure, every other face is impermeable.
+  // (5) Pressure Poisson (eq. 17) for δ = p^{n+1} − b, b = p^n
+  // (kIncremental) or p_r (kStabilised): Σ_J L_IJ δ_J = −(1/Δt) Σ_p S_Ip
+  // V_p [(1 − n)∇·v_s* + n ∇·v_f*]_p, L_IJ = Σ_p mobility_p ∇S_Ip·∇S_Jp V_p
+  // (kStabilised: the drag in the mobility); drained nodes hold their
+  // pressure, every other face is impermeable. node_delta_ holds δ (Pa),
+  // node_base_ b.
   FindDrainedNodes();
   std::vector<int> unknown(nodes, -1);
   int count = 0;
@@ -291,14 +334,14 @@ absl::Status Solver::StepSaturated() {
       unknown[i] = count++;
     }
   }
-  // A drained node holds its prescribed pressure: Δp = p_b − p^n there (0
-  // once it has it; at the start its p^n is taken as p_b, as the fitted
-  // value carries the fit's error at a boundary).
   for (int i = 0; i < nodes; ++i) {
-    node_dp_[i] = 0.0;
-    if (std::isnan(pressure_fixed_[i])) continue;
-    if (std::isnan(node_pressure_last_[i])) node_pressure_[i] = pressure_fixed_[i];
-    node_dp_[i] = pressure_fixed_[i] - node_pressure_[i];
+    // A drained node's p^n at the start is taken as its prescribed value,
+    // as the fitted one carries the fit's error at a boundary.
+    if (incremental && !std::isnan(pressure_fixed_[i]) && std::isnan(node_pressure_last_[i])) {
+      node_pressure_[i] = pressure_fixed_[i];
+    }
+    node_base_[i] = incremental ? node_pressure_[i] : NodeRest(i);
+    node_delta_[i] = std::isnan(pressure_fixed_[i]) ? 0.0 : pressure_fixed_[i] - node_base_[i];
   }
   Eigen::VectorXd rhs = Eigen::VectorXd::Zero(count);
   std::vector<Eigen::Triplet<double>> entries;
@@ -306,7 +349,9 @@ absl::Status Solver::StepSaturated() {
     const ShapeValues& s = shape_[p];
     const double porosity = Porosity(p), v = mp.volume[p];
     const double rho_s = mp.mass[p] / ((1.0 - mp.porosity0[p]) * mp.volume0[p]);  // grains, kg/m³
-    const double mobility = PressureMobility(porosity, rho_s, rho_f) * v;
+    const double drag_dt =
+        incremental ? 0.0 : dt_ * DarcyDrag(porosity, rho_f, Permeability(p));  // kg/m³
+    const double mobility = PressureMobility(porosity, rho_s, rho_f, drag_dt) * v;
     double divergence = 0.0;  // (1 − n)∇·v_s* + n ∇·v_f*, 1/s
     for (int k = 0; k < s.count; ++k) {
       divergence += s.gradient[k].dot((1.0 - porosity) * node_velocity_new_[s.node[k]] +
@@ -322,7 +367,7 @@ absl::Status Solver::StepSaturated() {
         if (col >= 0) {
           entries.emplace_back(row, col, l);
         } else {
-          rhs[row] -= l * node_dp_[s.node[b]];  // a drained neighbour
+          rhs[row] -= l * node_delta_[s.node[b]];  // a drained neighbour
         }
       }
     }
@@ -330,24 +375,26 @@ absl::Status Solver::StepSaturated() {
   if (count > 0) {
     Eigen::SparseMatrix<double> laplacian(count, count);
     laplacian.setFromTriplets(entries.begin(), entries.end());
-    ASSIGN_OR_RETURN(const Eigen::VectorXd dp,
+    ASSIGN_OR_RETURN(const Eigen::VectorXd solved,
                      SolveSpd(laplacian, rhs,
                               "the pore-pressure solve (is every part of the soil connected to a "
                               "drained boundary?)",
                               &pressure_iterations_));
     for (int i = 0; i < nodes; ++i) {
-      if (unknown[i] >= 0) node_dp_[i] = dp[unknown[i]];
+      if (unknown[i] >= 0) node_delta_[i] = solved[unknown[i]];
     }
   }
 
-  // (6) Velocity correction (eq. 19, lumped): M_α v_α^{n+1} = M_α v_α* −
-  // Δt Σ_p φ_α S_Ip V_p ∇Δp_p, φ_s = 1 − n, φ_f = n.
+  // (6) Velocity correction (eq. 19, lumped): M_s Δv_s = F_s + D (Δv_f −
+  // Δv_s), M_f Δv_f = F_f − D (Δv_f − Δv_s), F_α = −Δt Σ_p φ_α S_Ip V_p
+  // ∇δ_p, φ_s = 1 − n, φ_f = n; D = 0 (kIncremental, the paper's) or the
+  // drag of (4) (kStabilised).
   std::fill(node_force_.begin(), node_force_.end(), Vector2d::Zero());
   std::fill(node_fluid_force_.begin(), node_fluid_force_.end(), Vector2d::Zero());
   for (std::size_t p = 0; p < n; ++p) {
     const ShapeValues& s = shape_[p];
-    Vector2d grad = Vector2d::Zero();  // ∇Δp at the point, Pa/m
-    for (int k = 0; k < s.count; ++k) grad += node_dp_[s.node[k]] * s.gradient[k];
+    Vector2d grad = Vector2d::Zero();  // ∇δ at the point, Pa/m
+    for (int k = 0; k < s.count; ++k) grad += node_delta_[s.node[k]] * s.gradient[k];
     const double porosity = Porosity(p), v = mp.volume[p];
     for (int k = 0; k < s.count; ++k) {
       node_force_[s.node[k]] -= (s.weight[k] * (1.0 - porosity) * v) * grad;
@@ -356,8 +403,11 @@ absl::Status Solver::StepSaturated() {
   }
   for (int i = 0; i < nodes; ++i) {
     if (!active(i)) continue;
-    node_velocity_new_[i] += (dt_ / node_mass_[i]) * node_force_[i];
-    node_fluid_velocity_new_[i] += (dt_ / node_fluid_mass_[i]) * node_fluid_force_[i];
+    const PhaseVelocities dv = IntermediateVelocities(
+        node_mass_[i], node_fluid_mass_[i], incremental ? 0.0 : node_drag_[i], dt_ * node_force_[i],
+        dt_ * node_fluid_force_[i]);
+    node_velocity_new_[i] += dv.solid;
+    node_fluid_velocity_new_[i] += dv.fluid;
   }
   Constrain(node_velocity_new_, time_ + dt_, 1.0);
   ConstrainFluid(node_fluid_velocity_new_, time_ + dt_);
@@ -369,7 +419,7 @@ absl::Status Solver::StepSaturated() {
   // removed), where an increment would leave it its old pressure.
   for (int i = 0; i < nodes; ++i) {
     node_pressure_last_[i] =
-        active(i) ? node_pressure_[i] + node_dp_[i] : std::numeric_limits<double>::quiet_NaN();
+        active(i) ? node_base_[i] + node_delta_[i] : std::numeric_limits<double>::quiet_NaN();
   }
   for (std::size_t p = 0; p < n; ++p) {
     const ShapeValues& s = shape_[p];

@@ -472,8 +472,8 @@ void Solver::Prepare() {
     for (auto* v : {&node_fluid_velocity_, &node_fluid_force_, &node_fluid_velocity_new_}) {
       v->resize(nodes);
     }
-    for (auto* v : {&node_fluid_mass_, &node_drag_, &node_pressure_, &pressure_fixed_, &node_dp_,
-                    &node_volume_, &node_domain_}) {
+    for (auto* v : {&node_fluid_mass_, &node_drag_, &node_pressure_, &pressure_fixed_, &node_base_,
+                    &node_delta_, &node_volume_, &node_domain_}) {
       v->resize(nodes);
     }
     node_pressure_last_.resize(nodes, std::numeric_limits<double>::quiet_NaN());

@@ -199,6 +199,10 @@ class Solver {
   // wall's at wall_time (0 unless shaken; fluid_fixed_ records the
   // components held).
   void ConstrainFluid(std::vector<Eigen::Vector2d>& velocity, double wall_time);
+  // The pore pressure of the water at rest (hydrostatic below the water
+  // table, 0 above it or without one) at height y and at a node, Pa.
+  double RestPressure(double y) const;
+  double NodeRest(int node) const;
   // The nodes whose pore pressure is prescribed this step (drained lines,
   // the free surface), into pressure_fixed_ (NaN: free).
   void FindDrainedNodes();
@@ -250,7 +254,8 @@ class Solver {
   // Part of the state: the next step's p^n where the node is still active.
   std::vector<double> node_pressure_last_;
   std::vector<double> pressure_fixed_;                    // prescribed p, Pa, or NaN
-  std::vector<double> node_dp_;                           // p^{n+1} − p^n, Pa
+  std::vector<double> node_base_;                         // b: p^n or p_r (saturated.cc), Pa
+  std::vector<double> node_delta_;                        // δ = p^{n+1} − b, Pa
   std::vector<double> node_volume_;                       // Σ_p S_Ip V_p, m³
   std::vector<double> node_domain_;  // share of a node's volume inside walls and grid, [-]
   std::vector<std::uint8_t> fluid_fixed_;                 // per node: components walls hold

@@ -43,10 +43,18 @@ inline double DarcyDrag(double porosity, double fluid_density, double permeabili
   return porosity * porosity * fluid_density * kDarcyGravity / permeability;
 }
 
-// (1 − n)/ρ_s + n/ρ_f (eq. 10): how fast a pressure gradient accelerates the
-// two phases, m³/kg.
-inline double PressureMobility(double porosity, double solid_density, double fluid_density) {
-  return (1.0 - porosity) / solid_density + porosity / fluid_density;
+// How fast a pressure gradient accelerates the mixture's volume flux
+// (1 − n) v_s + n v_f within one step when the drag D = Δt·n²ρ_f g/k
+// (kg/m³) acts implicitly on the same step: m³/kg,
+//   [(1 − n)² ρ'_f + n² ρ'_s + D] / [ρ'_s ρ'_f + D (ρ'_s + ρ'_f)],
+// ρ'_s = (1 − n) ρ_s, ρ'_f = n ρ_f. Without drag it is eq. 10's
+// (1 − n)/ρ_s + n/ρ_f, each phase accelerated on its own; as k → 0 it
+// tends to 1/ρ_mixture, the phases locked.
+inline double PressureMobility(double porosity, double solid_density, double fluid_density,
+                               double drag_dt) {
+  const double rs = (1.0 - porosity) * solid_density, rf = porosity * fluid_density;
+  return ((1.0 - porosity) * (1.0 - porosity) * rf + porosity * porosity * rs + drag_dt) /
+         (rs * rf + drag_dt * (rs + rf));
 }
 
 struct PhaseVelocities {

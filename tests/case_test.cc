@@ -664,6 +664,7 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
       {"/phases/drained", Json::array()},
       {"/phases/monitors/0/position", {0.5, 0.5}},
       {"/phases/drainage", true},
+      {"/phases/projection", "implicit"},
   };
   const std::vector<std::string> messages = {
       "/phases/permeability: must be in (0, 10], got 0",
@@ -676,6 +677,7 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
       "/phases/drained: a saturated case needs at least one drained boundary",
       "/phases/monitors/0/position: (0.5, 0.5) m is in no region",
       "/phases/drainage: unknown key",
+      "/phases/projection: unknown projection \"implicit\"",
   };
   for (std::size_t i = 0; i < edits.size(); ++i) {
     SCOPED_TRACE(edits[i].first);
