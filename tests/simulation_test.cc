@@ -63,6 +63,28 @@ std::unique_ptr<Simulation> StartOrDie(const CaseSpec& spec, const SimulationOpt
   return sim.ok() ? *std::move(sim) : nullptr;
 }
 
+// Runs the shipped saturated case `name` to its end in a fresh directory
+// `dir` and returns its timeseries columns (empty, the test failed, if not);
+// `out_dir` (optional) receives the directory's path.
+std::map<std::string, std::vector<double>> RunSaturatedCase(const std::string& name,
+                                                            const std::string& dir,
+                                                            std::string* out_dir = nullptr) {
+  CaseSpec spec = LoadOrDie(name);
+  EXPECT_TRUE(spec.phases.saturated);
+  const std::string out = FreshDir(dir);
+  if (out_dir != nullptr) *out_dir = out;
+  std::unique_ptr<Simulation> sim = StartOrDie(spec, Options(out));
+  if (sim == nullptr) return {};
+  absl::StatusOr<SimulationSummary> sum = sim->StepToEnd();
+  EXPECT_TRUE(sum.ok()) << sum.status();
+  if (!sum.ok()) return {};
+  EXPECT_TRUE(sum->finished);
+  absl::StatusOr<std::map<std::string, std::vector<double>>> ts =
+      ReadCsvColumns(out + "/timeseries.csv");
+  EXPECT_TRUE(ts.ok()) << ts.status();
+  return ts.ok() ? *std::move(ts) : std::map<std::string, std::vector<double>>{};
+}
+
 void ExpectSameSnapshots(const store::SimCheckpoint& a, const store::SimCheckpoint& b) {
   EXPECT_EQ(a.step, b.step);
   EXPECT_TRUE(dem::testing_util::SameBits(a.time, b.time));
@@ -301,17 +323,11 @@ TEST(SimulationTest, TwoServersOnLoopbackGiveTheSameResultAsOneEmbedded) {
 // front show (10.9 %), is left to the full case's figure. The frames carry
 // the saturated fields; U from the settlement within 0.05 of Terzaghi's.
 TEST(SimulationTest, SaturatedConsolidationFollowsTerzaghi) {
-  CaseSpec spec = LoadOrDie("consolidation-1d-ci");
-  ASSERT_TRUE(spec.phases.saturated);
-  const std::string out = FreshDir("consolidation");
-  std::unique_ptr<Simulation> sim = StartOrDie(spec, Options(out));
-  ASSERT_NE(sim, nullptr);
-  absl::StatusOr<SimulationSummary> sum = sim->StepToEnd();
-  ASSERT_TRUE(sum.ok()) << sum.status();
-  absl::StatusOr<std::map<std::string, std::vector<double>>> ts =
-      ReadCsvColumns(out + "/timeseries.csv");
-  ASSERT_TRUE(ts.ok()) << ts.status();
-  const double p0 = 110e3 - ts->at("mean_syy").front();
+  std::string out;
+  const std::map<std::string, std::vector<double>> ts =
+      RunSaturatedCase("consolidation-1d-ci", "consolidation", &out);
+  ASSERT_FALSE(ts.empty());
+  const double p0 = 110e3 - ts.at("mean_syy").front();
   EXPECT_NEAR(p0, 10e3, 0.1 * 10e3);
   const double modulus = 25.08e6, cv = 1e-3 * modulus / (1000.0 * 9.81);
   absl::StatusOr<std::vector<store::ResultFrame>> frames = store::ReadResults(out + "/results.h5");
@@ -337,15 +353,15 @@ TEST(SimulationTest, SaturatedConsolidationFollowsTerzaghi) {
     }
   }
   EXPECT_EQ(checked, 8);  // Tv = 0.041 … 1.02 and the end
-  const std::vector<double>& t = ts->at("time");
-  const std::vector<double>& settlement = ts->at("surface_settlement");
+  const std::vector<double>& t = ts.at("time");
+  const std::vector<double>& settlement = ts.at("surface_settlement");
   for (std::size_t i = 0; i < t.size(); ++i) {
     const double tv = cv * t[i];
     if (tv < 0.05) continue;
     EXPECT_NEAR(settlement[i] / (p0 / modulus), TerzaghiDegreeOfConsolidation(tv), 0.05)
         << "Tv " << tv;
   }
-  EXPECT_GT(ts->at("base_p").back(), 0.0);
+  EXPECT_GT(ts.at("base_p").back(), 0.0);
 }
 
 // A saturated run resumes bit for bit and runs alike on two servers.
@@ -358,28 +374,20 @@ TEST(SimulationTest, SaturatedConsolidationFollowsTerzaghi) {
 // far more slowly than the dry column with the same Δt (front 1.516 m,
 // kinetic-energy peak 845 J at 0.6 s): measured 1.081 m and 126 J.
 TEST(SimulationTest, SaturatedDenseColumnCollapsesSlowlyWithSuction) {
-  CaseSpec spec = LoadOrDie("collapse-saturated-ci");
-  ASSERT_TRUE(spec.phases.saturated);
-  const std::string out = FreshDir("saturated_collapse");
-  std::unique_ptr<Simulation> sim = StartOrDie(spec, Options(out));
-  ASSERT_NE(sim, nullptr);
-  absl::StatusOr<SimulationSummary> sum = sim->StepToEnd();
-  ASSERT_TRUE(sum.ok()) << sum.status();
-  EXPECT_TRUE(sum->finished);
-  absl::StatusOr<std::map<std::string, std::vector<double>>> ts =
-      ReadCsvColumns(out + "/timeseries.csv");
-  ASSERT_TRUE(ts.ok()) << ts.status();
-  const std::vector<double>& t = ts->at("time");
+  const std::map<std::string, std::vector<double>> ts =
+      RunSaturatedCase("collapse-saturated-ci", "saturated_collapse");
+  ASSERT_FALSE(ts.empty());
+  const std::vector<double>& t = ts.at("time");
   double peak = 0.0;
   for (std::size_t r = 0; r < t.size(); ++r) {
-    peak = std::max(peak, ts->at("kinetic_energy")[r]);
+    peak = std::max(peak, ts.at("kinetic_energy")[r]);
     if (std::abs(t[r] - 0.06) < 1e-6) {
-      EXPECT_LT(ts->at("middle_excess_ratio")[r], -0.5) << "t " << t[r];
-      EXPECT_LT(ts->at("base_excess_ratio")[r], -0.5) << "t " << t[r];
+      EXPECT_LT(ts.at("middle_excess_ratio")[r], -0.5) << "t " << t[r];
+      EXPECT_LT(ts.at("base_excess_ratio")[r], -0.5) << "t " << t[r];
     }
   }
-  EXPECT_GT(ts->at("front_x").back(), 1.0);  // it does collapse
-  EXPECT_LT(ts->at("front_x").back(), 1.3);  // dry: 1.516 m
+  EXPECT_GT(ts.at("front_x").back(), 1.0);   // it does collapse
+  EXPECT_LT(ts.at("front_x").back(), 1.3);   // dry: 1.516 m
   EXPECT_LT(peak, 300.0);                    // J; dry: 845 J
 }
 
@@ -396,20 +404,13 @@ TEST(SimulationTest, SaturatedDenseColumnCollapsesSlowlyWithSuction) {
 // maximum at 0.02 s, as the paper reports (Fig. 19b), and its settlement
 // mostly recovers once the pulse has passed (an elastic response).
 TEST(SimulationTest, SaturatedImpulseSendsARayleighWave) {
-  CaseSpec spec = LoadOrDie("wave-propagation-ci");
-  ASSERT_TRUE(spec.phases.saturated);
-  const std::string out = FreshDir("wave");
-  std::unique_ptr<Simulation> sim = StartOrDie(spec, Options(out));
-  ASSERT_NE(sim, nullptr);
-  absl::StatusOr<SimulationSummary> sum = sim->StepToEnd();
-  ASSERT_TRUE(sum.ok()) << sum.status();
-  absl::StatusOr<std::map<std::string, std::vector<double>>> ts =
-      ReadCsvColumns(out + "/timeseries.csv");
-  ASSERT_TRUE(ts.ok()) << ts.status();
-  const std::vector<double>& t = ts->at("time");
+  const std::map<std::string, std::vector<double>> ts =
+      RunSaturatedCase("wave-propagation-ci", "wave");
+  ASSERT_FALSE(ts.empty());
+  const std::vector<double>& t = ts.at("time");
   // The first trough of u_y at a monitor, before reflections (0.12 s).
   auto trough = [&](const std::string& column) {
-    const std::vector<double>& u = ts->at(column);
+    const std::vector<double>& u = ts.at(column);
     std::size_t best = 0;
     for (std::size_t r = 0; r < t.size() && t[r] < 0.12; ++r) {
       if (u[r] < u[best]) best = r;
@@ -423,13 +424,13 @@ TEST(SimulationTest, SaturatedImpulseSendsARayleighWave) {
   EXPECT_NEAR(speed / rayleigh, 1.0, 0.15);
 
   const std::size_t b_low = trough("B_uy");
-  const std::vector<double>& b_p = ts->at("B_p");
+  const std::vector<double>& b_p = ts.at("B_p");
   const std::size_t b_peak = std::max_element(b_p.begin(), b_p.end()) - b_p.begin();
   std::printf("B: u_y %.3f mm at %.4f s, %.3f mm at the end; excess p peak %.2f kPa at %.4f s\n",
-              1e3 * ts->at("B_uy")[b_low], t[b_low], 1e3 * ts->at("B_uy").back(),
-              1e-3 * b_p[b_peak], t[b_peak]);
-  EXPECT_LT(ts->at("B_uy")[b_low], -1e-3);
-  EXPECT_LT(std::abs(ts->at("B_uy").back()), 0.2 * std::abs(ts->at("B_uy")[b_low]));
+              1e3 * ts.at("B_uy")[b_low], t[b_low], 1e3 * ts.at("B_uy").back(), 1e-3 * b_p[b_peak],
+              t[b_peak]);
+  EXPECT_LT(ts.at("B_uy")[b_low], -1e-3);
+  EXPECT_LT(std::abs(ts.at("B_uy").back()), 0.2 * std::abs(ts.at("B_uy")[b_low]));
   EXPECT_GT(b_p[b_peak], 0.0);
   EXPECT_LT(t[b_peak], 0.02);
 }
