@@ -175,7 +175,7 @@ def main():
             for ax, what in zip(row, ("displacement (Fig. 16)", "excess pore pressure (Fig. 18)")):
                 ax.set(title=f"{label}: {what}, t = {tk:.3f} s", aspect="equal")
         fig.tight_layout()
-        fig.savefig(args.fields, dpi=100)
+        fig.savefig(args.fields, dpi=80)
         print(f"wrote {args.fields}")
 
 
