@@ -80,9 +80,14 @@ absl::StatusOr<Summary> Collapse(const CaseSpec& spec, const Columns& columns) {
   // The front column holds point centres: add the initial half spacing.
   const double half = 0.5 * spec.grid.cell_size / column.points_per_cell_side;
   const double df = front->back() + half - column.lower.x();
+  const double stop = FrontStopTime(*time, *front, 0.01 * d0);
+  // A front still moving at the end "stops" at the last row: the run-out is
+  // then a lower bound. At rest means unmoved over the last 10 % of the run.
+  const double at_rest = time->empty() || stop <= 0.9 * time->back() ? 1.0 : 0.0;
   return Summary{{"runout_normalised", (df - d0) / d0},
                  {"final_front_m", df + column.lower.x()},
-                 {"front_stop_time_s", FrontStopTime(*time, *front, 0.01 * d0)}};
+                 {"front_stop_time_s", stop},
+                 {"front_at_rest", at_rest}};
 }
 
 absl::StatusOr<Summary> Biaxial(const CaseSpec& spec, const Columns& columns) {

@@ -61,7 +61,9 @@ using Summary = std::vector<std::pair<std::string, double>>;
 // peak_vertical_force_N, peak_horizontal_force_N (largest magnitudes of what
 // the soil exerts on the body, N for the domain thickness); collapse:
 // runout_normalised (d_f − d_0)/d_0 with d_0 the region's width and d_f the
-// front at the end plus the points' initial half spacing, front_stop_time_s;
+// front at the end plus the points' initial half spacing, front_stop_time_s,
+// front_at_rest (1 when the front was still over the last 10 % of the run,
+// else 0: the run-out is a lower bound);
 // biaxial: peak_stress_Pa and peak_strain (nominal: the platen's force over
 // the region's width, its travel over the region's height; compression +;
 // the mean σyy and εyy of the points without a platen), final_stress_Pa,

@@ -119,6 +119,14 @@ TEST(SummaryTest, FootingCollapseBiaxialAndPipeFigures) {
   m = std::map<std::string, double>(s->begin(), s->end());
   EXPECT_NEAR(m["runout_normalised"], 0.8, 1e-12);
   EXPECT_DOUBLE_EQ(m["front_stop_time_s"], 1.0);
+  EXPECT_EQ(m["front_at_rest"], 1.0);
+  // Still moving at the end: it "stops" at the last row, not at rest.
+  c["front_x"] = {0.9375, 1.5, 1.7375, 1.9};
+  s = Summarise(collapse, c);
+  ASSERT_TRUE(s.ok()) << s.status();
+  m = std::map<std::string, double>(s->begin(), s->end());
+  EXPECT_DOUBLE_EQ(m["front_stop_time_s"], 1.5);
+  EXPECT_EQ(m["front_at_rest"], 0.0);
 
   // Biaxial with a platen: force over the width, travel over the height.
   CaseSpec biaxial = Region(0.05, 0.1, 1, 0.0125);
