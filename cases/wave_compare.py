@@ -45,12 +45,16 @@ def read_run(path):
     frames = []
     with h5py.File(os.path.join(path, "results.h5"), "r") as h5:
         keys = sorted(h5["frames"], key=int)
-        x0 = h5["frames"][keys[0]]["position"][:, :2]
+        first = h5["frames"][keys[0]]
+        x0 = first["position"][:, :2]
+        # Saturated density: solids rho_s/(1 + e) plus water n rho_f.
+        rho = (2650 / (1 + float(np.mean(first["void_ratio"][:])))
+               + 1000 * float(np.mean(first["porosity"][:])))
         for k in keys:
             g = h5["frames"][k]
             frames.append((float(g.attrs["time"]), g["position"][:, :2] - x0,
                            g["excess_pore_pressure"][:]))
-    return cols, x0, frames
+    return cols, x0, frames, rho
 
 
 def nearest(x0, position):
@@ -93,14 +97,7 @@ def main():
         path, _, label = spec.partition("=")
         runs.append((label or os.path.basename(path.rstrip("/")), *read_run(path)))
 
-    rho = args.density
-    if rho <= 0:
-        # Solids rho_s/(1 + e) plus water n rho_f: e0 = 0.185 for wave-isotropic.
-        with h5py.File(os.path.join(args.runs[0].partition("=")[0], "results.h5"), "r") as h5:
-            g = h5["frames"][sorted(h5["frames"], key=int)[0]]
-            e = float(np.mean(g["void_ratio"][:]))
-            n = float(np.mean(g["porosity"][:]))
-        rho = 2650 / (1 + e) + 1000 * n
+    rho = args.density if args.density > 0 else runs[0][4]
     cs = np.sqrt(args.shear / rho)
     c_drained = rayleigh_ratio(args.modulus / args.shear) * cs
     c_undrained = rayleigh_ratio(np.inf) * cs
@@ -110,7 +107,7 @@ def main():
 
     fig, axes = plt.subplots(2, 2, figsize=(11, 8.5))
     (ax_uy, ax_p), (ax_orbit, ax_map) = axes
-    for label, cols, x0, frames in runs:
+    for label, cols, x0, frames, _ in runs:
         t = cols["time"]
         ax_uy.plot(t, 1e3 * cols["B_uy"], label=label, lw=0.9)
         ax_p.plot(t, 1e-3 * cols["B_p"], label=label, lw=0.9)
@@ -137,7 +134,7 @@ def main():
         ax.grid(alpha=0.3)
 
     # Surface u_y of the first run in space and time, with Rayleigh's fronts.
-    label, cols, x0, frames = runs[0]
+    label, cols, x0, frames, _ = runs[0]
     top = np.isclose(x0[:, 1], x0[:, 1].max())
     order = np.argsort(x0[top, 0])
     xs = x0[top, 0][order]

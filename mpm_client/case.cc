@@ -1,6 +1,7 @@
 #include "mpm_client/case.h"
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <cmath>
 #include <cstdint>
@@ -887,48 +888,48 @@ absl::Status ParseWall(const Json& j, const std::string& ptr, const GridLines& l
   return ReadFields(j, ptr, WallFields(&lines), w).status();
 }
 
-absl::Status ParseVelocity(const Json& j, const std::string& ptr,
-                           std::vector<VelocityPoint>* history) {
-  if (!j.is_array()) {
-    return Bad(ptr, "must be an array of [t, vx, vy] (s, m/s, m/s), got ", Got(j));
+// An array of rows [t, v...] of `width` numbers (at most 3; `shape` names
+// them in messages, e.g. "[t, vx, vy] (s, m/s, m/s)"): times >= 0 and
+// increasing strictly, values finite. The unused entries of a row are 0.
+absl::Status ParseTimeRows(const Json& j, const std::string& ptr, size_t width,
+                           absl::string_view shape, bool non_empty,
+                           std::vector<std::array<double, 3>>* rows) {
+  if (!j.is_array() || (non_empty && j.empty())) {
+    return Bad(ptr, non_empty ? "must be a non-empty array of " : "must be an array of ", shape,
+               ", got ", Got(j));
   }
   for (size_t i = 0; i < j.size(); ++i) {
     const std::string at = Child(ptr, i);
-    if (!j[i].is_array() || j[i].size() != 3) {
-      return Bad(at, "must be an array of 3 numbers [t, vx, vy] (s, m/s, m/s), got ", Got(j[i]));
+    if (!j[i].is_array() || j[i].size() != width) {
+      return Bad(at, "must be an array of ", width, " numbers ", shape, ", got ", Got(j[i]));
     }
-    VelocityPoint p;
-    RETURN_IF_ERROR(ReadNumber(j[i][0], Child(at, 0), kNonNegative, &p.time));
-    RETURN_IF_ERROR(ReadNumber(j[i][1], Child(at, 1), kAny, &p.velocity.x()));
-    RETURN_IF_ERROR(ReadNumber(j[i][2], Child(at, 2), kAny, &p.velocity.y()));
-    if (!history->empty() && p.time <= history->back().time) {
-      return Bad(Child(at, 0), "times must increase strictly, got ", Num(p.time), " s after ",
-                 Num(history->back().time), " s");
+    std::array<double, 3> row{};
+    RETURN_IF_ERROR(ReadNumber(j[i][0], Child(at, 0), kNonNegative, &row[0]));
+    for (size_t c = 1; c < width; ++c) {
+      RETURN_IF_ERROR(ReadNumber(j[i][c], Child(at, c), kAny, &row[c]));
     }
-    history->push_back(p);
+    if (!rows->empty() && row[0] <= rows->back()[0]) {
+      return Bad(Child(at, 0), "times must increase strictly, got ", Num(row[0]), " s after ",
+                 Num(rows->back()[0]), " s");
+    }
+    rows->push_back(row);
   }
+  return absl::OkStatus();
+}
+
+absl::Status ParseVelocity(const Json& j, const std::string& ptr,
+                           std::vector<VelocityPoint>* history) {
+  std::vector<std::array<double, 3>> rows;
+  RETURN_IF_ERROR(ParseTimeRows(j, ptr, 3, "[t, vx, vy] (s, m/s, m/s)", false, &rows));
+  for (const auto& [t, vx, vy] : rows) history->push_back({t, Eigen::Vector2d(vx, vy)});
   return absl::OkStatus();
 }
 
 absl::Status ParseLoadHistory(const Json& j, const std::string& ptr,
                               std::vector<LoadFactorPoint>* history) {
-  if (!j.is_array() || j.empty()) {
-    return Bad(ptr, "must be a non-empty array of [t, factor] (s, -), got ", Got(j));
-  }
-  for (size_t i = 0; i < j.size(); ++i) {
-    const std::string at = Child(ptr, i);
-    if (!j[i].is_array() || j[i].size() != 2) {
-      return Bad(at, "must be an array of 2 numbers [t, factor] (s, -), got ", Got(j[i]));
-    }
-    LoadFactorPoint p;
-    RETURN_IF_ERROR(ReadNumber(j[i][0], Child(at, 0), kNonNegative, &p.time));
-    RETURN_IF_ERROR(ReadNumber(j[i][1], Child(at, 1), kAny, &p.factor));
-    if (!history->empty() && p.time <= history->back().time) {
-      return Bad(Child(at, 0), "times must increase strictly, got ", Num(p.time), " s after ",
-                 Num(history->back().time), " s");
-    }
-    history->push_back(p);
-  }
+  std::vector<std::array<double, 3>> rows;
+  RETURN_IF_ERROR(ParseTimeRows(j, ptr, 2, "[t, factor] (s, -)", true, &rows));
+  for (const auto& row : rows) history->push_back({row[0], row[1]});
   return absl::OkStatus();
 }
 

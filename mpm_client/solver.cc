@@ -132,28 +132,34 @@ double CflTimeStep(double cfl, double cell_size, double wave_modulus, double den
   return cfl * cell_size / std::sqrt(wave_modulus / density);
 }
 
-Eigen::Vector2d VelocityAt(const std::vector<VelocityPoint>& history, double t) {
-  if (history.empty()) return Vector2d::Zero();
-  if (t <= history.front().time) return history.front().velocity;
+namespace {
+
+// value(point) of a piecewise-linear history at time t: interpolated between
+// its points (times increasing), held at the first before the first time and
+// at the last after the last. `history` is not empty.
+template <typename Point, typename Value>
+auto Interpolate(const std::vector<Point>& history, double t, Value value) {
+  if (t <= history.front().time) return value(history.front());
   for (std::size_t k = 0; k + 1 < history.size(); ++k) {
-    const VelocityPoint &a = history[k], &b = history[k + 1];
+    const Point &a = history[k], &b = history[k + 1];
     if (t >= a.time && t < b.time) {
-      return a.velocity + (b.velocity - a.velocity) * ((t - a.time) / (b.time - a.time));
+      const decltype(value(a)) va = value(a), vb = value(b);
+      return decltype(va)(va + (vb - va) * ((t - a.time) / (b.time - a.time)));
     }
   }
-  return history.back().velocity;
+  return value(history.back());
+}
+
+}  // namespace
+
+Eigen::Vector2d VelocityAt(const std::vector<VelocityPoint>& history, double t) {
+  if (history.empty()) return Vector2d::Zero();
+  return Interpolate(history, t, [](const VelocityPoint& p) -> Vector2d { return p.velocity; });
 }
 
 double LoadFactorAt(const std::vector<LoadFactorPoint>& history, double ramp_time, double t) {
   if (history.empty()) return ramp_time > 0.0 ? std::min(1.0, t / ramp_time) : 1.0;
-  if (t <= history.front().time) return history.front().factor;
-  for (std::size_t k = 0; k + 1 < history.size(); ++k) {
-    const LoadFactorPoint &a = history[k], &b = history[k + 1];
-    if (t >= a.time && t < b.time) {
-      return a.factor + (b.factor - a.factor) * ((t - a.time) / (b.time - a.time));
-    }
-  }
-  return history.back().factor;
+  return Interpolate(history, t, [](const LoadFactorPoint& p) { return p.factor; });
 }
 
 Eigen::Vector2d DisplacementAt(const std::vector<VelocityPoint>& history, double t) {

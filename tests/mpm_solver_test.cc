@@ -954,7 +954,22 @@ TEST(CheckpointTest, ExportImportContinuesBitIdentically) {
   broken = doubles;
   broken["stress"].pop_back();
   EXPECT_EQ((*b)->ImportState(broken, ints).code(), absl::StatusCode::kInvalidArgument);
+  // A load naming a traction the case does not have.
+  std::map<std::string, std::vector<std::int64_t>> bad_source = ints;
+  bad_source["load_source"].back() = 2;
+  const absl::Status named = (*b)->ImportState(doubles, bad_source);
+  EXPECT_EQ(named.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(named.message().find("names traction 2"), std::string::npos) << named;
   EXPECT_EQ((*b)->step(), 30);
+
+  // A history whose times do not increase is refused when the solver is made.
+  CaseSpec unordered = spec;
+  unordered.tractions[1].history[2].time = 0.003;
+  LinearElasticModel model_c = model;
+  absl::StatusOr<MaterialPoints> points = FillRegions(unordered);
+  ASSERT_TRUE(points.ok()) << points.status();
+  EXPECT_EQ(Solver::Create(unordered, *points, &model_c).status().code(),
+            absl::StatusCode::kInvalidArgument);
 }
 
 }  // namespace

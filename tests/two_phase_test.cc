@@ -48,6 +48,20 @@ TEST(TwoPhaseKernelTest, IntermediateVelocitiesLimits) {
   EXPECT_NEAR((locked.fluid - locked.solid).norm(), 0.0, 1e-11);
 }
 
+// The mobility of the mixture's volume flux: eq. 10's (1 − n)/ρ_s + n/ρ_f
+// without drag, 1/ρ_mixture with the phases locked (k → 0), in between
+// otherwise.
+TEST(TwoPhaseKernelTest, PressureMobilityLimits) {
+  const double n = 0.3, rho_s = 2650.0, rho_f = 1000.0;
+  const double free = (1.0 - n) / rho_s + n / rho_f;
+  const double locked = 1.0 / ((1.0 - n) * rho_s + n * rho_f);
+  EXPECT_NEAR(PressureMobility(n, rho_s, rho_f, 0.0), free, 1e-15 * free);
+  EXPECT_NEAR(PressureMobility(n, rho_s, rho_f, 1e12), locked, 1e-9 * locked);
+  const double middle = PressureMobility(n, rho_s, rho_f, 300.0);
+  EXPECT_LT(middle, free);
+  EXPECT_GT(middle, locked);
+}
+
 TEST(TwoPhaseKernelTest, PermeabilityAndTerzaghi) {
   const double e0 = 0.25, k0 = 1e-3;
   const double c = KozenyCarmanCoefficient(e0, k0);
