@@ -46,6 +46,7 @@ ABSL_FLAG(std::string, tls_ca, "", "CA certificate (PEM)");
 ABSL_FLAG(double, timeout, 600, "deadline of one batched RVE call, s");
 ABSL_FLAG(std::string, template_cache, "", "template cache directory");
 ABSL_FLAG(int64_t, stop_after, 0, "stop after N steps");
+ABSL_FLAG(double, end_time, 0, "resume: the run's new end time, s");
 ABSL_FLAG(bool, quiet, false, "no progress lines");
 ABSL_FLAG(bool, no_recovery, false, "a lost server ends the run");
 ABSL_FLAG(double, min_timeout, 10, "floor of the adaptive RVE call deadline, s");
@@ -90,6 +91,10 @@ Options (run, resume):
   --stop-after=N       stop after N steps, writing DIR/checkpoint.h5 there (to resume)
   --quiet              no progress lines
 
+Option (resume):
+  --end-time=SECONDS   run on to this time instead of the case's end_time (after the
+                       checkpoint's time); the checkpoints written from then on carry it
+
 Option (run, check):
   --set=PATH=VALUE     override one case field before the case is validated; repeatable.
                        PATH is a JSON pointer or dotted: --set=/rve/min_steps=4,
@@ -105,6 +110,7 @@ using cli::Args;
 constexpr char kThreadsRule[] = "must be an integer in 1..1024";
 constexpr char kTimeoutRule[] = "must be a number of seconds in (0, 1e7]";
 constexpr char kStopAfterRule[] = "must be a positive integer";
+constexpr char kEndTimeRule[] = "must be a time in (0, 1e6] s";
 
 struct Command {
   std::string name;    // run, resume, check, help
@@ -120,15 +126,16 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
     return c;
   }
   cli::ArgSpec spec;
-  spec.allowed = {"out",        "servers", "threads",     "token-file",
-                  "tls-ca",     "timeout", "min-timeout", "template-cache",
-                  "stop-after", "quiet",   "no-recovery", "set"};
+  spec.allowed = {"out",         "servers",     "threads",        "token-file", "tls-ca",
+                  "timeout",     "min-timeout", "template-cache", "stop-after", "quiet",
+                  "no-recovery", "set",         "end-time"};
   spec.repeatable = {"set"};
   spec.bare = {"quiet", "no-recovery"};
   spec.rules = {{"threads", kThreadsRule},
                 {"timeout", kTimeoutRule},
                 {"min-timeout", kTimeoutRule},
-                {"stop-after", kStopAfterRule}};
+                {"stop-after", kStopAfterRule},
+                {"end-time", kEndTimeRule}};
   ASSIGN_OR_RETURN(Args args, cli::ParseArgs(argc, argv, 1, spec));
   c.args = std::move(args);
   std::vector<std::string>& positional = c.args.positional;
@@ -159,6 +166,10 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
       }
     }
     if (!c.args.contains("out")) return absl::InvalidArgumentError("summarise needs --out=DIR");
+  }
+  if (c.name != "resume" && c.args.contains("end-time")) {
+    return absl::InvalidArgumentError(
+        "--end-time is for resume (a run sets solver.end_time in its case, or --set it)");
   }
   if (c.name == "resume" && c.args.contains("set")) {
     return absl::InvalidArgumentError(
@@ -228,6 +239,12 @@ absl::StatusOr<SimulationOptions> Options(const Args& a) {
     o.stop_after_steps = absl::GetFlag(FLAGS_stop_after);
     if (o.stop_after_steps < 1) {
       return absl::InvalidArgumentError(absl::StrCat("--stop-after ", kStopAfterRule));
+    }
+  }
+  if (a.contains("end-time")) {
+    o.end_time = absl::GetFlag(FLAGS_end_time);
+    if (!(o.end_time > 0) || o.end_time > 1e6) {
+      return absl::InvalidArgumentError(absl::StrCat("--end-time ", kEndTimeRule));
     }
   }
   if (a.contains("template-cache")) o.template_cache_dir = absl::GetFlag(FLAGS_template_cache);

@@ -610,9 +610,16 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
     return absl::DataLossError(
         absl::StrCat(checkpoint_path, ": its case does not parse: ", spec.status().message()));
   }
+  std::string case_json = c.case_json;
+  if (options.end_time > 0) {
+    const CaseOverride end{"/solver/end_time", absl::StrFormat("%.17g", options.end_time)};
+    spec = ParseCase(c.case_json, ".", {&end, 1});
+    if (!spec.ok()) return spec.status();
+    case_json = ToJson(*spec);
+  }
   std::unique_ptr<Simulation> sim(new Simulation());
   sim->spec_ = *std::move(spec);
-  sim->case_json_ = c.case_json;
+  sim->case_json_ = std::move(case_json);
   sim->options_ = options;
   sim->run_id_ = MakeRunId(sim->spec_.name);
   sim->templates_ = std::move(c.templates);
@@ -630,6 +637,11 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
   ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver,
                    Solver::FromState(sim->spec_, c.doubles, c.ints, sim->model_.get()));
   sim->solver_ = std::move(solver);
+  if (options.end_time > 0 && !(options.end_time > sim->solver_->time())) {
+    return absl::InvalidArgumentError(
+        absl::StrFormat("--end-time %.6g s is not after the checkpoint's time %.6g s",
+                        options.end_time, sim->solver_->time()));
+  }
   sim->SetApplyOptions();
   sim->Log(absl::StrFormat("resumed %s at step %d, t = %.6g s", checkpoint_path,
                            sim->solver_->step(), sim->solver_->time()));

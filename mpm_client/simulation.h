@@ -58,6 +58,9 @@ struct SimulationOptions {
   // Stop after this many MPM steps of this invocation (0: run to the end),
   // writing a checkpoint there (checkpoints on or not) to resume from.
   std::int64_t stop_after_steps = 0;
+  // Resume only: the run's new end time, s (0: the case's). Lets a run that
+  // ended, or was planned too short, go on; later checkpoints carry it.
+  double end_time = 0;
   bool progress = true;                         // progress lines on stderr
   std::function<void(const std::string&)> log;  // default: stderr
 };

@@ -273,6 +273,9 @@ TEST(MpmCliTest, UsageErrorsExitTwoWithAMessage) {
            {absl::StrCat("run ", case_path, out, " --set=rve.min_steps"), "--set needs PATH=VALUE"},
            {absl::StrCat("run ", case_path, out, " --set"), "--set needs a value"},
            {"resume x.h5 --set=/rve/min_steps=4", "resume takes no --set"},
+           {absl::StrCat("run ", case_path, out, " --end-time=2"), "--end-time is for resume"},
+           {"resume x.h5 --end-time=0", "--end-time must be a time in (0, 1e6] s"},
+           {"resume x.h5 --end-time=soon", "--end-time must be a time"},
        }) {
     const Result r = RunClient(c.args);
     EXPECT_EQ(r.exit_code, 2) << c.args << ": " << r;

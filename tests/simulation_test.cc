@@ -12,6 +12,8 @@
 #include <iterator>
 #include <string>
 
+#include "absl/strings/match.h"
+
 #include "mpm_client/case.h"
 #include "mpm_client/output.h"
 #include "mpm_client/templates.h"
@@ -269,6 +271,55 @@ TEST(SimulationTest, ResumeFromCheckpointIsBitIdentical) {
       ReadCsvColumns(out_b + "/timeseries.csv");
   ASSERT_TRUE(ts.ok()) << ts.status();
   EXPECT_EQ(ts->at("step"), (std::vector<double>{0, 5, 10, 15, 20, 25, 30, 35, 40}));
+}
+
+// A finished run resumed with a later end time goes on as if the case had
+// asked for it: bit-identical to the longer run, and its checkpoint carries
+// the new end time. An end time not after the checkpoint's is refused.
+TEST(SimulationTest, ResumeWithALaterEndTimeExtendsTheRun) {
+  double dt = 0;
+  const CaseSpec longer = ShortCase(40, &dt);
+  std::unique_ptr<Simulation> a = StartOrDie(longer, Options(FreshDir("extend_a")));
+  ASSERT_NE(a, nullptr);
+  ASSERT_TRUE(a->StepToEnd().ok());
+  absl::StatusOr<store::SimCheckpoint> end_a = a->Snapshot();
+  ASSERT_TRUE(end_a.ok()) << end_a.status();
+
+  CaseSpec shorter = ShortCase(25);
+  shorter.output.checkpoint_every = 25;
+  const std::string out_b = FreshDir("extend_b");
+  {
+    std::unique_ptr<Simulation> b = StartOrDie(shorter, Options(out_b));
+    ASSERT_NE(b, nullptr);
+    absl::StatusOr<SimulationSummary> s = b->StepToEnd();
+    ASSERT_TRUE(s.ok()) << s.status();
+    EXPECT_TRUE(s->finished);
+    EXPECT_EQ(s->final_step, 25);
+  }
+  SimulationOptions too_early = Options(out_b);
+  too_early.end_time = 25 * dt;
+  absl::StatusOr<std::unique_ptr<Simulation>> refused =
+      Simulation::Resume(out_b + "/checkpoint.h5", too_early);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_TRUE(absl::StrContains(refused.status().message(),
+                                "--end-time 0.05 s is not after the checkpoint's time 0.05 s"))
+      << refused.status();
+
+  SimulationOptions later = Options(out_b);
+  later.end_time = longer.solver.end_time;
+  absl::StatusOr<std::unique_ptr<Simulation>> c =
+      Simulation::Resume(out_b + "/checkpoint.h5", later);
+  ASSERT_TRUE(c.ok()) << c.status();
+  absl::StatusOr<SimulationSummary> s = (*c)->StepToEnd();
+  ASSERT_TRUE(s.ok()) << s.status();
+  EXPECT_TRUE(s->finished);
+  EXPECT_EQ(s->final_step, 40);
+  absl::StatusOr<store::SimCheckpoint> end_c = (*c)->Snapshot();
+  ASSERT_TRUE(end_c.ok()) << end_c.status();
+  ExpectSameSnapshots(*end_a, *end_c);
+  absl::StatusOr<CaseSpec> carried = ParseCase(end_c->case_json, ".");
+  ASSERT_TRUE(carried.ok()) << carried.status();
+  EXPECT_EQ(carried->solver.end_time, longer.solver.end_time);
 }
 
 // `count` RVE servers of one thread each on loopback ports, added to
