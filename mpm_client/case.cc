@@ -26,6 +26,7 @@
 #include "rve_server/common/status_macros.h"
 #include "rve_server/common/text_file.h"
 #include "rve_server/engine/material.h"
+#include "rve_server/engine/snapshot.h"
 
 namespace rvehub::mpm {
 namespace {
@@ -628,6 +629,19 @@ Fields<TemplateSpec> TemplateFields(const std::string& base_dir) {
        },
        [](const TemplateSpec& t, OrderedJson& j) {
          if (FromSet(t)) j["seed"] = t.seed;
+       }},
+      {"pressure",
+       [](const Object& o, TemplateSpec* t) -> absl::Status {
+         if (!o.Has("parameter_set")) {
+           return Forbid(o, "pressure",
+                         "only for templates prepared from a parameter set (a file holds its own "
+                         "packing)");
+         }
+         return GetNumber(o, "pressure", Need::kOptional,
+                          Range{0.0, dem::kMaxPressure, true, false}, &t->pressure);
+       },
+       [](const TemplateSpec& t, OrderedJson& j) {
+         if (FromSet(t) && t.pressure > 0) j["pressure"] = t.pressure;
        }},
       {"file",
        [base_dir](const Object& o, TemplateSpec* t) -> absl::Status {

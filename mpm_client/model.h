@@ -79,6 +79,9 @@ struct TemplateSpec {
   std::string template_name;  // name inside the file (empty: the only one)
   std::string parameter_set;  // e.g. "SET-dense" (rve_cli materials)
   std::uint64_t seed = 1;
+  // Pa, compression +: compact at this pressure instead of the set's p0
+  // (0: the set's), so that e0 is the state where the RVEs are used.
+  double pressure = 0;
 };
 
 // Piecewise-linear velocity history: v(t) interpolated between the points,

@@ -40,7 +40,11 @@ absl::StatusOr<store::TemplateRecord> FromFile(const TemplateSpec& spec) {
 absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
                                                const std::string& cache_dir,
                                                const std::function<void(const std::string&)>& log) {
-  const std::string stem = absl::StrCat(spec.parameter_set, "-seed", spec.seed);
+  // A template compacted at another pressure is another packing.
+  const std::string stem = spec.pressure > 0
+                               ? absl::StrCat(spec.parameter_set, "-seed", spec.seed, "-p",
+                                              absl::StrFormat("%.6g", spec.pressure), "Pa")
+                               : absl::StrCat(spec.parameter_set, "-seed", spec.seed);
   const std::string path = (std::filesystem::path(cache_dir) / (stem + ".h5")).string();
   if (std::filesystem::exists(path)) {
     absl::StatusOr<std::vector<store::TemplateRecord>> cached = store::ReadTemplates(path);
@@ -52,8 +56,8 @@ absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
   dem::PreparationReport report;
   // The first progress line ("N discs, seed S") is the one worth a log line.
   bool announced = false;
-  absl::StatusOr<dem::RveSnapshot> packing =
-      dem::PrepareTemplate(spec.parameter_set, spec.seed, &report, [&](const std::string& line) {
+  absl::StatusOr<dem::RveSnapshot> packing = dem::PrepareTemplate(
+      spec.parameter_set, spec.seed, spec.pressure, &report, [&](const std::string& line) {
         if (log && !announced) log(absl::StrCat("  ", line));
         announced = true;
       });

@@ -46,7 +46,7 @@ constexpr char kFullCase[] = R"json({
   "solver": {"shape": "gimp", "pic_fraction": 0.05, "gravity": [0, -9.81], "time_step": 1e-4,
              "cfl": 0.4, "wave_modulus": 2.5e7, "end_time": 1.5, "thickness": 0.1},
   "templates": [
-    {"name": "dense", "parameter_set": "SET-dense", "seed": 7},
+    {"name": "dense", "parameter_set": "SET-dense", "seed": 7, "pressure": 6600},
     {"name": "stored", "file": "packings/x.h5", "template_name": "loose-1"}
   ],
   "regions": [
@@ -147,6 +147,8 @@ TEST_F(CaseTest, FullCaseParsesIntoExpectedSpec) {
   EXPECT_EQ(spec->templates[0].name, "dense");
   EXPECT_EQ(spec->templates[0].parameter_set, "SET-dense");
   EXPECT_EQ(spec->templates[0].seed, 7u);
+  EXPECT_EQ(spec->templates[0].pressure, 6600);
+  EXPECT_EQ(spec->templates[1].pressure, 0);
   EXPECT_EQ(spec->templates[0].file, "");
   EXPECT_EQ(spec->templates[1].name, "stored");
   EXPECT_EQ(spec->templates[1].parameter_set, "");
@@ -259,6 +261,7 @@ TEST_F(CaseTest, MinimalCaseTakesModelDefaults) {
   EXPECT_EQ(spec->solver.cfl, defaults.solver.cfl);
   EXPECT_EQ(spec->solver.thickness, defaults.solver.thickness);
   EXPECT_EQ(spec->templates[0].seed, 1u);
+  EXPECT_EQ(spec->templates[0].pressure, 0);  // the set's p0
   const MaterialRegion region_defaults;
   EXPECT_EQ(spec->regions[0].points_per_cell_side, region_defaults.points_per_cell_side);
   EXPECT_EQ(spec->regions[0].initial_stress, InitialStressKind::kTemplate);
@@ -312,6 +315,7 @@ void ExpectSameSpec(const CaseSpec& a, const CaseSpec& b) {
     EXPECT_EQ(a.templates[i].template_name, b.templates[i].template_name);
     EXPECT_EQ(a.templates[i].parameter_set, b.templates[i].parameter_set);
     EXPECT_EQ(a.templates[i].seed, b.templates[i].seed);
+    EXPECT_EQ(a.templates[i].pressure, b.templates[i].pressure);
   }
   ASSERT_EQ(a.regions.size(), b.regions.size());
   for (size_t i = 0; i < a.regions.size(); ++i) {
@@ -517,6 +521,9 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
       {"/templates/0/file", "packings/x.h5", "/templates/0: give exactly one of \"file\""},
       {"/templates/1/file", "packings/missing.h5", "/templates/1/file: no such file \"/"},
       {"/templates/1/seed", 3, "/templates/1/seed: only for templates prepared"},
+      {"/templates/1/pressure", 5000, "/templates/1/pressure: only for templates prepared"},
+      {"/templates/0/pressure", 0, "/templates/0/pressure: must be in (0, 1000000000], got 0"},
+      {"/templates/0/pressure", -1, "/templates/0/pressure: must be in (0, 1000000000], got -1"},
       // Geometry: off the grid, outside it, empty, overlapping.
       {"/regions/0/lower/0", 0.25,
        "/regions/0/lower/0: x = 0.25 m is not on a grid line (origin 0 m, cell size 0.5 m)"},

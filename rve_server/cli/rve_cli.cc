@@ -61,6 +61,7 @@
 ABSL_FLAG(std::string, test, "", "element test");
 ABSL_FLAG(std::string, material, "", "parameter set");
 ABSL_FLAG(uint64_t, seed, 1, "packing seed");
+ABSL_FLAG(double, pressure, 0, "preparation pressure, Pa");
 ABSL_FLAG(double, confining, 0, "confining stress, Pa");
 ABSL_FLAG(double, strain, 0, "strain to stop at");
 ABSL_FLAG(std::string, out, "", "output file");
@@ -131,7 +132,8 @@ Server options:
 
 constexpr char kElementTestHelp[] = R"(rve_cli element-test — run an element test on one RVE
 
-  rve_cli element-test --test=NAME [--material=NAME --seed=N] --out=FILE.csv [options]
+  rve_cli element-test --test=NAME [--material=NAME --seed=N --pressure=PA] --out=FILE.csv
+                       [options]
   rve_cli element-test --server=HOST:PORT --template=NAME --test=NAME --out=FILE.csv [options]
 
 Locally, prepares the packing of --material/--seed and runs the test in this
@@ -145,6 +147,8 @@ Options:
   --material=NAME    parameter set, e.g. SET-dense, SPFEM-biaxial, consolidation
                      (local only; default SET-dense)
   --seed=N           packing seed (local only; default 1)
+  --pressure=PA      pressure the packing is compacted at, Pa (local only; default the set's
+                     p0); --confining then loads or unloads it from there
   --template=NAME    the server's template to test (with --server)
   --confining=PA     consolidation / lateral stress in Pa, compression + (default 100000)
   --strain=MAX       axial strain (biaxial, oedometer), volumetric strain (isotropic) or
@@ -163,11 +167,13 @@ Options:
 constexpr char kPrepareHelp[] =
     R"(rve_cli prepare — prepare an RVE packing and print its initial state
 
-  rve_cli prepare [--material=NAME] [--seed=N] [--out=FILE.h5 [--name=NAME]]
+  rve_cli prepare [--material=NAME] [--seed=N] [--pressure=PA] [--out=FILE.h5 [--name=NAME]]
 
 Options:
   --material=NAME    parameter set (default SET-dense; see `rve_cli materials`)
   --seed=N           packing seed (default 1)
+  --pressure=PA      pressure to compact at, Pa, compression + (default the set's p0): the
+                     set's e0 is then sought at this pressure
   --out=FILE.h5      also write the packing as a template file (for upload-template)
   --name=NAME        template name, [A-Za-z0-9._-]{1,128} (default MATERIAL-seedN)
 )";
@@ -430,14 +436,20 @@ absl::StatusOr<dem::RveSnapshot> PreparePacking(const Flags& flags, std::string*
                                                 dem::PreparationReport* report) {
   *material = "SET-dense";
   *seed = 1;
+  double pressure = 0;  // Pa; 0: the set's p0
   RETURN_IF_ERROR(Get(flags, "material", material));
   RETURN_IF_ERROR(Get(flags, "seed", seed));
+  RETURN_IF_ERROR(Get(flags, "pressure", &pressure));
+  if (flags.contains("pressure") && !(pressure > 0 && pressure <= dem::kMaxPressure)) {
+    return UsageError("--pressure must be a pressure in (0, 1e9] Pa");
+  }
   std::fprintf(stderr, "preparing %s...\n", material->c_str());
   // Its first line is "N discs, seed S".
-  ASSIGN_OR_RETURN(dem::RveSnapshot packing,
-                   dem::PrepareTemplate(*material, *seed, report, [](const std::string& line) {
-                     std::fprintf(stderr, "  %s\n", line.c_str());
-                   }));
+  ASSIGN_OR_RETURN(
+      dem::RveSnapshot packing,
+      dem::PrepareTemplate(*material, *seed, pressure, report, [](const std::string& line) {
+        std::fprintf(stderr, "  %s\n", line.c_str());
+      }));
   std::fprintf(
       stderr, "prepared: e0 = %.4f, p0 = %.1f Pa, Z = %.2f, compaction friction %.4f, %lld steps\n",
       report->void_ratio, report->pressure, report->coordination, report->compaction_friction,
@@ -490,9 +502,9 @@ absl::Status ElementTestCommand(const Flags& flags) {
   if (on_server) {
     // The template fixes the packing: a material or seed here would be
     // silently ignored, which is worse than refusing it.
-    if (flags.contains("material") || flags.contains("seed")) {
+    if (flags.contains("material") || flags.contains("seed") || flags.contains("pressure")) {
       return UsageError(
-          "--material/--seed do not apply with --server (the template fixes the "
+          "--material/--seed/--pressure do not apply with --server (the template fixes the "
           "packing)");
     }
     if (template_name.empty()) return UsageError("--template=NAME is required with --server");
@@ -878,10 +890,14 @@ const std::vector<Command>& Commands() {
       {"element-test",
        kElementTestHelp,
        true,
-       {"test", "material", "seed", "confining", "strain", "out", "plot", "rows", "inertial-number",
-        "cyclic-control", "amplitude", "cycles", "template"},
+       {"test", "material", "seed", "pressure", "confining", "strain", "out", "plot", "rows",
+        "inertial-number", "cyclic-control", "amplitude", "cycles", "template"},
        &ElementTestCommand},
-      {"prepare", kPrepareHelp, false, {"material", "seed", "out", "name"}, &PrepareCommand},
+      {"prepare",
+       kPrepareHelp,
+       false,
+       {"material", "seed", "pressure", "out", "name"},
+       &PrepareCommand},
       {"materials", kMaterialsHelp, false, {}, &MaterialsCommand},
       {"info", kInfoHelp, true, {}, &InfoCommand},
       {"get", kGetHelp, true, {"run", "id", "tangent", "format"}, &GetCommand},

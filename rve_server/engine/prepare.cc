@@ -204,10 +204,18 @@ absl::StatusOr<RveSnapshot> PreparePacking(
 }
 
 absl::StatusOr<RveSnapshot> PrepareTemplate(
-    absl::string_view parameter_set, std::uint64_t seed, PreparationReport* report,
+    absl::string_view parameter_set, std::uint64_t seed, double pressure, PreparationReport* report,
     const std::function<void(const std::string&)>& progress) {
   ASSIGN_OR_RETURN(ParameterSet set, FindParameterSet(parameter_set));
   set.preparation.seed = seed;
+  if (pressure != 0) {
+    if (!(pressure > 0 && pressure <= kMaxPressure)) {
+      return absl::InvalidArgumentError(absl::StrCat("preparation pressure ", pressure,
+                                                     " Pa must lie in (0, ", kMaxPressure,
+                                                     "] Pa (compression +)"));
+    }
+    set.preparation.pressure = pressure;
+  }
   if (progress) {
     progress(absl::StrFormat("%d discs, seed %d", set.preparation.num_particles, seed));
   }

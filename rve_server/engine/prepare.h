@@ -55,11 +55,15 @@ absl::StatusOr<RveSnapshot> PreparePacking(
 
 // The one way to make a template from a named parameter set and a seed
 // (rve_cli prepare, mpm_client's case templates): the set's preparation with
-// its seed replaced, through PreparePacking. NotFound naming the known sets
-// for an unknown name. `progress`, when set, first receives "N discs, seed
-// S", then PreparePacking's lines.
+// its seed replaced and, where `pressure` > 0 (Pa, compression +), its p0:
+// a packing compacted at the stress it will be used at reaches the set's e0
+// there, where one compacted at 100 kPa and unloaded swells and loses
+// contacts. NotFound naming the known sets for an unknown name,
+// InvalidArgument for a pressure outside (0, kMaxPressure]. `progress`, when
+// set, first receives "N discs, seed S", then PreparePacking's lines.
 absl::StatusOr<RveSnapshot> PrepareTemplate(
-    absl::string_view parameter_set, std::uint64_t seed, PreparationReport* report = nullptr,
+    absl::string_view parameter_set, std::uint64_t seed, double pressure = 0,
+    PreparationReport* report = nullptr,
     const std::function<void(const std::string&)>& progress = {});
 
 }  // namespace rvehub::dem
