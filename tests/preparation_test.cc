@@ -188,6 +188,21 @@ TEST(PreparationTest, TemplateCompactedAtAGivenPressureKeepsItsVoidRatioThere) {
 
   EXPECT_EQ(PrepareTemplate("saturated-medium", 1, -5.0).status().code(),
             absl::StatusCode::kInvalidArgument);
+
+  // Unloaded to 2 kPa (a collapse column's top), with the servo stopped once
+  // the stress has stayed close for 4000 steps, as the registry creates
+  // material points: balanced and at the stress in 8800 steps (measured),
+  // where the servo alone ran to its 600 000-step cap.
+  absl::StatusOr<Rve> top = Rve::Create(*low);
+  ASSERT_TRUE(top.ok()) << top.status();
+  std::int64_t steps = 0;
+  absl::StatusOr<RveState> at_2 = ConsolidateIsotropic(*top, 2e3, 1e-4, &steps, {}, 4000);
+  ASSERT_TRUE(at_2.ok()) << at_2.status();
+  std::printf("unloaded to 2 kPa in %lld steps: e = %.4f\n", static_cast<long long>(steps),
+              at_2->void_ratio);
+  EXPECT_NEAR(Pressure(*at_2), 2e3, 0.01 * 2e3);
+  EXPECT_LT(at_2->unbalanced_force_ratio, 1e-4);
+  EXPECT_LT(steps, 50000);
 }
 
 TEST(PreparationTest, ReportAgreesWithPacking) {

@@ -32,12 +32,14 @@ constexpr int kMaxTrials = 7;
 }  // namespace
 
 absl::StatusOr<RveState> ConsolidateIsotropic(Rve& rve, double p, double balance,
-                                              std::int64_t* steps, const Interrupt& interrupt) {
-  return ConsolidateToStress(rve, p, p, balance, steps, interrupt);
+                                              std::int64_t* steps, const Interrupt& interrupt,
+                                              std::int64_t settle_steps) {
+  return ConsolidateToStress(rve, p, p, balance, steps, interrupt, settle_steps);
 }
 
 absl::StatusOr<RveState> ConsolidateToStress(Rve& rve, double sxx, double syy, double balance,
-                                             std::int64_t* steps, const Interrupt& interrupt) {
+                                             std::int64_t* steps, const Interrupt& interrupt,
+                                             std::int64_t settle_steps) {
   if (!(sxx > 0 && syy > 0 && sxx <= kMaxPressure && syy <= kMaxPressure)) {
     return absl::InvalidArgumentError(
         absl::StrCat("consolidation stresses σxx = ", sxx, " Pa, σyy = ", syy,
@@ -60,7 +62,15 @@ absl::StatusOr<RveState> ConsolidateToStress(Rve& rve, double sxx, double syy, d
   std::int64_t done = 0;
   for (int round = 0; round < kMaxRounds; ++round) {
     RveState s = rve.Observe();
-    while (!(close(s) && s.unbalanced_force_ratio < kServoBalance) && done < kMaxSteps) {
+    std::int64_t close_for = 0;  // steps the stress has stayed close
+    while (done < kMaxSteps) {
+      if (close(s)) {
+        if (s.unbalanced_force_ratio < kServoBalance) break;
+        if (settle_steps > 0 && close_for >= settle_steps) break;
+        close_for += kChunk;
+      } else {
+        close_for = 0;
+      }
       if (interrupt) {
         RETURN_IF_ERROR(interrupt());
       }
