@@ -190,13 +190,13 @@ TEST(PreparationTest, TemplateCompactedAtAGivenPressureKeepsItsVoidRatioThere) {
             absl::StatusCode::kInvalidArgument);
 
   // Unloaded to 2 kPa (a collapse column's top), with the servo stopped once
-  // the stress has stayed close for 4000 steps, as the registry creates
+  // the stress has stayed close for kSettleSteps, as the registry creates
   // material points: balanced and at the stress in 8800 steps (measured),
   // where the servo alone ran to its 600 000-step cap.
   absl::StatusOr<Rve> top = Rve::Create(*low);
   ASSERT_TRUE(top.ok()) << top.status();
   std::int64_t steps = 0;
-  absl::StatusOr<RveState> at_2 = ConsolidateIsotropic(*top, 2e3, 1e-4, &steps, {}, 4000);
+  absl::StatusOr<RveState> at_2 = ConsolidateIsotropic(*top, 2e3, 1e-4, &steps, {}, kSettleSteps);
   ASSERT_TRUE(at_2.ok()) << at_2.status();
   std::printf("unloaded to 2 kPa in %lld steps: e = %.4f\n", static_cast<long long>(steps),
               at_2->void_ratio);

@@ -24,12 +24,6 @@ namespace {
 constexpr std::size_t kMaxDescriptionBytes = 4096;
 constexpr int kMaxListedIds = 8;  // ids named in one error message at most
 constexpr double kMaxK0 = 10.0;   // σh/σv of a K0 state at most, [-]
-// A material point's RVE is consolidated to its initial stress with the
-// servo stopped once the stress has stayed close this many DEM steps: from a
-// template at 100 or 20 kPa to a few kPa the servo otherwise ran to its
-// 600 000-step cap (measured: 1 200–24 000 steps with it, the same e within
-// 0.0015).
-constexpr std::int64_t kSettleSteps = 4000;
 
 }  // namespace
 
@@ -299,11 +293,12 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
     const InitialStress& target = target_of(distinct[u]);
     const absl::Status guarded = NoThrow([&] {
       if (target.kind == InitialStress::Kind::kIsotropic) {
-        s = dem::ConsolidateIsotropic(rve, target.pressure, 1e-4, nullptr, cancelled, kSettleSteps);
+        s = dem::ConsolidateIsotropic(rve, target.pressure, 1e-4, nullptr, cancelled,
+                                      dem::kSettleSteps);
       } else if (target.kind == InitialStress::Kind::kK0) {
         s = dem::ConsolidateToStress(rve, target.k0 * target.vertical_compression,
                                      target.vertical_compression, 1e-4, nullptr, cancelled,
-                                     kSettleSteps);
+                                     dem::kSettleSteps);
       }
       return absl::OkStatus();
     });
