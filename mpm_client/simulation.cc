@@ -612,6 +612,12 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
   }
   std::string case_json = c.case_json;
   if (options.end_time > 0) {
+    // Before any server is asked to hold the RVEs.
+    if (!(options.end_time > c.time)) {
+      return absl::InvalidArgumentError(
+          absl::StrFormat("--end-time %.6g s is not after the checkpoint's time %.6g s",
+                          options.end_time, c.time));
+    }
     const CaseOverride end{"/solver/end_time", absl::StrFormat("%.17g", options.end_time)};
     spec = ParseCase(c.case_json, ".", {&end, 1});
     if (!spec.ok()) return spec.status();
@@ -637,11 +643,6 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
   ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver,
                    Solver::FromState(sim->spec_, c.doubles, c.ints, sim->model_.get()));
   sim->solver_ = std::move(solver);
-  if (options.end_time > 0 && !(options.end_time > sim->solver_->time())) {
-    return absl::InvalidArgumentError(
-        absl::StrFormat("--end-time %.6g s is not after the checkpoint's time %.6g s",
-                        options.end_time, sim->solver_->time()));
-  }
   sim->SetApplyOptions();
   sim->Log(absl::StrFormat("resumed %s at step %d, t = %.6g s", checkpoint_path,
                            sim->solver_->step(), sim->solver_->time()));
