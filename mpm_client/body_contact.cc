@@ -41,6 +41,22 @@ void SignedDistance(const RigidBody& body, const Vector2d& center, const Vector2
   distance = -gap[best];
 }
 
+// ∫_{-1}^{s} (1 − |u|) du: the bilinear hat's integral up to s ∈ [−1, 1],
+// in cells, [-].
+double HatIntegral(double s) {
+  s = std::clamp(s, -1.0, 1.0);
+  return s <= 0.0 ? 0.5 * (s + 1.0) * (s + 1.0) : 1.0 - 0.5 * (1.0 - s) * (1.0 - s);
+}
+
+// The hat's integral over [a, b] ∩ [lower, upper] along one axis, for a
+// node at x on cells of size h, [-] (1 for the whole support).
+double HatShare(double a, double b, double x, double h, double lower, double upper) {
+  a = std::max(a, lower);
+  b = std::min(b, upper);
+  if (!(b > a)) return 0.0;
+  return HatIntegral((b - x) / h) - HatIntegral((a - x) / h);
+}
+
 }  // namespace
 
 BodyGap GapToBody(const RigidBody& body, const Vector2d& center, const Vector2d& x,
@@ -125,6 +141,38 @@ int ResolveContacts(std::span<const SurfaceContact> contacts, std::span<const Ri
     if (largest <= kContactTolerance) break;
   }
   return sweep;
+}
+
+double BodyShareOfNode(const RigidBody& body, const Vector2d& center, const Vector2d& node,
+                       double h, const Vector2d& lower, const Vector2d& upper) {
+  constexpr double kInfinity = std::numeric_limits<double>::infinity();
+  if (body.shape == RigidBody::Shape::kRectangle) {
+    const Vector2d a = center - body.half_size, b = center + body.half_size;
+    return HatShare(a.x(), b.x(), node.x(), h, lower.x(), upper.x()) *
+           HatShare(a.y(), b.y(), node.y(), h, lower.y(), upper.y());
+  }
+  // A circle: exact where the support lies wholly outside or inside it.
+  const double distance = (node - center).norm() - body.radius;  // m, outside +
+  if (distance >= std::sqrt(2.0) * h) return 0.0;
+  if (distance <= -std::sqrt(2.0) * h) {
+    return HatShare(-kInfinity, kInfinity, node.x(), h, lower.x(), upper.x()) *
+           HatShare(-kInfinity, kInfinity, node.y(), h, lower.y(), upper.y());
+  }
+  constexpr int kSamples = 16;  // per axis over the support 2h; the grid's lines are sample edges
+  const double step = 2.0 * h / kSamples;
+  double share = 0.0;
+  for (int i = 0; i < kSamples; ++i) {
+    const double x = node.x() - h + (i + 0.5) * step;
+    if (x < lower.x() || x > upper.x()) continue;
+    const double wx = 1.0 - std::abs(x - node.x()) / h;
+    for (int j = 0; j < kSamples; ++j) {
+      const double y = node.y() - h + (j + 0.5) * step;
+      if (y < lower.y() || y > upper.y()) continue;
+      if ((Vector2d(x, y) - center).squaredNorm() > body.radius * body.radius) continue;
+      share += wx * (1.0 - std::abs(y - node.y()) / h);
+    }
+  }
+  return share * (step / h) * (step / h);
 }
 
 }  // namespace rvehub::mpm

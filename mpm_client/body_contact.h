@@ -45,6 +45,19 @@ struct BodyGap {
 BodyGap GapToBody(const RigidBody& body, const Eigen::Vector2d& center, const Eigen::Vector2d& x,
                   const Eigen::Vector2d& half_size);
 
+// The share of a grid node's volume that `body` (centred at `center`)
+// fills, [-]: ∫ N(x) χ_body(x) dA / h² over the part of the node's support
+// inside the grid [lower, upper] (m), N the bilinear hat of the node at
+// `node` on cells of size h (m). The same measure as the soil's share Σ_p
+// S_Ip V_p / (h² t) of a saturated step's free-surface test, so that soil
+// pressed against an impermeable body is no free surface: ½ on a flat face
+// through the node, ¼ at a convex corner, the hat's whole in-grid integral
+// deep inside. Rectangles exactly (the hat is separable); circles by a
+// 16 × 16 midpoint rule on the support where the surface crosses it.
+double BodyShareOfNode(const RigidBody& body, const Eigen::Vector2d& center,
+                       const Eigen::Vector2d& node, double h, const Eigen::Vector2d& lower,
+                       const Eigen::Vector2d& upper);
+
 // One point's face near one body, found at the step's start. The face moves
 // as the point's own affine motion carries it: v_face = v_p + L_p·(x_face −
 // x_p) = Σ_I c_I v_I with c_I = S_Ip + ∇S_Ip·(x_face − x_p) over the point's

@@ -1632,10 +1632,6 @@ absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::strin
     RETURN_IF_ERROR(ParseRve(*rve, root.At("rve"), &spec.rve));
   }
   if (const Json* phases = root.Get("phases")) {
-    if (!spec.bodies.empty()) {
-      return Bad(root.At("bodies"),
-                 "rigid bodies in a saturated case (one with \"phases\") are not supported yet");
-    }
     RETURN_IF_ERROR(ParsePhases(*phases, root.At("phases"), lines, spec.regions, &spec.phases));
   }
   if (const Json* output = root.Get("output")) {

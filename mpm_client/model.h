@@ -127,6 +127,10 @@ inline Eigen::Vector2d WallVelocity(const Wall& wall, double t) {
 // soil's surface (mpm_client/body_contact.h): the faces of the material
 // points near it may not approach it; rough: no slip while pressing;
 // smooth: no friction; frictional: Coulomb. The soil can separate from it.
+// In a saturated case it is impermeable: the water slides along it but does
+// not enter it, and the soil pressed against it is no drained free surface
+// (a gap that opens under a body fills with nothing: mixed dry and
+// saturated domains are out of scope).
 struct RigidBody {
   enum class Shape { kRectangle, kCircle };
   std::string name;
@@ -205,6 +209,8 @@ struct RveSpec {
 
 // A drained boundary of a saturated case: the grid nodes of a grid line
 // (within [from, to] along it) that carry material hold the pore pressure.
+// On a wall's line it is a porous stone: the wall holds the soil, the water
+// passes.
 struct DrainedBoundary {
   std::string name;
   int axis = 1;           // 0: the line x = position; 1: the line y = position

@@ -113,7 +113,7 @@ double Solver::MixtureMass() const {
   return m;
 }
 
-void Solver::ConstrainFluid(std::vector<Vector2d>& velocity, double wall_time) {
+void Solver::ConstrainFluid(std::vector<Vector2d>& velocity, double wall_time, double weight) {
   std::fill(fluid_fixed_.begin(), fluid_fixed_.end(), std::uint8_t{0});
   for (std::size_t w = 0; w < walls_.size(); ++w) {
     if (walls_[w].remove_time <= time_) continue;
@@ -121,10 +121,21 @@ void Solver::ConstrainFluid(std::vector<Vector2d>& velocity, double wall_time) {
     // Impermeable: the water's normal velocity is the wall's.
     const double normal = WallVelocity(walls_[w], wall_time)[axis];
     for (std::int32_t node : wall_nodes_[w]) {
+      if (node_porous_[node] & (1 << axis)) continue;  // a drained line along the wall
+      if (node_mass_[node] > min_node_mass_) {
+        impulse_[w][axis] += weight * node_fluid_mass_[node] * (normal - velocity[node][axis]);
+      }
       velocity[node][axis] = normal;
       fluid_fixed_[node] |= static_cast<std::uint8_t>(1 << axis);
     }
   }
+  if (fluid_contacts_.empty()) return;
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    body_velocity_[b] = VelocityAt(bodies_[b].velocity, wall_time);
+  }
+  ContactGrid grid{node_fluid_mass_, velocity, fluid_fixed_, min_node_mass_};
+  ResolveContacts(fluid_contacts_, fluid_bodies_, body_velocity_, dt_, weight, grid,
+                  std::span<Vector2d>(impulse_).subspan(walls_.size()));
 }
 
 void Solver::FindDrainedNodes() {
@@ -151,9 +162,22 @@ void Solver::FindDrainedNodes() {
     }
     for (std::int32_t node : wall_nodes_[w]) node_domain_[node] *= 0.5;
   }
+  // Soil pressed against a body is no free surface either (bodies are
+  // impermeable): the body's share of a node counts as filled.
+  const Vector2d lower = grid_.origin;
+  const Vector2d upper = grid_.origin + grid_.cell_size * Vector2d(grid_.nx, grid_.ny);
+  std::vector<Vector2d> centers(bodies_.size());  // m, now
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    centers[b] = bodies_[b].center + DisplacementAt(bodies_[b].velocity, time_);
+  }
   for (int node = 0; node < nx * ny; ++node) {
     if (!(node_mass_[node] > min_node_mass_)) continue;
-    const double fraction = node_volume_[node] / (full * node_domain_[node]);
+    double filled = node_volume_[node];  // m³
+    for (std::size_t b = 0; b < bodies_.size(); ++b) {
+      filled += full * BodyShareOfNode(bodies_[b], centers[b], NodePosition(grid_, node),
+                                       grid_.cell_size, lower, upper);
+    }
+    const double fraction = filled / (full * node_domain_[node]);
     if (phases_.drained_free_surface && fraction < kSurfaceFraction) {
       pressure_fixed_[node] = 0.0;  // on the free surface (or outside it)
     } else if (fraction < kEmptyFraction) {
@@ -166,6 +190,28 @@ void Solver::FindDrainedNodes() {
   for (std::size_t b = 0; b < drained_nodes_.size(); ++b) {
     for (std::int32_t node : drained_nodes_[b]) {
       if (node_mass_[node] > min_node_mass_) pressure_fixed_[node] = phases_.drained[b].pressure;
+    }
+  }
+}
+
+void Solver::DrainThroughWalls(const std::vector<Vector2d>& start,
+                               const std::vector<Vector2d>& pull, double drag_scale) {
+  for (std::size_t w = 0; w < walls_.size(); ++w) {
+    if (walls_[w].remove_time <= time_) continue;
+    const int axis = walls_[w].axis;
+    const auto bit = static_cast<std::uint8_t>(1 << axis);
+    for (std::int32_t node : wall_nodes_[w]) {
+      if (!(node_mass_[node] > min_node_mass_) || !(node_porous_[node] & bit) ||
+          !(node_fixed_[node] & bit)) {
+        continue;
+      }
+      const double m = node_fluid_mass_[node], d = drag_scale * node_drag_[node];  // kg
+      const double v =
+          (m * start[node][axis] + dt_ * node_fluid_force_[node][axis] + d * pull[node][axis]) /
+          (m + d);
+      // The difference goes through the held solids into the wall.
+      impulse_[w][axis] += m * (v - node_fluid_velocity_new_[node][axis]);
+      node_fluid_velocity_new_[node][axis] = v;
     }
   }
 }
@@ -262,7 +308,7 @@ absl::Status Solver::StepSaturated() {
   if (fit) RETURN_IF_ERROR(FitNodalPressure());
   std::fill(impulse_.begin(), impulse_.end(), Vector2d::Zero());
   Constrain(node_velocity_, time_, alpha);
-  ConstrainFluid(node_fluid_velocity_, time_);
+  ConstrainFluid(node_fluid_velocity_, time_, alpha);
 
   // (2) ΔF from the solid's velocity (eq. 31), volumes (eq. 35); the
   // effective stress from the model.
@@ -316,7 +362,8 @@ absl::Status Solver::StepSaturated() {
     node_fluid_velocity_new_[i] = v.fluid;
   }
   Constrain(node_velocity_new_, time_ + dt_, 1.0);
-  ConstrainFluid(node_fluid_velocity_new_, time_ + dt_);
+  ConstrainFluid(node_fluid_velocity_new_, time_ + dt_, 1.0);
+  DrainThroughWalls(node_fluid_velocity_, node_velocity_new_, 1.0);
 
   // (5) Pressure Poisson (eq. 17) for δ = p^{n+1} − b, b = p^n
   // (kIncremental) or p_r (kStabilised): Σ_J L_IJ δ_J = −(1/Δt) Σ_p S_Ip
@@ -399,6 +446,9 @@ absl::Status Solver::StepSaturated() {
       node_fluid_force_[s.node[k]] -= (s.weight[k] * porosity * v) * grad;
     }
   }
+  // The corrected water drags on its own change only where a porous wall
+  // holds the solids (DrainThroughWalls): kStabilised needs v_f* for that.
+  if (!incremental) node_fluid_velocity_star_ = node_fluid_velocity_new_;
   for (int i = 0; i < nodes; ++i) {
     if (!active(i)) continue;
     const PhaseVelocities dv = IntermediateVelocities(
@@ -408,7 +458,12 @@ absl::Status Solver::StepSaturated() {
     node_fluid_velocity_new_[i] += dv.fluid;
   }
   Constrain(node_velocity_new_, time_ + dt_, 1.0);
-  ConstrainFluid(node_fluid_velocity_new_, time_ + dt_);
+  ConstrainFluid(node_fluid_velocity_new_, time_ + dt_, 1.0);
+  // Without drag in the correction (kIncremental) the phases' changes are
+  // independent and the 2×2 solve's water is already right.
+  if (!incremental) {
+    DrainThroughWalls(node_fluid_velocity_star_, node_fluid_velocity_star_, 1.0);
+  }
 
   // (7) G2P (eqs. 33–34): both phases' velocities (PIC fraction α), the
   // position with the solid's. The pore pressure is interpolated from the

@@ -388,9 +388,6 @@ absl::StatusOr<std::unique_ptr<Solver>> Solver::Init(const CaseSpec& spec, Stres
   solver->reactions_.assign(spec.walls.size() + spec.bodies.size(), Vector2d::Zero());
   solver->phases_ = spec.phases;
   if (spec.phases.saturated) {
-    if (!spec.bodies.empty()) {
-      return Invalid("bodies", "rigid bodies in a saturated case are not supported yet");
-    }
     const PhasesSpec& ph = spec.phases;
     if (!(ph.fluid_density > 0.0) || !(ph.permeability > 0.0) ||
         !(ph.porosity >= 0.0 && ph.porosity < 1.0)) {
@@ -412,6 +409,14 @@ absl::StatusOr<std::unique_ptr<Solver>> Solver::Init(const CaseSpec& spec, Stres
                                     : k + (spec.grid.nx + 1) * line);
       }
       solver->drained_nodes_.push_back(std::move(nodes));
+    }
+    // Bodies are impermeable and the water slides along them freely.
+    solver->fluid_bodies_ = spec.bodies;
+    for (RigidBody& body : solver->fluid_bodies_) body.contact = ContactKind::kSmooth;
+    solver->node_porous_.assign(NodeCount(spec.grid), 0);
+    for (std::size_t b = 0; b < ph.drained.size(); ++b) {
+      const auto along = static_cast<std::uint8_t>(1 << ph.drained[b].axis);
+      for (std::int32_t node : solver->drained_nodes_[b]) solver->node_porous_[node] |= along;
     }
   }
   return solver;
@@ -552,6 +557,14 @@ void Solver::FindContacts() {
         contact.weight[k] = shape.weight[k] + shape.gradient[k].dot(arm);
       }
     }
+  }
+  if (!phases_.saturated) return;
+  // The same faces hold the water out of the bodies, the mass floor scaled
+  // to the point's water (ConstrainFluid).
+  fluid_contacts_ = contacts_;
+  for (SurfaceContact& contact : fluid_contacts_) {
+    const std::size_t p = contact.point;
+    contact.mass_floor = kContactMassFloor * Porosity(p) * phases_.fluid_density * mp.volume[p];
   }
 }
 

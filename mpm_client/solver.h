@@ -151,7 +151,9 @@ class Solver {
   // −Σ m_I Δv_I/Δt over its nodes, Δv_I the constraint's change of the nodal
   // velocity after the forces, plus α_PIC times its change of the mapped
   // velocities at the step's start (the part the points keep). Then
-  // Δ(Σ m_p v_p) = (gravity + tractions − Σ reactions)·Δt exactly.
+  // Δ(Σ m_p v_p) = (gravity + tractions − Σ reactions)·Δt exactly. In a
+  // saturated case the water's changes count too: the reaction is the
+  // mixture's total force, pore pressure included.
   const std::vector<Eigen::Vector2d>& Reactions() const { return reactions_; }
   Eigen::Vector2d BodyDisplacement(int body) const;  // m, centre now − centre at t = 0
   double KineticEnergy() const;                      // J, Σ ½ m v²
@@ -195,10 +197,22 @@ class Solver {
   absl::Status AddLoadForces();
   // The two-phase step (saturated.cc).
   absl::Status StepSaturated();
-  // Impermeable walls: the fluid's velocity normal to each wall's line is the
-  // wall's at wall_time (0 unless shaken; fluid_fixed_ records the
-  // components held).
-  void ConstrainFluid(std::vector<Eigen::Vector2d>& velocity, double wall_time);
+  // Impermeable walls and bodies, the water's counterpart of Constrain: the
+  // fluid's velocity normal to each wall's line is the wall's at wall_time
+  // (0 unless shaken; fluid_fixed_ records the components held), except on
+  // a drained boundary's nodes (a porous stone); the points' faces near a
+  // body do not approach it, the water sliding freely (fluid_contacts_).
+  // Adds weight × the fluid's momentum change to impulse_.
+  void ConstrainFluid(std::vector<Eigen::Vector2d>& velocity, double wall_time, double weight);
+  // A porous stone (a drained line on a wall's line): where the wall holds
+  // the solids, the water's normal velocity in node_fluid_velocity_new_ is
+  // solved again against solids held at the wall's velocity, not the free
+  // mixture the 2×2 solve assumed: v_f = (M_f v0 + Δt F_f + D u)/(M_f + D),
+  // v0 = start, u = pull (the held solids' velocity, or v0 itself where the
+  // drag acts on the change only), D = drag_scale × node_drag_, F_f =
+  // node_fluid_force_. The change counts in the wall's impulse.
+  void DrainThroughWalls(const std::vector<Eigen::Vector2d>& start,
+                         const std::vector<Eigen::Vector2d>& pull, double drag_scale);
   // The pore pressure of the water at rest (hydrostatic below the water
   // table, 0 above it or without one) at height y and at a node, Pa.
   double RestPressure(double y) const;
@@ -248,6 +262,7 @@ class Solver {
   std::vector<Eigen::Vector2d> node_fluid_velocity_;      // v_f^n, then v_f*, m/s
   std::vector<Eigen::Vector2d> node_fluid_force_;         // N
   std::vector<Eigen::Vector2d> node_fluid_velocity_new_;  // v_f^{n+1}
+  std::vector<Eigen::Vector2d> node_fluid_velocity_star_;  // v_f* before the correction
   std::vector<double> node_drag_;                         // Δt·Σ S·drag·V, kg
   std::vector<double> node_pressure_;                     // p^n, Pa
   // p^{n+1} of the last step per node, Pa; NaN where the node was inactive.
@@ -259,6 +274,11 @@ class Solver {
   std::vector<double> node_volume_;                       // Σ_p S_Ip V_p, m³
   std::vector<double> node_domain_;  // share of a node's volume inside walls and grid, [-]
   std::vector<std::uint8_t> fluid_fixed_;                 // per node: components walls hold
+  // Per node: bit 0 / bit 1 set on a drained line x = c / y = c (a wall on
+  // that line lets the water through there).
+  std::vector<std::uint8_t> node_porous_;
+  std::vector<RigidBody> fluid_bodies_;         // the bodies, smooth for the water
+  std::vector<SurfaceContact> fluid_contacts_;  // contacts_ with the water's mass floor
   int pressure_iterations_ = 0;
 };
 

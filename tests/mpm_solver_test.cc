@@ -590,6 +590,34 @@ TEST(BodyContactTest, GapsToRectanglesAndCircles) {
   EXPECT_TRUE(g.normal.isApprox(Vector2d(0.6, 0.8)));
 }
 
+// The share of a node's hat a body fills (the saturated free-surface test):
+// ½ on a flat face through the node, ¼ at a corner, the in-grid part of
+// the hat inside; a circle by quadrature, exact away from its rim.
+TEST(BodyContactTest, ShareOfANodeInsideABody) {
+  const double h = 0.1;
+  const Vector2d lower(0.0, 0.0), upper(2.0, 2.0);
+  RigidBody box;
+  box.half_size = Vector2d(0.5, 0.25);
+  const Vector2d c(1.0, 1.0);  // the box spans [0.5, 1.5] × [0.75, 1.25]
+  EXPECT_DOUBLE_EQ(BodyShareOfNode(box, c, Vector2d(1.0, 1.0), h, lower, upper), 1.0);
+  EXPECT_DOUBLE_EQ(BodyShareOfNode(box, c, Vector2d(1.0, 0.75), h, lower, upper), 0.5);
+  EXPECT_DOUBLE_EQ(BodyShareOfNode(box, c, Vector2d(1.5, 0.75), h, lower, upper), 0.25);
+  EXPECT_DOUBLE_EQ(BodyShareOfNode(box, c, Vector2d(1.0, 0.65), h, lower, upper), 0.0);
+  // Half a cell into the body: the hat's ∫ from −½ to 1, 7/8.
+  EXPECT_DOUBLE_EQ(BodyShareOfNode(box, c, Vector2d(1.0, 0.8), h, lower, upper), 0.875);
+  // At the grid's edge only the in-grid half of the hat counts.
+  RigidBody wide;
+  wide.half_size = Vector2d(5.0, 0.25);
+  EXPECT_DOUBLE_EQ(BodyShareOfNode(wide, c, Vector2d(0.0, 1.0), h, lower, upper), 0.5);
+  RigidBody pipe;
+  pipe.shape = RigidBody::Shape::kCircle;
+  pipe.radius = 0.5;
+  EXPECT_DOUBLE_EQ(BodyShareOfNode(pipe, c, c, h, lower, upper), 1.0);
+  EXPECT_DOUBLE_EQ(BodyShareOfNode(pipe, c, c + Vector2d(0.0, 0.7), h, lower, upper), 0.0);
+  // On the rim of a circle ten cells in radius: nearly a flat face.
+  EXPECT_NEAR(BodyShareOfNode(pipe, c, c + Vector2d(0.0, 0.5), h, lower, upper), 0.5, 0.02);
+}
+
 // An elastic column under a smooth platen that starts on its surface and
 // moves down 1.5 cells: the points' mean nominal strain follows the platen's
 // displacement over the height also while the platen lies between node rows

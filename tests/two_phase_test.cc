@@ -199,6 +199,64 @@ TEST(TwoPhaseSolverTest, TerzaghiConsolidationOfAnElasticColumn) {
   EXPECT_NEAR(mass0 - solver->MixtureMass(), drained, 0.05 * drained);
 }
 
+// Constant-rate-of-strain consolidation: an impermeable smooth rigid platen
+// pushed at v into the top of the elastic column, drained through a porous
+// base (a drained boundary on the base wall), the free surface drained too.
+// At steady state (Tv = c_v t/H² ≈ 2; the start's transient decays as
+// exp(−π² Tv/4)) the strain rate ε̇ = v/H is uniform and the water leaving
+// through the base gives p(z) = ε̇ γ_w z (2H − z)/(2k) (z above the base),
+// ε̇ γ_w H²/(2k) under the platen; the platen carries the total stress,
+// M δ/H + ε̇ γ_w H²/(3k) (the mean of σ' + p). Without the platen being
+// impermeable the soil under it would drain, p ≈ 0 there; without the
+// water's share in the reaction the platen would feel σ' alone.
+TEST(TwoPhaseSolverTest, ConstantRateOfStrainUnderAnImpermeablePlaten) {
+  const double k = 1e-3, v = 1e-3, ramp = 0.05;  // m/s, m/s, s
+  Column column(k, 0.0);
+  CaseSpec& spec = column.spec;
+  spec.grid.ny = 53;  // room for the platen above the soil
+  spec.phases.drained_free_surface = true;
+  DrainedBoundary base;
+  base.name = "base";
+  base.axis = 1;
+  base.position = 0.0;
+  spec.phases.drained = {base};
+  RigidBody platen;
+  platen.name = "platen";
+  platen.contact = ContactKind::kSmooth;
+  platen.center = Vector2d(0.5 * Column::kCell, Column::kH + 1.5 * Column::kCell);
+  platen.half_size = Vector2d(Column::kCell, 1.5 * Column::kCell);
+  platen.velocity = {{0.0, Vector2d::Zero()}, {ramp, Vector2d(0.0, -v)}};
+  spec.bodies = {platen};
+  LinearElasticModel model(Column::kYoungs, Column::kPoisson);
+  std::unique_ptr<Solver> solver = MakeSolver(spec, &model);
+  ASSERT_NE(solver, nullptr);
+  const double modulus = PWaveModulus(Column::kYoungs, Column::kPoisson);
+  const double gamma_w = Column::kRhoF * kDarcyGravity;                          // N/m³
+  const double t_end = 2.0 * Column::kH * Column::kH / (k * modulus / gamma_w);  // Tv = 2
+  while (solver->time() + 0.5 * solver->dt() < t_end) ASSERT_TRUE(solver->Step().ok());
+  const double delta = -solver->BodyDisplacement(0).y();  // m
+  const double height = Column::kH - delta;               // m, now
+  const double rate = v / height;                         // 1/s
+  const double p_top = rate * gamma_w * height * height / (2.0 * k);
+  const MaterialPoints& mp = solver->points();
+  double worst = 0.0;
+  for (std::size_t p = 0; p < mp.size(); ++p) {
+    const double z = mp.position[p].y();
+    const double exact = rate * gamma_w * z * (2.0 * height - z) / (2.0 * k);
+    worst = std::max(worst, std::abs(mp.pore_pressure[p] - exact) / p_top);
+  }
+  const double area = Column::kCell * spec.solver.thickness;              // m²
+  const double load = solver->Reactions()[spec.walls.size()].y() / area;  // Pa, compression +
+  const double expected = modulus * delta / height + rate * gamma_w * height * height / (3.0 * k);
+  std::printf(
+      "CRS at Tv 2: p under the platen %.1f Pa (steady %.1f), worst |p - steady| %.2f %% of it; "
+      "platen %.1f Pa against %.1f (sigma' %.1f + mean p %.1f)\n",
+      mp.pore_pressure[mp.size() - 1], p_top, 100.0 * worst, load, expected,
+      modulus * delta / height, expected - modulus * delta / height);
+  EXPECT_LT(worst, 0.02);
+  EXPECT_NEAR(load, expected, 0.02 * expected);
+}
+
 // A saturated column under gravity, started hydrostatic with the skeleton at
 // its effective geostatic stress, stays at rest with p = ρ_f g (y_w − y).
 TEST(TwoPhaseSolverTest, HydrostaticColumnStaysAtRest) {
