@@ -41,22 +41,6 @@ void SignedDistance(const RigidBody& body, const Vector2d& center, const Vector2
   distance = -gap[best];
 }
 
-// ∫_{-1}^{s} (1 − |u|) du: the bilinear hat's integral up to s ∈ [−1, 1],
-// in cells, [-].
-double HatIntegral(double s) {
-  s = std::clamp(s, -1.0, 1.0);
-  return s <= 0.0 ? 0.5 * (s + 1.0) * (s + 1.0) : 1.0 - 0.5 * (1.0 - s) * (1.0 - s);
-}
-
-// The hat's integral over [a, b] ∩ [lower, upper] along one axis, for a
-// node at x on cells of size h, [-] (1 for the whole support).
-double HatShare(double a, double b, double x, double h, double lower, double upper) {
-  a = std::max(a, lower);
-  b = std::min(b, upper);
-  if (!(b > a)) return 0.0;
-  return HatIntegral((b - x) / h) - HatIntegral((a - x) / h);
-}
-
 }  // namespace
 
 BodyGap GapToBody(const RigidBody& body, const Vector2d& center, const Vector2d& x,

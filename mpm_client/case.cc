@@ -550,6 +550,12 @@ constexpr Table<ShapeKind> kShapes = {{"linear", ShapeKind::kLinear}, {"gimp", S
 
 absl::string_view ShapeName(ShapeKind kind) { return kind == ShapeKind::kGimp ? "gimp" : "linear"; }
 
+// A shaking table's speeds are of cm/s to m/s; its frequencies of Hz.
+constexpr Range kShakingSpeed{-100.0, 100.0, false, false};   // m/s
+constexpr Range kShakingFrequency{0.0, 1000.0, true, false};  // Hz
+
+bool IsShakenBox(const SolverSpec& s) { return !s.shaking_amplitude.isZero(0.0); }
+
 Fields<SolverSpec> SolverFields() {
   return {
       EnumField("shape", &SolverSpec::shape, Need::kOptional, "shape function", kShapes,
@@ -565,6 +571,17 @@ Fields<SolverSpec> SolverFields() {
       NumberField("end_time", &SolverSpec::end_time, Need::kRequired,
                   Range{0.0, kMaxEndTime, true, false}),
       NumberField("thickness", &SolverSpec::thickness, Need::kOptional, kPositive),
+      {"shaking_amplitude",
+       [](const Object& o, SolverSpec* s) {
+         return GetVec2(o, "shaking_amplitude", Need::kOptional, kShakingSpeed,
+                        &s->shaking_amplitude);
+       },
+       [](const SolverSpec& s, OrderedJson& j) {
+         if (IsShakenBox(s)) j["shaking_amplitude"] = Vec(s.shaking_amplitude);
+       }},
+      Only(&IsShakenBox, "only with a shaking_amplitude other than [0, 0]",
+           NumberField("shaking_frequency", &SolverSpec::shaking_frequency, Need::kRequired,
+                       kShakingFrequency)),
   };
 }
 
@@ -864,9 +881,6 @@ Field<S> OptionalFiniteField(absl::string_view key, double S::*m, Range range) {
 }
 
 bool IsShaken(const Wall& w) { return !w.shaking_amplitude.isZero(0.0); }
-// A shaking table's speeds are of cm/s to m/s; its frequencies of Hz.
-constexpr Range kShakingSpeed{-100.0, 100.0, false, false};   // m/s
-constexpr Range kShakingFrequency{0.0, 1000.0, true, false};  // Hz
 
 // `lines`: the grid's, for snapping the position (null when only writing).
 Fields<Wall> WallFields(const GridLines* lines) {
@@ -1632,6 +1646,16 @@ absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::strin
     RETURN_IF_ERROR(ParseRve(*rve, root.At("rve"), &spec.rve));
   }
   if (const Json* phases = root.Get("phases")) {
+    // A wall shaken on its fixed grid line draws the soil off the line by
+    // the shake's displacement, which the free-surface test of the water
+    // then takes for a drained face: refused for the box's frame.
+    for (std::size_t w = 0; w < spec.walls.size(); ++w) {
+      if (IsShaken(spec.walls[w])) {
+        return Bad(absl::StrCat(root.At("walls"), "/", w, "/shaking_amplitude"),
+                   "a saturated case shakes its whole box (solver.shaking_amplitude and "
+                   "solver.shaking_frequency), not single walls");
+      }
+    }
     RETURN_IF_ERROR(ParsePhases(*phases, root.At("phases"), lines, spec.regions, &spec.phases));
   }
   if (const Json* output = root.Get("output")) {

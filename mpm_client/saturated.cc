@@ -325,9 +325,10 @@ absl::Status Solver::StepSaturated() {
   // fluid's Σ n p ∇S V and its weight. R_s = M_s v_s + Δt (F_mixture −
   // F_fluid), R_f = M_f v_f + Δt F_fluid.
   std::fill(node_drag_.begin(), node_drag_.end(), 0.0);
+  const Vector2d body = BodyAcceleration();
   for (int i = 0; i < nodes; ++i) {
-    node_force_[i] = (node_mass_[i] + node_fluid_mass_[i]) * solver_.gravity;
-    node_fluid_force_[i] = node_fluid_mass_[i] * solver_.gravity;
+    node_force_[i] = (node_mass_[i] + node_fluid_mass_[i]) * body;
+    node_fluid_force_[i] = node_fluid_mass_[i] * body;
   }
   for (std::size_t p = 0; p < n; ++p) {
     const ShapeValues& s = shape_[p];

@@ -62,6 +62,18 @@ void Gimp1d(double x0, double h, int n, double x, double lp, Axis1d& out) {
 
 }  // namespace
 
+double HatShare(double a, double b, double x, double h, double lower, double upper) {
+  // ∫_{-1}^{s} (1 − |u|) du for s ∈ [−1, 1], in cells.
+  auto up_to = [](double s) {
+    s = std::clamp(s, -1.0, 1.0);
+    return s <= 0.0 ? 0.5 * (s + 1.0) * (s + 1.0) : 1.0 - 0.5 * (1.0 - s) * (1.0 - s);
+  };
+  a = std::max(a, lower);
+  b = std::min(b, upper);
+  if (!(b > a)) return 0.0;
+  return up_to((b - x) / h) - up_to((a - x) / h);
+}
+
 bool InsideGrid(const GridSpec& grid, const Eigen::Vector2d& x) {
   const double h = grid.cell_size;
   // Written so that NaN coordinates count as outside.

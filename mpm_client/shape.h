@@ -32,6 +32,12 @@ inline Eigen::Vector2d NodePosition(const GridSpec& grid, int node) {
   return grid.origin + grid.cell_size * Eigen::Vector2d(i, j);
 }
 
+// The integral of a node's bilinear hat along one axis over [a, b] ∩
+// [lower, upper], for the node at x on cells of size h (m), in units of h,
+// [-]: 1 for its whole support, ½ from the node to one side. How much of a
+// node's volume lies in a slab (a body, the soil side of a wall).
+double HatShare(double a, double b, double x, double h, double lower, double upper);
+
 // True when x lies in the closed grid rectangle.
 bool InsideGrid(const GridSpec& grid, const Eigen::Vector2d& x);
 

@@ -371,15 +371,17 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
     for (std::size_t i : out_->top_row) settlement += mp.position0[i].y() - mp.position[i].y();
     row.push_back(out_->top_row.empty() ? 0.0 : settlement / out_->top_row.size());
     // Each monitor's pore pressure (Pa) and excess ratio Δp/σ'yy,0 [-],
+    const Eigen::Vector2d box = FrameDisplacement(spec_.solver, solver_->time());  // m
     for (std::size_t i : out_->monitor_points) {
       const double excess = mp.pore_pressure[i] - RestPressure(spec_, mp.position[i].y());
       row.push_back(mp.pore_pressure[i]);
       row.push_back(mp.vertical_stress0[i] > 0 ? excess / mp.vertical_stress0[i] : 0.0);
-      // Its effective shear stress (Pa) and displacement (m): the σxy–u_x
-      // loops of cyclic loading, a surface point's orbit in a wave.
+      // Its effective shear stress (Pa) and displacement (m, relative to
+      // the ground: a shaken box's own added): the σxy–u_x loops of cyclic
+      // loading, a surface point's orbit in a wave.
       row.push_back(mp.stress[i](0, 1));
-      row.push_back(mp.position[i].x() - mp.position0[i].x());
-      row.push_back(mp.position[i].y() - mp.position0[i].y());
+      row.push_back(mp.position[i].x() - mp.position0[i].x() + box.x());
+      row.push_back(mp.position[i].y() - mp.position0[i].y() + box.y());
     }
   }
   for (double& v : row) v += 0.0;  // −0 (a negated zero) reads as 0

@@ -338,6 +338,10 @@ absl::StatusOr<std::unique_ptr<Solver>> Solver::Init(const CaseSpec& spec, Stres
   if (!(sv.time_step >= 0.0) || !sv.gravity.allFinite()) {
     return Invalid("solver", "time_step must be >= 0 and gravity finite");
   }
+  if (!sv.shaking_amplitude.allFinite() || !(sv.shaking_frequency >= 0.0) ||
+      !std::isfinite(sv.shaking_frequency)) {
+    return Invalid("solver", "shaking_amplitude must be finite and shaking_frequency >= 0");
+  }
   std::unique_ptr<Solver> solver(new Solver());
   solver->grid_ = spec.grid;
   solver->solver_ = sv;
@@ -459,6 +463,12 @@ absl::StatusOr<std::unique_ptr<Solver>> Solver::FromState(
   ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver, Init(spec, model));
   RETURN_IF_ERROR((solver)->ImportState(doubles, ints));
   return solver;
+}
+
+Eigen::Vector2d Solver::BodyAcceleration() const {
+  if (!(solver_.shaking_frequency > 0.0)) return solver_.gravity;
+  return solver_.gravity -
+         (FrameVelocity(solver_, time_ + dt_) - FrameVelocity(solver_, time_)) / dt_;
 }
 
 void Solver::Prepare() {
@@ -715,7 +725,8 @@ absl::Status Solver::Step() {
 
   // (c) Nodal forces: internal −Σ σ_p·∇S_Ip V_p (in-plane part), gravity
   // Σ m_p g S_Ip = m_I g, tractions; then v^{n+1} = v^n + Δt f/m.
-  for (int i = 0; i < nodes; ++i) node_force_[i] = node_mass_[i] * solver_.gravity;
+  const Vector2d body = BodyAcceleration();
+  for (int i = 0; i < nodes; ++i) node_force_[i] = node_mass_[i] * body;
   for (std::size_t p = 0; p < n; ++p) {
     const ShapeValues& s = shape_[p];
     const Matrix2d sigma_v = mp.stress[p].topLeftCorner<2, 2>() * mp.volume[p];

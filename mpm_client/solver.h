@@ -169,6 +169,10 @@ class Solver {
   Solver() = default;
   // A solver for the spec without points (validates the spec).
   static absl::StatusOr<std::unique_ptr<Solver>> Init(const CaseSpec& spec, StressModel* model);
+  // Gravity less the box's acceleration over this step (a shaken box's frame,
+  // SolverSpec::shaking_amplitude): (v_box(t + Δt) − v_box(t))/Δt, so that
+  // the frame's velocity change is exact, m/s².
+  Eigen::Vector2d BodyAcceleration() const;
   // Sizes the scratch arrays for the points and finds the inactive-node mass.
   void Prepare();
   // Shape values of every point and load (at the step's start), and the

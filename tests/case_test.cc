@@ -44,7 +44,8 @@ constexpr char kFullCase[] = R"json({
   "expected_runtime_s": 12.5,
   "grid": {"origin": [0, 0], "cell_size": 0.5, "cells": [4, 4]},
   "solver": {"shape": "gimp", "pic_fraction": 0.05, "gravity": [0, -9.81], "time_step": 1e-4,
-             "cfl": 0.4, "wave_modulus": 2.5e7, "end_time": 1.5, "thickness": 0.1},
+             "cfl": 0.4, "wave_modulus": 2.5e7, "end_time": 1.5, "thickness": 0.1,
+             "shaking_amplitude": [0.05, 0], "shaking_frequency": 2},
   "templates": [
     {"name": "dense", "parameter_set": "SET-dense", "seed": 7, "pressure": 6600},
     {"name": "stored", "file": "packings/x.h5", "template_name": "loose-1"}
@@ -189,6 +190,8 @@ TEST_F(CaseTest, FullCaseParsesIntoExpectedSpec) {
   EXPECT_EQ(spec->walls[2].position, 2.0);
   EXPECT_EQ(spec->walls[2].contact, ContactKind::kFrictional);
   EXPECT_EQ(spec->walls[2].friction, 0.4);
+  EXPECT_EQ(spec->solver.shaking_amplitude, Eigen::Vector2d(0.05, 0.0));
+  EXPECT_EQ(spec->solver.shaking_frequency, 2.0);
   EXPECT_EQ(spec->walls[2].shaking_amplitude, Eigen::Vector2d(0.0785, 0.0));
   EXPECT_EQ(spec->walls[2].shaking_frequency, 2.5);
   EXPECT_EQ(spec->walls[0].shaking_frequency, 0.0);
@@ -260,6 +263,8 @@ TEST_F(CaseTest, MinimalCaseTakesModelDefaults) {
   EXPECT_EQ(spec->solver.time_step, defaults.solver.time_step);
   EXPECT_EQ(spec->solver.cfl, defaults.solver.cfl);
   EXPECT_EQ(spec->solver.thickness, defaults.solver.thickness);
+  EXPECT_EQ(spec->solver.shaking_amplitude, Eigen::Vector2d::Zero());
+  EXPECT_EQ(spec->solver.shaking_frequency, 0.0);
   EXPECT_EQ(spec->templates[0].seed, 1u);
   EXPECT_EQ(spec->templates[0].pressure, 0);  // the set's p0
   const MaterialRegion region_defaults;
@@ -307,6 +312,8 @@ void ExpectSameSpec(const CaseSpec& a, const CaseSpec& b) {
   EXPECT_EQ(a.solver.wave_modulus, b.solver.wave_modulus);
   EXPECT_EQ(a.solver.end_time, b.solver.end_time);
   EXPECT_EQ(a.solver.thickness, b.solver.thickness);
+  EXPECT_EQ(a.solver.shaking_amplitude, b.solver.shaking_amplitude);
+  EXPECT_EQ(a.solver.shaking_frequency, b.solver.shaking_frequency);
   ASSERT_EQ(a.templates.size(), b.templates.size());
   for (size_t i = 0; i < a.templates.size(); ++i) {
     SCOPED_TRACE(absl::StrCat("template ", i));
@@ -493,6 +500,9 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
        "/walls/2/shaking_amplitude/0: must be in [-100, 100], got 500"},
       {"/walls/0/shaking_frequency", 2,
        "/walls/0/shaking_frequency: only with a shaking_amplitude other than [0, 0]"},
+      {"/solver/shaking_frequency", -1, "/solver/shaking_frequency: must be in (0, 1000], got -1"},
+      {"/solver/shaking_amplitude", Json::array({0, 1e3}),
+       "/solver/shaking_amplitude/1: must be in [-100, 100], got 1000"},
       {"/bodies/0/half_size/1", -1, "/bodies/0/half_size/1: must be > 0, got -1"},
       {"/output/frame_every", 0, "/output/frame_every: must be an integer >= 1, got 0"},
       {"/output/checkpoint_every", -1, "/output/checkpoint_every: must be an integer >= 0, got -1"},
@@ -705,6 +715,16 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
   ASSERT_TRUE(body.ok()) << body.status();
   ASSERT_EQ(body->bodies.size(), 1u);
   EXPECT_TRUE(body->phases.saturated);
+  // Single shaken walls are refused: a saturated box is shaken whole, in its
+  // frame (solver.shaking_amplitude).
+  Json shaken = base;
+  shaken["walls"][0]["shaking_amplitude"] = {0.05, 0};
+  shaken["walls"][0]["shaking_frequency"] = 2;
+  absl::StatusOr<CaseSpec> refused = ParseCase(shaken.dump(), path.parent_path().string());
+  ASSERT_FALSE(refused.ok());
+  EXPECT_TRUE(MessageStartsWith(
+      refused.status(), "/walls/0/shaking_amplitude: a saturated case shakes its whole box"))
+      << refused.status();
   // A drained line on the grid but away from the soil: widen the grid.
   Json doc = base;
   doc["grid"]["cells"][0] = 3;
