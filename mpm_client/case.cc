@@ -554,7 +554,27 @@ absl::string_view ShapeName(ShapeKind kind) { return kind == ShapeKind::kGimp ? 
 constexpr Range kShakingSpeed{-100.0, 100.0, false, false};   // m/s
 constexpr Range kShakingFrequency{0.0, 1000.0, true, false};  // Hz
 
+bool IsShaken(const Wall& w) { return !w.shaking_amplitude.isZero(0.0); }
 bool IsShakenBox(const SolverSpec& s) { return !s.shaking_amplitude.isZero(0.0); }
+
+// A shake's two keys (a wall's or the whole box's): shaking_amplitude, m/s,
+// written only when shaken; shaking_frequency, Hz, required then and
+// refused otherwise.
+template <typename S>
+Field<S> ShakingAmplitudeField(Eigen::Vector2d S::*m, bool (*shaken)(const S&)) {
+  return {"shaking_amplitude",
+          [m](const Object& o, S* s) {
+            return GetVec2(o, "shaking_amplitude", Need::kOptional, kShakingSpeed, &(s->*m));
+          },
+          [m, shaken](const S& s, OrderedJson& j) {
+            if (shaken(s)) j["shaking_amplitude"] = Vec(s.*m);
+          }};
+}
+template <typename S>
+Field<S> ShakingFrequencyField(double S::*m, bool (*shaken)(const S&)) {
+  return Only(shaken, "only with a shaking_amplitude other than [0, 0]",
+              NumberField("shaking_frequency", m, Need::kRequired, kShakingFrequency));
+}
 
 Fields<SolverSpec> SolverFields() {
   return {
@@ -571,17 +591,8 @@ Fields<SolverSpec> SolverFields() {
       NumberField("end_time", &SolverSpec::end_time, Need::kRequired,
                   Range{0.0, kMaxEndTime, true, false}),
       NumberField("thickness", &SolverSpec::thickness, Need::kOptional, kPositive),
-      {"shaking_amplitude",
-       [](const Object& o, SolverSpec* s) {
-         return GetVec2(o, "shaking_amplitude", Need::kOptional, kShakingSpeed,
-                        &s->shaking_amplitude);
-       },
-       [](const SolverSpec& s, OrderedJson& j) {
-         if (IsShakenBox(s)) j["shaking_amplitude"] = Vec(s.shaking_amplitude);
-       }},
-      Only(&IsShakenBox, "only with a shaking_amplitude other than [0, 0]",
-           NumberField("shaking_frequency", &SolverSpec::shaking_frequency, Need::kRequired,
-                       kShakingFrequency)),
+      ShakingAmplitudeField(&SolverSpec::shaking_amplitude, &IsShakenBox),
+      ShakingFrequencyField(&SolverSpec::shaking_frequency, &IsShakenBox),
   };
 }
 
@@ -880,8 +891,6 @@ Field<S> OptionalFiniteField(absl::string_view key, double S::*m, Range range) {
       }};
 }
 
-bool IsShaken(const Wall& w) { return !w.shaking_amplitude.isZero(0.0); }
-
 // `lines`: the grid's, for snapping the position (null when only writing).
 Fields<Wall> WallFields(const GridLines* lines) {
   return {
@@ -898,17 +907,8 @@ Fields<Wall> WallFields(const GridLines* lines) {
       FrictionField<Wall>("kind"),
       OptionalFiniteField("remove_time", &Wall::remove_time, kNonNegative),
       FlagField("unilateral", &Wall::unilateral),
-      {"shaking_amplitude",
-       [](const Object& o, Wall* w) {
-         return GetVec2(o, "shaking_amplitude", Need::kOptional, kShakingSpeed,
-                        &w->shaking_amplitude);
-       },
-       [](const Wall& w, OrderedJson& j) {
-         if (IsShaken(w)) j["shaking_amplitude"] = Vec(w.shaking_amplitude);
-       }},
-      Only(&IsShaken, "only with a shaking_amplitude other than [0, 0]",
-           NumberField("shaking_frequency", &Wall::shaking_frequency, Need::kRequired,
-                       kShakingFrequency)),
+      ShakingAmplitudeField(&Wall::shaking_amplitude, &IsShaken),
+      ShakingFrequencyField(&Wall::shaking_frequency, &IsShaken),
   };
 }
 

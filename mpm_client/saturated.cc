@@ -129,13 +129,8 @@ void Solver::ConstrainFluid(std::vector<Vector2d>& velocity, double wall_time, d
       fluid_fixed_[node] |= static_cast<std::uint8_t>(1 << axis);
     }
   }
-  if (fluid_contacts_.empty()) return;
-  for (std::size_t b = 0; b < bodies_.size(); ++b) {
-    body_velocity_[b] = VelocityAt(bodies_[b].velocity, wall_time);
-  }
-  ContactGrid grid{node_fluid_mass_, velocity, fluid_fixed_, min_node_mass_};
-  ResolveContacts(fluid_contacts_, fluid_bodies_, body_velocity_, dt_, weight, grid,
-                  std::span<Vector2d>(impulse_).subspan(walls_.size()));
+  ResolveBodies(fluid_contacts_, fluid_bodies_,
+                {node_fluid_mass_, velocity, fluid_fixed_, min_node_mass_}, wall_time, weight);
 }
 
 void Solver::FindDrainedNodes() {

@@ -609,12 +609,18 @@ void Solver::Constrain(std::vector<Eigen::Vector2d>& velocity, double body_time,
       node_fixed_[node] |= held;
     }
   }
-  if (contacts_.empty()) return;
-  for (std::size_t b = 0; b < bodies_.size(); ++b) {
-    body_velocity_[b] = VelocityAt(bodies_[b].velocity, body_time);
+  ResolveBodies(contacts_, bodies_, {node_mass_, velocity, node_fixed_, min_node_mass_}, body_time,
+                weight);
+}
+
+void Solver::ResolveBodies(std::span<const SurfaceContact> contacts,
+                           std::span<const RigidBody> bodies, ContactGrid grid, double body_time,
+                           double weight) {
+  if (contacts.empty()) return;
+  for (std::size_t b = 0; b < bodies.size(); ++b) {
+    body_velocity_[b] = VelocityAt(bodies[b].velocity, body_time);
   }
-  ContactGrid grid{node_mass_, velocity, node_fixed_, min_node_mass_};
-  ResolveContacts(contacts_, bodies_, body_velocity_, dt_, weight, grid,
+  ResolveContacts(contacts, bodies, body_velocity_, dt_, weight, grid,
                   std::span<Vector2d>(impulse_).subspan(walls_.size()));
 }
 

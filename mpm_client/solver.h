@@ -183,6 +183,11 @@ class Solver {
   // at body_time;
   // adds weight × (momentum change) of each to impulse_.
   void Constrain(std::vector<Eigen::Vector2d>& velocity, double body_time, double weight);
+  // The contacts' constraints on `grid` (the solids' or the water's), the
+  // bodies moving at their velocity at body_time; adds weight × the
+  // momentum each body gave to impulse_.
+  void ResolveBodies(std::span<const SurfaceContact> contacts, std::span<const RigidBody> bodies,
+                     ContactGrid grid, double body_time, double weight);
   // The points' faces near each body at the step's start (contacts_).
   void FindContacts();
   // A point's new position `to` (m), moved from `from`, held on the line of
