@@ -190,7 +190,7 @@ void Solver::FindDrainedNodes() {
 }
 
 void Solver::DrainThroughWalls(const std::vector<Vector2d>& start,
-                               const std::vector<Vector2d>& pull, double drag_scale) {
+                               const std::vector<Vector2d>& pull) {
   for (std::size_t w = 0; w < walls_.size(); ++w) {
     if (walls_[w].remove_time <= time_) continue;
     const int axis = walls_[w].axis;
@@ -200,7 +200,7 @@ void Solver::DrainThroughWalls(const std::vector<Vector2d>& start,
           !(node_fixed_[node] & bit)) {
         continue;
       }
-      const double m = node_fluid_mass_[node], d = drag_scale * node_drag_[node];  // kg
+      const double m = node_fluid_mass_[node], d = node_drag_[node];  // kg
       const double v =
           (m * start[node][axis] + dt_ * node_fluid_force_[node][axis] + d * pull[node][axis]) /
           (m + d);
@@ -359,7 +359,7 @@ absl::Status Solver::StepSaturated() {
   }
   Constrain(node_velocity_new_, time_ + dt_, 1.0);
   ConstrainFluid(node_fluid_velocity_new_, time_ + dt_, 1.0);
-  DrainThroughWalls(node_fluid_velocity_, node_velocity_new_, 1.0);
+  DrainThroughWalls(node_fluid_velocity_, node_velocity_new_);
 
   // (5) Pressure Poisson (eq. 17) for δ = p^{n+1} − b, b = p^n
   // (kIncremental) or p_r (kStabilised): Σ_J L_IJ δ_J = −(1/Δt) Σ_p S_Ip
@@ -458,7 +458,7 @@ absl::Status Solver::StepSaturated() {
   // Without drag in the correction (kIncremental) the phases' changes are
   // independent and the 2×2 solve's water is already right.
   if (!incremental) {
-    DrainThroughWalls(node_fluid_velocity_star_, node_fluid_velocity_star_, 1.0);
+    DrainThroughWalls(node_fluid_velocity_star_, node_fluid_velocity_star_);
   }
 
   // (7) G2P (eqs. 33–34): both phases' velocities (PIC fraction α), the

@@ -218,10 +218,10 @@ class Solver {
   // solved again against solids held at the wall's velocity, not the free
   // mixture the 2×2 solve assumed: v_f = (M_f v0 + Δt F_f + D u)/(M_f + D),
   // v0 = start, u = pull (the held solids' velocity, or v0 itself where the
-  // drag acts on the change only), D = drag_scale × node_drag_, F_f =
-  // node_fluid_force_. The change counts in the wall's impulse.
+  // drag acts on the change only), D = node_drag_, F_f = node_fluid_force_.
+  // The change counts in the wall's impulse.
   void DrainThroughWalls(const std::vector<Eigen::Vector2d>& start,
-                         const std::vector<Eigen::Vector2d>& pull, double drag_scale);
+                         const std::vector<Eigen::Vector2d>& pull);
   // The pore pressure of the water at rest (hydrostatic below the water
   // table, 0 above it or without one) at height y and at a node, Pa.
   double RestPressure(double y) const;
