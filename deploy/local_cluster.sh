@@ -32,17 +32,37 @@ mkdir -p "$dir"
 : >"$dir/addresses"
 : >"$dir/pids"
 pids=()
+# Running and not yet reaped (an exited child stays a zombie until waited for).
+running() {
+  local state=
+  { read -r _ _ state _ </proc/"$1"/stat; } 2>/dev/null || return 1
+  [[ $state != Z ]]
+}
 stop_servers() {
   for p in "${pids[@]}"; do
     kill -TERM "$p" 2>/dev/null || true
     kill -CONT "$p" 2>/dev/null || true  # a stopped server must see its SIGTERM
   done
-  for p in "${pids[@]}"; do wait "$p" 2>/dev/null || true; done
+  # Bounded: a SIGTERM that reaches a server's process before it execs is
+  # lost, and that server would run on; after the drain grace it is killed.
+  for ((t = 0; t < 100; t++)); do
+    local left=0
+    for p in "${pids[@]}"; do running "$p" && left=1; done
+    ((left)) || break
+    sleep 0.1
+  done
+  for p in "${pids[@]}"; do
+    kill -KILL "$p" 2>/dev/null || true
+    wait "$p" 2>/dev/null || true
+  done
 }
 trap stop_servers EXIT
 
 addresses=()
 for ((i = 0; i < n; i++)); do
+  # Emptied here, not by the redirection below: that happens in the child,
+  # after this loop may already have read a previous run's address.
+  : >"$dir/server-$i.out"
   "$server" --listen=127.0.0.1:0 --threads="$threads" --drain_seconds=5 \
     >"$dir/server-$i.out" 2>"$dir/server-$i.log" &
   pids+=($!)
