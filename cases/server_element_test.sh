@@ -12,10 +12,23 @@ out=out/server
 mkdir -p "${out}"
 
 # Port 0: the server picks a free port and prints "listening on HOST:PORT".
+# The file is emptied here: the redirection below happens in the child, maybe
+# after the loop has read a previous run's address (or found no file).
+: >"${out}/server.stdout"
 "${build}/rve_server/server/rve_server" --listen=127.0.0.1:0 \
   >"${out}/server.stdout" 2>"${out}/server.log" &
 server_pid=$!
-trap 'kill -TERM "${server_pid}" 2>/dev/null && wait "${server_pid}" || true' EXIT
+# Stopped with SIGTERM, killed if still running after 10 s (bounded exit).
+stop_server() {
+  kill -TERM "${server_pid}" 2>/dev/null || return 0
+  for _ in $(seq 100); do
+    [[ $(cut -d' ' -f3 /proc/"${server_pid}"/stat 2>/dev/null) =~ ^[^Z] ]] || break
+    sleep 0.1
+  done
+  kill -KILL "${server_pid}" 2>/dev/null || true
+  wait "${server_pid}" 2>/dev/null || true
+}
+trap stop_server EXIT
 address=""
 for _ in $(seq 100); do
   address=$(sed -n 's/^listening on //p' "${out}/server.stdout")
