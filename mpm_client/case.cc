@@ -671,6 +671,19 @@ Fields<TemplateSpec> TemplateFields(const std::string& base_dir) {
        [](const TemplateSpec& t, OrderedJson& j) {
          if (FromSet(t) && t.pressure > 0) j["pressure"] = t.pressure;
        }},
+      {"void_ratio",
+       [](const Object& o, TemplateSpec* t) -> absl::Status {
+         if (!o.Has("parameter_set")) {
+           return Forbid(o, "void_ratio",
+                         "only for templates prepared from a parameter set (a file holds its own "
+                         "packing)");
+         }
+         return GetNumber(o, "void_ratio", Need::kOptional, Range{0.0, 1.0, true, true},
+                          &t->void_ratio);
+       },
+       [](const TemplateSpec& t, OrderedJson& j) {
+         if (FromSet(t) && t.void_ratio > 0) j["void_ratio"] = t.void_ratio;
+       }},
       {"file",
        [base_dir](const Object& o, TemplateSpec* t) -> absl::Status {
          return o.Has("file") ? GetFile(o, "file", base_dir, &t->file) : absl::OkStatus();

@@ -115,6 +115,9 @@ struct TemplateSpec {
   // Pa, compression +: compact at this pressure instead of the set's p0
   // (0: the set's), so that e0 is the state where the RVEs are used.
   double pressure = 0;
+  // Target void ratio of the preparation, [-] (0: the set's e0): the same
+  // material packed denser or looser.
+  double void_ratio = 0;
 };
 
 // Piecewise-linear velocity history: v(t) interpolated between the points,

@@ -40,11 +40,11 @@ absl::StatusOr<store::TemplateRecord> FromFile(const TemplateSpec& spec) {
 absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
                                                const std::string& cache_dir,
                                                const std::function<void(const std::string&)>& log) {
-  // A template compacted at another pressure is another packing.
-  const std::string stem = spec.pressure > 0
-                               ? absl::StrCat(spec.parameter_set, "-seed", spec.seed, "-p",
-                                              absl::StrFormat("%.6g", spec.pressure), "Pa")
-                               : absl::StrCat(spec.parameter_set, "-seed", spec.seed);
+  // A template compacted at another pressure or to another void ratio is
+  // another packing.
+  std::string stem = absl::StrCat(spec.parameter_set, "-seed", spec.seed);
+  if (spec.pressure > 0) absl::StrAppend(&stem, "-p", absl::StrFormat("%.6g", spec.pressure), "Pa");
+  if (spec.void_ratio > 0) absl::StrAppend(&stem, "-e", absl::StrFormat("%.6g", spec.void_ratio));
   const std::string path = (std::filesystem::path(cache_dir) / (stem + ".h5")).string();
   if (std::filesystem::exists(path)) {
     absl::StatusOr<std::vector<store::TemplateRecord>> cached = store::ReadTemplates(path);
@@ -56,15 +56,17 @@ absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
   dem::PreparationReport report;
   // The first progress line ("N discs, seed S") is the one worth a log line.
   bool announced = false;
-  absl::StatusOr<dem::RveSnapshot> packing = dem::PrepareTemplate(
-      spec.parameter_set, spec.seed, spec.pressure, &report, [&](const std::string& line) {
-        if (log && !announced) log(absl::StrCat("  ", line));
-        announced = true;
-      });
+  absl::StatusOr<dem::RveSnapshot> packing =
+      dem::PrepareTemplate(spec.parameter_set, spec.seed, spec.pressure, spec.void_ratio, &report,
+                           [&](const std::string& line) {
+                             if (log && !announced) log(absl::StrCat("  ", line));
+                             announced = true;
+                           });
   if (!packing.ok()) {
     return absl::Status(packing.status().code(), absl::StrCat("preparing template '", spec.name,
                                                               "': ", packing.status().message()));
   }
+  if (log) log(absl::StrFormat("  e0 = %.4f at p0 = %.0f Pa", report.void_ratio, report.pressure));
   store::TemplateRecord record;
   record.name = stem;
   record.description =

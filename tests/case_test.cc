@@ -47,7 +47,7 @@ constexpr char kFullCase[] = R"json({
              "cfl": 0.4, "wave_modulus": 2.5e7, "end_time": 1.5, "thickness": 0.1,
              "shaking_amplitude": [0.05, 0], "shaking_frequency": 2},
   "templates": [
-    {"name": "dense", "parameter_set": "SET-dense", "seed": 7, "pressure": 6600},
+    {"name": "dense", "parameter_set": "SET-dense", "seed": 7, "pressure": 6600, "void_ratio": 0.19},
     {"name": "stored", "file": "packings/x.h5", "template_name": "loose-1"}
   ],
   "regions": [
@@ -149,6 +149,7 @@ TEST_F(CaseTest, FullCaseParsesIntoExpectedSpec) {
   EXPECT_EQ(spec->templates[0].parameter_set, "SET-dense");
   EXPECT_EQ(spec->templates[0].seed, 7u);
   EXPECT_EQ(spec->templates[0].pressure, 6600);
+  EXPECT_EQ(spec->templates[0].void_ratio, 0.19);
   EXPECT_EQ(spec->templates[1].pressure, 0);
   EXPECT_EQ(spec->templates[0].file, "");
   EXPECT_EQ(spec->templates[1].name, "stored");
@@ -534,6 +535,9 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
       {"/templates/1/pressure", 5000, "/templates/1/pressure: only for templates prepared"},
       {"/templates/0/pressure", 0, "/templates/0/pressure: must be in (0, 1000000000], got 0"},
       {"/templates/0/pressure", -1, "/templates/0/pressure: must be in (0, 1000000000], got -1"},
+      {"/templates/1/void_ratio", 0.2, "/templates/1/void_ratio: only for templates prepared"},
+      {"/templates/0/void_ratio", 0, "/templates/0/void_ratio: must be in (0, 1), got 0"},
+      {"/templates/0/void_ratio", 1.2, "/templates/0/void_ratio: must be in (0, 1), got 1.2"},
       // Geometry: off the grid, outside it, empty, overlapping.
       {"/regions/0/lower/0", 0.25,
        "/regions/0/lower/0: x = 0.25 m is not on a grid line (origin 0 m, cell size 0.5 m)"},

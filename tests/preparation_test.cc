@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <limits>
 #include <map>
 #include <string>
 #include <utility>
@@ -160,6 +161,27 @@ TEST(PreparationTest, ConsolidationSetReachesItsPorosity) {
   EXPECT_LT(s.unbalanced_force_ratio, 1e-4);
 }
 
+// PrepareTemplate's void ratio: the set's material packed to another e0
+// (saturated-medium, 0.23, packed to 0.25 at 20 kPa, the looser state of the
+// saturated-loose collapse), within the steering's tolerance; outside (0, 1)
+// it is refused before any work.
+TEST(PreparationTest, TemplatePackedToAnotherVoidRatio) {
+  PreparationReport report;
+  absl::StatusOr<RveSnapshot> loose = PrepareTemplate("saturated-medium", 1, 20e3, 0.25, &report);
+  ASSERT_TRUE(loose.ok()) << loose.status();
+  const RveState s = ObserveOf(*loose);
+  std::printf("saturated-medium packed to e0 = 0.25 at 20 kPa: e0 = %.4f, Z = %.2f\n", s.void_ratio,
+              s.coordination);
+  EXPECT_NEAR(s.void_ratio, 0.25, 0.003);
+  EXPECT_NEAR(Pressure(s), 20e3, 0.01 * 20e3);
+  EXPECT_EQ(loose->initial_void_ratio, s.void_ratio);
+  for (double e : {-0.1, 1.0, std::numeric_limits<double>::quiet_NaN()}) {
+    EXPECT_EQ(PrepareTemplate("saturated-medium", 1, 20e3, e).status().code(),
+              absl::StatusCode::kInvalidArgument)
+        << e;
+  }
+}
+
 // PrepareTemplate's pressure: the set's e0 sought at that pressure. A
 // template compacted at 100 kPa and unloaded to 20 kPa swells instead
 // (saturated-medium seed 1: e 0.2329 → 0.2432, coordination 3.22 → 2.66),
@@ -167,7 +189,7 @@ TEST(PreparationTest, ConsolidationSetReachesItsPorosity) {
 // preparation's 1 %, e0 within the steering's 0.01 (as SET-dense).
 TEST(PreparationTest, TemplateCompactedAtAGivenPressureKeepsItsVoidRatioThere) {
   PreparationReport report;
-  absl::StatusOr<RveSnapshot> low = PrepareTemplate("saturated-medium", 1, 20e3, &report);
+  absl::StatusOr<RveSnapshot> low = PrepareTemplate("saturated-medium", 1, 20e3, 0, &report);
   ASSERT_TRUE(low.ok()) << low.status();
   const RveState s = ObserveOf(*low);
   std::printf("saturated-medium at 20 kPa: e0 = %.4f, p = %.0f Pa, Z = %.2f\n", s.void_ratio,

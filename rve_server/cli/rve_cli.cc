@@ -62,6 +62,7 @@ ABSL_FLAG(std::string, test, "", "element test");
 ABSL_FLAG(std::string, material, "", "parameter set");
 ABSL_FLAG(uint64_t, seed, 1, "packing seed");
 ABSL_FLAG(double, pressure, 0, "preparation pressure, Pa");
+ABSL_FLAG(double, void_ratio, 0, "target void ratio of the preparation");
 ABSL_FLAG(double, confining, 0, "confining stress, Pa");
 ABSL_FLAG(double, strain, 0, "strain to stop at");
 ABSL_FLAG(std::string, out, "", "output file");
@@ -132,8 +133,8 @@ Server options:
 
 constexpr char kElementTestHelp[] = R"(rve_cli element-test — run an element test on one RVE
 
-  rve_cli element-test --test=NAME [--material=NAME --seed=N --pressure=PA] --out=FILE.csv
-                       [options]
+  rve_cli element-test --test=NAME [--material=NAME --seed=N --pressure=PA --void-ratio=E]
+                       --out=FILE.csv [options]
   rve_cli element-test --server=HOST:PORT --template=NAME --test=NAME --out=FILE.csv [options]
 
 Locally, prepares the packing of --material/--seed and runs the test in this
@@ -149,6 +150,8 @@ Options:
   --seed=N           packing seed (local only; default 1)
   --pressure=PA      pressure the packing is compacted at, Pa (local only; default the set's
                      p0); --confining then loads or unloads it from there
+  --void-ratio=E     target void ratio of the packing at --pressure, in (0, 1) (local only;
+                     default the set's e0)
   --template=NAME    the server's template to test (with --server)
   --confining=PA     consolidation / lateral stress in Pa, compression + (default 100000)
   --strain=MAX       axial strain (biaxial, oedometer), volumetric strain (isotropic) or
@@ -167,13 +170,17 @@ Options:
 constexpr char kPrepareHelp[] =
     R"(rve_cli prepare — prepare an RVE packing and print its initial state
 
-  rve_cli prepare [--material=NAME] [--seed=N] [--pressure=PA] [--out=FILE.h5 [--name=NAME]]
+  rve_cli prepare [--material=NAME] [--seed=N] [--pressure=PA] [--void-ratio=E]
+                  [--out=FILE.h5 [--name=NAME]]
 
 Options:
   --material=NAME    parameter set (default SET-dense; see `rve_cli materials`)
   --seed=N           packing seed (default 1)
   --pressure=PA      pressure to compact at, Pa, compression + (default the set's p0): the
                      set's e0 is then sought at this pressure
+  --void-ratio=E     target void ratio in (0, 1) instead of the set's e0 (the same material
+                     packed denser or looser; the compaction friction, between 0 and the
+                     material's, bounds what can be reached: the e0 reached is printed)
   --out=FILE.h5      also write the packing as a template file (for upload-template)
   --name=NAME        template name, [A-Za-z0-9._-]{1,128} (default MATERIAL-seedN)
 )";
@@ -443,13 +450,18 @@ absl::StatusOr<dem::RveSnapshot> PreparePacking(const Flags& flags, std::string*
   if (flags.contains("pressure") && !(pressure > 0 && pressure <= dem::kMaxPressure)) {
     return UsageError("--pressure must be a pressure in (0, 1e9] Pa");
   }
+  double void_ratio = 0;  // 0: the set's e0
+  RETURN_IF_ERROR(Get(flags, "void-ratio", &void_ratio));
+  if (flags.contains("void-ratio") && !(void_ratio > 0 && void_ratio < 1)) {
+    return UsageError("--void-ratio must lie in (0, 1)");
+  }
   std::fprintf(stderr, "preparing %s...\n", material->c_str());
   // Its first line is "N discs, seed S".
-  ASSIGN_OR_RETURN(
-      dem::RveSnapshot packing,
-      dem::PrepareTemplate(*material, *seed, pressure, report, [](const std::string& line) {
-        std::fprintf(stderr, "  %s\n", line.c_str());
-      }));
+  ASSIGN_OR_RETURN(dem::RveSnapshot packing,
+                   dem::PrepareTemplate(*material, *seed, pressure, void_ratio, report,
+                                        [](const std::string& line) {
+                                          std::fprintf(stderr, "  %s\n", line.c_str());
+                                        }));
   std::fprintf(
       stderr, "prepared: e0 = %.4f, p0 = %.1f Pa, Z = %.2f, compaction friction %.4f, %lld steps\n",
       report->void_ratio, report->pressure, report->coordination, report->compaction_friction,
@@ -502,10 +514,11 @@ absl::Status ElementTestCommand(const Flags& flags) {
   if (on_server) {
     // The template fixes the packing: a material or seed here would be
     // silently ignored, which is worse than refusing it.
-    if (flags.contains("material") || flags.contains("seed") || flags.contains("pressure")) {
+    if (flags.contains("material") || flags.contains("seed") || flags.contains("pressure") ||
+        flags.contains("void-ratio")) {
       return UsageError(
-          "--material/--seed/--pressure do not apply with --server (the template fixes the "
-          "packing)");
+          "--material/--seed/--pressure/--void-ratio do not apply with --server (the template "
+          "fixes the packing)");
     }
     if (template_name.empty()) return UsageError("--template=NAME is required with --server");
     title = absl::StrCat(test, " on ", template_name);
@@ -890,13 +903,13 @@ const std::vector<Command>& Commands() {
       {"element-test",
        kElementTestHelp,
        true,
-       {"test", "material", "seed", "pressure", "confining", "strain", "out", "plot", "rows",
-        "inertial-number", "cyclic-control", "amplitude", "cycles", "template"},
+       {"test", "material", "seed", "pressure", "void-ratio", "confining", "strain", "out", "plot",
+        "rows", "inertial-number", "cyclic-control", "amplitude", "cycles", "template"},
        &ElementTestCommand},
       {"prepare",
        kPrepareHelp,
        false,
-       {"material", "seed", "pressure", "out", "name"},
+       {"material", "seed", "pressure", "void-ratio", "out", "name"},
        &PrepareCommand},
       {"materials", kMaterialsHelp, false, {}, &MaterialsCommand},
       {"info", kInfoHelp, true, {}, &InfoCommand},

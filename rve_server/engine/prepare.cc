@@ -214,8 +214,8 @@ absl::StatusOr<RveSnapshot> PreparePacking(
 }
 
 absl::StatusOr<RveSnapshot> PrepareTemplate(
-    absl::string_view parameter_set, std::uint64_t seed, double pressure, PreparationReport* report,
-    const std::function<void(const std::string&)>& progress) {
+    absl::string_view parameter_set, std::uint64_t seed, double pressure, double void_ratio,
+    PreparationReport* report, const std::function<void(const std::string&)>& progress) {
   ASSIGN_OR_RETURN(ParameterSet set, FindParameterSet(parameter_set));
   set.preparation.seed = seed;
   if (pressure != 0) {
@@ -225,6 +225,13 @@ absl::StatusOr<RveSnapshot> PrepareTemplate(
                                                      "] Pa (compression +)"));
     }
     set.preparation.pressure = pressure;
+  }
+  if (void_ratio != 0) {
+    if (!(void_ratio > 0 && void_ratio < 1)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("target void ratio ", void_ratio, " must lie in (0, 1)"));
+    }
+    set.preparation.target_void_ratio = void_ratio;
   }
   if (progress) {
     progress(absl::StrFormat("%d discs, seed %d", set.preparation.num_particles, seed));

@@ -69,11 +69,15 @@ absl::StatusOr<RveSnapshot> PreparePacking(
 // its seed replaced and, where `pressure` > 0 (Pa, compression +), its p0:
 // a packing compacted at the stress it will be used at reaches the set's e0
 // there, where one compacted at 100 kPa and unloaded swells and loses
-// contacts. NotFound naming the known sets for an unknown name,
-// InvalidArgument for a pressure outside (0, kMaxPressure]. `progress`, when
-// set, first receives "N discs, seed S", then PreparePacking's lines.
+// contacts. Where `void_ratio` > 0 it replaces the set's target e0: the
+// same material packed denser or looser (the compaction friction between 0
+// and the material's bounds what can be reached; the report gives the e0
+// reached). NotFound naming the known sets for an unknown name,
+// InvalidArgument for a pressure outside (0, kMaxPressure] or a void ratio
+// outside (0, 1). `progress`, when set, first receives "N discs, seed S",
+// then PreparePacking's lines.
 absl::StatusOr<RveSnapshot> PrepareTemplate(
-    absl::string_view parameter_set, std::uint64_t seed, double pressure = 0,
+    absl::string_view parameter_set, std::uint64_t seed, double pressure = 0, double void_ratio = 0,
     PreparationReport* report = nullptr,
     const std::function<void(const std::string&)>& progress = {});
 
