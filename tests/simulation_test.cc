@@ -465,9 +465,9 @@ TEST(SimulationTest, SaturatedPlatenConsolidatesAtAConstantRateOfStrain) {
 // (it blew up at 0.094 s before the free-surface nodes were taken as those
 // under 0.9 of soil). The dilating dense column draws the water in: excess
 // pore pressure negative at both monitors from the first steps (measured:
-// Δp/σ'v0 = −1.71 in the middle, −1.16 at the base at 0.06 s), and it moves
+// Δp/σ'v0 = −1.70 in the middle, −1.18 at the base at 0.06 s), and it moves
 // far more slowly than the dry column with the same Δt (front 1.516 m,
-// kinetic-energy peak 845 J at 0.6 s): measured 1.081 m and 126 J.
+// kinetic-energy peak 845 J at 0.6 s): measured 1.082 m and 124 J.
 TEST(SimulationTest, SaturatedDenseColumnCollapsesSlowlyWithSuction) {
   const std::map<std::string, std::vector<double>> ts =
       RunSaturatedCase("collapse-saturated-ci", "saturated_collapse");
