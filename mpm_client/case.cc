@@ -622,6 +622,13 @@ absl::Status GetFile(const Object& o, absl::string_view key, const std::string& 
   return absl::OkStatus();
 }
 
+// Keys that shape the preparation: a template file holds its own packing.
+absl::Status OnlyFromParameterSet(const Object& o, absl::string_view key) {
+  if (o.Has("parameter_set")) return absl::OkStatus();
+  return Forbid(o, key,
+                "only for templates prepared from a parameter set (a file holds its own packing)");
+}
+
 // `base_dir`: the case file's directory, for relative template files.
 Fields<TemplateSpec> TemplateFields(const std::string& base_dir) {
   return {
@@ -647,11 +654,7 @@ Fields<TemplateSpec> TemplateFields(const std::string& base_dir) {
        }},
       {"seed",
        [](const Object& o, TemplateSpec* t) -> absl::Status {
-         if (!o.Has("parameter_set")) {
-           return Forbid(o, "seed",
-                         "only for templates prepared from a parameter set (a file holds its own "
-                         "packing)");
-         }
+         RETURN_IF_ERROR(OnlyFromParameterSet(o, "seed"));
          const Json* seed = o.Get("seed");
          return seed == nullptr ? absl::OkStatus() : ReadSeed(*seed, o.At("seed"), &t->seed);
        },
@@ -660,11 +663,7 @@ Fields<TemplateSpec> TemplateFields(const std::string& base_dir) {
        }},
       {"pressure",
        [](const Object& o, TemplateSpec* t) -> absl::Status {
-         if (!o.Has("parameter_set")) {
-           return Forbid(o, "pressure",
-                         "only for templates prepared from a parameter set (a file holds its own "
-                         "packing)");
-         }
+         RETURN_IF_ERROR(OnlyFromParameterSet(o, "pressure"));
          return GetNumber(o, "pressure", Need::kOptional,
                           Range{0.0, dem::kMaxPressure, true, false}, &t->pressure);
        },
@@ -673,11 +672,7 @@ Fields<TemplateSpec> TemplateFields(const std::string& base_dir) {
        }},
       {"void_ratio",
        [](const Object& o, TemplateSpec* t) -> absl::Status {
-         if (!o.Has("parameter_set")) {
-           return Forbid(o, "void_ratio",
-                         "only for templates prepared from a parameter set (a file holds its own "
-                         "packing)");
-         }
+         RETURN_IF_ERROR(OnlyFromParameterSet(o, "void_ratio"));
          return GetNumber(o, "void_ratio", Need::kOptional, Range{0.0, 1.0, true, true},
                           &t->void_ratio);
        },
