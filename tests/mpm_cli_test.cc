@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -21,6 +22,7 @@
 #include <utility>
 #include <vector>
 
+#include "absl/strings/ascii.h"
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
@@ -745,6 +747,31 @@ TEST(MpmCliTest, LocalClusterScriptRunsACaseOnLoopbackServersAndStopsThem) {
   }
   EXPECT_EQ(WithoutWallTime(ReadFile(dir + "/timeseries.csv")),
             WithoutWallTime(ReadFile(reference.dir + "/timeseries.csv")));
+  // A server that ignores SIGTERM (one that missed it while starting) is
+  // killed after the script's 10 s grace instead of hanging it: a fake
+  // build whose server ignores the signal and whose client exits 3.
+  const fs::path fake = TempPath("fake_build");
+  fs::create_directories(fake / "rve_server" / "server");
+  fs::create_directories(fake / "mpm_client");
+  std::ofstream(fake / "rve_server" / "server" / "rve_server")
+      << "#!/bin/bash\ntrap '' TERM\necho 'listening on 127.0.0.1:1'\nexec sleep 120\n";
+  std::ofstream(fake / "mpm_client" / "mpm_client") << "#!/bin/bash\nexit 3\n";
+  fs::permissions(fake / "rve_server" / "server" / "rve_server", fs::perms::owner_all);
+  fs::permissions(fake / "mpm_client" / "mpm_client", fs::perms::owner_all);
+  const std::string stuck = TempPath("local_cluster_stuck");
+  const auto start = std::chrono::steady_clock::now();
+  const testing_util::CommandResult bounded = testing_util::RunCommand(
+      absl::StrCat("RVEHUB_BUILD=", Quote(fake.string()), " timeout 60 bash ",
+                   Quote(RVEHUB_SOURCE_DIR "/deploy/local_cluster.sh"), " 1 case.json ",
+                   Quote(stuck), " 2>/dev/null"));
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(bounded.exit_code, 3);  // the client's status; 124: the script hung
+  EXPECT_LT(seconds, 30.0);
+  int stuck_pid = 0;
+  ASSERT_TRUE(
+      absl::SimpleAtoi(absl::StripAsciiWhitespace(ReadFile(stuck + "/servers/pids")), &stuck_pid));
+  EXPECT_NE(kill(stuck_pid, 0), 0) << "server " << stuck_pid << " still runs";
   // A usage error is the script's own.
   EXPECT_EQ(testing_util::RunCommand(
                 absl::StrCat("bash ", Quote(RVEHUB_SOURCE_DIR "/deploy/local_cluster.sh"),
