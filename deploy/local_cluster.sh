@@ -43,8 +43,9 @@ stop_servers() {
     kill -TERM "$p" 2>/dev/null || true
     kill -CONT "$p" 2>/dev/null || true  # a stopped server must see its SIGTERM
   done
-  # Bounded: a SIGTERM that reaches a server's process before it execs is
-  # lost, and that server would run on; after the drain grace it is killed.
+  # Bounded: a server can miss its SIGTERM (one sent while the server was
+  # still starting left it running, and the wait hung a test for 600 s);
+  # after the drain grace it is killed.
   for ((t = 0; t < 100; t++)); do
     local left=0
     for p in "${pids[@]}"; do running "$p" && left=1; done
