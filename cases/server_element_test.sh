@@ -18,11 +18,17 @@ mkdir -p "${out}"
 "${build}/rve_server/server/rve_server" --listen=127.0.0.1:0 \
   >"${out}/server.stdout" 2>"${out}/server.log" &
 server_pid=$!
+# Running and not yet reaped (as deploy/local_cluster.sh's running).
+running() {
+  local state=
+  { read -r _ _ state _ </proc/"$1"/stat; } 2>/dev/null || return 1
+  [[ $state != Z ]]
+}
 # Stopped with SIGTERM, killed if still running after 10 s (bounded exit).
 stop_server() {
   kill -TERM "${server_pid}" 2>/dev/null || return 0
   for _ in $(seq 100); do
-    [[ $(cut -d' ' -f3 /proc/"${server_pid}"/stat 2>/dev/null) =~ ^[^Z] ]] || break
+    running "${server_pid}" || break
     sleep 0.1
   done
   kill -KILL "${server_pid}" 2>/dev/null || true
