@@ -1302,6 +1302,13 @@ absl::string_view ProjectionName(Projection p) {
   return p == Projection::kStabilised ? "stabilised" : "incremental";
 }
 
+constexpr Table<ExcessDatum> kExcessData = {{"water_table", ExcessDatum::kWaterTable},
+                                            {"surface", ExcessDatum::kSurface}};
+
+absl::string_view ExcessDatumName(ExcessDatum d) {
+  return d == ExcessDatum::kSurface ? "surface" : "water_table";
+}
+
 Fields<PhasesSpec> PhasesFields() {
   return {
       EnumField("projection", &PhasesSpec::projection, Need::kOptional, "projection", kProjections,
@@ -1311,6 +1318,8 @@ Fields<PhasesSpec> PhasesFields() {
       NumberField("porosity", &PhasesSpec::porosity, Need::kOptional, kPorosity),
       OptionalFiniteField("water_table", &PhasesSpec::water_table, kAny),
       FlagField("drained_free_surface", &PhasesSpec::drained_free_surface),
+      EnumField("excess_pressure_from", &PhasesSpec::excess_from, Need::kOptional,
+                "excess pressure datum", kExcessData, &ExcessDatumName),
       // Read by ParsePhases (lists); written here.
       {"drained", [](const Object&, PhasesSpec*) { return absl::OkStatus(); },
        [](const PhasesSpec& s, OrderedJson& j) {

@@ -280,6 +280,17 @@ enum class Projection {
   kStabilised,
 };
 
+// What the excess pore pressure of the outputs is counted from (the step
+// itself does not use it).
+enum class ExcessDatum {
+  // The water at rest under the initial water table, ρ_f·g·(y_w − y).
+  kWaterTable,
+  // The water at rest filling the material to its current top surface
+  // (SurfaceProfile over the grid's columns): for a flow, whose surface
+  // falls, where the first datum would read the lowered table as suction.
+  kSurface,
+};
+
 struct PhasesSpec {
   bool saturated = false;
   Projection projection = Projection::kIncremental;
@@ -294,6 +305,7 @@ struct PhasesSpec {
   // volume in soil: ½ on a flat face) hold p = 0 as well: a surface that
   // moves (a collapse).
   bool drained_free_surface = false;
+  ExcessDatum excess_from = ExcessDatum::kWaterTable;
   std::vector<DrainedBoundary> drained;
   std::vector<PressureMonitor> monitors;
 };

@@ -25,6 +25,12 @@ struct ShapeValues {
   std::array<Eigen::Vector2d, kMaxShapeNodes> gradient;  // ∇S_Ip, 1/m
 };
 
+// Current GIMP half-sizes: lp0 stretched like the material along each axis,
+// lp_i = lp0_i·|F e_i|, m.
+inline Eigen::Vector2d CurrentHalfSize(const Eigen::Matrix2d& f, const Eigen::Vector2d& lp0) {
+  return Eigen::Vector2d(lp0.x() * f.col(0).norm(), lp0.y() * f.col(1).norm());
+}
+
 inline int NodeCount(const GridSpec& grid) { return (grid.nx + 1) * (grid.ny + 1); }
 
 inline Eigen::Vector2d NodePosition(const GridSpec& grid, int node) {

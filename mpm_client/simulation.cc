@@ -19,6 +19,7 @@
 #include "absl/time/time.h"
 #include "mpm_client/case.h"
 #include "mpm_client/output.h"
+#include "mpm_client/shape.h"
 #include "mpm_client/summary.h"
 #include "mpm_client/templates.h"
 #include "mpm_client/two_phase.h"
@@ -220,11 +221,25 @@ std::size_t NearestPoint(const MaterialPoints& mp, const Eigen::Vector2d& x) {
   return best;
 }
 
-// Pore pressure of the water at rest at height y, Pa: what the excess pore
-// pressure is counted from.
-double RestPressure(const CaseSpec& spec, double y) {
-  return HydrostaticPressure(spec.phases.fluid_density, spec.solver.gravity.norm(),
-                             spec.phases.water_table, y);
+// Each point's excess pore pressure p − p_rest, Pa, the water at rest
+// counted from the case's datum (PhasesSpec::excess_from).
+std::vector<double> ExcessPorePressures(const CaseSpec& spec, const MaterialPoints& mp) {
+  const double rho = spec.phases.fluid_density, g = spec.solver.gravity.norm();
+  SurfaceProfile surface(spec.grid.origin.x(), spec.grid.cell_size, spec.grid.nx);
+  const bool from_surface = spec.phases.excess_from == ExcessDatum::kSurface;
+  if (from_surface) {
+    for (std::size_t i = 0; i < mp.size(); ++i) {
+      surface.Add(mp.position[i].x(),
+                  mp.position[i].y() + CurrentHalfSize(mp.F[i], mp.half_size0[i]).y());
+    }
+  }
+  std::vector<double> excess(mp.size());
+  for (std::size_t i = 0; i < mp.size(); ++i) {
+    const double table =
+        from_surface ? surface.HeightAt(mp.position[i].x()) : spec.phases.water_table;  // m
+    excess[i] = mp.pore_pressure[i] - HydrostaticPressure(rho, g, table, mp.position[i].y());
+  }
+  return excess;
 }
 
 }  // namespace
@@ -311,9 +326,9 @@ absl::Status Simulation::WriteFrame() {
   if (spec_.phases.saturated) {
     store::ResultField pore{"pore_pressure", 1, {}}, excess{"excess_pore_pressure", 1, {}},
         fluid{"fluid_velocity", 2, {}}, k{"permeability", 1, {}}, porosity{"porosity", 1, {}};
+    excess.values = ExcessPorePressures(spec_, mp);
     for (std::size_t i = 0; i < n; ++i) {
       pore.values.push_back(mp.pore_pressure[i]);
-      excess.values.push_back(mp.pore_pressure[i] - RestPressure(spec_, mp.position[i].y()));
       fluid.values.push_back(mp.fluid_velocity[i].x());
       fluid.values.push_back(mp.fluid_velocity[i].y());
       k.values.push_back(solver_->Permeability(i));
@@ -372,10 +387,10 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
     row.push_back(out_->top_row.empty() ? 0.0 : settlement / out_->top_row.size());
     // Each monitor's pore pressure (Pa) and excess ratio Δp/σ'yy,0 [-],
     const Eigen::Vector2d box = FrameDisplacement(spec_.solver, solver_->time());  // m
+    const std::vector<double> excess = ExcessPorePressures(spec_, mp);
     for (std::size_t i : out_->monitor_points) {
-      const double excess = mp.pore_pressure[i] - RestPressure(spec_, mp.position[i].y());
       row.push_back(mp.pore_pressure[i]);
-      row.push_back(mp.vertical_stress0[i] > 0 ? excess / mp.vertical_stress0[i] : 0.0);
+      row.push_back(mp.vertical_stress0[i] > 0 ? excess[i] / mp.vertical_stress0[i] : 0.0);
       // Its effective shear stress (Pa) and displacement (m, relative to
       // the ground: a shaken box's own added): the σxy–u_x loops of cyclic
       // loading, a surface point's orbit in a wave.

@@ -46,12 +46,6 @@ int GridLineIndex(double value, double origin, double h, int n) {
   return std::abs(t - k) <= kGridTolerance ? static_cast<int>(k) : -1;
 }
 
-// Current GIMP half-sizes: lp0 stretched like the material along each axis,
-// lp_i = lp0_i·|F e_i|, m.
-Vector2d CurrentHalfSize(const Matrix2d& f, const Vector2d& lp0) {
-  return Vector2d(lp0.x() * f.col(0).norm(), lp0.y() * f.col(1).norm());
-}
-
 // A wall node's new velocity relative to the wall (m/s), from its relative
 // velocity `rel` and the unit normal n pointing from the obstacle into the
 // soil. Rough: no relative motion. Smooth: no normal relative motion.

@@ -1,9 +1,38 @@
 #include "mpm_client/two_phase.h"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 namespace rvehub::mpm {
+
+SurfaceProfile::SurfaceProfile(double x0, double h, int nx)
+    : x0_(x0), h_(h), top_(std::max(nx, 1), -std::numeric_limits<double>::infinity()) {}
+
+int SurfaceProfile::Column(double x) const {
+  const double i = std::floor((x - x0_) / h_);
+  const int last = static_cast<int>(top_.size()) - 1;
+  return i < 0 ? 0 : i > last ? last : static_cast<int>(i);  // NaN: column 0
+}
+
+void SurfaceProfile::Add(double x, double top) {
+  double& t = top_[Column(x)];
+  t = std::max(t, top);
+}
+
+double SurfaceProfile::HeightAt(double x) const {
+  const int i = Column(x);
+  const double own = top_[i];
+  // Toward the neighbour on x's side of its column's centre.
+  const double s = (x - x0_) / h_ - (i + 0.5);  // in cells, −½ … ½ inside
+  const int j = s >= 0.0 ? i + 1 : i - 1;
+  if (!std::isfinite(own) || j < 0 || j >= static_cast<int>(top_.size()) ||
+      !std::isfinite(top_[j])) {
+    return own;
+  }
+  return own + std::abs(s) * (top_[j] - own);
+}
 
 double TerzaghiExcessPressure(double p0, double z_over_h, double tv) {
   constexpr double kPi = std::numbers::pi;

@@ -7,6 +7,7 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <vector>
 
 namespace rvehub::mpm {
 
@@ -25,6 +26,30 @@ inline double HydrostaticPressure(double fluid_density, double gravity, double w
   const double depth = water_table - y;  // m
   return std::isfinite(depth) && depth > 0.0 ? fluid_density * gravity * depth : 0.0;
 }
+
+// The material's top surface over a grid's columns of cells, from its
+// points: what "water at rest" means once a flow has moved the surface (the
+// water filling the material to its top, at rest under gravity). Column i
+// spans x0 + i·h ≤ x < x0 + (i + 1)·h; its height is the highest top edge of
+// the points centred in it, m.
+class SurfaceProfile {
+ public:
+  // nx columns of width h (m) from x0 (m), none with points yet.
+  SurfaceProfile(double x0, double h, int nx);
+  // A point centred at x (m) whose top edge is at `top` (m). Points outside
+  // the columns count toward the nearest edge column.
+  void Add(double x, double top);
+  // The surface's height at x, m: the column heights interpolated linearly
+  // between column centres, held flat toward a column without points and
+  // beyond the edge columns' centres; −∞ when x's own column has none.
+  double HeightAt(double x) const;
+
+ private:
+  int Column(double x) const;
+
+  double x0_, h_;
+  std::vector<double> top_;  // per column, m; −∞: no point
+};
 
 // Void ratio e = n/(1 − n), [-].
 inline double VoidRatio(double porosity) { return porosity / (1.0 - porosity); }

@@ -401,6 +401,7 @@ void ExpectSameSpec(const CaseSpec& a, const CaseSpec& b) {
   EXPECT_EQ(a.phases.porosity, b.phases.porosity);
   EXPECT_EQ(a.phases.water_table, b.phases.water_table);
   EXPECT_EQ(a.phases.drained_free_surface, b.phases.drained_free_surface);
+  EXPECT_EQ(a.phases.excess_from, b.phases.excess_from);
   ASSERT_EQ(a.phases.drained.size(), b.phases.drained.size());
   for (std::size_t i = 0; i < a.phases.drained.size(); ++i) {
     EXPECT_EQ(a.phases.drained[i].name, b.phases.drained[i].name);
@@ -686,6 +687,7 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
       {"/phases/monitors/0/position", {0.5, 0.5}},
       {"/phases/drainage", true},
       {"/phases/projection", "implicit"},
+      {"/phases/excess_pressure_from", "current_water_table"},
   };
   const std::vector<std::string> messages = {
       "/phases/permeability: must be in (0, 10], got 0",
@@ -699,6 +701,7 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
       "/phases/monitors/0/position: (0.5, 0.5) m is in no region",
       "/phases/drainage: unknown key",
       "/phases/projection: unknown projection \"implicit\"",
+      "/phases/excess_pressure_from: unknown excess pressure datum \"current_water_table\"",
   };
   for (std::size_t i = 0; i < edits.size(); ++i) {
     SCOPED_TRACE(edits[i].first);

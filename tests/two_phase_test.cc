@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <map>
 #include <memory>
 #include <string>
@@ -76,6 +77,30 @@ TEST(TwoPhaseKernelTest, PermeabilityAndTerzaghi) {
   EXPECT_NEAR(TerzaghiExcessPressure(1.0, 1.0, 0.2), 0.7723, 2e-4);
   EXPECT_NEAR(TerzaghiExcessPressure(1.0, 0.0, 0.5), 0.0, 1e-15);  // drained face
   EXPECT_NEAR(TerzaghiExcessPressure(1.0, 0.5, 1e-4), 1.0, 1e-6);  // not yet reached
+}
+
+// A slumped deposit on four 0.5 m columns from x = 1: heights 1.0, 0.6 and
+// 0.2 m, the last column empty (the front has not reached it).
+TEST(TwoPhaseKernelTest, SurfaceProfileFollowsTheMaterialsTop) {
+  SurfaceProfile s(1.0, 0.5, 4);
+  s.Add(1.1, 0.7);
+  s.Add(1.3, 1.0);  // the highest top in column 0 counts
+  s.Add(1.7, 0.6);
+  s.Add(2.2, 0.2);
+  EXPECT_DOUBLE_EQ(s.HeightAt(1.25), 1.0);   // column 0's centre
+  EXPECT_DOUBLE_EQ(s.HeightAt(1.1), 1.0);    // held before the first centre
+  EXPECT_DOUBLE_EQ(s.HeightAt(1.5), 0.8);    // between the centres 1.25 and 1.75
+  EXPECT_DOUBLE_EQ(s.HeightAt(1.625), 0.7);  // from column 1's side
+  EXPECT_DOUBLE_EQ(s.HeightAt(2.0), 0.4);
+  EXPECT_DOUBLE_EQ(s.HeightAt(2.45), 0.2);  // toward the empty column: held
+  EXPECT_EQ(s.HeightAt(2.8), -std::numeric_limits<double>::infinity());  // no material
+  // The water at rest below it: ρ_f g × depth, nothing above the surface.
+  EXPECT_NEAR(HydrostaticPressure(1000.0, 10.0, s.HeightAt(1.5), 0.3), 5000.0, 1e-9);
+  EXPECT_DOUBLE_EQ(HydrostaticPressure(1000.0, 10.0, s.HeightAt(2.8), 0.1), 0.0);
+  // Points beyond the grid count toward the edge columns.
+  s.Add(3.5, 0.1);
+  EXPECT_DOUBLE_EQ(s.HeightAt(2.8), 0.1);
+  EXPECT_NEAR(s.HeightAt(2.6), 0.2 + 0.7 * (0.1 - 0.2), 1e-12);  // 0.7 of the way
 }
 
 // --- columns
