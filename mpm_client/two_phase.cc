@@ -13,7 +13,8 @@ SurfaceProfile::SurfaceProfile(double x0, double h, int nx)
 int SurfaceProfile::Column(double x) const {
   const double i = std::floor((x - x0_) / h_);
   const int last = static_cast<int>(top_.size()) - 1;
-  return i < 0 ? 0 : i > last ? last : static_cast<int>(i);  // NaN: column 0
+  if (!(i >= 0)) return 0;  // and NaN
+  return i > last ? last : static_cast<int>(i);
 }
 
 void SurfaceProfile::Add(double x, double top) {
