@@ -195,6 +195,10 @@ absl::Status WriteCasePlot(const CaseSpec& spec,
         const double nq = figures.at("N_q_prandtl");
         panel.series.push_back({"Prandtl N_q", {0.0, d_end}, {nq, nq}});
       }
+      if (figures.contains("N_q_reduced")) {  // local shear, punching
+        const double nq = figures.at("N_q_reduced");
+        panel.series.push_back({"Terzaghi N'_q (local)", {0.0, d_end}, {nq, nq}});
+      }
       const double du = figures.at("settlement_at_ultimate_m"), nu = figures.at("N_q");
       panel.series.push_back({"ultimate load", {du, du}, {0.0, nu}});
       panels.push_back(std::move(panel));

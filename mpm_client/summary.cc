@@ -54,7 +54,9 @@ absl::StatusOr<Summary> Footing(const CaseSpec& spec, const Columns& columns) {
   out.emplace_back("ultimate_is_peak", ultimate.peak ? 1.0 : 0.0);
   if (spec.output.phi_deg > 0.0) {
     out.emplace_back("phi_deg", spec.output.phi_deg);
-    out.emplace_back("N_q_prandtl", PrandtlNq(spec.output.phi_deg * std::numbers::pi / 180.0));
+    const double phi = spec.output.phi_deg * std::numbers::pi / 180.0;  // rad
+    out.emplace_back("N_q_prandtl", PrandtlNq(phi));
+    out.emplace_back("N_q_reduced", ReducedNq(phi));
   }
   if (surcharge > 0.0) out.emplace_back("surcharge_Pa", surcharge);
   return out;
@@ -131,6 +133,8 @@ double PrandtlNq(double phi) {
   const double t = std::tan(std::numbers::pi / 4 + phi / 2);
   return t * t * std::exp(std::numbers::pi * std::tan(phi));
 }
+
+double ReducedNq(double phi) { return PrandtlNq(std::atan(2.0 / 3.0 * std::tan(phi))); }
 
 absl::StatusOr<UltimateLoad> FindUltimateLoad(std::span<const double> settlement,
                                               std::span<const double> load, int window) {

@@ -18,6 +18,9 @@ namespace rvehub::mpm {
 // Prandtl's bearing capacity factor of a weightless cohesionless soil,
 // N_q = tan²(π/4 + φ/2)·exp(π tan φ), φ in radians.
 double PrandtlNq(double phi);
+// Terzaghi's factor for local shear and punching: Prandtl's with the reduced
+// φ'_r = atan(⅔ tan φ') (liang-zhao-mpm-dem eq. 47), φ in radians.
+double ReducedNq(double phi);
 
 // The ultimate load of a load–settlement curve as liang-zhao-mpm-dem §3.3
 // takes it: where the slope first reaches zero (the first peak) or, on a
@@ -57,7 +60,7 @@ using Summary = std::vector<std::pair<std::string, double>>;
 
 // The figures of a case's kind from its timeseries columns (by header):
 // footing: N_q, ultimate_load_Pa, settlement_at_ultimate_m, phi_deg and
-// N_q_prandtl (when the case gives φ'), surcharge_Pa; pipe:
+// N_q_prandtl and N_q_reduced (when the case gives φ'), surcharge_Pa; pipe:
 // peak_vertical_force_N, peak_horizontal_force_N (largest magnitudes of what
 // the soil exerts on the body, N for the domain thickness); collapse:
 // runout_normalised (d_f − d_0)/d_0 with d_0 the region's width and d_f the

@@ -20,6 +20,11 @@ TEST(SummaryTest, PrandtlNqMatchesThePaper) {
   EXPECT_NEAR(PrandtlNq(28.1 * kDeg), 14.88, 0.005);
   EXPECT_NEAR(PrandtlNq(31.67 * kDeg), 22.30, 0.005);
   EXPECT_DOUBLE_EQ(PrandtlNq(0.0), 1.0);
+  // Local shear and punching (eq. 47): the paper's 3.7 and 3.1 for the
+  // medium (20.8°) and soft (18.2°) packings.
+  EXPECT_NEAR(ReducedNq(20.8 * kDeg), 3.66, 0.01);
+  EXPECT_NEAR(ReducedNq(18.2 * kDeg), 3.07, 0.01);
+  EXPECT_DOUBLE_EQ(ReducedNq(0.0), 1.0);
 }
 
 TEST(SummaryTest, UltimateLoadOfACurveWithAPeakIsThePeak) {
@@ -105,6 +110,7 @@ TEST(SummaryTest, FootingCollapseBiaxialAndPipeFigures) {
   EXPECT_NEAR(m["settlement_at_ultimate_m"], 0.1, 0.0151);
   EXPECT_NEAR(m["N_q"], m["ultimate_load_Pa"] / 20e3, 1e-12);
   EXPECT_NEAR(m["N_q_prandtl"], 18.40, 0.01);
+  EXPECT_NEAR(m["N_q_reduced"], ReducedNq(30.0 * kDeg), 1e-12);
   EXPECT_EQ(m["phi_deg"], 30.0);
 
   // Collapse: a 1 m column of 0.25 m cells with 2 points per side (half
