@@ -65,6 +65,15 @@ std::unique_ptr<Simulation> StartOrDie(const CaseSpec& spec, const SimulationOpt
   return sim.ok() ? *std::move(sim) : nullptr;
 }
 
+// The values of a result frame's field `name` (empty, the test failed, if
+// the frame has none).
+std::vector<double> FrameField(const store::ResultFrame& frame, const std::string& name) {
+  const auto it = std::find_if(frame.fields.begin(), frame.fields.end(),
+                               [&](const store::ResultField& f) { return f.name == name; });
+  EXPECT_NE(it, frame.fields.end()) << name;
+  return it == frame.fields.end() ? std::vector<double>{} : it->values;
+}
+
 // Runs the shipped saturated case `name` to its end in a fresh directory
 // `dir` and returns its timeseries columns (empty, the test failed, if not);
 // `out_dir` (optional) receives the directory's path.
@@ -430,13 +439,8 @@ TEST(SimulationTest, SaturatedPlatenConsolidatesAtAConstantRateOfStrain) {
   ASSERT_TRUE(frames.ok()) << frames.status();
   const store::ResultFrame& last = frames->back();
   EXPECT_NEAR(last.time, 1.0, 1e-3);
-  auto field = [&](const std::string& name) {
-    const auto it = std::find_if(last.fields.begin(), last.fields.end(),
-                                 [&](const auto& x) { return x.name == name; });
-    EXPECT_NE(it, last.fields.end()) << name;
-    return it == last.fields.end() ? std::vector<double>{} : it->values;
-  };
-  const std::vector<double> pore = field("pore_pressure"), stress = field("stress");
+  const std::vector<double> pore = FrameField(last, "pore_pressure"),
+                            stress = FrameField(last, "stress");
   ASSERT_FALSE(pore.empty());
   ASSERT_EQ(stress.size(), 9 * pore.size());
   const double height = 1.0 + ts.at("platen_dy").back();  // m
@@ -482,21 +486,17 @@ TEST(SimulationTest, SaturatedDenseColumnCollapsesSlowlyWithSuction) {
   ASSERT_TRUE(frames.ok()) << frames.status();
   const store::ResultFrame& last = frames->back();
   EXPECT_NEAR(last.time, 0.6, 1e-9);
-  const auto field = [&](const char* name) -> const std::vector<double>* {
-    for (const store::ResultField& f : last.fields) {
-      if (f.name == name) return &f.values;
-    }
-    return nullptr;
-  };
-  const std::vector<double>*pore = field("pore_pressure"), *excess = field("excess_pore_pressure");
-  ASSERT_TRUE(pore != nullptr && excess != nullptr);
+  const std::vector<double> pore = FrameField(last, "pore_pressure"),
+                            excess = FrameField(last, "excess_pore_pressure");
+  ASSERT_FALSE(pore.empty());
+  ASSERT_EQ(excess.size(), pore.size());
   std::size_t front = 0;  // the point furthest out
-  for (std::size_t p = 0; p < pore->size(); ++p) {
+  for (std::size_t p = 0; p < pore.size(); ++p) {
     if (last.position[2 * p] > last.position[2 * front]) front = p;
   }
-  EXPECT_NEAR((*pore)[front], 0.0, 100.0);       // Pa: drained surface
+  EXPECT_NEAR(pore[front], 0.0, 100.0);          // Pa: drained surface
   EXPECT_LT(last.position[2 * front + 1], 0.8);  // m: 0.2 m below the initial table
-  EXPECT_NEAR((*excess)[front], 0.0, 1000.0);
+  EXPECT_NEAR(excess[front], 0.0, 1000.0);
   const std::vector<double>& t = ts.at("time");
   double peak = 0.0;
   for (std::size_t r = 0; r < t.size(); ++r) {
