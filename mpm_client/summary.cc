@@ -5,6 +5,7 @@
 #include <fstream>
 #include <limits>
 #include <numbers>
+#include <queue>
 
 #include "absl/strings/str_cat.h"
 #include "nlohmann/json.hpp"
@@ -38,7 +39,11 @@ absl::StatusOr<Summary> Footing(const CaseSpec& spec, const Columns& columns) {
   std::vector<double> q(fy->size()), d(dy->size());
   for (std::size_t i = 0; i < q.size(); ++i) q[i] = (*fy)[i] / area;
   for (std::size_t i = 0; i < d.size(); ++i) d[i] = -(*dy)[i];
-  ASSIGN_OR_RETURN(const UltimateLoad ultimate, FindUltimateLoad(d, q));
+  // The load jumps each time the footing crosses a node row: average over
+  // one cell of settlement, or a fifth of a shorter curve.
+  const auto [dmin, dmax] = std::minmax_element(d.begin(), d.end());
+  const double span = std::min(spec.grid.cell_size, 0.2 * (*dmax - *dmin));  // m
+  ASSIGN_OR_RETURN(const UltimateLoad ultimate, FindUltimateLoad(d, q, span));
   Summary out;
   // The surcharge: the pressure on the ground surface (a +y traction).
   double surcharge = 0.0;
@@ -137,48 +142,97 @@ double PrandtlNq(double phi) {
 double ReducedNq(double phi) { return PrandtlNq(std::atan(2.0 / 3.0 * std::tan(phi))); }
 
 absl::StatusOr<UltimateLoad> FindUltimateLoad(std::span<const double> settlement,
-                                              std::span<const double> load, int window) {
+                                              std::span<const double> load, double span) {
   const std::size_t n = load.size();
   if (n < 3 || settlement.size() != n) {
     return absl::InvalidArgumentError(absl::StrCat("a load-settlement curve needs >= 3 rows of ",
                                                    "both columns (", settlement.size(), ", ", n,
                                                    ")"));
   }
+  if (!(span >= 0.0)) return absl::InvalidArgumentError("the smoothing span must be >= 0");
   // A running median of 3 rows removes single-row flicker (a node row
-  // emptying as the surface passes it), then a centred mean smooths.
+  // emptying as the surface passes it), then a centred mean of 5 rows.
   std::vector<double> median(load.begin(), load.end());
   for (std::size_t i = 1; i + 1 < n; ++i) {
     median[i] = std::max(std::min(load[i - 1], load[i]),
                          std::min(std::max(load[i - 1], load[i]), load[i + 1]));
   }
-  const std::size_t half = static_cast<std::size_t>(std::max(window, 1) / 2);
-  std::vector<double> smooth(n);
+  constexpr std::size_t kHalf = 2;
+  std::vector<double> light(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const std::size_t lo = i >= half ? i - half : 0, hi = std::min(n - 1, i + half);
+    const std::size_t lo = i >= kHalf ? i - kHalf : 0, hi = std::min(n - 1, i + kHalf);
     double sum = 0.0;
     for (std::size_t k = lo; k <= hi; ++k) sum += median[k];
+    light[i] = sum / static_cast<double>(hi - lo + 1);
+  }
+  // The contiguous rows within span/2 of row i's settlement, as many on
+  // each side (a window one row longer on one side would shift the mean).
+  const auto within = [&](std::size_t i) {
+    std::size_t lo = i, hi = i;
+    while (lo > 0 && std::abs(settlement[lo - 1] - settlement[i]) <= 0.5 * span) --lo;
+    while (hi + 1 < n && std::abs(settlement[hi + 1] - settlement[i]) <= 0.5 * span) ++hi;
+    const std::size_t side = std::min(i - lo, hi - i);
+    return std::pair{i - side, i + side};
+  };
+  // Then a centred mean over the span (the load's period as the footing
+  // crosses grid rows), to locate the ultimate load.
+  std::vector<double> smooth(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto [lo, hi] = within(i);
+    double sum = 0.0;
+    for (std::size_t k = lo; k <= hi; ++k) sum += light[k];
     smooth[i] = sum / static_cast<double>(hi - lo + 1);
   }
-  // Slopes between rows whose settlement grows; the first that is <= 0 marks
-  // the peak. Else the steady part: the first slope within 5 % of the slopes'
-  // range above the smallest (noise makes the very smallest one arbitrary).
-  // (Rows within half a window of the ends, where the mean is one-sided,
-  // stay out.)
+  // Slopes between rows whose settlement grows, away from the ends where the
+  // means are one-sided.
+  const double first = settlement.front(), last = settlement.back();
   std::vector<std::pair<std::size_t, double>> slopes;
-  for (std::size_t i = half; i + 1 + half < n; ++i) {
+  for (std::size_t i = kHalf; i + 1 + kHalf < n; ++i) {
     const double dd = settlement[i + 1] - settlement[i];
     if (!(dd > 0.0) || !(settlement[i] > 0.0)) continue;
-    const double slope = (smooth[i + 1] - smooth[i]) / dd;
-    if (slope <= 0.0) return UltimateLoad{i, smooth[i], settlement[i], true};
-    slopes.emplace_back(i, slope);
+    if (settlement[i] - first < 0.5 * span || last - settlement[i + 1] < 0.5 * span) continue;
+    slopes.emplace_back(i, (smooth[i + 1] - smooth[i]) / dd);
   }
   if (slopes.empty()) return absl::InvalidArgumentError("the settlement never grows");
-  double lo = slopes.front().second, hi = lo;
-  for (const auto& [i, slope] : slopes) lo = std::min(lo, slope), hi = std::max(hi, slope);
-  for (const auto& [i, slope] : slopes) {
-    if (slope <= lo + 0.05 * (hi - lo)) return UltimateLoad{i, smooth[i], settlement[i], false};
+  // The median of the slopes after each one (the steady slope the curve
+  // keeps), by two heaps from the end.
+  std::vector<double> rest(slopes.size(), 0.0);
+  std::priority_queue<double> below;                                       // max-heap
+  std::priority_queue<double, std::vector<double>, std::greater<>> above;  // min-heap
+  for (std::size_t k = slopes.size(); k-- > 0;) {
+    if (!below.empty()) {
+      rest[k] = below.size() > above.size() ? below.top() : 0.5 * (below.top() + above.top());
+    }
+    const double s = slopes[k].second;
+    if (below.empty() || s <= below.top()) {
+      below.push(s);
+    } else {
+      above.push(s);
+    }
+    if (below.size() > above.size() + 1) {
+      above.push(below.top());
+      below.pop();
+    } else if (above.size() > below.size()) {
+      below.push(above.top());
+      above.pop();
+    }
   }
-  return absl::InternalError("unreachable");
+  // The first slope at or below zero (a peak) or below the steady slope
+  // after it; the load there is the lightly smoothed curve's largest within
+  // the span, so that the wide mean does not shave a peak.
+  for (std::size_t k = 0; k < slopes.size(); ++k) {
+    const double s = slopes[k].second;
+    if (s > std::max(0.0, rest[k])) continue;
+    const auto [lo, hi] = within(slopes[k].first);
+    std::size_t best = lo;
+    for (std::size_t j = lo; j <= hi; ++j) {
+      if (light[j] > light[best]) best = j;
+    }
+    return UltimateLoad{best, light[best], settlement[best], s <= 0.0};
+  }
+  // Only the last slope can be above every later one's median (0 here).
+  const std::size_t i = slopes.back().first;
+  return UltimateLoad{i, light[i], settlement[i], false};
 }
 
 double FrontStopTime(std::span<const double> time, std::span<const double> front,

@@ -23,19 +23,23 @@ double PrandtlNq(double phi);
 double ReducedNq(double phi);
 
 // The ultimate load of a load–settlement curve as liang-zhao-mpm-dem §3.3
-// takes it: where the slope first reaches zero (the first peak) or, on a
-// curve that keeps rising, where the slope is smallest. The curve is first
-// smoothed, by a running median of 3 rows and a centred mean over `window`
-// rows (odd), so that the flicker of single rows does not pass for a peak.
-// InvalidArgument for fewer than 3 rows or columns of different lengths.
+// takes it (after Vesić): where the slope first reaches zero (a peak) or
+// its steady minimum, here the median of the slopes after it. The slopes are
+// taken on the curve smoothed by a running median of 3 rows, a centred mean
+// of 5 rows and a centred mean over `span` (m of settlement; 0: none), so
+// that neither a single row's flicker nor the periodic jump of a grid
+// crossing passes for a peak. The load reported is the largest of the
+// 5-row curve within span/2 of that point, and its settlement.
+// InvalidArgument for fewer than 3 rows, columns of different lengths, a
+// negative span, or a curve that never settles more than a span.
 struct UltimateLoad {
   std::size_t row = 0;      // in the given columns
-  double load = 0.0;        // the smoothed load there
+  double load = 0.0;        // the lightly smoothed load there
   double settlement = 0.0;  // m
-  bool peak = false;        // a peak (slope zero); else the smallest slope
+  bool peak = false;        // a peak (slope zero); else the steady slope
 };
 absl::StatusOr<UltimateLoad> FindUltimateLoad(std::span<const double> settlement,
-                                              std::span<const double> load, int window = 5);
+                                              std::span<const double> load, double span = 0.0);
 
 // The first time from which the front stays within `tolerance` (m) of its
 // last value; the last time if it never settles.

@@ -65,6 +65,52 @@ TEST(SummaryTest, OneFlickeringRowIsNoPeakAndARisingCurveEndsAtItsSmallestSlope)
   EXPECT_FALSE(FindUltimateLoad(std::vector<double>{0, 1}, std::vector<double>{0, 1}).ok());
 }
 
+TEST(SummaryTest, AGridCrossingsJumpIsNoPeakWhenSmoothedOverItsPeriod) {
+  // A knee at d = 0.2 m (slope 10 then 1), and every h = 0.1 m of
+  // settlement the load drops by 10 % over 0.02 m, as when the footing
+  // crosses a node row: sustained for 7 rows, no row filter removes it.
+  constexpr double h = 0.1;
+  std::vector<double> d, q;
+  for (int i = 0; i <= 500; ++i) {
+    d.push_back(0.003 * i);
+    const double base = d.back() <= 0.2 ? 10.0 * d.back() : 2.0 + (d.back() - 0.2);
+    const double phase = std::fmod(d.back(), h);
+    q.push_back(phase > 0.05 && phase < 0.07 ? 0.9 * base : base);
+  }
+  // Without the span a jump on the steep part reads as a peak.
+  absl::StatusOr<UltimateLoad> u = FindUltimateLoad(d, q);
+  ASSERT_TRUE(u.ok()) << u.status();
+  EXPECT_TRUE(u->peak);
+  EXPECT_LT(u->settlement, 0.2);
+  // Over one period: the knee, where the slope settles at 1 (found within
+  // half a span past it, the span blurring the knee), and the load there:
+  // the curve's top within the next half span.
+  u = FindUltimateLoad(d, q, h);
+  ASSERT_TRUE(u.ok()) << u.status();
+  EXPECT_FALSE(u->peak);
+  EXPECT_GE(u->settlement, 0.2);
+  EXPECT_LE(u->settlement, 0.2 + 1.5 * h) << u->settlement;
+  EXPECT_NEAR(u->load, 2.0 + (u->settlement - 0.2), 0.01);
+  EXPECT_FALSE(FindUltimateLoad(d, q, -h).ok());
+  EXPECT_FALSE(FindUltimateLoad(d, q, 2.0).ok());  // longer than the curve
+}
+
+TEST(SummaryTest, AWideSpanDoesNotShaveAPeak) {
+  // A sharp peak of 100 at 0.5 m: the span locates it and the load reported
+  // is the 5-row curve's top (98.6: the row filters round a sharp top by a
+  // row's rise), not the wide mean's (~91 here).
+  std::vector<double> d, q;
+  for (int i = 0; i <= 200; ++i) {
+    d.push_back(0.005 * i);
+    q.push_back(100.0 - 100.0 * std::abs(d.back() - 0.5) / 0.5);
+  }
+  absl::StatusOr<UltimateLoad> u = FindUltimateLoad(d, q, 0.1);
+  ASSERT_TRUE(u.ok()) << u.status();
+  EXPECT_TRUE(u->peak);
+  EXPECT_NEAR(u->settlement, 0.5, 0.0051);
+  EXPECT_NEAR(u->load, 98.6, 0.01);
+}
+
 TEST(SummaryTest, FrontStopsWhenItStaysWithinTheTolerance) {
   const std::vector<double> t = {0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8};
   const std::vector<double> x = {1.0, 1.2, 1.5, 1.8, 1.9, 1.95, 1.96, 1.96, 1.96};
