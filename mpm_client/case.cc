@@ -550,6 +550,13 @@ constexpr Table<ShapeKind> kShapes = {{"linear", ShapeKind::kLinear}, {"gimp", S
 
 absl::string_view ShapeName(ShapeKind kind) { return kind == ShapeKind::kGimp ? "gimp" : "linear"; }
 
+constexpr Table<LostPointPolicy> kLostPointPolicies = {{"stop", LostPointPolicy::kStop},
+                                                       {"drop", LostPointPolicy::kDrop}};
+
+absl::string_view LostPointPolicyName(LostPointPolicy p) {
+  return p == LostPointPolicy::kDrop ? "drop" : "stop";
+}
+
 // A shaking table's speeds are of cm/s to m/s; its frequencies of Hz.
 constexpr Range kShakingSpeed{-100.0, 100.0, false, false};   // m/s
 constexpr Range kShakingFrequency{0.0, 1000.0, true, false};  // Hz
@@ -593,6 +600,8 @@ Fields<SolverSpec> SolverFields() {
       NumberField("thickness", &SolverSpec::thickness, Need::kOptional, kPositive),
       ShakingAmplitudeField(&SolverSpec::shaking_amplitude, &IsShakenBox),
       ShakingFrequencyField(&SolverSpec::shaking_frequency, &IsShakenBox),
+      EnumField("lost_points", &SolverSpec::lost_points, Need::kOptional, "lost-point policy",
+                kLostPointPolicies, &LostPointPolicyName),
   };
 }
 
@@ -1674,6 +1683,11 @@ absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::strin
       }
     }
     RETURN_IF_ERROR(ParsePhases(*phases, root.At("phases"), lines, spec.regions, &spec.phases));
+    // The two-phase step's porosity, drag and pressure need every point on
+    // the grid.
+    if (spec.phases.saturated && spec.solver.lost_points == LostPointPolicy::kDrop) {
+      return Bad(root.At("solver") + "/lost_points", "\"drop\" is for dry cases only");
+    }
   }
   if (const Json* output = root.Get("output")) {
     RETURN_IF_ERROR(ParseOutput(*output, root.At("output"), spec.bodies, base_dir, &spec.output));

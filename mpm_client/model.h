@@ -26,6 +26,16 @@ enum class ShapeKind {
   kGimp,    // uniform GIMP (particle half-size lp), support h + lp each side
 };
 
+// What happens when a material point's centre or loaded surface leaves the
+// grid (a point thrown out of a shear band or a heave).
+enum class LostPointPolicy {
+  kStop,  // the step fails: OutOfRange, naming the point
+  kDrop,  // the point is parked where it left: off the grid it takes and
+          // gives nothing (no mass, force or load on nodes, ΔF = I), keeps
+          // its mass and RVE, and is left out of the timeseries' averages
+          // and extents; dry cases only
+};
+
 struct GridSpec {
   Eigen::Vector2d origin = Eigen::Vector2d::Zero();  // m, lower-left corner
   double cell_size = 0.1;                            // h, m (square cells)
@@ -69,6 +79,7 @@ struct SolverSpec {
   // added (relative to the ground).
   Eigen::Vector2d shaking_amplitude = Eigen::Vector2d::Zero();  // m/s
   double shaking_frequency = 0.0;                               // Hz
+  LostPointPolicy lost_points = LostPointPolicy::kStop;
 };
 
 // The box's velocity at time t (s), m/s (SolverSpec::shaking_amplitude).

@@ -186,6 +186,7 @@ std::vector<std::string> Simulation::Columns() const {
         "mean_void_ratio", "kinetic_energy", "front_x", "top_y", "wall_per_step_s"}) {
     c.push_back(name);
   }
+  if (spec_.solver.lost_points == LostPointPolicy::kDrop) c.push_back("lost_points");
   if (spec_.phases.saturated) {
     c.push_back("surface_settlement");
     for (const PressureMonitor& m : spec_.phases.monitors) {
@@ -361,7 +362,13 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
   double front_x = -std::numeric_limits<double>::infinity(), top_y = front_x;
   Eigen::Matrix3d sigma = Eigen::Matrix3d::Zero();
   Eigen::Matrix2d strain = Eigen::Matrix2d::Zero();
+  const std::vector<std::uint8_t>& lost = solver_->lost();
+  double lost_points = 0.0;
   for (std::size_t i = 0; i < mp.size(); ++i) {
+    if (lost[i]) {  // parked off the grid (kDrop)
+      lost_points += 1.0;
+      continue;
+    }
     const double v = mp.volume[i];
     volume += v;
     sigma += v * mp.stress[i];
@@ -379,6 +386,7 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
              {-sigma(0, 0), -sigma(1, 1), -sigma(0, 1), strain(0, 0), strain(1, 1), strain(0, 1),
               dem::InPlaneMeanPressure(sigma), dem::InPlaneDeviatorStress(sigma), e,
               solver_->KineticEnergy(), front_x, top_y, wall_per_step});
+  if (spec_.solver.lost_points == LostPointPolicy::kDrop) row.push_back(lost_points);
   if (spec_.phases.saturated) {
     // The surface's settlement: the mean of (y0 − y) over the points that
     // started in the top row, m (down +).
@@ -403,6 +411,21 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
   RETURN_IF_ERROR(out_->timeseries->Append(row));
   out_->last_row_step = solver_->step();
   return absl::OkStatus();
+}
+
+void Simulation::LogLostPoints() {
+  const std::vector<std::uint8_t>& lost = solver_->lost();
+  if (spec_.solver.lost_points != LostPointPolicy::kDrop) return;
+  lost_logged_.resize(lost.size(), 0);
+  for (std::size_t p = 0; p < lost.size(); ++p) {
+    if (!lost[p] || lost_logged_[p]) continue;
+    lost_logged_[p] = 1;
+    const Eigen::Vector2d& x = solver_->points().position[p];
+    Log(absl::StrFormat(
+        "step %d: material point %d at (%.6g, %.6g) m is off the grid: parked (solver.lost_points "
+        "\"drop\"; %d parked)",
+        solver_->step(), p, x.x(), x.y(), std::count(lost.begin(), lost.end(), 1)));
+  }
 }
 
 absl::StatusOr<store::SimCheckpoint> Simulation::Snapshot() {
@@ -900,6 +923,7 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
     }
     ++sum.steps;
     const std::int64_t step = solver_->step();
+    LogLostPoints();
     const bool last = step >= total_steps;
     const Clock::time_point t_out = Clock::now();
     if (step % o.timeseries_every == 0 || last) {

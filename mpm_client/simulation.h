@@ -151,6 +151,8 @@ class Simulation {
   // The options sent with every Apply, from the case and the solver's Δt.
   void SetApplyOptions();
   void Log(const std::string& line) const;
+  // Logs each point the solver parked off the grid since the last call.
+  void LogLostPoints();
 
   CaseSpec spec_;
   std::string case_json_;
@@ -176,6 +178,8 @@ class Simulation {
   // pool's Apply wall time.
   std::vector<double> busy_shown_, engine_shown_;
   double apply_shown_ = 0.0;
+  // Per point, whether its drop off the grid was logged (kDrop).
+  std::vector<std::uint8_t> lost_logged_;
 };
 
 }  // namespace rvehub::mpm

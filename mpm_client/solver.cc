@@ -484,6 +484,7 @@ void Solver::Prepare() {
           ? (phases_.saturated ? kSaturatedInactiveMassFraction : kInactiveMassFraction) * min_mass
           : 0.0;
   shape_.resize(n);
+  lost_.assign(n, 0);
   load_shape_.resize(points_.loads.size());
   load_force_.resize(points_.loads.size());
   const int nodes = NodeCount(grid_);
@@ -511,7 +512,27 @@ void Solver::Prepare() {
 
 absl::Status Solver::EvaluateShapes() {
   const MaterialPoints& mp = points_;
+  const bool drop = solver_.lost_points == LostPointPolicy::kDrop;
+  // Tractions act at the points' surface positions x_p + n·l with the current
+  // half-size l along n, over the current surface length, linear weights
+  // there (the GIMP limit lp → 0).
+  const auto surface = [&](const SurfaceLoad& load) {
+    const Vector2d lp = CurrentHalfSize(mp.F[load.point], mp.half_size0[load.point]);
+    Vector2d x = mp.position[load.point];
+    x[load.normal_axis] += load.normal_sign * lp[load.normal_axis];
+    return x;
+  };
+  // A point is lost with its centre or a loaded surface off the grid; once
+  // parked it does not move, so it stays lost.
+  for (std::size_t p = 0; p < mp.size(); ++p) lost_[p] = !InsideGrid(grid_, mp.position[p]);
+  for (const SurfaceLoad& load : mp.loads) {
+    if (!InsideGrid(grid_, surface(load))) lost_[load.point] = 1;
+  }
   for (std::size_t p = 0; p < mp.size(); ++p) {
+    if (lost_[p] && drop) {
+      shape_[p].count = 0;
+      continue;
+    }
     const Vector2d lp = solver_.shape == ShapeKind::kGimp
                             ? CurrentHalfSize(mp.F[p], mp.half_size0[p])
                             : Vector2d::Zero();
@@ -520,16 +541,16 @@ absl::Status Solver::EvaluateShapes() {
           absl::StrCat("material point ", p, " at ", Format(mp.position[p]), " m left the grid"));
     }
   }
-  // Tractions act at the points' surface positions x_p + n·l with the current
-  // half-size l along n, over the current surface length, linear weights
-  // there (the GIMP limit lp → 0).
   for (std::size_t k = 0; k < mp.loads.size(); ++k) {
     const SurfaceLoad& load = mp.loads[k];
     const int a = load.normal_axis;
     const Matrix2d& f = mp.F[load.point];
-    const Vector2d lp = CurrentHalfSize(f, mp.half_size0[load.point]);
-    Vector2d x = mp.position[load.point];
-    x[a] += load.normal_sign * lp[a];
+    if (lost_[load.point] && drop) {
+      load_shape_[k].count = 0;
+      load_force_[k].setZero();
+      continue;
+    }
+    const Vector2d x = surface(load);
     if (!EvaluateShape(grid_, ShapeKind::kLinear, x, Vector2d::Zero(), load_shape_[k])) {
       return absl::OutOfRangeError(absl::StrCat("surface of material point ", load.point, " at ",
                                                 Format(x), " m left the grid"));
@@ -556,6 +577,7 @@ void Solver::FindContacts() {
     const Vector2d center = body.center + DisplacementAt(body.velocity, time_);
     const Vector2d reach = BodyExtent(body) + Vector2d::Constant(margin);
     for (std::size_t p = 0; p < mp.size(); ++p) {
+      if (lost_[p]) continue;
       const Vector2d lp = CurrentHalfSize(mp.F[p], mp.half_size0[p]);
       const Vector2d d = (mp.position[p] - center).cwiseAbs() - lp;
       if (d.x() > reach.x() || d.y() > reach.y()) continue;
@@ -679,6 +701,7 @@ absl::Status Solver::AddLoadForces() {
   // cell the soil's points do not reach, the share of its empty nodes would
   // otherwise be lost (a confined element that dilates would lose σxx).
   for (std::size_t k = 0; k < points_.loads.size(); ++k) {
+    if (lost_[points_.loads[k].point]) continue;  // parked (kDrop)
     const ShapeValues& s = load_shape_[k];
     double active = 0.0;
     for (int q = 0; q < s.count; ++q) {
@@ -779,6 +802,7 @@ Eigen::Vector2d Solver::BodyDisplacement(int body) const {
 double Solver::KineticEnergy() const {
   double e = 0.0;
   for (std::size_t p = 0; p < points_.size(); ++p) {
+    if (p < lost_.size() && lost_[p]) continue;  // parked off the grid
     e += 0.5 * points_.mass[p] * points_.velocity[p].squaredNorm();
   }
   return e;

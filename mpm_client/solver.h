@@ -142,6 +142,9 @@ class Solver {
   double dt() const { return dt_; }            // s
   void set_dt(double dt) { dt_ = dt; }
   const MaterialPoints& points() const { return points_; }
+  // Per point, 1 where it is off the grid and parked (SolverSpec::lost_points
+  // kDrop), as of the last step; derived from the positions, so not state.
+  const std::vector<std::uint8_t>& lost() const { return lost_; }
   // For the driver to set the initial stresses, responses or velocities;
   // the number of points and loads must stay (Step refuses otherwise).
   MaterialPoints& mutable_points() { return points_; }
@@ -156,7 +159,7 @@ class Solver {
   // mixture's total force, pore pressure included.
   const std::vector<Eigen::Vector2d>& Reactions() const { return reactions_; }
   Eigen::Vector2d BodyDisplacement(int body) const;  // m, centre now − centre at t = 0
-  double KineticEnergy() const;                      // J, Σ ½ m v²
+  double KineticEnergy() const;                      // J, Σ ½ m v² on the grid
 
   // The whole state as named flat arrays (bit-exact), and back into a solver
   // created from the same spec. Keys: see solver.cc.
@@ -250,7 +253,8 @@ class Solver {
   double min_node_mass_ = 0.0;              // kg: lighter nodes are inactive
 
   // Scratch reused by every step (no allocation in the step loop).
-  std::vector<ShapeValues> shape_;           // per point
+  std::vector<ShapeValues> shape_;           // per point (none while lost)
+  std::vector<std::uint8_t> lost_;           // per point, see lost()
   std::vector<ShapeValues> load_shape_;      // per load, at its surface position
   std::vector<Eigen::Vector2d> load_force_;  // per load, N
   std::vector<double> node_mass_;

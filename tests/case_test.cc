@@ -514,6 +514,8 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
        "/walls/2/kind: unknown wall kind \"sticky\" (fixed, rough, roller, smooth, symmetry, "
        "frictional)"},
       {"/solver/shape", "cubic", "/solver/shape: unknown shape function \"cubic\" (linear, gimp)"},
+      {"/solver/lost_points", "remove",
+       "/solver/lost_points: unknown lost-point policy \"remove\" (stop, drop)"},
       {"/tractions/0/surface", "x", "/tractions/0/surface: unknown surface \"x\" (+x, -x, +y, -y)"},
       // Dangling references.
       {"/regions/1/template", "dense2",
@@ -688,6 +690,7 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
       {"/phases/drainage", true},
       {"/phases/projection", "implicit"},
       {"/phases/excess_pressure_from", "current_water_table"},
+      {"/solver/lost_points", "drop"},
   };
   const std::vector<std::string> messages = {
       "/phases/permeability: must be in (0, 10], got 0",
@@ -702,6 +705,7 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
       "/phases/drainage: unknown key",
       "/phases/projection: unknown projection \"implicit\"",
       "/phases/excess_pressure_from: unknown excess pressure datum \"current_water_table\"",
+      "/solver/lost_points: \"drop\" is for dry cases only",
   };
   for (std::size_t i = 0; i < edits.size(); ++i) {
     SCOPED_TRACE(edits[i].first);
