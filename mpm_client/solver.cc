@@ -515,11 +515,14 @@ absl::Status Solver::EvaluateShapes() {
   const bool drop = solver_.lost_points == LostPointPolicy::kDrop;
   // Tractions act at the points' surface positions x_p + n·l with the current
   // half-size l along n, over the current surface length, linear weights
-  // there (the GIMP limit lp → 0).
+  // there (the GIMP limit lp → 0). l is capped at one cell as the shape
+  // functions cap it: the edge of the domain the grid sees, whose nodes the
+  // point itself gives mass (a point stretched beyond 2 cells would carry
+  // its load off to nodes it does not reach).
   const auto surface = [&](const SurfaceLoad& load) {
     const Vector2d lp = CurrentHalfSize(mp.F[load.point], mp.half_size0[load.point]);
     Vector2d x = mp.position[load.point];
-    x[load.normal_axis] += load.normal_sign * lp[load.normal_axis];
+    x[load.normal_axis] += load.normal_sign * std::min(lp[load.normal_axis], grid_.cell_size);
     return x;
   };
   // A point is lost with its centre or a loaded surface off the grid; once

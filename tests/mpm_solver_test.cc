@@ -911,6 +911,35 @@ TEST(TractionTest, PulseGivesAFreeBlockItsImpulse) {
   EXPECT_LT((momentum - expected).norm(), 1e-4 * expected.norm());
 }
 
+// A point stretched to 6 times its width (a shear band's point with 1 point
+// per cell) carries its load at the edge of the domain the grid sees, one
+// cell out: there its own nodes take it, and the block gets the full impulse.
+// (Uncapped, the surface lies 3 cells out, on nodes without mass: the step
+// failed.)
+TEST(TractionTest, AStretchedPointsLoadActsWhereTheGridSeesItsEdge) {
+  const double h = 0.1, p = 1e3, dt = 1e-3;
+  CaseSpec spec = BlockCase(h, 10, 10, Vector2d(0.4, 0.4), Vector2d(0.5, 0.5), 1);
+  spec.solver.shape = ShapeKind::kGimp;
+  spec.solver.pic_fraction = 0.0;
+  spec.solver.time_step = dt;
+  SurfaceTraction t;
+  t.name = "push";
+  t.region = "soil";
+  t.normal_axis = 0;
+  t.normal_sign = 1;
+  t.traction = Vector2d(-p, 0.0);
+  spec.tractions = {t};
+  ZeroStressModel model;
+  std::unique_ptr<Solver> solver = MakeSolver(spec, &model);
+  ASSERT_EQ(solver->points().size(), 1u);
+  ASSERT_EQ(solver->points().loads.size(), 1u);
+  solver->mutable_points().F[0] = Eigen::Vector2d(6.0, 1.0).asDiagonal();
+  ASSERT_TRUE(solver->Step().ok());
+  // The face keeps its height h (the load's length follows F's y column).
+  const Vector2d expected(-p * h * spec.solver.thickness * dt, 0.0);
+  EXPECT_LT((Momentum(solver->points()) - expected).norm(), 1e-12 * expected.norm());
+}
+
 // --- errors
 
 TEST(SolverErrorsTest, InvalidSpecsAndPointsLeavingTheGrid) {
