@@ -53,6 +53,17 @@ CaseSpec BlockCase(double h, int nx, int ny, Vector2d lower, Vector2d upper, int
   return spec;
 }
 
+// A traction on region "soil"'s face with outward normal ±axis, Pa.
+SurfaceTraction FaceLoad(const std::string& name, int axis, int sign, const Vector2d& traction) {
+  SurfaceTraction t;
+  t.name = name;
+  t.region = "soil";
+  t.normal_axis = axis;
+  t.normal_sign = sign;
+  t.traction = traction;
+  return t;
+}
+
 Wall MakeWall(int axis, double position, ContactKind contact, double mu = 0.0) {
   Wall w;
   w.name = absl::StrCat("wall", axis, "_", position);
@@ -261,12 +272,7 @@ TEST(ShapeTest, OutsideTheGridIsRejected) {
 TEST(FillRegionsTest, PointsMassesAndTractions) {
   CaseSpec spec = BlockCase(0.1, 10, 10, Vector2d(0.2, 0.0), Vector2d(0.6, 0.3), 2);
   spec.solver.thickness = 0.5;
-  SurfaceTraction t;
-  t.name = "top";
-  t.region = "soil";
-  t.normal_axis = 1;
-  t.normal_sign = 1;
-  t.traction = Vector2d(0.0, -1e3);
+  SurfaceTraction t = FaceLoad("top", 1, 1, Vector2d(0.0, -1e3));
   t.from = 0.3;
   t.to = 0.5;
   spec.tractions.push_back(t);
@@ -842,12 +848,7 @@ TEST(TractionTest, ConfinedBlockTakesTheAppliedPressure) {
     spec.solver.pic_fraction = 1.0;
     spec.solver.time_step = 0.2 * h / std::sqrt(PWaveModulus(youngs, nu) / rho);
     spec.walls = {MakeWall(1, 0.0, ContactKind::kSmooth), MakeWall(0, 0.0, ContactKind::kSmooth)};
-    SurfaceTraction t;
-    t.name = "right";
-    t.region = "soil";
-    t.normal_axis = 0;
-    t.normal_sign = 1;
-    t.traction = Vector2d(-p, 0.0);
+    SurfaceTraction t = FaceLoad("right", 0, 1, Vector2d(-p, 0.0));
     t.ramp_time = 0.02;
     spec.tractions = {t};
     LinearElasticModel model(youngs, nu);
@@ -891,11 +892,7 @@ TEST(TractionTest, PulseGivesAFreeBlockItsImpulse) {
   spec.solver.shape = ShapeKind::kGimp;
   spec.solver.pic_fraction = 0.0;
   spec.solver.time_step = 1e-3;
-  SurfaceTraction t;
-  t.name = "impulse";
-  t.region = "soil";
-  t.normal_axis = 1;
-  t.traction = Vector2d(0.0, -p);
+  SurfaceTraction t = FaceLoad("impulse", 1, 1, Vector2d(0.0, -p));
   t.history = {{0.0, 0.0}, {0.01, 1.0}, {0.02, 0.0}};
   t.from = 0.4;
   t.to = 0.6;
@@ -922,13 +919,7 @@ TEST(TractionTest, AStretchedPointsLoadActsWhereTheGridSeesItsEdge) {
   spec.solver.shape = ShapeKind::kGimp;
   spec.solver.pic_fraction = 0.0;
   spec.solver.time_step = dt;
-  SurfaceTraction t;
-  t.name = "push";
-  t.region = "soil";
-  t.normal_axis = 0;
-  t.normal_sign = 1;
-  t.traction = Vector2d(-p, 0.0);
-  spec.tractions = {t};
+  spec.tractions = {FaceLoad("push", 0, 1, Vector2d(-p, 0.0))};
   ZeroStressModel model;
   std::unique_ptr<Solver> solver = MakeSolver(spec, &model);
   ASSERT_EQ(solver->points().size(), 1u);
@@ -1050,11 +1041,7 @@ TEST(CheckpointTest, ExportImportContinuesBitIdentically) {
   pipe.friction = 0.3;
   pipe.velocity = {{0.0, Vector2d(0.0, 0.0)}, {0.01, Vector2d(0.02, -0.1)}};
   spec.bodies = {pipe};
-  SurfaceTraction t;
-  t.name = "surcharge";
-  t.region = "soil";
-  t.normal_axis = 1;
-  t.traction = Vector2d(0.0, -2e3);
+  SurfaceTraction t = FaceLoad("surcharge", 1, 1, Vector2d(0.0, -2e3));
   t.ramp_time = 0.005;
   t.to = 0.35;
   SurfaceTraction pulse = t;  // a history travels with the checkpoint
