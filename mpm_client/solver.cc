@@ -515,14 +515,11 @@ absl::Status Solver::EvaluateShapes() {
   const bool drop = solver_.lost_points == LostPointPolicy::kDrop;
   // Tractions act at the points' surface positions x_p + n·l with the current
   // half-size l along n, over the current surface length, linear weights
-  // there (the GIMP limit lp → 0). l is capped at one cell as the shape
-  // functions cap it: the edge of the domain the grid sees, whose nodes the
-  // point itself gives mass (a point stretched beyond 2 cells would carry
-  // its load off to nodes it does not reach).
+  // there (the GIMP limit lp → 0).
   const auto surface = [&](const SurfaceLoad& load) {
     const Vector2d lp = CurrentHalfSize(mp.F[load.point], mp.half_size0[load.point]);
     Vector2d x = mp.position[load.point];
-    x[load.normal_axis] += load.normal_sign * std::min(lp[load.normal_axis], grid_.cell_size);
+    x[load.normal_axis] += load.normal_sign * lp[load.normal_axis];
     return x;
   };
   // A point is lost with its centre or a loaded surface off the grid; once
@@ -703,13 +700,26 @@ absl::Status Solver::AddLoadForces() {
   // mass, weights renormalised over them: once the surface has moved into a
   // cell the soil's points do not reach, the share of its empty nodes would
   // otherwise be lost (a confined element that dilates would lose σxx).
-  for (std::size_t k = 0; k < points_.loads.size(); ++k) {
-    if (lost_[points_.loads[k].point]) continue;  // parked (kDrop)
-    const ShapeValues& s = load_shape_[k];
+  const auto active_weight = [&](const ShapeValues& s) {
     double active = 0.0;
     for (int q = 0; q < s.count; ++q) {
       if (node_mass_[s.node[q]] > min_node_mass_) active += s.weight[q];
     }
+    return active;
+  };
+  for (std::size_t k = 0; k < points_.loads.size(); ++k) {
+    const std::int32_t point = points_.loads[k].point;
+    if (lost_[point]) continue;  // parked (kDrop)
+    const ShapeValues* shape = &load_shape_[k];
+    double active = active_weight(*shape);
+    if (!(active > 0.0)) {
+      // No node with mass around the surface position: a point stretched
+      // over cells its support does not reach (1 point per cell in a shear
+      // band or a heave). Its own nodes take the load, a force on the point.
+      shape = &shape_[point];
+      active = active_weight(*shape);
+    }
+    const ShapeValues& s = *shape;
     if (!(active > 0.0)) {
       return absl::FailedPreconditionError(
           absl::StrCat("surface load of material point ", points_.loads[k].point,

@@ -909,11 +909,10 @@ TEST(TractionTest, PulseGivesAFreeBlockItsImpulse) {
 }
 
 // A point stretched to 6 times its width (a shear band's point with 1 point
-// per cell) carries its load at the edge of the domain the grid sees, one
-// cell out: there its own nodes take it, and the block gets the full impulse.
-// (Uncapped, the surface lies 3 cells out, on nodes without mass: the step
-// failed.)
-TEST(TractionTest, AStretchedPointsLoadActsWhereTheGridSeesItsEdge) {
+// per cell) has its surface 3 cells out, where no node has mass: its own
+// nodes take the load, and the block gets the full impulse. (The step used
+// to fail there.)
+TEST(TractionTest, AStretchedPointsLoadGoesToItsOwnNodesWhereItsSurfaceHasNone) {
   const double h = 0.1, p = 1e3, dt = 1e-3;
   CaseSpec spec = BlockCase(h, 10, 10, Vector2d(0.4, 0.4), Vector2d(0.5, 0.5), 1);
   spec.solver.shape = ShapeKind::kGimp;
