@@ -56,7 +56,8 @@ def main():
         extra = f", {int(lost)} points parked" if lost else ""
         print(f"{case['name']}: peak {stress[k] / 1e3:.1f} kPa at {100 * strain[k]:.2f} %, "
               f"{stress[-1] / 1e3:.1f} kPa at {100 * strain[-1]:.2f} %{extra}")
-        ax.plot(100 * strain, stress / 1e3, lw=1.0, label=case["name"].replace("biaxial-specimen-", ""))
+        label = case["name"].replace("biaxial-specimen-", "").replace("medium", "m4 (medium)")
+        ax.plot(100 * strain, stress / 1e3, lw=1.0, label=label)
     if reference:
         ref = np.genfromtxt(reference, delimiter=",", names=True)
         ax.plot(100 * ref["axial_strain"], ref["syy"] / 1e3, "k--", lw=1.2, label="DEM element test")
