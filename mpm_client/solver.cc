@@ -522,14 +522,17 @@ absl::Status Solver::EvaluateShapes() {
     x[load.normal_axis] += load.normal_sign * lp[load.normal_axis];
     return x;
   };
-  // A point is lost with its centre or a loaded surface off the grid; once
-  // parked it does not move, so it stays lost.
-  for (std::size_t p = 0; p < mp.size(); ++p) lost_[p] = !InsideGrid(grid_, mp.position[p]);
-  for (const SurfaceLoad& load : mp.loads) {
-    if (!InsideGrid(grid_, surface(load))) lost_[load.point] = 1;
+  // Under kDrop a point is lost with its centre or a loaded surface off the
+  // grid; once parked it does not move, so it stays lost. Under kStop none
+  // is: the shape evaluations below fail instead.
+  if (drop) {
+    for (std::size_t p = 0; p < mp.size(); ++p) lost_[p] = !InsideGrid(grid_, mp.position[p]);
+    for (const SurfaceLoad& load : mp.loads) {
+      if (!InsideGrid(grid_, surface(load))) lost_[load.point] = 1;
+    }
   }
   for (std::size_t p = 0; p < mp.size(); ++p) {
-    if (lost_[p] && drop) {
+    if (lost_[p]) {
       shape_[p].count = 0;
       continue;
     }
@@ -545,7 +548,7 @@ absl::Status Solver::EvaluateShapes() {
     const SurfaceLoad& load = mp.loads[k];
     const int a = load.normal_axis;
     const Matrix2d& f = mp.F[load.point];
-    if (lost_[load.point] && drop) {
+    if (lost_[load.point]) {
       load_shape_[k].count = 0;
       load_force_[k].setZero();
       continue;
@@ -815,7 +818,7 @@ Eigen::Vector2d Solver::BodyDisplacement(int body) const {
 double Solver::KineticEnergy() const {
   double e = 0.0;
   for (std::size_t p = 0; p < points_.size(); ++p) {
-    if (p < lost_.size() && lost_[p]) continue;  // parked off the grid
+    if (lost_[p]) continue;  // parked off the grid
     e += 0.5 * points_.mass[p] * points_.velocity[p].squaredNorm();
   }
   return e;

@@ -193,7 +193,14 @@ absl::StatusOr<UltimateLoad> FindUltimateLoad(std::span<const double> settlement
     if (settlement[i] - first < 0.5 * span || last - settlement[i + 1] < 0.5 * span) continue;
     slopes.emplace_back(i, (smooth[i + 1] - smooth[i]) / dd);
   }
-  if (slopes.empty()) return absl::InvalidArgumentError("the settlement never grows");
+  if (slopes.empty()) {
+    if (span > 0.0 && last - first < span) {
+      return absl::InvalidArgumentError(absl::StrCat("the curve's settlement (", last - first,
+                                                     " m) is shorter than the smoothing span (",
+                                                     span, " m)"));
+    }
+    return absl::InvalidArgumentError("the settlement never grows");
+  }
   // The median of the slopes after each one (the steady slope the curve
   // keeps), by two heaps from the end.
   std::vector<double> rest(slopes.size(), 0.0);

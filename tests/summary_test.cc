@@ -92,7 +92,11 @@ TEST(SummaryTest, AGridCrossingsJumpIsNoPeakWhenSmoothedOverItsPeriod) {
   EXPECT_LE(u->settlement, 0.2 + 1.5 * h) << u->settlement;
   EXPECT_NEAR(u->load, 2.0 + (u->settlement - 0.2), 0.01);
   EXPECT_FALSE(FindUltimateLoad(d, q, -h).ok());
-  EXPECT_FALSE(FindUltimateLoad(d, q, 2.0).ok());  // longer than the curve
+  const absl::StatusOr<UltimateLoad> too_long = FindUltimateLoad(d, q, 2.0);  // the curve: 1.5 m
+  ASSERT_FALSE(too_long.ok());
+  EXPECT_NE(too_long.status().message().find("shorter than the smoothing span (2 m)"),
+            std::string::npos)
+      << too_long.status();
 }
 
 TEST(SummaryTest, AWideSpanDoesNotShaveAPeak) {
