@@ -620,7 +620,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
     if (modulus <= 0) {
       ASSIGN_OR_RETURN(std::vector<dem::RveState> tangent, sim->pool_->Get(/*want_tangent=*/true));
       for (const dem::RveState& s : tangent) {
-        modulus = std::max({modulus, s.tangent(0, 0), s.tangent(4, 4)});
+        if (s.tangent) modulus = std::max({modulus, (*s.tangent)(0, 0), (*s.tangent)(4, 4)});
       }
     }
     double rho = *std::min_element(density.begin(), density.end());

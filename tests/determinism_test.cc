@@ -67,7 +67,7 @@ TEST(DeterminismTest, SameStateAndIncrementsGiveIdenticalResults) {
   // comparison above is not between two untouched copies.
   EXPECT_GT(a.ToSnapshot().total_steps, 0);
   EXPECT_NE(sa.back().stress(0, 1), CreateOrDie(Prepared("SET-dense")).Observe().stress(0, 1));
-  EXPECT_TRUE(sa.back().has_tangent);
+  EXPECT_TRUE(sa.back().tangent.has_value());
 }
 
 TEST(DeterminismTest, WorkerPoolApplyIsIndependentOfThreadCount) {

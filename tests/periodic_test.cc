@@ -179,7 +179,8 @@ void ExpectSameStateInBasis(const RveSnapshot& original, const Eigen::Matrix2d& 
   // well within 1e-10.
   EXPECT_LT((sb.stress - sa.stress).norm(), 1e-10 * sa.stress.norm());
   EXPECT_LT((sb.fabric - sa.fabric).norm(), 1e-12);
-  EXPECT_LT((sb.tangent - sa.tangent).norm(), 1e-10 * sa.tangent.norm());
+  ASSERT_TRUE(sa.tangent && sb.tangent);
+  EXPECT_LT((*sb.tangent - *sa.tangent).norm(), 1e-10 * sa.tangent->norm());
   EXPECT_EQ(sb.num_contacts, sa.num_contacts);
   EXPECT_NEAR(sb.void_ratio, sa.void_ratio, 1e-12);
   EXPECT_NEAR(sb.volume, sa.volume, 1e-14 * sa.volume);

@@ -303,7 +303,7 @@ TEST(RvePoolTest, EmbeddedAndRemotePoolsAgreeBitForBit) {
     // Compressed: more compressive σyy (tension +) than the 100 kPa start.
     EXPECT_LT(a[1].stress(1, 1), -100e3);
     if (step == 5) {
-      EXPECT_TRUE(b[2].has_tangent);
+      EXPECT_TRUE(b[2].tangent.has_value());
     }
   }
   EXPECT_EQ(embedded.evaluations(), 5 * kPoints);

@@ -572,7 +572,7 @@ absl::Status PrepareCommand(const Flags& flags) {
       "coordination %.4f\nmechanical_coordination %.4f\nFa %.5f\npermeability_m_per_s %.6g\n",
       s.coordination, s.mechanical_coordination, s.fabric_anisotropy, s.permeability);
   std::printf("unbalanced_force_ratio %.3g\ntime_step_s %.6g\nD_xxxx_Pa %.6g\nD_yyyy_Pa %.6g\n",
-              s.unbalanced_force_ratio, s.time_step, s.tangent(0, 0), s.tangent(4, 4));
+              s.unbalanced_force_ratio, s.time_step, (*s.tangent)(0, 0), (*s.tangent)(4, 4));
   if (out.empty()) return absl::OkStatus();
 
   store::TemplateRecord record;
@@ -721,9 +721,9 @@ void PrintStateText(const std::string& run, const client::RveOutcome& r) {
   PrintValue("last_call_dem_steps", absl::StrCat(s.steps));
   PrintValue("time_step_s", absl::StrFormat("%.10g", s.time_step));
   PrintValue("mass_scale", absl::StrFormat("%.10g", s.mass_scale));
-  if (s.has_tangent) {
+  if (s.tangent) {
     PrintValue("tangent_Pa", "D[3i+j][3k+l], rows and columns xx xy xz yx yy yz zx zy zz");
-    PrintMatrix("", s.tangent);
+    PrintMatrix("", *s.tangent);
   }
 }
 
@@ -755,7 +755,7 @@ void PrintStateJson(const std::string& run, const client::RveOutcome& r) {
       {"time_step", s.time_step},
       {"mass_scale", s.mass_scale},
   };
-  if (s.has_tangent) j["tangent"] = JsonMatrix(s.tangent);
+  if (s.tangent) j["tangent"] = JsonMatrix(*s.tangent);
   // Invalid UTF-8 in a run id is replaced rather than thrown about.
   std::printf("%s\n", j.dump(-1, ' ', false, Json::error_handler_t::replace).c_str());
 }

@@ -102,12 +102,11 @@ RveState Rve::Observe(bool want_tangent) const {
               d[a][b][e2][g] +=
                   c.kn * nn[a] * br[b] * nn[e2] * br[g] + c.kt * t[a] * br[b] * t[e2] * br[g];
     });
-    s.has_tangent = true;
+    Eigen::Matrix<double, 9, 9>& tangent = s.tangent.emplace(Eigen::Matrix<double, 9, 9>::Zero());
     for (int a = 0; a < 2; ++a)
       for (int b = 0; b < 2; ++b)
         for (int c = 0; c < 2; ++c)
-          for (int e2 = 0; e2 < 2; ++e2)
-            s.tangent(3 * a + b, 3 * c + e2) = d[a][b][c][e2] / s.volume;
+          for (int e2 = 0; e2 < 2; ++e2) tangent(3 * a + b, 3 * c + e2) = d[a][b][c][e2] / s.volume;
   }
   return s;
 }

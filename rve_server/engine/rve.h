@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <vector>
 
 #include "absl/status/statusor.h"
@@ -47,12 +48,12 @@ struct RveState {
   std::int64_t steps = 0;   // DEM steps used
   double time_step = 0.0;   // s
   double mass_scale = 1.0;  // density scaling used
-  bool has_tangent = false;
   double MeanPressure() const;    // p of `stress`, see InPlaneMeanPressure
   double DeviatorStress() const;  // q of `stress`, see InPlaneDeviatorStress
   // Elastic tangent from contacts, D_ijkl = (1/V)Σ(kn n_i d_j n_k d_l + kt t_i d_j t_k d_l),
-  // Pa, stored as D(3i+j, 3k+l).
-  Eigen::Matrix<double, 9, 9> tangent = Eigen::Matrix<double, 9, 9>::Zero();
+  // Pa, stored as D(3i+j, 3k+l). Set only when asked for: most states are
+  // copied several times per increment and never need its 648 bytes.
+  std::optional<Eigen::Matrix<double, 9, 9>> tangent;
 };
 
 inline double RveState::MeanPressure() const { return InPlaneMeanPressure(stress); }

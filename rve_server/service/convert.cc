@@ -243,11 +243,11 @@ void ToProto(const dem::RveState& s, const Eigen::Matrix3d& deformation_gradient
   out->set_mean_pressure(s.MeanPressure());
   out->set_deviator_stress(s.DeviatorStress());
   ToProto(deformation_gradient, out->mutable_deformation_gradient());
-  if (s.has_tangent) {
+  if (s.tangent) {
     RepeatedField<double>* t = out->mutable_tangent();
     t->Reserve(81);
     for (int r = 0; r < 9; ++r)
-      for (int c = 0; c < 9; ++c) t->Add(s.tangent(r, c));
+      for (int c = 0; c < 9; ++c) t->Add((*s.tangent)(r, c));
   }
 }
 
@@ -462,10 +462,10 @@ absl::Status FromProto(const v1::RveState& s, dem::RveState* out,
   out->steps = s.steps();
   out->time_step = s.time_step();
   out->mass_scale = s.mass_scale();
-  out->has_tangent = s.tangent_size() == 81;
-  if (out->has_tangent) {
+  if (s.tangent_size() == 81) {
+    Eigen::Matrix<double, 9, 9>& tangent = out->tangent.emplace();
     for (int r = 0; r < 9; ++r)
-      for (int c = 0; c < 9; ++c) out->tangent(r, c) = s.tangent(9 * r + c);
+      for (int c = 0; c < 9; ++c) tangent(r, c) = s.tangent(9 * r + c);
   } else if (s.tangent_size() != 0) {
     return absl::DataLossError(absl::StrCat("tangent has ", s.tangent_size(), " values, not 81"));
   }

@@ -6,6 +6,7 @@
 #define RVEHUB_RVE_SERVER_SERVICE_REGISTRY_H_
 
 #include <Eigen/Dense>
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -171,6 +172,10 @@ class Registry {
     // Result of the last COMMIT, returned again for a retry of that step.
     std::optional<dem::RveState> last_result ABSL_GUARDED_BY(mu);
     std::int64_t memory_bytes = 0;  // fixed at creation
+    // Work of the last increment, (DEM steps + 1) × particles: the guess for
+    // the next one, by which Apply hands out the longest first. Read without
+    // the lock; it orders the work only, never a result.
+    std::atomic<std::int64_t> last_work{0};
     explicit Entry(dem::Rve r) : rve(std::move(r)) {}
   };
   using EntryPtr = std::shared_ptr<Entry>;

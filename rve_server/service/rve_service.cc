@@ -66,7 +66,7 @@ std::int64_t MaxResultBytes(bool want_tangent) {
   v1::RveResult with_state;
   widest(with_state);
   dem::RveState state;
-  state.has_tangent = want_tangent;
+  if (want_tangent) state.tangent.emplace(Eigen::Matrix<double, 9, 9>::Zero());
   ToProto(state, Eigen::Matrix3d::Identity(), with_state.mutable_state());
   // Zero scalars are not serialised: set every one.
   v1::RveState* st = with_state.mutable_state();
