@@ -602,6 +602,8 @@ Fields<SolverSpec> SolverFields() {
       ShakingFrequencyField(&SolverSpec::shaking_frequency, &IsShakenBox),
       EnumField("lost_points", &SolverSpec::lost_points, Need::kOptional, "lost-point policy",
                 kLostPointPolicies, &LostPointPolicyName),
+      NumberField("mass_scale", &SolverSpec::mass_scale, Need::kOptional,
+                  Range{1.0, 1e6, false, false}),
   };
 }
 
@@ -1687,6 +1689,10 @@ absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::strin
     // the grid.
     if (spec.phases.saturated && spec.solver.lost_points == LostPointPolicy::kDrop) {
       return Bad(root.At("solver") + "/lost_points", "\"drop\" is for dry cases only");
+    }
+    // Scaled inertia would change the drag's and the pressure's time scales.
+    if (spec.phases.saturated && spec.solver.mass_scale != 1.0) {
+      return Bad(root.At("solver") + "/mass_scale", "mass scaling is for dry cases only");
     }
   }
   if (const Json* output = root.Get("output")) {

@@ -80,6 +80,11 @@ struct SolverSpec {
   Eigen::Vector2d shaking_amplitude = Eigen::Vector2d::Zero();  // m/s
   double shaking_frequency = 0.0;                               // Hz
   LostPointPolicy lost_points = LostPointPolicy::kStop;
+  // Mass scaling for quasi-static dry runs: the grid's inertia is s times the
+  // material's (gravity still acts on the real mass), so the CFL step is
+  // sqrt(s) times longer. Kinetic energy and outputs keep the real mass. 1:
+  // none, [-].
+  double mass_scale = 1.0;
 };
 
 // The box's velocity at time t (s), m/s (SolverSpec::shaking_amplitude).

@@ -628,9 +628,12 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
       return absl::FailedPreconditionError(
           "cannot derive the time step: the RVEs have no stiffness (set solver.time_step)");
     }
-    dt = CflTimeStep(spec.solver.cfl, spec.grid.cell_size, modulus, rho);
-    sim->Log(absl::StrFormat("time step %.4g s (CFL %.2f, M = %.4g MPa, rho = %.1f kg/m3)", dt,
-                             spec.solver.cfl, modulus * 1e-6, rho));
+    dt = CflTimeStep(spec.solver.cfl, spec.grid.cell_size, modulus, spec.solver.mass_scale * rho);
+    sim->Log(absl::StrFormat("time step %.4g s (CFL %.2f, M = %.4g MPa, rho = %.1f kg/m3%s)", dt,
+                             spec.solver.cfl, modulus * 1e-6, rho,
+                             spec.solver.mass_scale != 1.0
+                                 ? absl::StrFormat(", mass scaled %g times", spec.solver.mass_scale)
+                                 : ""));
   }
   sim->model_ = std::make_unique<RveStressModel>(sim->pool_.get(), &sim->rve_seconds_);
   ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver,

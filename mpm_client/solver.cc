@@ -456,7 +456,8 @@ absl::StatusOr<std::unique_ptr<Solver>> Solver::Create(const CaseSpec& spec, Mat
     double rho = 0.0;  // the densest point gives the smallest step
     for (std::size_t p = 0; p < n; ++p)
       rho = std::max(rho, sv.points_.mass[p] / sv.points_.volume[p]);
-    sv.dt_ = CflTimeStep(spec.solver.cfl, spec.grid.cell_size, spec.solver.wave_modulus, rho);
+    sv.dt_ = CflTimeStep(spec.solver.cfl, spec.grid.cell_size, spec.solver.wave_modulus,
+                         spec.solver.mass_scale * rho);
   }
   return solver;
 }
@@ -480,9 +481,9 @@ void Solver::Prepare() {
   double min_mass = std::numeric_limits<double>::infinity();
   for (double m : points_.mass) min_mass = std::min(min_mass, m);
   min_node_mass_ =
-      n > 0
-          ? (phases_.saturated ? kSaturatedInactiveMassFraction : kInactiveMassFraction) * min_mass
-          : 0.0;
+      n > 0 ? (phases_.saturated ? kSaturatedInactiveMassFraction : kInactiveMassFraction) *
+                  solver_.mass_scale * min_mass
+            : 0.0;
   shape_.resize(n);
   lost_.assign(n, 0);
   load_shape_.resize(points_.loads.size());
@@ -593,7 +594,7 @@ void Solver::FindContacts() {
       contact.point = static_cast<std::int32_t>(p);
       contact.where = where;
       contact.count = shape.count;
-      contact.mass_floor = kContactMassFloor * mp.mass[p];
+      contact.mass_floor = kContactMassFloor * solver_.mass_scale * mp.mass[p];
       for (int k = 0; k < shape.count; ++k) {
         contact.node[k] = shape.node[k];
         contact.weight[k] = shape.weight[k] + shape.gradient[k].dot(arm);
@@ -751,14 +752,17 @@ absl::Status Solver::Step() {
   const int nodes = NodeCount(grid_);
   const double alpha = solver_.pic_fraction;
 
-  // (a) P2G: nodal mass and momentum, then v^n = p/m on active nodes.
+  // (a) P2G: nodal mass and momentum, then v^n = p/m on active nodes. The
+  // nodal mass is the inertia, the point masses times the mass scale.
+  const double scale = solver_.mass_scale;
   std::fill(node_mass_.begin(), node_mass_.end(), 0.0);
   std::fill(node_velocity_.begin(), node_velocity_.end(), Vector2d::Zero());
   for (std::size_t p = 0; p < n; ++p) {
     const ShapeValues& s = shape_[p];
-    const Vector2d momentum = mp.mass[p] * mp.velocity[p];
+    const double mass = scale * mp.mass[p];
+    const Vector2d momentum = mass * mp.velocity[p];
     for (int k = 0; k < s.count; ++k) {
-      node_mass_[s.node[k]] += s.weight[k] * mp.mass[p];
+      node_mass_[s.node[k]] += s.weight[k] * mass;
       node_velocity_[s.node[k]] += s.weight[k] * momentum;
     }
   }
@@ -776,8 +780,11 @@ absl::Status Solver::Step() {
   RETURN_IF_ERROR(UpdateStress());
 
   // (c) Nodal forces: internal −Σ σ_p·∇S_Ip V_p (in-plane part), gravity
-  // Σ m_p g S_Ip = m_I g, tractions; then v^{n+1} = v^n + Δt f/m.
-  const Vector2d body = BodyAcceleration();
+  // Σ m_p g S_Ip = m_I g / scale (on the real mass; a shaken frame's force
+  // is inertia, scaled with it), tractions; then v^{n+1} = v^n + Δt f/m.
+  const Vector2d body = scale == 1.0
+                            ? BodyAcceleration()
+                            : Vector2d(BodyAcceleration() - solver_.gravity * (1.0 - 1.0 / scale));
   for (int i = 0; i < nodes; ++i) node_force_[i] = node_mass_[i] * body;
   for (std::size_t p = 0; p < n; ++p) {
     const ShapeValues& s = shape_[p];

@@ -433,6 +433,36 @@ TEST(WallTest, BlockAtRestOnFixedBaseCarriesItsWeight) {
   EXPECT_NEAR(r.x(), 0.0, 1e-3 * weight);
 }
 
+// Mass scaling: s times the inertia, the real weight. The CFL step grows by
+// sqrt(s), the block still rests on its real weight, and it settles under
+// gravity at g/s (its first step's velocity: Δt·g/s).
+TEST(WallTest, AMassScaledBlockRestsOnItsRealWeightWithLongerSteps) {
+  const double rho = 2000.0, g = 9.81, youngs = 2e6, nu = 0.3, scale = 100.0;
+  CaseSpec spec = BlockCase(0.05, 16, 12, Vector2d(0.2, 0.0), Vector2d(0.6, 0.4), 2, rho);
+  spec.solver.gravity = Vector2d(0.0, -g);
+  spec.solver.pic_fraction = 1.0;
+  spec.solver.wave_modulus = PWaveModulus(youngs, nu);
+  spec.solver.cfl = 0.2;
+  spec.walls = {MakeWall(1, 0.0, ContactKind::kRough)};
+  LinearElasticModel model(youngs, nu);
+  std::unique_ptr<Solver> plain = MakeSolver(spec, &model);
+  spec.solver.mass_scale = scale;
+  std::unique_ptr<Solver> scaled = MakeSolver(spec, &model);
+  EXPECT_NEAR(scaled->dt() / plain->dt(), std::sqrt(scale), 1e-12);
+  const double weight = TotalMass(scaled->points()) * g;
+  ASSERT_TRUE(scaled->Step().ok());
+  double vy = 0.0;  // the top points are still free of the base's wave
+  for (std::size_t p = 0; p < scaled->points().size(); ++p)
+    vy = std::min(vy, scaled->points().velocity[p].y());
+  EXPECT_NEAR(vy, -scaled->dt() * g / scale, 1e-9 * scaled->dt() * g);
+  RunSteps(*scaled, 1500);
+  const Vector2d r = scaled->Reactions()[0];
+  std::printf("mass-scaled block: base reaction %.4f N, weight %.4f N (%+.3f %%)\n", -r.y(), weight,
+              100.0 * (-r.y() / weight - 1.0));
+  EXPECT_NEAR(-r.y(), weight, 0.01 * weight);
+  EXPECT_NEAR(r.x(), 0.0, 1e-3 * weight);
+}
+
 TEST(BodyTest, RoughBodyPushedIntoABlockIsResisted) {
   const double rho = 2000.0, youngs = 2e6, nu = 0.3;
   CaseSpec spec = BlockCase(0.05, 16, 12, Vector2d(0.2, 0.0), Vector2d(0.6, 0.4), 2, rho);
