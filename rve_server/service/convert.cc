@@ -462,6 +462,7 @@ absl::Status FromProto(const v1::RveState& s, dem::RveState* out,
   out->steps = s.steps();
   out->time_step = s.time_step();
   out->mass_scale = s.mass_scale();
+  out->tangent.reset();
   if (s.tangent_size() == 81) {
     Eigen::Matrix<double, 9, 9>& tangent = out->tangent.emplace();
     for (int r = 0; r < 9; ++r)
