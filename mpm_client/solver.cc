@@ -471,9 +471,9 @@ absl::StatusOr<std::unique_ptr<Solver>> Solver::FromState(
 }
 
 Eigen::Vector2d Solver::BodyAcceleration() const {
-  if (!(solver_.shaking_frequency > 0.0)) return solver_.gravity;
-  return solver_.gravity -
-         (FrameVelocity(solver_, time_ + dt_) - FrameVelocity(solver_, time_)) / dt_;
+  const Vector2d gravity = solver_.gravity / solver_.mass_scale;  // exact for s = 1
+  if (!(solver_.shaking_frequency > 0.0)) return gravity;
+  return gravity - (FrameVelocity(solver_, time_ + dt_) - FrameVelocity(solver_, time_)) / dt_;
 }
 
 void Solver::Prepare() {
@@ -780,11 +780,9 @@ absl::Status Solver::Step() {
   RETURN_IF_ERROR(UpdateStress());
 
   // (c) Nodal forces: internal −Σ σ_p·∇S_Ip V_p (in-plane part), gravity
-  // Σ m_p g S_Ip = m_I g / scale (on the real mass; a shaken frame's force
-  // is inertia, scaled with it), tractions; then v^{n+1} = v^n + Δt f/m.
-  const Vector2d body = scale == 1.0
-                            ? BodyAcceleration()
-                            : Vector2d(BodyAcceleration() - solver_.gravity * (1.0 - 1.0 / scale));
+  // Σ m_p g S_Ip = m_I g / scale (BodyAcceleration: on the real mass),
+  // tractions; then v^{n+1} = v^n + Δt f/m.
+  const Vector2d body = BodyAcceleration();
   for (int i = 0; i < nodes; ++i) node_force_[i] = node_mass_[i] * body;
   for (std::size_t p = 0; p < n; ++p) {
     const ShapeValues& s = shape_[p];

@@ -174,7 +174,9 @@ class Solver {
   static absl::StatusOr<std::unique_ptr<Solver>> Init(const CaseSpec& spec, StressModel* model);
   // Gravity less the box's acceleration over this step (a shaken box's frame,
   // SolverSpec::shaking_amplitude): (v_box(t + Δt) − v_box(t))/Δt, so that
-  // the frame's velocity change is exact, m/s².
+  // the frame's velocity change is exact, m/s². Per unit of the grid's
+  // inertia: under mass scaling gravity acts on the real mass (g/s), the
+  // frame's force is inertia and scales with it.
   Eigen::Vector2d BodyAcceleration() const;
   // Sizes the scratch arrays for the points and finds the inactive-node mass.
   void Prepare();
