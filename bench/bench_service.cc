@@ -51,6 +51,10 @@ struct Figures {
   double zero_us = 0, engine_us = 0, full_us = 0;  // per RVE, best of reps
   double registry_us = 0;                          // zero-step batch through the registry, no gRPC
   double ping_us = 0;  // one GetServerInfo round trip (per call, not per RVE)
+  // The reply's protobuf work per RVE, best of reps, on one thread: the
+  // server's ToProto of the registry's outcomes, serialising, the client's
+  // parse (what gRPC adds besides transport and its threads).
+  double build_us = 0, serialise_us = 0, parse_us = 0;
 };
 
 v1::ApplyRequest Batch(const std::string& run, std::int64_t step, int rves, double strain) {
@@ -151,6 +155,24 @@ Figures Measure(const dem::RveSnapshot& packing, int threads, int rves, int reps
           (*server)->registry().Apply("zero", reps + r + 1, service::ApplyMode::kCommit, {}, incs);
       if (!out.ok()) std::exit(1);
       f.registry_us = std::min(f.registry_us, Seconds(Clock::now() - t0) * 1e6 / rves);
+      if (threads != 1) continue;
+      Clock::time_point t = Clock::now();
+      auto lap = [&t]() {
+        const Clock::time_point now = Clock::now();
+        const double s = Seconds(now - t);
+        t = now;
+        return s;
+      };
+      if (r == 0) f.build_us = f.serialise_us = f.parse_us = 1e30;
+      v1::ApplyResponse resp;
+      for (const service::RveOutcome& o : *out) service::ToProto(o, resp.add_results());
+      f.build_us = std::min(f.build_us, lap() * 1e6 / rves);
+      std::string bytes;
+      resp.SerializeToString(&bytes);
+      f.serialise_us = std::min(f.serialise_us, lap() * 1e6 / rves);
+      v1::ApplyResponse parsed;
+      if (!parsed.ParseFromString(bytes)) std::exit(1);
+      f.parse_us = std::min(f.parse_us, lap() * 1e6 / rves);
     }
   }
   // The engine alone, same zero-step increments, same number of threads,
@@ -226,6 +248,11 @@ int main(int argc, char** argv) {
     std::printf("%8d %12.2f %12.2f %12.2f %12.2f %14.2f %14.2f %9.2f%%   (empty call %.0f us)\n",
                 threads, f.zero_us, f.registry_us, f.engine_us, f.full_us, overhead, compute,
                 100.0 * overhead / compute, f.ping_us);
+    if (threads == 1) {
+      std::printf(
+          "         reply protobuf per RVE: ToProto %.2f us, serialise %.2f us, parse %.2f us\n",
+          f.build_us, f.serialise_us, f.parse_us);
+    }
   }
   std::printf("goal: service overhead <= 1 %% of the compute of a default increment\n");
   return 0;
