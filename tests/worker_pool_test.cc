@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <thread>
 #include <vector>
 
@@ -36,6 +37,19 @@ TEST(WorkerPoolTest, ConcurrentCallersEachGetTheirOwnItemsDone) {
     });
   }
   for (std::thread& t : callers) t.join();
+}
+
+// Workers out of work watch for the next job for a while, then sleep: calls
+// that follow each other at once, within the watch and after it all get
+// every item done exactly once.
+TEST(WorkerPoolTest, CallsAfterShortAndLongPausesAreAllDone) {
+  WorkerPool pool(2);
+  for (int pause_us : {0, 0, 100, 500, 3000, 0, 2000, 50}) {
+    std::this_thread::sleep_for(std::chrono::microseconds(pause_us));
+    std::vector<std::atomic<int>> hits(64);
+    pool.ParallelFor(hits.size(), [&](std::size_t k) { ++hits[k]; });
+    for (std::size_t k = 0; k < hits.size(); ++k) ASSERT_EQ(hits[k].load(), 1) << pause_us;
+  }
 }
 
 TEST(WorkerPoolTest, RunsOnWorkerThreadsOnly) {

@@ -1,11 +1,14 @@
 // A fixed set of worker threads shared by all calls of a server. ParallelFor
-// blocks its caller until every index is done; concurrent callers share the
+// blocks its caller until every index is done; a worker out of work watches
+// for the next job for a millisecond before it sleeps; concurrent callers share the
 // workers (first come, first served). Work items of one call run in any order on any thread, so
 // callers keep results per index (determinism comes from each item being independent).
 #ifndef RVEHUB_RVE_SERVER_SERVICE_WORKER_POOL_H_
 #define RVEHUB_RVE_SERVER_SERVICE_WORKER_POOL_H_
 
+#include <atomic>
 #include <cstddef>
+#include <cstdint>
 #include <deque>
 #include <functional>
 #include <thread>
@@ -35,6 +38,9 @@ class WorkerPool {
 
   absl::Mutex mu_;
   std::deque<Job*> queue_ ABSL_GUARDED_BY(mu_);
+  // Jobs ever queued: a worker out of work watches it for a while before it
+  // sleeps (see WorkerLoop).
+  std::atomic<std::uint64_t> queued_{0};
   bool stop_ ABSL_GUARDED_BY(mu_) = false;
   std::vector<std::thread> workers_;
 };
