@@ -152,6 +152,15 @@ struct Column {
     top.position = kH;
     spec.phases.drained = {top};
   }
+  // A surcharge p0 (Pa) on the top, carried by the mixture from t = 0.
+  void Surcharge(double p0) {
+    SurfaceTraction load;
+    load.name = "surcharge";
+    load.region = "soil";
+    load.normal_axis = 1;
+    load.traction = Vector2d(0.0, -p0);
+    spec.tractions = {load};
+  }
 };
 
 std::unique_ptr<Solver> MakeSolver(const CaseSpec& spec, StressModel* model,
@@ -268,12 +277,7 @@ TEST(TwoPhaseKernelTest, InertialConsolidationTendsToTerzaghiWithoutInertia) {
 TEST(TwoPhaseSolverTest, TerzaghiConsolidationOfAnElasticColumn) {
   const double k = 1e-3, p0 = 10e3;
   Column column(k, 0.0);
-  SurfaceTraction load;
-  load.name = "surcharge";
-  load.region = "soil";
-  load.normal_axis = 1;
-  load.traction = Vector2d(0.0, -p0);
-  column.spec.tractions = {load};
+  column.Surcharge(p0);
   LinearElasticModel model(Column::kYoungs, Column::kPoisson);
   std::unique_ptr<Solver> solver = MakeSolver(column.spec, &model);
   ASSERT_NE(solver, nullptr);
@@ -346,12 +350,7 @@ TEST(TwoPhaseSolverTest, EarlyIsochroneAtTheConsolidationRvesPorosityIsHalfTheFr
     Column column(k, 0.0, porosity);
     column.spec.solver.cfl = cfl;
     column.spec.phases.projection = projection;
-    SurfaceTraction load;
-    load.name = "surcharge";
-    load.region = "soil";
-    load.normal_axis = 1;
-    load.traction = Vector2d(0.0, -p0);
-    column.spec.tractions = {load};
+    column.Surcharge(p0);
     LinearElasticModel model(Column::kYoungs, Column::kPoisson);
     std::unique_ptr<Solver> solver = MakeSolver(column.spec, &model);
     ASSERT_NE(solver, nullptr);
@@ -490,12 +489,7 @@ TEST(TwoPhaseSolverTest, OneTimeStepForEveryPermeability) {
   double previous = -1.0, dt = 0.0;
   for (double k : {1e-2, 1e-3, 1e-4, 1e-5, 1e-6}) {
     Column column(k, 0.0);
-    SurfaceTraction load;
-    load.name = "surcharge";
-    load.region = "soil";
-    load.normal_axis = 1;
-    load.traction = Vector2d(0.0, -10e3);
-    column.spec.tractions = {load};
+    column.Surcharge(10e3);
     LinearElasticModel model(Column::kYoungs, Column::kPoisson);
     std::unique_ptr<Solver> solver = MakeSolver(column.spec, &model);
     ASSERT_NE(solver, nullptr);
