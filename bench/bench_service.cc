@@ -136,7 +136,7 @@ Figures Measure(const dem::RveSnapshot& packing, int threads, int rves, int reps
   // The registry without gRPC (in-process client path), same increments,
   // each after a default increment of the "full" RVEs as over gRPC: the
   // caches then hold the other RVEs' particles, not these.
-  f.registry_us = 1e30;
+  f.registry_us = f.build_us = f.serialise_us = f.parse_us = 1e30;
   {
     std::vector<service::Increment> incs(rves), full_incs(rves);
     for (int k = 0; k < rves; ++k) {
@@ -163,7 +163,6 @@ Figures Measure(const dem::RveSnapshot& packing, int threads, int rves, int reps
         t = now;
         return s;
       };
-      if (r == 0) f.build_us = f.serialise_us = f.parse_us = 1e30;
       v1::ApplyResponse resp;
       for (const service::RveOutcome& o : *out) service::ToProto(o, resp.add_results());
       f.build_us = std::min(f.build_us, lap() * 1e6 / rves);

@@ -139,9 +139,10 @@ def main():
             ax_b.semilogx(t[mask], terzaghi_p(1.0, np.ones(mask.sum()) * 0.9975, tv_rows[mask]),
                           "--", color=line[0].get_color(), lw=0.8)
         e0 = float(rows[0]["mean_void_ratio"])
+        porosity = e0 / (1 + e0)
         with h5py.File(os.path.join(path, "results.h5"), "r") as h5:
             times = [h5["frames"][s].attrs["time"] for s in h5["frames"].keys()]
-            inertial = inertial_p(p0, a.modulus, k, e0 / (1 + e0), a.solid_density, RHO_F, a.height,
+            inertial = inertial_p(p0, a.modulus, k, porosity, a.solid_density, RHO_F, a.height,
                                   times)
             for step in sorted(h5["frames"].keys(), key=int):
                 frame = h5["frames"][step]
@@ -164,7 +165,7 @@ def main():
                     # there the worst error is about half of it, however fine the grid.
                     rows_y = np.unique(np.round(y, 4))
                     width = 2 * (rows_y[-1] - rows_y[0]) / (len(rows_y) - 1)
-                    front = np.sqrt(a.modulus / mixture_inertia(e0 / (1 + e0), a.solid_density)) \
+                    front = np.sqrt(a.modulus / mixture_inertia(porosity, a.solid_density)) \
                         * frame.attrs["time"]
                     step_at_front = abs(np.interp(front - width / 2, zi, pi)
                                         - np.interp(front + width / 2, zi, pi)) / p0
