@@ -7,16 +7,30 @@ in the paper's two stages, with the figures the paper gives for its Fig. 21.
 Reads RUN_DIR/timeseries.csv (time, BODY_fx, BODY_fy: what the soil exerts on the pipe, N per m
 of pipe; BODY_dx, BODY_dy: the pipe's displacement, m). Works on a run still going or stopped
 early: it reports the stages it reached. The penetration stage is where the pipe has not yet
-moved sideways, the lateral stage the rest.
+moved sideways, the lateral stage the rest. Its figures are summary.json's (cases/FORMAT.md):
+the penetration peak of the force's mean over one grid cell of penetration (cell size from
+RUN_DIR/run.json), the lateral forces' medians over the second half of the sideways travel.
 
 The paper's figures (text of §3.4, Fig. 21): the vertical force grows to a peak of 250 kN
 towards the end of the 0.8 m penetration, with moderate fluctuations, then drops suddenly;
 in the lateral stage the vertical force falls to a steady 25 kN while the horizontal force
 rises quickly to 50 kN and keeps growing slightly (the berm ahead of the pipe). kN per m of
-pipe (plane strain). Needs numpy and matplotlib (Debian's python3-numpy, python3-matplotlib).
+pipe (plane strain).
+
+For scale, the penetration panel also draws the drained bearing capacity of a strip as wide as
+the pipe's chord at the original surface, B = 2 sqrt(d (2R - d)) (2R once d >= R), embedded to
+the pipe's penetration d: F = B (gamma d N_q + gamma B N_gamma / 2), with Prandtl's N_q and
+Meyerhof's N_gamma = (N_q - 1) tan(1.4 phi) (close to Martin's exact values for a rough strip),
+the way pipeline design estimates vertical penetration in drained sand. It is drawn for the
+RVE's peak friction angle and for its critical-state angle (cases/friction_angle.py:
+footing-dense 31.67 and 20.5 deg), gamma from the geostatic stresses of the run's first frame
+(results.h5). It ignores the heave and the pipe's curvature: a scale, not a solution.
+Needs numpy and matplotlib (Debian's python3-numpy, python3-matplotlib), h5py for gamma.
 """
 import argparse
 import csv
+import json
+import math
 import os
 
 import matplotlib
@@ -30,12 +44,46 @@ PAPER_LATERAL_VERTICAL_KN = 25.0
 PAPER_LATERAL_HORIZONTAL_KN = 50.0
 
 
+def strip_bearing_force(d, radius, gamma, phi_deg):
+    """Drained bearing capacity of the pipe's chord as a strip, N per m (see the docstring).
+
+    d: penetration, m (array); radius: m; gamma: unit weight, N/m^3; phi_deg: degrees."""
+    phi = math.radians(phi_deg)
+    nq = math.tan(math.pi / 4 + phi / 2) ** 2 * math.exp(math.pi * math.tan(phi))
+    ngamma = (nq - 1) * math.tan(1.4 * phi)
+    width = 2 * np.sqrt(np.clip(d, 0, radius) * (2 * radius - np.clip(d, 0, radius)))
+    return width * (gamma * d * nq + 0.5 * gamma * width * ngamma)
+
+
+def unit_weight(run, surface_y):
+    """gamma, N/m^3: slope of the first frame's mean stress against depth below surface_y
+    (the geostatic stresses the run started from; points within 0.3 m of the surface, where
+    the pressure floor acts, are left out). None without results.h5."""
+    path = os.path.join(run, "results.h5")
+    if not os.path.exists(path):
+        return None
+    import h5py
+    with h5py.File(path, "r") as f:
+        frames = f["frames"]
+        first = frames[min(frames.keys(), key=int)]
+        depth = surface_y - first["position"][:, 1]
+        p = first["p"][:]
+    deep = depth > 0.3
+    return float(np.polyfit(depth[deep], p[deep], 1)[0])
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("run")
     ap.add_argument("--body", default="pipe")
     ap.add_argument("--out", default="pipe.png")
+    ap.add_argument("--radius", type=float, default=0.5, help="pipe radius, m")
+    ap.add_argument("--surface", type=float, default=2.5, help="initial soil surface y, m")
+    ap.add_argument("--phi", type=float, default=31.67, help="peak friction angle, deg")
+    ap.add_argument("--phi-cs", type=float, default=20.5, help="critical-state angle, deg")
+    ap.add_argument("--gamma", type=float, help="unit weight, N/m^3 (default: from results.h5)")
     a = ap.parse_args()
+    gamma = a.gamma if a.gamma else unit_weight(a.run, a.surface)
     with open(os.path.join(a.run, "timeseries.csv")) as f:
         rows = list(csv.DictReader(f))
     col = {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
@@ -47,29 +95,39 @@ def main():
     name = os.path.basename(a.run.rstrip("/"))
     print(f"{name}: {len(t)} rows to t = {t[-1]:.3f} s, pipe {down[-1]:.3f} m down, "
           f"{left[-1]:.3f} m to the left")
+    if gamma:
+        print(f"  unit weight {gamma / 1e3:.2f} kN/m^3 (first frame's geostatic stresses)")
     i = int(np.argmax(np.where(pen, fy, -np.inf)))
     print(f"  penetration: peak vertical force {fy[i]:.1f} kN/m at {down[i]:.3f} m down "
           f"(t = {t[i]:.2f} s; paper {PAPER_PEAK_VERTICAL_KN:.0f} kN towards 0.8 m); "
           f"horizontal force within +-{np.max(np.abs(fx[pen])):.1f} kN/m")
-    # The force fluctuates from row to row (the paper: stress waves); its
-    # mean over +-0.01 m of displacement gives a peak that is not one spike.
-    grid = np.arange(0.01, down[pen].max() - 0.01 + 1e-9, 0.005)
-    if grid.size:
-        smooth = np.array([np.mean(fy[pen][np.abs(down[pen] - d) <= 0.01]) for d in grid])
-        j = int(np.argmax(smooth))
-        print(f"  penetration, mean over +-0.01 m: peak {smooth[j]:.1f} kN/m at {grid[j]:.3f} m down")
+    # The force fluctuates from row to row (the paper: stress waves); as
+    # summary.json does, the peak is that of its mean over one grid cell of
+    # penetration (the cell size from the run record, run.json).
+    with open(os.path.join(a.run, "run.json")) as f:
+        cell = json.load(f)["case"]["grid"]["cell_size"]
+    dp, fp = down[pen], fy[pen]
+    smooth = np.array([np.mean(fp[np.abs(dp - d) <= 0.5 * cell]) for d in dp])
+    j = int(np.argmax(smooth))
+    print(f"  penetration, mean over one cell ({cell:g} m): peak {smooth[j]:.1f} kN/m at "
+          f"{dp[j]:.3f} m down")
     for d in (0.2, 0.4, 0.6, 0.8):
-        near = pen & (np.abs(down - d) < 0.01)
+        near = pen & (np.abs(down - d) <= 0.5 * cell)
         if near.any():
+            scale = ""
+            if gamma:
+                scale = ", strip bearing capacity {:.0f} (phi {:g}) / {:.0f} (phi_cs {:g})".format(
+                    strip_bearing_force(d, a.radius, gamma, a.phi) / 1e3, a.phi,
+                    strip_bearing_force(d, a.radius, gamma, a.phi_cs) / 1e3, a.phi_cs)
             print(f"    at {d:.1f} m down: vertical {np.mean(fy[near]):.1f} kN/m "
-                  f"(mean over +-0.01 m)")
+                  f"(mean over one cell){scale}")
     if lateral.any():
-        late = lateral & (left > 0.1)
-        if late.any():
-            print(f"  lateral (from 0.1 m on): vertical force median {np.median(fy[late]):.1f} kN/m "
-                  f"(paper {PAPER_LATERAL_VERTICAL_KN:.0f}), horizontal median "
-                  f"{np.median(-fx[late]):.1f} kN/m (paper {PAPER_LATERAL_HORIZONTAL_KN:.0f}), "
-                  f"to {left[late][-1]:.3f} m")
+        # As summary.json: medians over the second half of the sideways travel.
+        late = lateral & (left >= 0.5 * left.max())
+        print(f"  lateral (from {0.5 * left.max():.3f} m on): vertical force median "
+              f"{np.median(fy[late]):.1f} kN/m (paper {PAPER_LATERAL_VERTICAL_KN:.0f}), horizontal "
+              f"median {np.median(-fx[late]):.1f} kN/m (paper {PAPER_LATERAL_HORIZONTAL_KN:.0f}), "
+              f"to {left.max():.3f} m")
     else:
         print("  lateral stage not reached")
 
@@ -83,6 +141,12 @@ def main():
     ax_t.legend(fontsize=8)
     ax_d.plot(down[pen], fy[pen], lw=0.7)
     ax_d.plot([0.8], [PAPER_PEAK_VERTICAL_KN], "k*", ms=10, label="paper: 250 kN near 0.8 m")
+    if gamma:
+        dd = np.linspace(0, 0.8, 81)
+        for phi, ls in ((a.phi, "--"), (a.phi_cs, "-.")):
+            ax_d.plot(dd, strip_bearing_force(dd, a.radius, gamma, phi) / 1e3, "k", ls=ls, lw=0.8,
+                      label=f"strip bearing capacity, phi = {phi:g} deg")
+        ax_d.set_ylim(0, 1.15 * max(PAPER_PEAK_VERTICAL_KN, fy[pen].max()))
     ax_d.set_xlabel("pipe displacement down (m)")
     ax_d.set_ylabel("vertical force (kN/m)")
     ax_d.set_title(f"{name}: penetration")

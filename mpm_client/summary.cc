@@ -67,14 +67,73 @@ absl::StatusOr<Summary> Footing(const CaseSpec& spec, const Columns& columns) {
   return out;
 }
 
+// The median of values, or 0 for none.
+double Median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  const auto mid = values.begin() + values.size() / 2;
+  std::nth_element(values.begin(), mid, values.end());
+  return *mid;
+}
+
 absl::StatusOr<Summary> Pipe(const CaseSpec& spec, const Columns& columns) {
   ASSIGN_OR_RETURN(const std::string body, SummaryBody(spec));
   ASSIGN_OR_RETURN(const std::vector<double>* fx, Column(columns, body + "_fx"));
   ASSIGN_OR_RETURN(const std::vector<double>* fy, Column(columns, body + "_fy"));
+  ASSIGN_OR_RETURN(const std::vector<double>* dx, Column(columns, body + "_dx"));
+  ASSIGN_OR_RETURN(const std::vector<double>* dy, Column(columns, body + "_dy"));
+  const std::size_t n = fx->size();
+  if (fy->size() != n || dx->size() != n || dy->size() != n) {
+    return absl::InvalidArgumentError("the pipe's force and displacement columns differ in length");
+  }
   double hx = 0.0, vy = 0.0;
   for (double f : *fx) hx = std::max(hx, std::abs(f));
   for (double f : *fy) vy = std::max(vy, std::abs(f));
-  return Summary{{"peak_vertical_force_N", vy}, {"peak_horizontal_force_N", hx}};
+  Summary out{{"peak_vertical_force_N", vy}, {"peak_horizontal_force_N", hx}};
+  // The stages: penetration while the body has not moved sideways (1e-4 m),
+  // lateral movement after.
+  constexpr double kSideways = 1e-4;  // m
+  std::vector<std::size_t> pen;
+  double travel = 0.0;  // m, sideways at the end
+  for (std::size_t i = 0; i < n; ++i) {
+    if (std::abs((*dx)[i]) <= kSideways) pen.push_back(i);
+    travel = std::max(travel, std::abs((*dx)[i]));
+  }
+  // The row-to-row force has spikes (stress waves, nodes entering contact):
+  // the penetration peak is that of its mean over one cell of penetration.
+  double peak = -std::numeric_limits<double>::infinity(), depth = 0.0;
+  for (std::size_t i : pen) {
+    double sum = 0.0;
+    int count = 0;
+    for (std::size_t j : pen) {
+      if (std::abs((*dy)[j] - (*dy)[i]) <= 0.5 * spec.grid.cell_size) {
+        sum += (*fy)[j];
+        ++count;
+      }
+    }
+    if (sum / count > peak) {
+      peak = sum / count;
+      depth = -(*dy)[i];
+    }
+  }
+  if (!pen.empty()) {
+    out.emplace_back("penetration_peak_force_N", peak);
+    out.emplace_back("penetration_peak_depth_m", depth);
+  }
+  // The lateral stage's steady forces: medians over the second half of the
+  // sideways travel (the paper's Fig. 21: after a quick rise).
+  std::vector<double> vertical, horizontal;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (std::abs((*dx)[i]) > kSideways && std::abs((*dx)[i]) >= 0.5 * travel) {
+      vertical.push_back((*fy)[i]);
+      horizontal.push_back(std::abs((*fx)[i]));
+    }
+  }
+  if (!vertical.empty()) {
+    out.emplace_back("lateral_vertical_force_N", Median(vertical));
+    out.emplace_back("lateral_horizontal_force_N", Median(horizontal));
+    out.emplace_back("lateral_travel_m", travel);
+  }
+  return out;
 }
 
 absl::StatusOr<Summary> Collapse(const CaseSpec& spec, const Columns& columns) {

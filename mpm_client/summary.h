@@ -66,7 +66,12 @@ using Summary = std::vector<std::pair<std::string, double>>;
 // footing: N_q, ultimate_load_Pa, settlement_at_ultimate_m, phi_deg and
 // N_q_prandtl and N_q_reduced (when the case gives φ'), surcharge_Pa; pipe:
 // peak_vertical_force_N, peak_horizontal_force_N (largest magnitudes of what
-// the soil exerts on the body, N for the domain thickness); collapse:
+// the soil exerts on the body, N for the domain thickness, one row),
+// penetration_peak_force_N and _depth_m (the largest mean vertical force over
+// one cell of penetration while the body has not moved sideways), and with a
+// lateral stage lateral_vertical_force_N, lateral_horizontal_force_N (medians,
+// the horizontal one's magnitude, over the second half of the sideways
+// travel) and lateral_travel_m; collapse:
 // runout_normalised (d_f − d_0)/d_0 with d_0 the region's width and d_f the
 // front at the end plus the points' initial half spacing, front_stop_time_s,
 // front_at_rest (1 when the front was still over the last 10 % of the run,

@@ -203,6 +203,7 @@ TEST(SummaryTest, FootingCollapseBiaxialAndPipeFigures) {
   // Pipe: the largest magnitudes.
   biaxial.output.summary = "pipe";
   b["platen_fx"] = {0.0, -3.0, 5.0, -7.0};
+  b["platen_dx"] = {0.0, 0.0, 0.0, 0.0};
   s = Summarise(biaxial, b);
   ASSERT_TRUE(s.ok()) << s.status();
   m = std::map<std::string, double>(s->begin(), s->end());
@@ -214,6 +215,56 @@ TEST(SummaryTest, FootingCollapseBiaxialAndPipeFigures) {
   s = Summarise(biaxial, b);
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.status().message().find("platen_fx"), std::string::npos) << s.status();
+}
+
+TEST(SummaryTest, PipeStagesSmoothedPeakAndLateralMedians) {
+  // Cells of 0.125 m: the penetration peak is a mean over 0.125 m of it.
+  CaseSpec pipe = Region(3, 1, 1, 0.125);
+  pipe.output.summary = "pipe";
+  RigidBody body;
+  body.name = "pipe";
+  pipe.bodies.push_back(body);
+  std::map<std::string, std::vector<double>> c;
+  auto row = [&c](double dx, double dy, double fx, double fy) {
+    c["pipe_dx"].push_back(dx);
+    c["pipe_dy"].push_back(dy);
+    c["pipe_fx"].push_back(fx);
+    c["pipe_fy"].push_back(fy);
+  };
+  // Penetration to 0.2 m: the force rises to 100 kN at 0.08 m and stays,
+  // with a one-row spike of 400 kN at 0.01 m.
+  for (int i = 0; i <= 40; ++i) {
+    const double d = 0.005 * i;
+    row(0.0, -d, 10.0, i == 2 ? 400e3 : 100e3 * std::min(d / 0.08, 1.0));
+  }
+  // Then 0.15 m to the left: 50 kN resisting and 20 kN up, each with a spike.
+  for (int k = 1; k <= 30; ++k) {
+    row(-0.005 * k, -0.2, k == 20 ? 200e3 : 50e3, k == 25 ? -80e3 : 20e3);
+  }
+  absl::StatusOr<Summary> s = Summarise(pipe, c);
+  ASSERT_TRUE(s.ok()) << s.status();
+  std::map<std::string, double> m(s->begin(), s->end());
+  EXPECT_DOUBLE_EQ(m["peak_vertical_force_N"], 400e3);  // the spike's row
+  EXPECT_DOUBLE_EQ(m["peak_horizontal_force_N"], 200e3);
+  // The spike's window (0 to 0.07 m) averages 70 kN; the plateau's 100.
+  EXPECT_NEAR(m["penetration_peak_force_N"], 100e3, 1e-6);
+  EXPECT_GE(m["penetration_peak_depth_m"], 0.14);
+  EXPECT_LE(m["penetration_peak_depth_m"], 0.165);
+  EXPECT_DOUBLE_EQ(m["lateral_vertical_force_N"], 20e3);
+  EXPECT_DOUBLE_EQ(m["lateral_horizontal_force_N"], 50e3);
+  EXPECT_DOUBLE_EQ(m["lateral_travel_m"], 0.15);
+
+  // Without a lateral stage there are no lateral figures.
+  for (auto& [name, values] : c) values.resize(41);
+  s = Summarise(pipe, c);
+  ASSERT_TRUE(s.ok()) << s.status();
+  m = std::map<std::string, double>(s->begin(), s->end());
+  EXPECT_EQ(m.count("lateral_vertical_force_N"), 0u);
+  EXPECT_NEAR(m["penetration_peak_force_N"], 100e3, 1e-6);
+
+  // Columns of different lengths are refused.
+  c["pipe_dx"].pop_back();
+  EXPECT_FALSE(Summarise(pipe, c).ok());
 }
 
 }  // namespace
