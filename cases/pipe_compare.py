@@ -72,6 +72,22 @@ def unit_weight(run, surface_y):
     return float(np.polyfit(depth[deep], p[deep], 1)[0])
 
 
+def load_run(run, body):
+    """time, fx, fy (kN/m), down, left (m) and the grid's cell size (m) of a run directory."""
+    with open(os.path.join(run, "timeseries.csv")) as f:
+        rows = list(csv.DictReader(f))
+    col = {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
+    with open(os.path.join(run, "run.json")) as f:
+        cell = json.load(f)["case"]["grid"]["cell_size"]
+    return (col["time"], col[body + "_fx"] / 1e3, col[body + "_fy"] / 1e3, -col[body + "_dy"],
+            -col[body + "_dx"], cell)
+
+
+def cell_mean(down, force, cell):
+    """The force's mean over one cell of penetration around each row (summary.json's rule)."""
+    return np.array([np.mean(force[np.abs(down - d) <= 0.5 * cell]) for d in down])
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("run")
@@ -82,14 +98,11 @@ def main():
     ap.add_argument("--phi", type=float, default=31.67, help="peak friction angle, deg")
     ap.add_argument("--phi-cs", type=float, default=20.5, help="critical-state angle, deg")
     ap.add_argument("--gamma", type=float, help="unit weight, N/m^3 (default: from results.h5)")
+    ap.add_argument("--also", action="append", default=[], metavar="RUN_DIR",
+                    help="another run of the case to draw beside it (e.g. another mesh)")
     a = ap.parse_args()
     gamma = a.gamma if a.gamma else unit_weight(a.run, a.surface)
-    with open(os.path.join(a.run, "timeseries.csv")) as f:
-        rows = list(csv.DictReader(f))
-    col = {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
-    t = col["time"]
-    fx, fy = col[a.body + "_fx"] / 1e3, col[a.body + "_fy"] / 1e3  # kN/m
-    down, left = -col[a.body + "_dy"], -col[a.body + "_dx"]  # m
+    t, fx, fy, down, left, cell = load_run(a.run, a.body)
     lateral = left > 1e-4
     pen = ~lateral
     name = os.path.basename(a.run.rstrip("/"))
@@ -104,10 +117,8 @@ def main():
     # The force fluctuates from row to row (the paper: stress waves); as
     # summary.json does, the peak is that of its mean over one grid cell of
     # penetration (the cell size from the run record, run.json).
-    with open(os.path.join(a.run, "run.json")) as f:
-        cell = json.load(f)["case"]["grid"]["cell_size"]
-    dp, fp = down[pen], fy[pen]
-    smooth = np.array([np.mean(fp[np.abs(dp - d) <= 0.5 * cell]) for d in dp])
+    dp = down[pen]
+    smooth = cell_mean(dp, fy[pen], cell)
     j = int(np.argmax(smooth))
     print(f"  penetration, mean over one cell ({cell:g} m): peak {smooth[j]:.1f} kN/m at "
           f"{dp[j]:.3f} m down")
@@ -126,23 +137,36 @@ def main():
         late = lateral & (left >= 0.5 * left.max())
         print(f"  lateral (from {0.5 * left.max():.3f} m on): vertical force median "
               f"{np.median(fy[late]):.1f} kN/m (paper {PAPER_LATERAL_VERTICAL_KN:.0f}), horizontal "
-              f"median {np.median(-fx[late]):.1f} kN/m (paper {PAPER_LATERAL_HORIZONTAL_KN:.0f}), "
+              f"median {np.median(fx[late]):.1f} kN/m (paper {PAPER_LATERAL_HORIZONTAL_KN:.0f}), "
               f"to {left.max():.3f} m")
     else:
         print("  lateral stage not reached")
 
     fig, (ax_t, ax_d, ax_l) = plt.subplots(1, 3, figsize=(17, 4.8))
     ax_t.plot(t, fy, lw=0.7, label="vertical F_y")
-    ax_t.plot(t, -fx, lw=0.7, label="horizontal -F_x (resisting the pull to the left)")
+    ax_t.plot(t, fx, lw=0.7, label="horizontal F_x (+: resisting the pull to the left)")
     ax_t.axhline(PAPER_PEAK_VERTICAL_KN, color="k", ls=":", lw=0.8, label="paper: peak vertical")
     ax_t.set_xlabel("time (s)")
     ax_t.set_ylabel("force of the soil on the pipe (kN/m)")
     ax_t.set_title(f"{name}: forces against time")
     ax_t.legend(fontsize=8)
-    ax_d.plot(down[pen], fy[pen], lw=0.7)
+    ax_d.plot(down[pen], fy[pen], lw=0.7, label=f"{name} (cells of {cell:g} m)")
+    for k, other in enumerate(a.also):
+        _, ofx, ofy, odown, oleft, ocell = load_run(other, a.body)
+        oname = os.path.basename(other.rstrip("/"))
+        opn, olat = oleft <= 1e-4, oleft > 1e-4
+        osm = cell_mean(odown[opn], ofy[opn], ocell)
+        print(f"  {oname}: penetration peak {osm.max():.1f} kN/m (mean over one cell of "
+              f"{ocell:g} m) at {odown[opn][np.argmax(osm)]:.3f} m down, to {odown.max():.3f} m")
+        ax_d.plot(odown[opn], ofy[opn], lw=0.7, color=f"C{k + 2}",
+                  label=f"{oname} (cells of {ocell:g} m)")
+        if olat.any():
+            ax_l.plot(oleft[olat], ofy[olat], lw=0.6, ls="--", color="C0", label=f"vertical, {oname}")
+            ax_l.plot(oleft[olat], ofx[olat], lw=0.6, ls="--", color="C1",
+                      label=f"horizontal F_x, {oname}")
     ax_d.plot([0.8], [PAPER_PEAK_VERTICAL_KN], "k*", ms=10, label="paper: 250 kN near 0.8 m")
     if gamma:
-        dd = np.linspace(0, 0.8, 81)
+        dd = np.linspace(0, max(down[pen].max(), 1.6 * a.radius), 81)
         for phi, ls in ((a.phi, "--"), (a.phi_cs, "-.")):
             ax_d.plot(dd, strip_bearing_force(dd, a.radius, gamma, phi) / 1e3, "k", ls=ls, lw=0.8,
                       label=f"strip bearing capacity, phi = {phi:g} deg")
@@ -153,10 +177,12 @@ def main():
     ax_d.legend(fontsize=8)
     if lateral.any():
         ax_l.plot(left[lateral], fy[lateral], lw=0.7, label="vertical")
-        ax_l.plot(left[lateral], -fx[lateral], lw=0.7, label="horizontal")
+        ax_l.plot(left[lateral], fx[lateral], lw=0.7, label="horizontal F_x")
         ax_l.axhline(PAPER_LATERAL_VERTICAL_KN, color="C0", ls=":", lw=0.8, label="paper: vertical")
         ax_l.axhline(PAPER_LATERAL_HORIZONTAL_KN, color="C1", ls=":", lw=0.8,
                      label="paper: horizontal")
+        ax_l.legend(fontsize=8)
+    elif ax_l.lines:
         ax_l.legend(fontsize=8)
     else:
         ax_l.text(0.5, 0.5, "lateral stage not reached", ha="center", transform=ax_l.transAxes)

@@ -133,6 +133,15 @@ CaseSpec Region(double width, double height, int ppc, double h) {
   return spec;
 }
 
+// The same with a rigid body named `body` (bodies' forces are read by name).
+CaseSpec RegionWithBody(double width, double height, int ppc, double h, const std::string& body) {
+  CaseSpec spec = Region(width, height, ppc, h);
+  RigidBody b;
+  b.name = body;
+  spec.bodies.push_back(b);
+  return spec;
+}
+
 TEST(SummaryTest, FootingCollapseBiaxialAndPipeFigures) {
   // Footing: B·t = 0.5 m², 20 kPa surcharge, φ' 30°.
   CaseSpec footing = Region(3, 2, 1, 0.25);
@@ -185,11 +194,8 @@ TEST(SummaryTest, FootingCollapseBiaxialAndPipeFigures) {
   EXPECT_EQ(m["front_at_rest"], 0.0);
 
   // Biaxial with a platen: force over the width, travel over the height.
-  CaseSpec biaxial = Region(0.05, 0.1, 1, 0.0125);
+  CaseSpec biaxial = RegionWithBody(0.05, 0.1, 1, 0.0125, "platen");
   biaxial.output.plot = "stress-strain";
-  RigidBody platen;
-  platen.name = "platen";
-  biaxial.bodies.push_back(platen);
   std::map<std::string, std::vector<double>> b;
   b["platen_dy"] = {0.0, -0.001, -0.002, -0.003};
   b["platen_fy"] = {0.0, 10e3, 14e3, 12e3};
@@ -219,11 +225,8 @@ TEST(SummaryTest, FootingCollapseBiaxialAndPipeFigures) {
 
 TEST(SummaryTest, PipeStagesSmoothedPeakAndLateralMedians) {
   // Cells of 0.125 m: the penetration peak is a mean over 0.125 m of it.
-  CaseSpec pipe = Region(3, 1, 1, 0.125);
+  CaseSpec pipe = RegionWithBody(3, 1, 1, 0.125, "pipe");
   pipe.output.summary = "pipe";
-  RigidBody body;
-  body.name = "pipe";
-  pipe.bodies.push_back(body);
   std::map<std::string, std::vector<double>> c;
   auto row = [&c](double dx, double dy, double fx, double fy) {
     c["pipe_dx"].push_back(dx);
