@@ -30,6 +30,11 @@ def peak_state(path):
     return best
 
 
+def prandtl_nq(phi):
+    """Prandtl's bearing-capacity factor N_q for a friction angle phi in radians."""
+    return math.tan(math.pi / 4 + phi / 2) ** 2 * math.exp(math.pi * math.tan(phi))
+
+
 def large_strain_ratio(path, from_strain):
     """Mean (s1 - s3)/(s1 + s3) over the rows at axial strain >= from_strain."""
     ratios = []
@@ -73,7 +78,7 @@ def main():
               f"phi = {math.degrees(math.asin(radius / centre)):5.2f} deg, from "
               f"{a.cs_from:.0%} strain on {math.degrees(math.asin(cs[-1])):5.2f} deg")
     phi = math.asin(num / den)
-    nq = math.tan(math.pi / 4 + phi / 2) ** 2 * math.exp(math.pi * math.tan(phi))
+    nq = prandtl_nq(phi)
     print(f"{a.material}: phi' = {math.degrees(phi):.2f} deg (least squares over the Mohr "
           f"circles), Prandtl N_q = {nq:.2f}; phi_cs = "
           f"{math.degrees(math.asin(sum(cs) / len(cs))):.2f} deg (mean stress ratio from "

@@ -36,12 +36,15 @@ import os
 import matplotlib
 import numpy as np
 
+from friction_angle import prandtl_nq
+
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 PAPER_PEAK_VERTICAL_KN = 250.0
 PAPER_LATERAL_VERTICAL_KN = 25.0
 PAPER_LATERAL_HORIZONTAL_KN = 50.0
+SIDEWAYS_M = 1e-4  # the lateral stage starts when the pipe has moved this far sideways (summary.cc)
 
 
 def strip_bearing_force(d, radius, gamma, phi_deg):
@@ -49,7 +52,7 @@ def strip_bearing_force(d, radius, gamma, phi_deg):
 
     d: penetration, m (array); radius: m; gamma: unit weight, N/m^3; phi_deg: degrees."""
     phi = math.radians(phi_deg)
-    nq = math.tan(math.pi / 4 + phi / 2) ** 2 * math.exp(math.pi * math.tan(phi))
+    nq = prandtl_nq(phi)
     ngamma = (nq - 1) * math.tan(1.4 * phi)
     width = 2 * np.sqrt(np.clip(d, 0, radius) * (2 * radius - np.clip(d, 0, radius)))
     return width * (gamma * d * nq + 0.5 * gamma * width * ngamma)
@@ -103,7 +106,7 @@ def main():
     a = ap.parse_args()
     gamma = a.gamma if a.gamma else unit_weight(a.run, a.surface)
     t, fx, fy, down, left, cell = load_run(a.run, a.body)
-    lateral = left > 1e-4
+    lateral = left > SIDEWAYS_M
     pen = ~lateral
     name = os.path.basename(a.run.rstrip("/"))
     print(f"{name}: {len(t)} rows to t = {t[-1]:.3f} s, pipe {down[-1]:.3f} m down, "
@@ -137,7 +140,7 @@ def main():
         late = lateral & (left >= 0.5 * left.max())
         print(f"  lateral (from {0.5 * left.max():.3f} m on): vertical force median "
               f"{np.median(fy[late]):.1f} kN/m (paper {PAPER_LATERAL_VERTICAL_KN:.0f}), horizontal "
-              f"median {np.median(fx[late]):.1f} kN/m (paper {PAPER_LATERAL_HORIZONTAL_KN:.0f}), "
+              f"median {np.median(np.abs(fx[late])):.1f} kN/m (paper {PAPER_LATERAL_HORIZONTAL_KN:.0f}), "
               f"to {left.max():.3f} m")
     else:
         print("  lateral stage not reached")
@@ -154,7 +157,8 @@ def main():
     for k, other in enumerate(a.also):
         _, ofx, ofy, odown, oleft, ocell = load_run(other, a.body)
         oname = os.path.basename(other.rstrip("/"))
-        opn, olat = oleft <= 1e-4, oleft > 1e-4
+        olat = oleft > SIDEWAYS_M
+        opn = ~olat
         osm = cell_mean(odown[opn], ofy[opn], ocell)
         print(f"  {oname}: penetration peak {osm.max():.1f} kN/m (mean over one cell of "
               f"{ocell:g} m) at {odown[opn][np.argmax(osm)]:.3f} m down, to {odown.max():.3f} m")
