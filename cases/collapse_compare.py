@@ -6,6 +6,11 @@ angle of the dead zone (the wedge of points that never moved).
   /usr/bin/python3 cases/collapse_compare.py RUN_DIR[=LABEL] ... [--out=collapse.png]
       [--dead=0.01]
 
+The energy panel is the paper's Fig. 27: kinetic, potential and dissipated energy over the
+initial potential energy, E_d = E_p0 - E_p - E_k (paper: E_k peaks at 0.1 E_p0 near 0.4 s,
+E_d ends at 0.55 E_p0); it needs the timeseries' potential_energy column (runs from
+2026-11-27 on) and the base at y = 0, where the collapse cases put it.
+
 Reads each RUN_DIR's timeseries.csv (time, front_x, kinetic_energy) and results.h5
 (frames/STEP/position, eps_q). d0 is the column's initial width: the largest initial x of
 the points plus their half spacing, as summary.json's run-out (cases/FORMAT.md). A point is
@@ -32,7 +37,9 @@ def read_series(run):
     t = np.array([float(r["time"]) for r in rows])
     front = np.array([float(r["front_x"]) for r in rows])
     ke = np.array([float(r["kinetic_energy"]) for r in rows])
-    return t, front, ke
+    pe = (np.array([float(r["potential_energy"]) for r in rows])
+          if "potential_energy" in rows[0] else None)
+    return t, front, ke, pe
 
 
 def read_frames(run):
@@ -69,9 +76,10 @@ def main():
                     help="dead-zone displacement threshold as a fraction of d0")
     a = ap.parse_args()
     runs = [(r.split("=", 1) + [os.path.basename(r.rstrip("/"))])[:2] for r in a.runs]
-    fig, axes = plt.subplots(1, 2 + len(runs), figsize=(5 * (2 + len(runs)), 4))
+    panels = 3 + len(runs)
+    fig, axes = plt.subplots(1, panels, figsize=(5 * panels, 4))
     for run, label in runs:
-        t, front, ke = read_series(run)
+        t, front, ke, pe = read_series(run)
         pos, eps_q = read_frames(run)
         x0 = pos[0, :, 0]
         spacing = np.diff(np.unique(np.round(x0, 9))).min()
@@ -85,7 +93,15 @@ def main():
               f"points, angle {angle_text}")
         axes[0].plot(t, front + spacing / 2, label=label)
         axes[1].plot(t, ke, label=label)
-        ax = axes[2 + runs.index([run, label])]
+        if pe is not None:
+            ep0 = pe[0]
+            dissipated = (ep0 - pe - ke) / ep0
+            print(f"{label}: E_k peaks at {ke.max() / ep0:.3f} E_p0, E_d = {dissipated[-1]:.3f} "
+                  f"E_p0 at t = {t[-1]:.3f} s (E_p0 = {ep0:.5g} J)")
+            line, = axes[2].plot(t, ke / ep0, label=f"{label}: E_k")
+            axes[2].plot(t, pe / ep0, "--", color=line.get_color(), label=f"{label}: E_p")
+            axes[2].plot(t, dissipated, ":", color=line.get_color(), label=f"{label}: E_d")
+        ax = axes[3 + runs.index([run, label])]
         sc = ax.scatter(pos[-1, :, 0], pos[-1, :, 1], c=eps_q, s=8, cmap="viridis", vmin=0,
                         vmax=max(1.0, np.percentile(eps_q, 95)))
         ax.scatter(pos[-1, mask, 0], pos[-1, mask, 1], s=8, facecolors="none",
@@ -104,6 +120,12 @@ def main():
     axes[1].set_ylabel("kinetic energy (J)")
     axes[1].set_title("kinetic energy")
     axes[1].legend()
+    axes[2].axhline(0.1, color="grey", lw=0.5)
+    axes[2].axhline(0.55, color="grey", lw=0.5)
+    axes[2].set_xlabel("time (s)")
+    axes[2].set_ylabel("energy / E_p0 (-)")
+    axes[2].set_title("energies (grey: paper's E_k peak 0.1, final E_d 0.55)")
+    axes[2].legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(a.out, dpi=110)
     print(f"wrote {a.out}")

@@ -1150,11 +1150,19 @@ Fields<RveSpec> RveFields() {
                   Range{0.0, 0.1}),
       IntegerField("min_steps", &RveSpec::min_steps, 0, 100000),
       FlagField("real_time", &RveSpec::real_time),
+      NumberField("max_void_ratio", &RveSpec::max_void_ratio, Need::kOptional, Range{0.0, 10.0}),
   };
 }
 
 absl::Status ParseRve(const Json& j, const std::string& ptr, RveSpec* rve) {
-  return ReadFields(j, ptr, RveFields(), rve).status();
+  RETURN_IF_ERROR(ReadFields(j, ptr, RveFields(), rve).status());
+  // Below the densest 2-D disc packings (e ≈ 0.1) it would be no cap but a
+  // different material.
+  if (rve->max_void_ratio > 0.0 && rve->max_void_ratio < 0.1) {
+    return Bad(ptr + "/max_void_ratio", "must be 0 (no cap) or in [0.1, 10], got ",
+               Num(rve->max_void_ratio));
+  }
+  return absl::OkStatus();
 }
 
 // Static storage for the list (the table outlives every read).
@@ -1693,6 +1701,10 @@ absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::strin
     // Scaled inertia would change the drag's and the pressure's time scales.
     if (spec.phases.saturated && spec.solver.mass_scale != 1.0) {
       return Bad(root.At("solver") + "/mass_scale", "mass scaling is for dry cases only");
+    }
+    // The water's mass balance takes its porosity from the RVE's void ratio.
+    if (spec.phases.saturated && spec.rve.max_void_ratio > 0.0) {
+      return Bad(root.At("rve") + "/max_void_ratio", "a void-ratio cap is for dry cases only");
     }
   }
   if (const Json* output = root.Get("output")) {

@@ -181,9 +181,9 @@ std::vector<std::string> Simulation::Columns() const {
     c.push_back(b.name + "_dx");
     c.push_back(b.name + "_dy");
   }
-  for (const char* name :
-       {"mean_sxx", "mean_syy", "mean_sxy", "mean_exx", "mean_eyy", "mean_exy", "mean_p", "mean_q",
-        "mean_void_ratio", "kinetic_energy", "front_x", "top_y", "wall_per_step_s"}) {
+  for (const char* name : {"mean_sxx", "mean_syy", "mean_sxy", "mean_exx", "mean_eyy", "mean_exy",
+                           "mean_p", "mean_q", "mean_void_ratio", "kinetic_energy",
+                           "potential_energy", "front_x", "top_y", "wall_per_step_s"}) {
     c.push_back(name);
   }
   if (spec_.solver.lost_points == LostPointPolicy::kDrop) c.push_back("lost_points");
@@ -385,7 +385,7 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
   row.insert(row.end(),
              {-sigma(0, 0), -sigma(1, 1), -sigma(0, 1), strain(0, 0), strain(1, 1), strain(0, 1),
               dem::InPlaneMeanPressure(sigma), dem::InPlaneDeviatorStress(sigma), e,
-              solver_->KineticEnergy(), front_x, top_y, wall_per_step});
+              solver_->KineticEnergy(), solver_->PotentialEnergy(), front_x, top_y, wall_per_step});
   if (spec_.solver.lost_points == LostPointPolicy::kDrop) row.push_back(lost_points);
   if (spec_.phases.saturated) {
     // The surface's settlement: the mean of (y0 − y) over the points that

@@ -395,6 +395,7 @@ absl::StatusOr<std::unique_ptr<Solver>> Solver::Init(const CaseSpec& spec, Stres
   }
   solver->reactions_.assign(spec.walls.size() + spec.bodies.size(), Vector2d::Zero());
   solver->phases_ = spec.phases;
+  solver->max_void_ratio_ = spec.rve.max_void_ratio;
   if (spec.phases.saturated) {
     const PhasesSpec& ph = spec.phases;
     if (!(ph.fluid_density > 0.0) || !(ph.permeability > 0.0) ||
@@ -497,6 +498,7 @@ void Solver::Prepare() {
   impulse_.resize(walls_.size() + bodies_.size());
   body_velocity_.resize(bodies_.size());
   delta_f_.resize(n);
+  rve_delta_f_.resize(n);
   response_.resize(n);
   if (phases_.saturated) {
     for (auto* v : {&node_fluid_velocity_, &node_fluid_force_, &node_fluid_velocity_new_}) {
@@ -687,8 +689,11 @@ absl::Status Solver::UpdateStress() {
     }
     delta_f_[p].setIdentity();
     delta_f_[p].topLeftCorner<2, 2>() = df;
+    rve_delta_f_[p].setIdentity();
+    rve_delta_f_[p].topLeftCorner<2, 2>() =
+        RveIncrement(df, mp.response[p].void_ratio, max_void_ratio_);
   }
-  RETURN_IF_ERROR(model_->Update(step_ + 1, delta_f_, response_));
+  RETURN_IF_ERROR(model_->Update(step_ + 1, rve_delta_f_, response_));
   for (std::size_t p = 0; p < n; ++p) {
     Matrix2d& f = mp.F[p];
     f = (delta_f_[p].topLeftCorner<2, 2>() * f).eval();
@@ -825,6 +830,21 @@ double Solver::KineticEnergy() const {
   for (std::size_t p = 0; p < points_.size(); ++p) {
     if (lost_[p]) continue;  // parked off the grid
     e += 0.5 * points_.mass[p] * points_.velocity[p].squaredNorm();
+  }
+  return e;
+}
+
+Matrix2d RveIncrement(const Matrix2d& df, double void_ratio, double max_void_ratio) {
+  const double det = df.determinant();
+  if (!(max_void_ratio > 0.0) || void_ratio < max_void_ratio || !(det > 1.0)) return df;
+  return df / std::sqrt(det);
+}
+
+double Solver::PotentialEnergy() const {
+  double e = 0.0;
+  for (std::size_t p = 0; p < points_.size(); ++p) {
+    if (lost_[p]) continue;  // parked off the grid
+    e -= points_.mass[p] * solver_.gravity.dot(points_.position[p]);
   }
   return e;
 }

@@ -107,6 +107,12 @@ Eigen::Vector2d DisplacementAt(const std::vector<VelocityPoint>& history, double
 // the linear ramp min(1, t/ramp_time) when the history is empty, [-].
 double LoadFactorAt(const std::vector<LoadFactorPoint>& history, double ramp_time, double t);
 
+// The in-plane deformation increment a material point's RVE gets: the
+// continuum's df, except that a packing at or above max_void_ratio (> 0) is
+// not opened further: a dilating df (det > 1) loses its volume change,
+// df/sqrt(det df), keeping its shear and rotation. [-]
+Eigen::Matrix2d RveIncrement(const Eigen::Matrix2d& df, double void_ratio, double max_void_ratio);
+
 class Solver {
  public:
   // Validates the spec (grid, walls on grid lines, bodies, PIC fraction) and
@@ -160,6 +166,9 @@ class Solver {
   const std::vector<Eigen::Vector2d>& Reactions() const { return reactions_; }
   Eigen::Vector2d BodyDisplacement(int body) const;  // m, centre now − centre at t = 0
   double KineticEnergy() const;                      // J, Σ ½ m v² on the grid
+  // J, −Σ m g·x over the points on the grid (zero at the grid's origin and
+  // without gravity): with the kinetic energy, the energy budget of a flow.
+  double PotentialEnergy() const;
 
   // The whole state as named flat arrays (bit-exact), and back into a solver
   // created from the same spec. Keys: see solver.cc.
@@ -267,8 +276,10 @@ class Solver {
   std::vector<std::uint8_t> node_fixed_;            // per node: components a wall holds
   std::vector<SurfaceContact> contacts_;            // faces near bodies, this step
   std::vector<Eigen::Vector2d> body_velocity_;      // per body, m/s
-  std::vector<Eigen::Matrix3d> delta_f_;
+  std::vector<Eigen::Matrix3d> delta_f_;            // per point, the continuum's ΔF
+  std::vector<Eigen::Matrix3d> rve_delta_f_;        // per point, what its RVE gets (RveIncrement)
   std::vector<PointResponse> response_;
+  double max_void_ratio_ = 0.0;  // RveSpec::max_void_ratio
 
   // Saturated cases (saturated.cc).
   PhasesSpec phases_;

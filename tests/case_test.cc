@@ -517,6 +517,8 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
       {"/solver/lost_points", "remove",
        "/solver/lost_points: unknown lost-point policy \"remove\" (stop, drop)"},
       {"/solver/mass_scale", 0.5, "/solver/mass_scale: must be in [1, 1000000], got 0.5"},
+      {"/rve/max_void_ratio", 0.05,
+       "/rve/max_void_ratio: must be 0 (no cap) or in [0.1, 10], got 0.05"},
       {"/tractions/0/surface", "x", "/tractions/0/surface: unknown surface \"x\" (+x, -x, +y, -y)"},
       // Dangling references.
       {"/regions/1/template", "dense2",
@@ -693,6 +695,7 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
       {"/phases/excess_pressure_from", "current_water_table"},
       {"/solver/lost_points", "drop"},
       {"/solver/mass_scale", 100},
+      {"/rve/max_void_ratio", 0.3},
   };
   const std::vector<std::string> messages = {
       "/phases/permeability: must be in (0, 10], got 0",
@@ -709,6 +712,7 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
       "/phases/excess_pressure_from: unknown excess pressure datum \"current_water_table\"",
       "/solver/lost_points: \"drop\" is for dry cases only",
       "/solver/mass_scale: mass scaling is for dry cases only",
+      "/rve/max_void_ratio: a void-ratio cap is for dry cases only",
   };
   for (std::size_t i = 0; i < edits.size(); ++i) {
     SCOPED_TRACE(edits[i].first);

@@ -42,7 +42,7 @@ using testing_util::ReadFile;
 constexpr char kHeader[] =
     "time,step,left_fx,left_fy,bottom_fx,bottom_fy,platen_fx,platen_fy,platen_dx,platen_dy,"
     "mean_sxx,mean_syy,mean_sxy,mean_exx,mean_eyy,mean_exy,mean_p,mean_q,mean_void_ratio,"
-    "kinetic_energy,front_x,top_y,wall_per_step_s";
+    "kinetic_energy,potential_energy,front_x,top_y,wall_per_step_s";
 
 // This process's scratch directory, created afresh on first use and removed
 // at the end when every test passed.

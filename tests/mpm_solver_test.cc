@@ -341,6 +341,94 @@ TEST(FreeFlightTest, GravityMomentumGrowsAsMgt) {
   }
 }
 
+// --- the RVE's share of a dilating increment (rve.max_void_ratio)
+
+TEST(RveIncrementTest, APackingAtTheCapShearsAndRotatesWithoutOpening) {
+  Matrix2d df;
+  df << 1.01, 0.02, -0.003, 1.004;  // dilating: det ≈ 1.014
+  ASSERT_GT(df.determinant(), 1.0);
+  const Matrix2d capped = RveIncrement(df, 0.5, 0.3);
+  EXPECT_NEAR(capped.determinant(), 1.0, 1e-15);
+  EXPECT_LT((capped * std::sqrt(df.determinant()) - df).norm(), 1e-15);  // same shape change
+  // Below the cap, without a cap or when squeezed: the continuum's own.
+  EXPECT_EQ(RveIncrement(df, 0.29, 0.3), df);
+  EXPECT_EQ(RveIncrement(df, 0.5, 0.0), df);
+  const Matrix2d squeeze = df.inverse();
+  EXPECT_EQ(RveIncrement(squeeze, 0.5, 0.3), squeeze);
+}
+
+// A material that reports a fixed void ratio and records the ΔF it gets.
+class RecordingModel : public StressModel {
+ public:
+  explicit RecordingModel(double void_ratio) : void_ratio_(void_ratio) {}
+  absl::Status Update(std::int64_t, std::span<const Matrix3d> delta_f,
+                      std::span<PointResponse> out) override {
+    last_.assign(delta_f.begin(), delta_f.end());
+    for (PointResponse& r : out) {
+      r = PointResponse();
+      r.void_ratio = void_ratio_;
+    }
+    return absl::OkStatus();
+  }
+  const std::vector<Matrix3d>& last() const { return last_; }
+
+ private:
+  double void_ratio_;
+  std::vector<Matrix3d> last_;
+};
+
+TEST(RveIncrementTest, AnExpandingBlockOpensItsPointsButNotTheirPackingsAboveTheCap) {
+  for (double e : {0.2, 0.5}) {
+    SCOPED_TRACE(e);
+    CaseSpec spec = BlockCase(0.1, 20, 20, Vector2d(0.5, 0.5), Vector2d(1.5, 1.5), 2);
+    spec.solver.pic_fraction = 0.0;
+    spec.solver.time_step = 1e-3;
+    spec.rve.max_void_ratio = 0.3;
+    absl::StatusOr<MaterialPoints> points = FillRegions(spec);
+    ASSERT_TRUE(points.ok()) << points.status();
+    const Vector2d centre(1.0, 1.0);
+    for (std::size_t p = 0; p < points->size(); ++p) {
+      points->velocity[p] = 0.5 * (points->position[p] - centre);  // dilating at 1 /s
+    }
+    RecordingModel model(e);
+    absl::StatusOr<std::unique_ptr<Solver>> solver =
+        Solver::Create(spec, *std::move(points), &model);
+    ASSERT_TRUE(solver.ok()) << solver.status();
+    // The first step's points have no RVE result yet (e = 0): never capped.
+    RunSteps(**solver, 1);
+    double most = 0.0;
+    for (const Matrix3d& d : model.last()) most = std::max(most, d.determinant());
+    EXPECT_GT(most, 1.0 + 5e-4);
+    std::vector<double> volume_before = (*solver)->points().volume;
+    RunSteps(**solver, 1);
+    const MaterialPoints& mp = (*solver)->points();
+    int opened = 0;
+    for (std::size_t p = 0; p < mp.size(); ++p) {
+      const double det = model.last()[p].determinant();
+      if (mp.volume[p] > volume_before[p] * (1.0 + 5e-4)) ++opened;
+      if (e < 0.3) {  // the packing takes the point's own volume change
+        EXPECT_NEAR(det, mp.volume[p] / volume_before[p], 1e-12) << "point " << p;
+      } else {
+        EXPECT_NEAR(det, 1.0, 1e-14) << "point " << p;
+      }
+    }
+    // The continuum opens as before either way.
+    EXPECT_GT(opened, static_cast<int>(mp.size()) / 2);
+    // The cap reads the checkpointed result: a resumed solver sends its
+    // packings the same increments.
+    std::map<std::string, std::vector<double>> doubles;
+    std::map<std::string, std::vector<std::int64_t>> ints;
+    (*solver)->ExportState(doubles, ints);
+    RecordingModel resumed_model(e);
+    absl::StatusOr<std::unique_ptr<Solver>> resumed =
+        Solver::FromState(spec, doubles, ints, &resumed_model);
+    ASSERT_TRUE(resumed.ok()) << resumed.status();
+    RunSteps(**solver, 1);
+    RunSteps(**resumed, 1);
+    EXPECT_EQ(model.last(), resumed_model.last());
+  }
+}
+
 TEST(FreeFlightTest, RigidTranslationConservesMomentumAndEnergyExactly) {
   for (ShapeKind kind : {ShapeKind::kLinear, ShapeKind::kGimp}) {
     CaseSpec spec = BlockCase(0.1, 20, 20, Vector2d(0.5, 0.5), Vector2d(1.5, 1.2), 3);
