@@ -256,12 +256,13 @@ struct RveSpec {
   // continuum, so a flowing or nearly stress-free RVE follows its inertial
   // response at the real strain rate instead of the quasi-static bound.
   bool real_time = false;
-  // e_max, [-]; 0: none. A point's RVE at or above it is not opened further:
-  // a dilating increment reaches it without its volume change (RveIncrement).
-  // Near zero pressure a granular material comes apart in clumps at about its
-  // loosest state; the extra volume is void between them, which the point's
-  // own volume carries and the packing does not, so that it meets its
-  // neighbours again as soon as it is squeezed. Dry cases only.
+  // e_max, [-]; 0: none. A point's RVE that carries no stress and is at or
+  // above it is not opened further: a dilating increment reaches it without
+  // its volume change (RveIncrement). Near zero pressure a granular material
+  // comes apart in clumps at about its loosest state; the extra volume is
+  // void between them, which the point's own volume carries and the packing
+  // does not, so that it meets its neighbours again as soon as it is
+  // squeezed. Dry cases only.
   double max_void_ratio = 0.0;
 };
 

@@ -690,8 +690,7 @@ absl::Status Solver::UpdateStress() {
     delta_f_[p].setIdentity();
     delta_f_[p].topLeftCorner<2, 2>() = df;
     rve_delta_f_[p].setIdentity();
-    rve_delta_f_[p].topLeftCorner<2, 2>() =
-        RveIncrement(df, mp.response[p].void_ratio, max_void_ratio_);
+    rve_delta_f_[p].topLeftCorner<2, 2>() = RveIncrement(df, mp.response[p], max_void_ratio_);
   }
   RETURN_IF_ERROR(model_->Update(step_ + 1, rve_delta_f_, response_));
   for (std::size_t p = 0; p < n; ++p) {
@@ -834,9 +833,12 @@ double Solver::KineticEnergy() const {
   return e;
 }
 
-Matrix2d RveIncrement(const Matrix2d& df, double void_ratio, double max_void_ratio) {
+Matrix2d RveIncrement(const Matrix2d& df, const PointResponse& last, double max_void_ratio) {
   const double det = df.determinant();
-  if (!(max_void_ratio > 0.0) || void_ratio < max_void_ratio || !(det > 1.0)) return df;
+  if (!(max_void_ratio > 0.0) || last.void_ratio < max_void_ratio || !(det > 1.0) ||
+      last.stress != Matrix3d::Zero()) {
+    return df;
+  }
   return df / std::sqrt(det);
 }
 

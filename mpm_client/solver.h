@@ -108,10 +108,13 @@ Eigen::Vector2d DisplacementAt(const std::vector<VelocityPoint>& history, double
 double LoadFactorAt(const std::vector<LoadFactorPoint>& history, double ramp_time, double t);
 
 // The in-plane deformation increment a material point's RVE gets: the
-// continuum's df, except that a packing at or above max_void_ratio (> 0) is
-// not opened further: a dilating df (det > 1) loses its volume change,
-// df/sqrt(det df), keeping its shear and rotation. [-]
-Eigen::Matrix2d RveIncrement(const Eigen::Matrix2d& df, double void_ratio, double max_void_ratio);
+// continuum's df, except that a packing that carries no stress at all (its
+// last result, `last`) and is at or above max_void_ratio (> 0) is not opened
+// further: a dilating df (det > 1) loses its volume change, df/sqrt(det df),
+// keeping its shear and rotation. Only a stress-free packing: one that still
+// pushed would do work on the continuum as it opens without unloading. [-]
+Eigen::Matrix2d RveIncrement(const Eigen::Matrix2d& df, const PointResponse& last,
+                             double max_void_ratio);
 
 class Solver {
  public:

@@ -347,14 +347,22 @@ TEST(RveIncrementTest, APackingAtTheCapShearsAndRotatesWithoutOpening) {
   Matrix2d df;
   df << 1.01, 0.02, -0.003, 1.004;  // dilating: det ≈ 1.014
   ASSERT_GT(df.determinant(), 1.0);
-  const Matrix2d capped = RveIncrement(df, 0.5, 0.3);
+  PointResponse loose;  // stress-free
+  loose.void_ratio = 0.5;
+  const Matrix2d capped = RveIncrement(df, loose, 0.3);
   EXPECT_NEAR(capped.determinant(), 1.0, 1e-15);
   EXPECT_LT((capped * std::sqrt(df.determinant()) - df).norm(), 1e-15);  // same shape change
   // Below the cap, without a cap or when squeezed: the continuum's own.
-  EXPECT_EQ(RveIncrement(df, 0.29, 0.3), df);
-  EXPECT_EQ(RveIncrement(df, 0.5, 0.0), df);
+  PointResponse dense = loose;
+  dense.void_ratio = 0.29;
+  EXPECT_EQ(RveIncrement(df, dense, 0.3), df);
+  EXPECT_EQ(RveIncrement(df, loose, 0.0), df);
   const Matrix2d squeeze = df.inverse();
-  EXPECT_EQ(RveIncrement(squeeze, 0.5, 0.3), squeeze);
+  EXPECT_EQ(RveIncrement(squeeze, loose, 0.3), squeeze);
+  // A packing that still pushes, however little, opens and unloads.
+  PointResponse pushing = loose;
+  pushing.stress(0, 1) = -1e-9;
+  EXPECT_EQ(RveIncrement(df, pushing, 0.3), df);
 }
 
 // A material that reports a fixed void ratio and records the ΔF it gets.
