@@ -4,7 +4,7 @@ nominal curve (platen force over the specimen's width against platen travel over
 compression +) on one panel, with the DEM element test on the same RVE, and the peak and the
 stress at the end listed.
 
-  /usr/bin/python3 cases/biaxial_compare.py RUN_DIR [RUN_DIR ...] [--reference=CSV]
+  /usr/bin/python3 cases/biaxial_compare.py RUN_DIR[=LABEL] [RUN_DIR[=LABEL] ...] [--reference=CSV]
       [--out=biaxial-meshes.png]
 
 Each RUN_DIR holds run.json (its case: the first region and the plot_body, else the first
@@ -42,21 +42,23 @@ def nominal_curve(run_dir):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("runs", nargs="+")
+    parser.add_argument("runs", nargs="+", help="RUN_DIR or RUN_DIR=LABEL")
     parser.add_argument("--reference", default=None)
     parser.add_argument("--out", default="biaxial-meshes.png")
     args = parser.parse_args()
 
     fig, ax = plt.subplots(figsize=(7.5, 5))
     reference = args.reference
-    for run in args.runs:
+    for arg in args.runs:
+        run, _, given_label = arg.partition("=")
         case, strain, stress, lost = nominal_curve(run)
         reference = reference or case.get("output", {}).get("reference_curve")
         k = int(np.argmax(stress))
         extra = f", {int(lost)} points parked" if lost else ""
-        print(f"{case['name']}: peak {stress[k] / 1e3:.1f} kPa at {100 * strain[k]:.2f} %, "
+        label = given_label or case["name"].replace("biaxial-specimen-", "").replace(
+            "medium", "m4 (medium)")
+        print(f"{label}: peak {stress[k] / 1e3:.1f} kPa at {100 * strain[k]:.2f} %, "
               f"{stress[-1] / 1e3:.1f} kPa at {100 * strain[-1]:.2f} %{extra}")
-        label = case["name"].replace("biaxial-specimen-", "").replace("medium", "m4 (medium)")
         ax.plot(100 * strain, stress / 1e3, lw=1.0, label=label)
     if reference:
         ref = np.genfromtxt(reference, delimiter=",", names=True)

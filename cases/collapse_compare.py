@@ -6,6 +6,11 @@ angle of the dead zone (the wedge of points that never moved).
   /usr/bin/python3 cases/collapse_compare.py RUN_DIR[=LABEL] ... [--out=collapse.png]
       [--dead=0.01]
 
+Beside d* from the farthest point it prints the front where the deposit is at least 2 and
+3 points thick: the paper measures d_f "after removing the scatter points" not in contact
+with the main deposit, and a sheet one or two points thick along the base is where such
+readings part.
+
 The energy panel is the paper's Fig. 27: kinetic, potential and dissipated energy over the
 initial potential energy, E_d = E_p0 - E_p - E_k (paper: E_k peaks at 0.1 E_p0 near 0.4 s,
 E_d ends at 0.55 E_p0); it needs the timeseries' potential_energy column (runs from
@@ -51,6 +56,18 @@ def read_frames(run):
     return pos, eps_q
 
 
+def thick_front(final, spacing, layers):
+    """The farthest x (m) at which the deposit is at least `layers` points thick: its top
+    (the highest point within one spacing of x, plus half a spacing) stands that high."""
+    x, y = final[:, 0], final[:, 1]
+    order = np.argsort(-x)
+    for i in order:
+        near = np.abs(x - x[i]) <= spacing / 2
+        if y[near].max() + spacing / 2 >= layers * spacing - 1e-9:
+            return x[i] + spacing / 2
+    return 0.0
+
+
 def dead_zone(pos, d0, dead):
     """Mask of the points that never moved more than dead·d0, and the angle (deg) of the
     line fitted to the dead zone's upper-right edge (None when too few rows)."""
@@ -91,6 +108,9 @@ def main():
         print(f"{label}: d* = {runout:.3f} at t = {t[-1]:.3f} s, front {d_f:.3f} m, "
               f"peak KE {ke.max():.4g} J at {t[ke.argmax()]:.3f} s, dead zone {mask.sum()} "
               f"points, angle {angle_text}")
+        fronts = [(k, thick_front(pos[-1], spacing, k)) for k in (2, 3)]
+        print(f"{label}: where the deposit is at least " + ", ".join(
+            f"{k} points thick: {x:.3f} m (d* {(x - d0) / d0:.2f})" for k, x in fronts))
         axes[0].plot(t, front + spacing / 2, label=label)
         axes[1].plot(t, ke, label=label)
         if pe is not None:
