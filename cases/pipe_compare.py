@@ -91,6 +91,14 @@ def cell_mean(down, force, cell):
     return np.array([np.mean(force[np.abs(down - d) <= 0.5 * cell]) for d in down])
 
 
+def penetration(down, left, fy, cell):
+    """The penetration rows (the pipe not yet moved sideways), their cell-mean vertical force
+    (cell_mean) and the row of its peak."""
+    pen = left <= SIDEWAYS_M
+    smooth = cell_mean(down[pen], fy[pen], cell)
+    return pen, smooth, int(np.argmax(smooth))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("run")
@@ -106,8 +114,8 @@ def main():
     a = ap.parse_args()
     gamma = a.gamma if a.gamma else unit_weight(a.run, a.surface)
     t, fx, fy, down, left, cell = load_run(a.run, a.body)
-    lateral = left > SIDEWAYS_M
-    pen = ~lateral
+    pen, smooth, j = penetration(down, left, fy, cell)
+    lateral = ~pen
     name = os.path.basename(a.run.rstrip("/"))
     print(f"{name}: {len(t)} rows to t = {t[-1]:.3f} s, pipe {down[-1]:.3f} m down, "
           f"{left[-1]:.3f} m to the left")
@@ -120,11 +128,8 @@ def main():
     # The force fluctuates from row to row (the paper: stress waves); as
     # summary.json does, the peak is that of its mean over one grid cell of
     # penetration (the cell size from the run record, run.json).
-    dp = down[pen]
-    smooth = cell_mean(dp, fy[pen], cell)
-    j = int(np.argmax(smooth))
     print(f"  penetration, mean over one cell ({cell:g} m): peak {smooth[j]:.1f} kN/m at "
-          f"{dp[j]:.3f} m down")
+          f"{down[pen][j]:.3f} m down")
     for d in (0.2, 0.4, 0.6, 0.8):
         near = pen & (np.abs(down - d) <= 0.5 * cell)
         if near.any():
@@ -157,11 +162,10 @@ def main():
     for k, other in enumerate(a.also):
         _, ofx, ofy, odown, oleft, ocell = load_run(other, a.body)
         oname = os.path.basename(other.rstrip("/"))
-        olat = oleft > SIDEWAYS_M
-        opn = ~olat
-        osm = cell_mean(odown[opn], ofy[opn], ocell)
-        print(f"  {oname}: penetration peak {osm.max():.1f} kN/m (mean over one cell of "
-              f"{ocell:g} m) at {odown[opn][np.argmax(osm)]:.3f} m down, to {odown.max():.3f} m")
+        opn, osm, oj = penetration(odown, oleft, ofy, ocell)
+        olat = ~opn
+        print(f"  {oname}: penetration peak {osm[oj]:.1f} kN/m (mean over one cell of "
+              f"{ocell:g} m) at {odown[opn][oj]:.3f} m down, to {odown.max():.3f} m")
         ax_d.plot(odown[opn], ofy[opn], lw=0.7, color=f"C{k + 2}",
                   label=f"{oname} (cells of {ocell:g} m)")
         if olat.any():
