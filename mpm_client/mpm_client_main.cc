@@ -47,6 +47,7 @@ ABSL_FLAG(double, timeout, 600, "deadline of one batched RVE call, s");
 ABSL_FLAG(std::string, template_cache, "", "template cache directory");
 ABSL_FLAG(int64_t, stop_after, 0, "stop after N steps");
 ABSL_FLAG(double, end_time, 0, "resume: the run's new end time, s");
+ABSL_FLAG(double, cfl, 0, "resume: a new CFL number");
 ABSL_FLAG(bool, quiet, false, "no progress lines");
 ABSL_FLAG(bool, no_recovery, false, "a lost server ends the run");
 ABSL_FLAG(double, min_timeout, 10, "floor of the adaptive RVE call deadline, s");
@@ -94,6 +95,9 @@ Options (run, resume):
 Option (resume):
   --end-time=SECONDS   run on to this time instead of the case's end_time (after the
                        checkpoint's time); the checkpoints written from then on carry it
+  --cfl=NUMBER         go on with this CFL number (the case's solver.cfl; its time step
+                       scales by the ratio): e.g. a run that became unstable, resumed from
+                       a checkpoint before, with a smaller step
 
 Option (run, check):
   --set=PATH=VALUE     override one case field before the case is validated; repeatable.
@@ -111,6 +115,7 @@ constexpr char kThreadsRule[] = "must be an integer in 1..1024";
 constexpr char kTimeoutRule[] = "must be a number of seconds in (0, 1e7]";
 constexpr char kStopAfterRule[] = "must be a positive integer";
 constexpr char kEndTimeRule[] = "must be a time in (0, 1e6] s";
+constexpr char kCflRule[] = "must be a number in (0, 1]";
 
 struct Command {
   std::string name;    // run, resume, check, help
@@ -128,14 +133,12 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
   cli::ArgSpec spec;
   spec.allowed = {"out",         "servers",     "threads",        "token-file", "tls-ca",
                   "timeout",     "min-timeout", "template-cache", "stop-after", "quiet",
-                  "no-recovery", "set",         "end-time"};
+                  "no-recovery", "set",         "end-time",       "cfl"};
   spec.repeatable = {"set"};
   spec.bare = {"quiet", "no-recovery"};
-  spec.rules = {{"threads", kThreadsRule},
-                {"timeout", kTimeoutRule},
-                {"min-timeout", kTimeoutRule},
-                {"stop-after", kStopAfterRule},
-                {"end-time", kEndTimeRule}};
+  spec.rules = {{"threads", kThreadsRule},     {"timeout", kTimeoutRule},
+                {"min-timeout", kTimeoutRule}, {"stop-after", kStopAfterRule},
+                {"end-time", kEndTimeRule},    {"cfl", kCflRule}};
   ASSIGN_OR_RETURN(Args args, cli::ParseArgs(argc, argv, 1, spec));
   c.args = std::move(args);
   std::vector<std::string>& positional = c.args.positional;
@@ -170,6 +173,10 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
   if (c.name != "resume" && c.args.contains("end-time")) {
     return absl::InvalidArgumentError(
         "--end-time is for resume (a run sets solver.end_time in its case, or --set it)");
+  }
+  if (c.name != "resume" && c.args.contains("cfl")) {
+    return absl::InvalidArgumentError(
+        "--cfl is for resume (a run sets solver.cfl in its case, or --set it)");
   }
   if (c.name == "resume" && c.args.contains("set")) {
     return absl::InvalidArgumentError(
@@ -246,6 +253,11 @@ absl::StatusOr<SimulationOptions> Options(const Args& a) {
     if (!(o.end_time > 0) || o.end_time > 1e6) {
       return absl::InvalidArgumentError(absl::StrCat("--end-time ", kEndTimeRule));
     }
+  }
+  if (a.contains("cfl")) {
+    o.cfl = absl::GetFlag(FLAGS_cfl);
+    if (!(o.cfl > 0) || o.cfl > 1)
+      return absl::InvalidArgumentError(absl::StrCat("--cfl ", kCflRule));
   }
   if (a.contains("template-cache")) o.template_cache_dir = absl::GetFlag(FLAGS_template_cache);
   o.progress = !a.contains("quiet");

@@ -654,15 +654,30 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
         absl::StrCat(checkpoint_path, ": its case does not parse: ", spec.status().message()));
   }
   std::string case_json = c.case_json;
+  // Checked before any server is asked to hold the RVEs.
+  std::vector<CaseOverride> overrides;
   if (options.end_time > 0) {
-    // Before any server is asked to hold the RVEs.
     if (!(options.end_time > c.time)) {
       return absl::InvalidArgumentError(
           absl::StrFormat("--end-time %.6g s is not after the checkpoint's time %.6g s",
                           options.end_time, c.time));
     }
-    const CaseOverride end{"/solver/end_time", absl::StrFormat("%.17g", options.end_time)};
-    spec = ParseCase(c.case_json, ".", {&end, 1});
+    overrides.push_back({"/solver/end_time", absl::StrFormat("%.17g", options.end_time)});
+  }
+  // The CFL step scales with the CFL number alone (the modulus and density
+  // were fixed at the start), so the new step is the old one times the ratio.
+  double dt_ratio = 1.0;
+  if (options.cfl > 0) {
+    if (spec->solver.time_step > 0) {
+      return absl::InvalidArgumentError(absl::StrFormat(
+          "--cfl: this run's case fixes solver.time_step = %.6g s; it has no CFL step to change",
+          spec->solver.time_step));
+    }
+    dt_ratio = options.cfl / spec->solver.cfl;
+    overrides.push_back({"/solver/cfl", absl::StrFormat("%.17g", options.cfl)});
+  }
+  if (!overrides.empty()) {
+    spec = ParseCase(c.case_json, ".", overrides);
     if (!spec.ok()) return spec.status();
     case_json = ToJson(*spec);
   }
@@ -686,6 +701,12 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
   ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver,
                    Solver::FromState(sim->spec_, c.doubles, c.ints, sim->model_.get()));
   sim->solver_ = std::move(solver);
+  if (dt_ratio != 1.0) {
+    const double dt = sim->solver_->dt();
+    sim->solver_->set_dt(dt * dt_ratio);
+    sim->Log(absl::StrFormat("time step %.4g s -> %.4g s (CFL %.2f)", dt, sim->solver_->dt(),
+                             options.cfl));
+  }
   sim->SetApplyOptions();
   sim->Log(absl::StrFormat("resumed %s at step %d, t = %.6g s", checkpoint_path,
                            sim->solver_->step(), sim->solver_->time()));

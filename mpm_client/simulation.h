@@ -61,6 +61,10 @@ struct SimulationOptions {
   // Resume only: the run's new end time, s (0: the case's). Lets a run that
   // ended, or was planned too short, go on; later checkpoints carry it.
   double end_time = 0;
+  // Resume only: a new CFL number (0: the case's) for a run whose case takes
+  // its time step from one; Δt changes by the ratio of the two and later
+  // checkpoints carry the new number.
+  double cfl = 0;
   bool progress = true;                         // progress lines on stderr
   std::function<void(const std::string&)> log;  // default: stderr
 };

@@ -278,6 +278,9 @@ TEST(MpmCliTest, UsageErrorsExitTwoWithAMessage) {
            {absl::StrCat("run ", case_path, out, " --end-time=2"), "--end-time is for resume"},
            {"resume x.h5 --end-time=0", "--end-time must be a time in (0, 1e6] s"},
            {"resume x.h5 --end-time=soon", "--end-time must be a time"},
+           {absl::StrCat("run ", case_path, out, " --cfl=0.25"), "--cfl is for resume"},
+           {"resume x.h5 --cfl=0", "--cfl must be a number in (0, 1]"},
+           {"resume x.h5 --cfl=1.5", "--cfl must be a number in (0, 1]"},
        }) {
     const Result r = RunClient(c.args);
     EXPECT_EQ(r.exit_code, 2) << c.args << ": " << r;

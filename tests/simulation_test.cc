@@ -331,6 +331,65 @@ TEST(SimulationTest, ResumeWithALaterEndTimeExtendsTheRun) {
   EXPECT_EQ(carried->solver.end_time, longer.solver.end_time);
 }
 
+// A run resumed with --cfl goes on with its time step scaled by the ratio of
+// the CFL numbers (exactly: 0.25/0.5), and its later checkpoints carry the new
+// number and step, so a second resume keeps them. A case with a fixed step
+// has no CFL number to change.
+TEST(SimulationTest, ResumeWithASmallerCflHalvesTheTimeStep) {
+  CaseSpec spec = ShortCase(20);
+  spec.solver.time_step = 0;  // from the CFL number and the RVE's tangent
+  spec.solver.cfl = 0.5;
+  spec.solver.end_time = 1.0;
+  const std::string out = FreshDir("cfl_resume");
+  SimulationOptions o = Options(out);
+  o.stop_after_steps = 10;
+  double dt = 0;
+  {
+    std::unique_ptr<Simulation> a = StartOrDie(spec, o);
+    ASSERT_NE(a, nullptr);
+    dt = a->solver().dt();
+    ASSERT_GT(dt, 0);
+    ASSERT_TRUE(a->StepToEnd().ok());
+  }
+  o.stop_after_steps = 5;
+  o.cfl = 0.25;
+  const double t10 = 10 * dt;
+  {
+    absl::StatusOr<std::unique_ptr<Simulation>> b = Simulation::Resume(out + "/checkpoint.h5", o);
+    ASSERT_TRUE(b.ok()) << b.status();
+    EXPECT_EQ((*b)->solver().dt(), 0.5 * dt);
+    absl::StatusOr<SimulationSummary> s = (*b)->StepToEnd();
+    ASSERT_TRUE(s.ok()) << s.status();
+    EXPECT_EQ(s->final_step, 15);
+    EXPECT_NEAR(s->final_time, t10 + 5 * 0.5 * dt, 1e-12 * t10);
+  }
+  absl::StatusOr<store::SimCheckpoint> c = store::ReadSimCheckpoint(out + "/checkpoint.h5");
+  ASSERT_TRUE(c.ok()) << c.status();
+  absl::StatusOr<CaseSpec> carried = ParseCase(c->case_json, ".");
+  ASSERT_TRUE(carried.ok()) << carried.status();
+  EXPECT_EQ(carried->solver.cfl, 0.25);
+  o.cfl = 0;
+  absl::StatusOr<std::unique_ptr<Simulation>> again = Simulation::Resume(out + "/checkpoint.h5", o);
+  ASSERT_TRUE(again.ok()) << again.status();
+  EXPECT_EQ((*again)->solver().dt(), 0.5 * dt);
+
+  const std::string fixed_out = FreshDir("cfl_fixed");
+  SimulationOptions f = Options(fixed_out);
+  f.stop_after_steps = 2;
+  {
+    std::unique_ptr<Simulation> a = StartOrDie(ShortCase(20), f);
+    ASSERT_NE(a, nullptr);
+    ASSERT_TRUE(a->StepToEnd().ok());
+  }
+  f.cfl = 0.25;
+  absl::StatusOr<std::unique_ptr<Simulation>> refused =
+      Simulation::Resume(fixed_out + "/checkpoint.h5", f);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_TRUE(absl::StrContains(refused.status().message(),
+                                "--cfl: this run's case fixes solver.time_step = 0.002 s"))
+      << refused.status();
+}
+
 // `count` RVE servers of one thread each on loopback ports, added to
 // o.servers (fewer on a failure, which the caller's size check reports).
 std::vector<std::unique_ptr<service::RveServer>> StartLoopbackServers(int count,
