@@ -583,6 +583,24 @@ Field<S> ShakingFrequencyField(double S::*m, bool (*shaken)(const S&)) {
               NumberField("shaking_frequency", m, Need::kRequired, kShakingFrequency));
 }
 
+// Read only where the time step comes from the RVEs' tangent (time_step and
+// wave_modulus read before it are 0); written only when on.
+Field<SolverSpec> TimeStepUpdateField() {
+  constexpr absl::string_view kKey = "time_step_update_every";
+  return {kKey,
+          [=](const Object& o, SolverSpec* s) -> absl::Status {
+            if (s->time_step > 0 || s->wave_modulus > 0) {
+              return Forbid(o, kKey,
+                            "only where the time step comes from the RVEs' tangent "
+                            "(solver.time_step and solver.wave_modulus 0)");
+            }
+            return GetInteger(o, kKey, 0, 1'000'000'000, &s->time_step_update_every);
+          },
+          [=](const SolverSpec& s, OrderedJson& j) {
+            if (s.time_step_update_every > 0) j[std::string(kKey)] = s.time_step_update_every;
+          }};
+}
+
 Fields<SolverSpec> SolverFields() {
   return {
       EnumField("shape", &SolverSpec::shape, Need::kOptional, "shape function", kShapes,
@@ -592,6 +610,7 @@ Fields<SolverSpec> SolverFields() {
       NumberField("time_step", &SolverSpec::time_step, Need::kOptional, Range{0.0, kMaxEndTime}),
       NumberField("cfl", &SolverSpec::cfl, Need::kOptional, Range{0.0, 1.0, true, false}),
       NumberField("wave_modulus", &SolverSpec::wave_modulus, Need::kOptional, kNonNegative),
+      TimeStepUpdateField(),
       // A bound that keeps end_time / Δt a step count (1e308 s overflowed it
       // and ended the run at step 0); the step count itself is bounded at the
       // start.
@@ -1705,6 +1724,11 @@ absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::strin
     // The water's mass balance takes its porosity from the RVE's void ratio.
     if (spec.phases.saturated && spec.rve.max_void_ratio > 0.0) {
       return Bad(root.At("rve") + "/max_void_ratio", "a void-ratio cap is for dry cases only");
+    }
+    // The two-phase step's pressure solve is set up for one Δt.
+    if (spec.phases.saturated && spec.solver.time_step_update_every > 0) {
+      return Bad(root.At("solver") + "/time_step_update_every",
+                 "an updated time step is for dry cases only");
     }
   }
   if (const Json* output = root.Get("output")) {

@@ -67,6 +67,14 @@ struct SolverSpec {
   // P-wave modulus M = K + 4G/3 for the CFL time step, Pa; 0: from the RVEs'
   // contact tangent at the start (largest D_yyyy over the points).
   double wave_modulus = 0.0;
+  // MPM steps between updates of the CFL step; 0: Δt fixed at the start.
+  // Every N steps Δt = cfl·h/max_p (c_p + |v_p|), c_p = sqrt(M_p/(s·ρ_p)) from
+  // each point's RVE's current contact tangent M_p (its largest normal
+  // component) and the point's current density ρ_p = m/V (s: mass_scale),
+  // v_p its velocity: the step keeps the CFL number it was asked for while
+  // the soil stiffens or densifies under load, and lengthens where it
+  // softens. Needs time_step and wave_modulus 0; dry cases only.
+  std::int64_t time_step_update_every = 0;
   double end_time = 1.0;   // s, simulated
   double thickness = 1.0;  // out-of-plane thickness of the macro domain, m
   // A shaking table carrying the whole grid with its walls and bodies (a

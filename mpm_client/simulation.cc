@@ -187,6 +187,7 @@ std::vector<std::string> Simulation::Columns() const {
     c.push_back(name);
   }
   if (spec_.solver.lost_points == LostPointPolicy::kDrop) c.push_back("lost_points");
+  if (spec_.solver.time_step_update_every > 0) c.push_back("time_step");
   if (spec_.phases.saturated) {
     c.push_back("surface_settlement");
     for (const PressureMonitor& m : spec_.phases.monitors) {
@@ -387,6 +388,7 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
               dem::InPlaneMeanPressure(sigma), dem::InPlaneDeviatorStress(sigma), e,
               solver_->KineticEnergy(), solver_->PotentialEnergy(), front_x, top_y, wall_per_step});
   if (spec_.solver.lost_points == LostPointPolicy::kDrop) row.push_back(lost_points);
+  if (spec_.solver.time_step_update_every > 0) row.push_back(solver_->dt());
   if (spec_.phases.saturated) {
     // The surface's settlement: the mean of (y0 − y) over the points that
     // started in the top row, m (down +).
@@ -911,20 +913,55 @@ std::string Simulation::ServerLoadLine() {
   return line;
 }
 
+absl::Status Simulation::UpdateTimeStep() {
+  const Clock::time_point t0 = Clock::now();
+  absl::StatusOr<std::vector<dem::RveState>> got = pool_->Get(/*want_tangent=*/true);
+  rve_seconds_ += Seconds(Clock::now() - t0);  // an RVE call: in the split's service share
+  if (!got.ok()) return got.status();
+  const std::vector<dem::RveState>& states = *got;
+  const MaterialPoints& mp = solver_->points();
+  const std::vector<std::uint8_t>& lost = solver_->lost();
+  double speed = 0.0;  // m/s
+  for (std::size_t p = 0; p < mp.size() && p < states.size(); ++p) {
+    if ((p < lost.size() && lost[p]) || !states[p].tangent) continue;
+    const Eigen::Matrix<double, 9, 9>& d = *states[p].tangent;
+    const double modulus = std::max(d(0, 0), d(4, 4));  // Pa
+    const double density = spec_.solver.mass_scale * mp.mass[p] / mp.volume[p];
+    if (!(modulus > 0) || !(density > 0)) continue;
+    speed = std::max(speed, WaveSpeed(modulus, density) + mp.velocity[p].norm());
+  }
+  // Not one point with contacts: nothing to take a speed from; keep the step.
+  if (!(speed > 0) || !std::isfinite(speed)) return absl::OkStatus();
+  solver_->set_dt(spec_.solver.cfl * spec_.grid.cell_size / speed);
+  SetApplyOptions();
+  return absl::OkStatus();
+}
+
 absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
   SimulationSummary sum;
   const OutputSpec& o = spec_.output;
   const double end = spec_.solver.end_time;
-  // Bounded before the cast: a step count beyond int64 was undefined (and
-  // ended runs at step 0); beyond kMaxSteps a run would not end in a lifetime.
-  const double steps_needed = std::ceil(end / solver_->dt() - 1e-9);
-  if (!(steps_needed <= static_cast<double>(kMaxSteps))) {
-    return absl::FailedPreconditionError(absl::StrFormat(
-        "solver.end_time %.6g s at a time step of %.4g s is %.4g MPM steps, more than the limit "
-        "of %d (cases/FORMAT.md): shorten end_time or raise the time step",
-        end, solver_->dt(), steps_needed, kMaxSteps));
-  }
-  const std::int64_t total_steps = static_cast<std::int64_t>(steps_needed);
+  const std::int64_t update_every = spec_.solver.time_step_update_every;
+  // The run ends at the step count end/Δt; with an updated Δt, at the steps
+  // the time left takes at the current Δt, counted again at each update.
+  std::int64_t total_steps = 0;
+  auto count_steps = [&]() -> absl::Status {
+    const double dt = solver_->dt();
+    const double done = update_every > 0 ? static_cast<double>(solver_->step()) : 0.0;
+    const double steps_needed =
+        done + std::ceil((update_every > 0 ? end - solver_->time() : end) / dt - 1e-9);
+    // Bounded before the cast: a step count beyond int64 was undefined (and
+    // ended runs at step 0); beyond kMaxSteps a run would not end in a lifetime.
+    if (!(steps_needed <= static_cast<double>(kMaxSteps))) {
+      return absl::FailedPreconditionError(absl::StrFormat(
+          "solver.end_time %.6g s at a time step of %.4g s is %.4g MPM steps, more than the limit "
+          "of %d (cases/FORMAT.md): shorten end_time or raise the time step",
+          end, dt, steps_needed, kMaxSteps));
+    }
+    total_steps = std::max(solver_->step(), static_cast<std::int64_t>(steps_needed));
+    return absl::OkStatus();
+  };
+  RETURN_IF_ERROR(count_steps());
   const Clock::time_point start = Clock::now();
   const double rve_start = rve_seconds_;
   const std::int64_t evals_start = pool_->evaluations();
@@ -939,6 +976,10 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
   // One step with its outputs; an error leaves the outputs and checkpoint
   // as they were at some step (a recovery rewrites them from its point).
   auto step_once = [&]() -> absl::Status {
+    if (update_every > 0 && solver_->step() % update_every == 0) {
+      RETURN_IF_ERROR(UpdateTimeStep());
+      RETURN_IF_ERROR(count_steps());
+    }
     if (absl::Status s = solver_->Step(); !s.ok()) {
       // The RVE pool's errors name the step already.
       const std::string step = absl::StrCat("step ", solver_->step() + 1, ": ");
@@ -993,8 +1034,11 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
       const double rate = wall > 0 ? (pool_->evaluations() - evals_start) / wall : 0.0;
       const double eta = wall / static_cast<double>(std::max<std::int64_t>(1, sum.steps)) *
                          static_cast<double>(total_steps - step);
-      Log(absl::StrFormat("step %d/%d  t = %.4g s  wall %.1f s  ETA %.0f s  %.0f RVE evals/s%s",
-                          step, total_steps, solver_->time(), wall, eta, rate, ServerLoadLine()));
+      const std::string dt =
+          update_every > 0 ? absl::StrFormat("  dt %.4g s", solver_->dt()) : std::string();
+      Log(absl::StrFormat("step %d/%d  t = %.4g s%s  wall %.1f s  ETA %.0f s  %.0f RVE evals/s%s",
+                          step, total_steps, solver_->time(), dt, wall, eta, rate,
+                          ServerLoadLine()));
     }
     return absl::OkStatus();
   };

@@ -154,6 +154,8 @@ class Simulation {
   std::vector<std::string> Columns() const;
   // The options sent with every Apply, from the case and the solver's Δt.
   void SetApplyOptions();
+  // Δt from the points' current wave speeds (SolverSpec::time_step_update_every).
+  absl::Status UpdateTimeStep();
   void Log(const std::string& line) const;
   // Logs each point the solver parked off the grid since the last call.
   void LogLostPoints();
@@ -168,7 +170,7 @@ class Simulation {
   std::unique_ptr<Solver> solver_;
   struct Outputs;
   std::unique_ptr<Outputs> out_;
-  double rve_seconds_ = 0.0;  // total wall time inside RVE Apply calls
+  double rve_seconds_ = 0.0;  // total wall time inside RVE calls (Apply, tangents)
   std::unique_ptr<RecoveryPoint> recovery_;
   std::int64_t recovery_interval_ = 10;  // MPM steps between recovery points
   std::vector<double> cost_checked_;     // RvePool::point_work at the last balance check

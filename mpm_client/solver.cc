@@ -132,8 +132,10 @@ void MaterialPoints::Resize(std::size_t n) {
   vertical_stress0.resize(n, 0.0);
 }
 
+double WaveSpeed(double wave_modulus, double density) { return std::sqrt(wave_modulus / density); }
+
 double CflTimeStep(double cfl, double cell_size, double wave_modulus, double density) {
-  return cfl * cell_size / std::sqrt(wave_modulus / density);
+  return cfl * cell_size / WaveSpeed(wave_modulus, density);
 }
 
 namespace {

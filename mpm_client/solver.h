@@ -96,7 +96,10 @@ absl::StatusOr<MaterialPoints> FillRegions(const CaseSpec& spec, const RegionDen
 absl::StatusOr<MaterialPoints> FillRegions(const CaseSpec& spec,
                                            const std::vector<double>& density);
 
-// Δt = cfl·h/c with c = sqrt(M/ρ), the P-wave speed: s.
+// c = sqrt(M/ρ), the P-wave speed of a material of P-wave modulus M (Pa) and
+// density ρ (kg/m³): m/s.
+double WaveSpeed(double wave_modulus, double density);
+// Δt = cfl·h/c with c = WaveSpeed(M, ρ): s.
 double CflTimeStep(double cfl, double cell_size, double wave_modulus, double density);
 
 // Piecewise-linear velocity history (held at the first value before the

@@ -263,6 +263,7 @@ TEST_F(CaseTest, MinimalCaseTakesModelDefaults) {
   EXPECT_EQ(spec->solver.gravity, defaults.solver.gravity);
   EXPECT_EQ(spec->solver.time_step, defaults.solver.time_step);
   EXPECT_EQ(spec->solver.cfl, defaults.solver.cfl);
+  EXPECT_EQ(spec->solver.time_step_update_every, 0);
   EXPECT_EQ(spec->solver.thickness, defaults.solver.thickness);
   EXPECT_EQ(spec->solver.shaking_amplitude, Eigen::Vector2d::Zero());
   EXPECT_EQ(spec->solver.shaking_frequency, 0.0);
@@ -279,6 +280,27 @@ TEST_F(CaseTest, MinimalCaseTakesModelDefaults) {
   EXPECT_EQ(spec->output.frame_every, defaults.output.frame_every);
   EXPECT_EQ(spec->output.checkpoint_every, defaults.output.checkpoint_every);
   EXPECT_EQ(spec->output.plot, "stress-strain");
+}
+
+// solver.time_step_update_every: a step count, written to the canonical form
+// only when on (cases without it keep their canonical text).
+TEST_F(CaseTest, TimeStepUpdateIsAStepCountWrittenOnlyWhenOn) {
+  Json doc = Json::parse(kMinimalCase);
+  absl::StatusOr<CaseSpec> off = Parse(doc.dump());
+  ASSERT_TRUE(off.ok()) << off.status();
+  EXPECT_FALSE(absl::StrContains(ToJson(*off), "time_step_update_every"));
+  doc["solver"]["time_step_update_every"] = 100;
+  absl::StatusOr<CaseSpec> on = Parse(doc.dump());
+  ASSERT_TRUE(on.ok()) << on.status();
+  EXPECT_EQ(on->solver.time_step_update_every, 100);
+  EXPECT_TRUE(absl::StrContains(ToJson(*on), "\"time_step_update_every\": 100"));
+  for (const Json& bad : {Json(-1), Json(2.5), Json(2e9)}) {
+    doc["solver"]["time_step_update_every"] = bad;
+    EXPECT_TRUE(
+        MessageStartsWith(Parse(doc.dump()).status(),
+                          "/solver/time_step_update_every: must be an integer in 0..1000000000"))
+        << bad;
+  }
 }
 
 TEST_F(CaseTest, CoordinatesSnapOntoGridLines) {
@@ -311,6 +333,7 @@ void ExpectSameSpec(const CaseSpec& a, const CaseSpec& b) {
   EXPECT_EQ(a.solver.time_step, b.solver.time_step);
   EXPECT_EQ(a.solver.cfl, b.solver.cfl);
   EXPECT_EQ(a.solver.wave_modulus, b.solver.wave_modulus);
+  EXPECT_EQ(a.solver.time_step_update_every, b.solver.time_step_update_every);
   EXPECT_EQ(a.solver.end_time, b.solver.end_time);
   EXPECT_EQ(a.solver.thickness, b.solver.thickness);
   EXPECT_EQ(a.solver.shaking_amplitude, b.solver.shaking_amplitude);
@@ -517,6 +540,10 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
       {"/solver/lost_points", "remove",
        "/solver/lost_points: unknown lost-point policy \"remove\" (stop, drop)"},
       {"/solver/mass_scale", 0.5, "/solver/mass_scale: must be in [1, 1000000], got 0.5"},
+      // The full case fixes its time step.
+      {"/solver/time_step_update_every", 100,
+       "/solver/time_step_update_every: only where the time step comes from the RVEs' tangent "
+       "(solver.time_step and solver.wave_modulus 0)"},
       {"/rve/max_void_ratio", 0.05,
        "/rve/max_void_ratio: must be 0 (no cap) or in [0.1, 10], got 0.05"},
       {"/tractions/0/surface", "x", "/tractions/0/surface: unknown surface \"x\" (+x, -x, +y, -y)"},
@@ -696,6 +723,7 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
       {"/solver/lost_points", "drop"},
       {"/solver/mass_scale", 100},
       {"/rve/max_void_ratio", 0.3},
+      {"/solver/time_step_update_every", 100},
   };
   const std::vector<std::string> messages = {
       "/phases/permeability: must be in (0, 10], got 0",
@@ -713,6 +741,7 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
       "/solver/lost_points: \"drop\" is for dry cases only",
       "/solver/mass_scale: mass scaling is for dry cases only",
       "/rve/max_void_ratio: a void-ratio cap is for dry cases only",
+      "/solver/time_step_update_every: an updated time step is for dry cases only",
   };
   for (std::size_t i = 0; i < edits.size(); ++i) {
     SCOPED_TRACE(edits[i].first);

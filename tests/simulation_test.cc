@@ -390,6 +390,57 @@ TEST(SimulationTest, ResumeWithASmallerCflHalvesTheTimeStep) {
       << refused.status();
 }
 
+// solver.time_step_update_every: Δt follows the points' wave speeds. The
+// first update (at rest, four identical RVEs) gives the start's step again;
+// as the element is loaded the step changes; the run ends at its end time;
+// and a run stopped between two updates and resumed repeats the
+// uninterrupted one bit for bit.
+TEST(SimulationTest, UpdatedTimeStepFollowsTheRvesAndResumesBitIdentically) {
+  CaseSpec spec = LoadOrDie("single-element-biaxial");
+  spec.solver.time_step_update_every = 10;
+  spec.solver.end_time = 0.6;
+  spec.output.frame_every = 50;
+  spec.output.timeseries_every = 5;
+  spec.output.checkpoint_every = 0;
+  const std::string out_a = FreshDir("update_a");
+  std::unique_ptr<Simulation> a = StartOrDie(spec, Options(out_a));
+  ASSERT_NE(a, nullptr);
+  const double dt0 = a->solver().dt();
+  absl::StatusOr<SimulationSummary> sa = a->StepToEnd();
+  ASSERT_TRUE(sa.ok()) << sa.status();
+  EXPECT_TRUE(sa->finished);
+  EXPECT_GE(sa->final_time, spec.solver.end_time - 1e-9 * a->solver().dt());
+  EXPECT_LT(sa->final_time, spec.solver.end_time + a->solver().dt());
+  absl::StatusOr<std::map<std::string, std::vector<double>>> ts =
+      ReadCsvColumns(out_a + "/timeseries.csv");
+  ASSERT_TRUE(ts.ok()) << ts.status();
+  ASSERT_TRUE(ts->contains("time_step"));
+  const std::vector<double>& dt = ts->at("time_step");
+  ASSERT_GT(dt.size(), 3u);
+  EXPECT_EQ(ts->at("step")[1], 5);
+  EXPECT_NEAR(dt[1], dt0, 1e-12 * dt0);
+  const auto [lo, hi] = std::minmax_element(dt.begin(), dt.end());
+  EXPECT_GT(*hi / *lo, 1.01) << "the step never changed";
+  EXPECT_LT(*hi / *lo, 2.0);
+
+  const std::string out_b = FreshDir("update_b");
+  SimulationOptions ob = Options(out_b);
+  ob.stop_after_steps = 25;
+  {
+    std::unique_ptr<Simulation> b = StartOrDie(spec, ob);
+    ASSERT_NE(b, nullptr);
+    ASSERT_TRUE(b->StepToEnd().ok());
+  }
+  ob.stop_after_steps = 0;
+  absl::StatusOr<std::unique_ptr<Simulation>> c = Simulation::Resume(out_b + "/checkpoint.h5", ob);
+  ASSERT_TRUE(c.ok()) << c.status();
+  ASSERT_TRUE((*c)->StepToEnd().ok());
+  absl::StatusOr<store::SimCheckpoint> end_a = a->Snapshot();
+  absl::StatusOr<store::SimCheckpoint> end_c = (*c)->Snapshot();
+  ASSERT_TRUE(end_a.ok() && end_c.ok());
+  ExpectSameSnapshots(*end_a, *end_c);
+}
+
 // `count` RVE servers of one thread each on loopback ports, added to
 // o.servers (fewer on a failure, which the caller's size check reports).
 std::vector<std::unique_ptr<service::RveServer>> StartLoopbackServers(int count,
