@@ -13,11 +13,11 @@
 #include <string>
 
 #include "absl/strings/match.h"
-
 #include "mpm_client/case.h"
 #include "mpm_client/output.h"
 #include "mpm_client/templates.h"
 #include "mpm_client/two_phase.h"
+#include "rve_server/common/status_macros.h"
 #include "rve_server/engine/element_test.h"
 #include "rve_server/service/server.h"
 #include "store/results.h"
@@ -235,6 +235,23 @@ CaseSpec ShortCase(int steps, double* dt_out = nullptr) {
   return spec;
 }
 
+// The end state of `spec` run in FreshDir(name) to `stop_after` steps (a
+// checkpoint there), then resumed from that checkpoint to the end.
+absl::StatusOr<store::SimCheckpoint> StopAndResume(const CaseSpec& spec, const std::string& name,
+                                                   std::int64_t stop_after) {
+  SimulationOptions o = Options(FreshDir(name));
+  o.stop_after_steps = stop_after;
+  {
+    ASSIGN_OR_RETURN(std::unique_ptr<Simulation> b, Simulation::Start(spec, o));
+    RETURN_IF_ERROR(b->StepToEnd().status());
+  }
+  o.stop_after_steps = 0;
+  ASSIGN_OR_RETURN(std::unique_ptr<Simulation> c,
+                   Simulation::Resume(o.out_dir + "/checkpoint.h5", o));
+  RETURN_IF_ERROR(c->StepToEnd().status());
+  return c->Snapshot();
+}
+
 TEST(SimulationTest, ResumeFromCheckpointIsBitIdentical) {
   const CaseSpec spec = ShortCase(40);
   // Uninterrupted.
@@ -423,20 +440,8 @@ TEST(SimulationTest, UpdatedTimeStepFollowsTheRvesAndResumesBitIdentically) {
   EXPECT_GT(*hi / *lo, 1.01) << "the step never changed";
   EXPECT_LT(*hi / *lo, 2.0);
 
-  const std::string out_b = FreshDir("update_b");
-  SimulationOptions ob = Options(out_b);
-  ob.stop_after_steps = 25;
-  {
-    std::unique_ptr<Simulation> b = StartOrDie(spec, ob);
-    ASSERT_NE(b, nullptr);
-    ASSERT_TRUE(b->StepToEnd().ok());
-  }
-  ob.stop_after_steps = 0;
-  absl::StatusOr<std::unique_ptr<Simulation>> c = Simulation::Resume(out_b + "/checkpoint.h5", ob);
-  ASSERT_TRUE(c.ok()) << c.status();
-  ASSERT_TRUE((*c)->StepToEnd().ok());
   absl::StatusOr<store::SimCheckpoint> end_a = a->Snapshot();
-  absl::StatusOr<store::SimCheckpoint> end_c = (*c)->Snapshot();
+  absl::StatusOr<store::SimCheckpoint> end_c = StopAndResume(spec, "update_b", 25);
   ASSERT_TRUE(end_a.ok() && end_c.ok());
   ExpectSameSnapshots(*end_a, *end_c);
 }
@@ -678,19 +683,7 @@ TEST(SimulationTest, SaturatedResumeAndRemoteAreBitIdentical) {
   ASSERT_TRUE(end_a.ok()) << end_a.status();
   ASSERT_TRUE(end_a->doubles.contains("pore_pressure"));
 
-  const std::string out_b = FreshDir("sat_b");
-  SimulationOptions ob = Options(out_b);
-  ob.stop_after_steps = 15;
-  {
-    std::unique_ptr<Simulation> b = StartOrDie(spec, ob);
-    ASSERT_NE(b, nullptr);
-    ASSERT_TRUE(b->StepToEnd().ok());
-  }
-  ob.stop_after_steps = 0;
-  absl::StatusOr<std::unique_ptr<Simulation>> c = Simulation::Resume(out_b + "/checkpoint.h5", ob);
-  ASSERT_TRUE(c.ok()) << c.status();
-  ASSERT_TRUE((*c)->StepToEnd().ok());
-  absl::StatusOr<store::SimCheckpoint> end_c = (*c)->Snapshot();
+  absl::StatusOr<store::SimCheckpoint> end_c = StopAndResume(spec, "sat_b", 15);
   ASSERT_TRUE(end_c.ok()) << end_c.status();
   ExpectSameSnapshots(*end_a, *end_c);
 
