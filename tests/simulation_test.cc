@@ -464,29 +464,37 @@ std::vector<std::unique_ptr<service::RveServer>> StartLoopbackServers(int count,
   return servers;
 }
 
+// The same with a time step updated from the RVEs' tangents every 5 steps:
+// the servers' tangents give the embedded one's steps.
 TEST(SimulationTest, TwoServersOnLoopbackGiveTheSameResultAsOneEmbedded) {
   setenv("GRPC_CLIENT_CHANNEL_BACKUP_POLL_INTERVAL_MS", "50", 1);
-  const CaseSpec spec = ShortCase(20);
-  std::unique_ptr<Simulation> embedded = StartOrDie(spec, Options(FreshDir("one")));
-  ASSERT_NE(embedded, nullptr);
-  ASSERT_TRUE(embedded->StepToEnd().ok());
-  absl::StatusOr<store::SimCheckpoint> one = embedded->Snapshot();
-  ASSERT_TRUE(one.ok()) << one.status();
+  CaseSpec updated = ShortCase(20);
+  updated.solver.time_step = 0;
+  updated.solver.time_step_update_every = 5;
+  updated.solver.end_time = 20 * 4e-3;
+  for (const CaseSpec& spec : {ShortCase(20), updated}) {
+    SCOPED_TRACE(spec.solver.time_step_update_every);
+    std::unique_ptr<Simulation> embedded = StartOrDie(spec, Options(FreshDir("one")));
+    ASSERT_NE(embedded, nullptr);
+    ASSERT_TRUE(embedded->StepToEnd().ok());
+    absl::StatusOr<store::SimCheckpoint> one = embedded->Snapshot();
+    ASSERT_TRUE(one.ok()) << one.status();
 
-  SimulationOptions o = Options(FreshDir("two"));
-  std::vector<std::unique_ptr<service::RveServer>> servers = StartLoopbackServers(2, o);
-  ASSERT_EQ(servers.size(), 2u);
-  {
-    std::unique_ptr<Simulation> remote = StartOrDie(spec, o);
-    ASSERT_NE(remote, nullptr);
-    ASSERT_TRUE(remote->StepToEnd().ok());
-    // Both servers did work.
-    for (auto& s : servers) EXPECT_GT(s->registry().Stats().num_rves, 0);
-    absl::StatusOr<store::SimCheckpoint> two = remote->Snapshot();
-    ASSERT_TRUE(two.ok()) << two.status();
-    ExpectSameSnapshots(*one, *two);
+    SimulationOptions o = Options(FreshDir("two"));
+    std::vector<std::unique_ptr<service::RveServer>> servers = StartLoopbackServers(2, o);
+    ASSERT_EQ(servers.size(), 2u);
+    {
+      std::unique_ptr<Simulation> remote = StartOrDie(spec, o);
+      ASSERT_NE(remote, nullptr);
+      ASSERT_TRUE(remote->StepToEnd().ok());
+      // Both servers did work.
+      for (auto& s : servers) EXPECT_GT(s->registry().Stats().num_rves, 0);
+      absl::StatusOr<store::SimCheckpoint> two = remote->Snapshot();
+      ASSERT_TRUE(two.ok()) << two.status();
+      ExpectSameSnapshots(*one, *two);
+    }
+    for (auto& s : servers) EXPECT_TRUE(s->Stop(std::chrono::seconds(1)).ok());
   }
-  for (auto& s : servers) EXPECT_TRUE(s->Stop(std::chrono::seconds(1)).ok());
 }
 
 // Saturated (liang-zhao-wu-soga-2023 §4.1): consolidation-1d-ci, the column
