@@ -6,8 +6,8 @@ another, and the kinetic energy (log scale) against the same x, for each run.
       --x=COLUMN[*SCALE] --y=COLUMN[*SCALE] [--xlabel=...] [--ylabel=...] \\
       [--xmin=X] [--xmax=X] [--title=...] [--out=time-step.png]
 
-A column may carry a scale factor: --x=pipe_dy*-1 --y=pipe_fy*-0.001 draws the pipe's
-penetration (m) against its vertical force (kN per m). Typical uses: a run resumed from a
+A column may carry a scale factor: --x=pipe_dy*-1 --y=pipe_fy*0.001 draws the pipe's
+penetration (m) against the soil's upward force on it (kN per m). Typical uses: a run resumed from a
 checkpoint with `mpm_client resume --cfl=...` beside the run it came from (its timeseries.csv
 then starts at the checkpoint), or two full runs at CFL 0.5 and 0.25. Prints, for each run, the
 largest kinetic energy and the row where it occurs within the x range.

@@ -65,7 +65,8 @@ struct SolverSpec {
   double time_step = 0.0;  // s; 0: from the CFL number and the P-wave speed
   double cfl = 0.5;        // Δt = cfl·h/c, c = sqrt(M/ρ), when time_step is 0
   // P-wave modulus M = K + 4G/3 for the CFL time step, Pa; 0: from the RVEs'
-  // contact tangent at the start (largest D_yyyy over the points).
+  // contact tangent at the start (the largest TangentWaveModulus over the
+  // points).
   double wave_modulus = 0.0;
   // MPM steps between updates of the CFL step; 0: Δt fixed at the start.
   // Every N steps Δt = cfl·h/max_p (c_p + |v_p|), c_p = sqrt(M_p/(s·ρ_p)) from

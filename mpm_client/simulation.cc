@@ -622,7 +622,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
     if (modulus <= 0) {
       ASSIGN_OR_RETURN(std::vector<dem::RveState> tangent, sim->pool_->Get(/*want_tangent=*/true));
       for (const dem::RveState& s : tangent) {
-        if (s.tangent) modulus = std::max({modulus, (*s.tangent)(0, 0), (*s.tangent)(4, 4)});
+        if (s.tangent) modulus = std::max(modulus, TangentWaveModulus(*s.tangent));
       }
     }
     double rho = *std::min_element(density.begin(), density.end());
@@ -924,8 +924,7 @@ absl::Status Simulation::UpdateTimeStep() {
   double speed = 0.0;  // m/s
   for (std::size_t p = 0; p < mp.size() && p < states.size(); ++p) {
     if ((p < lost.size() && lost[p]) || !states[p].tangent) continue;
-    const Eigen::Matrix<double, 9, 9>& d = *states[p].tangent;
-    const double modulus = std::max(d(0, 0), d(4, 4));  // Pa
+    const double modulus = TangentWaveModulus(*states[p].tangent);  // Pa
     const double density = spec_.solver.mass_scale * mp.mass[p] / mp.volume[p];
     if (!(modulus > 0) || !(density > 0)) continue;
     speed = std::max(speed, WaveSpeed(modulus, density) + mp.velocity[p].norm());
@@ -947,9 +946,10 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
   std::int64_t total_steps = 0;
   auto count_steps = [&]() -> absl::Status {
     const double dt = solver_->dt();
-    const double done = update_every > 0 ? static_cast<double>(solver_->step()) : 0.0;
     const double steps_needed =
-        done + std::ceil((update_every > 0 ? end - solver_->time() : end) / dt - 1e-9);
+        update_every > 0
+            ? static_cast<double>(solver_->step()) + std::ceil((end - solver_->time()) / dt - 1e-9)
+            : std::ceil(end / dt - 1e-9);
     // Bounded before the cast: a step count beyond int64 was undefined (and
     // ended runs at step 0); beyond kMaxSteps a run would not end in a lifetime.
     if (!(steps_needed <= static_cast<double>(kMaxSteps))) {

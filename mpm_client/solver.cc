@@ -134,6 +134,10 @@ void MaterialPoints::Resize(std::size_t n) {
 
 double WaveSpeed(double wave_modulus, double density) { return std::sqrt(wave_modulus / density); }
 
+double TangentWaveModulus(const Eigen::Matrix<double, 9, 9>& tangent) {
+  return std::max(tangent(0, 0), tangent(4, 4));
+}
+
 double CflTimeStep(double cfl, double cell_size, double wave_modulus, double density) {
   return cfl * cell_size / WaveSpeed(wave_modulus, density);
 }

@@ -99,6 +99,10 @@ absl::StatusOr<MaterialPoints> FillRegions(const CaseSpec& spec,
 // c = sqrt(M/ρ), the P-wave speed of a material of P-wave modulus M (Pa) and
 // density ρ (kg/m³): m/s.
 double WaveSpeed(double wave_modulus, double density);
+// The P-wave modulus an RVE's 9×9 contact tangent D[3i+j][3k+l] (Pa) gives
+// for the CFL step: its larger in-plane normal component, max(D_xxxx, D_yyyy),
+// Pa (an upper bound of the relaxed modulus: the contacts' own stiffness).
+double TangentWaveModulus(const Eigen::Matrix<double, 9, 9>& tangent);
 // Δt = cfl·h/c with c = WaveSpeed(M, ρ): s.
 double CflTimeStep(double cfl, double cell_size, double wave_modulus, double density);
 
