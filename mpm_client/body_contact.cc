@@ -127,6 +127,35 @@ int ResolveContacts(std::span<const SurfaceContact> contacts, std::span<const Ri
   return sweep;
 }
 
+double CornerOverhang(const RigidBody& body, const Vector2d& center,
+                      std::span<const Vector2d> position, std::span<const Vector2d> half_size,
+                      const Vector2d& origin, double h) {
+  if (body.shape != RigidBody::Shape::kRectangle) return 0.0;
+  const Vector2d lower = center - body.half_size, upper = center + body.half_size;
+  // Rounding of positions must neither flag a corner on a node line nor
+  // miss a box that ends at one.
+  const double tol = 1e-9 * h;
+  double overhang = 0.0;
+  for (std::size_t p = 0; p < position.size(); ++p) {
+    const Vector2d lo = position[p] - half_size[p], hi = position[p] + half_size[p];
+    for (int a = 0; a < 2; ++a) {
+      const int b = 1 - a;  // along the face
+      // Does the box face the body's face normal to a, within one cell?
+      const bool below = hi[a] <= lower[a] + tol && hi[a] >= lower[a] - h;
+      const bool above = lo[a] >= upper[a] - tol && lo[a] <= upper[a] + h;
+      if (!below && !above) continue;
+      for (const double end : {lower[b], upper[b]}) {
+        if (lo[b] > end + tol || hi[b] < end - tol) continue;  // no soil at this corner
+        const double cells = (end - origin[b]) / h;
+        const double line =
+            origin[b] + h * (end == upper[b] ? std::ceil(cells - 1e-9) : std::floor(cells + 1e-9));
+        if (std::abs(line - end) > tol) overhang = std::max(overhang, std::abs(line - end));
+      }
+    }
+  }
+  return overhang;
+}
+
 double BodyShareOfNode(const RigidBody& body, const Vector2d& center, const Vector2d& node,
                        double h, const Vector2d& lower, const Vector2d& upper) {
   constexpr double kInfinity = std::numeric_limits<double>::infinity();

@@ -45,6 +45,20 @@ struct BodyGap {
 BodyGap GapToBody(const RigidBody& body, const Eigen::Vector2d& center, const Eigen::Vector2d& x,
                   const Eigen::Vector2d& half_size);
 
+// How far past a rectangle body's corners the contact may push the soil,
+// m: where soil faces one of the body's faces within a cell h (m) of it at
+// a corner (a point's box, position ± half_size, reaches that corner), the
+// distance from the corner to the next node line beyond it, on a grid of
+// cells h from `origin`. The grid moves a cell as a whole: a footing whose
+// edge crosses a cell drags the soil on that cell's far side down with it
+// (1 point per cell: the point under the edge is pushed over its whole
+// width, h/2 beyond a mid-cell edge). 0 when every such corner is on a node
+// line, and for circles.
+double CornerOverhang(const RigidBody& body, const Eigen::Vector2d& center,
+                      std::span<const Eigen::Vector2d> position,
+                      std::span<const Eigen::Vector2d> half_size, const Eigen::Vector2d& origin,
+                      double h);
+
 // The share of a grid node's volume that `body` (centred at `center`)
 // fills, [-]: ∫ N(x) χ_body(x) dA / h² over the part of the node's support
 // inside the grid [lower, upper] (m), N the bilinear hat of the node at

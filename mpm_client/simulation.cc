@@ -17,6 +17,7 @@
 #include "absl/synchronization/mutex.h"
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
+#include "mpm_client/body_contact.h"
 #include "mpm_client/case.h"
 #include "mpm_client/output.h"
 #include "mpm_client/shape.h"
@@ -117,6 +118,20 @@ void Simulation::SetApplyOptions() {
   dem::ApplyOptions apply;
   if (spec_.rve.real_time) apply.duration = solver_->dt();
   pool_->set_apply_options(apply);
+}
+
+void Simulation::LogCornerOverhangs() const {
+  const MaterialPoints& mp = solver_->points();
+  for (const RigidBody& body : spec_.bodies) {
+    const double overhang = CornerOverhang(body, body.center, mp.position, mp.half_size0,
+                                           spec_.grid.origin, spec_.grid.cell_size);
+    if (overhang <= 0) continue;
+    Log(absl::StrFormat(
+        "note: body %s has a corner inside a grid cell, %.4g m from the node line beyond it: "
+        "the contact pushes the soil of that cell with the body, over a strip up to that much "
+        "wider than the body (edges on node lines avoid it)",
+        body.name, overhang));
+  }
 }
 
 void Simulation::Log(const std::string& line) const {
@@ -641,6 +656,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver,
                    Solver::Create(spec, std::move(points), sim->model_.get(), dt));
   sim->solver_ = std::move(solver);
+  sim->LogCornerOverhangs();
   sim->SetApplyOptions();
   RETURN_IF_ERROR(sim->OpenOutputs(/*resume=*/false));
   return sim;

@@ -753,6 +753,54 @@ TEST(BodyContactTest, GapsToRectanglesAndCircles) {
   EXPECT_TRUE(g.normal.isApprox(Vector2d(0.6, 0.8)));
 }
 
+// A footing resting on a layer of points: an edge through the middle of a
+// cell lets the contact push that cell's soil half a cell beyond it,
+// whatever the points per cell; an edge on a node line, nothing beyond.
+TEST(BodyContactTest, CornerOverhangOfAFootingEdgeInsideACell) {
+  // Two rows of cells of h = 0.2 m, surface at y = 0.4 m.
+  constexpr double h = 0.2;
+  auto layer = [](int per_cell, std::vector<Vector2d>& x, std::vector<Vector2d>& lp) {
+    x.clear();
+    lp.clear();
+    const double s = h / per_cell;
+    for (int i = 0; i < 5 * per_cell; ++i) {
+      for (int j = 0; j < 2 * per_cell; ++j) {
+        x.emplace_back((i + 0.5) * s, (j + 0.5) * s);
+        lp.emplace_back(0.5 * s, 0.5 * s);
+      }
+    }
+  };
+  std::vector<Vector2d> x, lp;
+  const Vector2d origin = Vector2d::Zero();
+  RigidBody footing;  // x in [0, 2w], bottom at `bottom`
+  auto overhang = [&](double w, double bottom) {
+    footing.half_size = Vector2d(w, 0.5);
+    return CornerOverhang(footing, Vector2d(w, bottom + 0.5), x, lp, origin, h);
+  };
+  layer(1, x, lp);
+  EXPECT_NEAR(overhang(0.25, 0.4), 0.1, 1e-12);   // edge at 0.5, in the cell 0.4-0.6
+  EXPECT_EQ(overhang(0.2, 0.4), 0.0);             // edge at 0.4, a node line
+  EXPECT_NEAR(overhang(0.23, 0.4), 0.14, 1e-12);  // edge at 0.46
+  EXPECT_EQ(overhang(0.25, 0.7), 0.0);            // more than a cell above the surface
+  layer(2, x, lp);
+  // Between two points' boxes, but inside a cell the grid moves as one.
+  EXPECT_NEAR(overhang(0.25, 0.4), 0.1, 1e-12);
+  EXPECT_EQ(overhang(0.3, 0.4), 0.0);
+  // A wall pushed sideways into the layer's end at x = 1 m: its bottom
+  // corner at y = 0.25 m is inside the cells of the second row (0.2-0.4).
+  RigidBody wall;
+  wall.half_size = Vector2d(0.1, 0.5);
+  EXPECT_NEAR(CornerOverhang(wall, Vector2d(1.1, 0.75), x, lp, origin, h), 0.05, 1e-12);
+  // A platen wider than the layer: no soil at its corners.
+  RigidBody platen;
+  platen.half_size = Vector2d(0.7, 0.1);
+  EXPECT_EQ(CornerOverhang(platen, Vector2d(0.45, 0.5), x, lp, origin, h), 0.0);
+  RigidBody pipe;
+  pipe.shape = RigidBody::Shape::kCircle;
+  pipe.radius = 0.25;
+  EXPECT_EQ(CornerOverhang(pipe, Vector2d(0.5, 0.65), x, lp, origin, h), 0.0);
+}
+
 // The share of a node's hat a body fills (the saturated free-surface test):
 // ½ on a flat face through the node, ¼ at a corner, the in-grid part of
 // the hat inside; a circle by quadrature, exact away from its rim.
