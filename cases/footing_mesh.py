@@ -1,0 +1,168 @@
+#!/usr/bin/env python3
+"""Mesh study of the strip footing: N_q against the cell size, the points per cell and where the
+footing's edge falls.
+
+  /usr/bin/python3 cases/footing_mesh.py cases --out=DIR [--base=cases/footing-coarse.json]
+      [--cells-per-m=4,5,6,8,9,10,12] [--points-per-cell-side=1] [--depth=0.125]
+  /usr/bin/python3 cases/footing_mesh.py plot RUN_DIR [RUN_DIR ...] --out=footing-mesh.png
+
+`cases` writes the base case on square cells of 1/n m for each n (the grid keeps 1.2 m of empty
+rows above the surface), pushed to --depth, and prints the mpm_client commands that run them.
+`plot` reads finished runs (run.json, summary.json, timeseries.csv) and draws q/q_s against the
+settlement and N_q (the case's ultimate-load rule) against h/(B/2), with Prandtl's value, and prints a
+table. A run is marked by where the footing's edge falls: on a node line; inside a cell, between
+two points' boxes (more than 1 point per cell); or through a column of points. Inside a cell the
+contact pushes that cell's soil with the footing, so the load acts on a wider strip
+(mpm_client notes such a corner at set-up; cases/README.md, "The footing's N_q").
+
+The softening RVE (phi' 31.7 deg at the peak, about 20.5 at large strain: friction_angle.py)
+has no internal length, so N_q need not converge as h falls. Needs numpy and matplotlib
+(Debian's python3-numpy, python3-matplotlib).
+"""
+import argparse
+import csv
+import json
+import math
+import os
+
+import matplotlib
+import numpy as np
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def variant(base, n, ppc, depth):
+    """The base case on square cells of 1/n m with ppc x ppc points, pushed to `depth` (m)."""
+    c = json.loads(json.dumps(base))
+    soil = c["regions"][0]
+    width, height = soil["upper"][0], soil["upper"][1]
+    c["name"] = f"{base['name']}-mesh-{n}" + (f"-ppc{ppc}" if ppc != 1 else "")
+    c["description"] = (f"{base['name']} on cells of 1/{n} m, {ppc} x {ppc} points per cell "
+                        f"(cases/footing_mesh.py), pushed to d = {depth} m")
+    c["grid"]["cell_size"] = 1.0 / n
+    c["grid"]["cells"] = [round(width * n), math.ceil((height + 1.2) * n)]
+    soil["points_per_cell_side"] = ppc
+    # The footing moves at v after a ramp of t_r: d = v (t - t_r / 2).
+    ramp, v = c["bodies"][0]["velocity"][1][0], -c["bodies"][0]["velocity"][1][2]
+    c["solver"]["end_time"] = round(depth / v + ramp / 2, 6)
+    c["expected_runtime_s"] = 0
+    c["output"].update(frame_every=1000000, checkpoint_every=0, progress_every=1000)
+    return c
+
+
+def write_cases(a):
+    with open(a.base) as f:
+        base = json.load(f)
+    os.makedirs(a.out, exist_ok=True)
+    for n in (int(s) for s in a.cells_per_m.split(",")):
+        c = variant(base, n, a.points_per_cell_side, a.depth)
+        path = os.path.join(a.out, c["name"] + ".json")
+        with open(path, "w") as f:
+            json.dump(c, f, indent=1)
+        print(f"{a.mpm_client} run {path} --out={os.path.join(a.out, c['name'])} "
+              f"--template-cache={os.path.join(a.out, 'templates')} --quiet")
+
+
+def edge_position(case):
+    """Where the first body's edge (+x side) falls: 'node line', 'between points' or
+    'through points', with h (m) and the points per cell side."""
+    h = case["grid"]["cell_size"]
+    ppc = case["regions"][0].get("points_per_cell_side", 1)
+    body = case["bodies"][0]
+    edge = (body["center"][0] + body["half_size"][0] - case["grid"]["origin"][0]) / h
+    # Point boxes are h/ppc wide and tile each cell from its node line.
+    k = edge * ppc
+    if abs(k - round(k)) > 1e-6:
+        return "through points", h, ppc
+    return ("node line" if abs(edge - round(edge)) < 1e-6 else "between points"), h, ppc
+
+
+def load_run(run_dir):
+    with open(os.path.join(run_dir, "run.json")) as f:
+        case = json.load(f)["case"]
+    with open(os.path.join(run_dir, "summary.json")) as f:
+        summary = json.load(f)
+    out = case["output"]
+    body = out.get("plot_body") or case["bodies"][0]["name"]
+    width = out["plot_width"] * case["solver"].get("thickness", 1.0)
+    with open(os.path.join(run_dir, "timeseries.csv")) as f:
+        rows = list(csv.DictReader(f))
+    d = np.array([-float(r[body + "_dy"]) for r in rows])
+    q = np.array([float(r[body + "_fy"]) for r in rows]) / width / summary["surcharge_Pa"]
+    soil = case["regions"][0]
+    where, h, ppc = edge_position(case)
+    return dict(dir=run_dir, name=case["name"], summary=summary, d=d, q=q, h=h, ppc=ppc,
+                edge=where, domain=f"{soil['upper'][0]:g} x {soil['upper'][1]:g} m",
+                half_width=case["bodies"][0]["half_size"][0] * 2)
+
+
+def plot(a):
+    runs = [load_run(r) for r in a.runs]
+    prandtl = runs[0]["summary"]["N_q_prandtl"]
+    print(f"{'run':<34} {'domain':>10} {'B/2 (m)':>8} {'h (m)':>7} {'ppc':>4} {'edge':>15} "
+          f"{'N_q':>6} {'d_ult (m)':>9} {'/Prandtl':>9}")
+    for r in runs:
+        s = r["summary"]
+        print(f"{r['name']:<34} {r['domain']:>10} {r['half_width']:8.3f} {r['h']:7.4f} "
+              f"{r['ppc']:4d} {r['edge']:>15} {s['N_q']:6.2f} "
+              f"{s['settlement_at_ultimate_m']:9.4f} {s['N_q'] / prandtl:9.3f}")
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 5.2))
+    colours = plt.cm.tab20(np.linspace(0, 1, 20))
+    style = {"node line": "o", "between points": "s", "through points": "x"}
+    for i, r in enumerate(runs):
+        s = r["summary"]
+        label = (f"{r['domain']}, B/2 {r['half_width']:.3g}, h {r['h']:.3g}, "
+                 f"ppc {r['ppc']}: edge {r['edge']}")
+        line, = ax1.plot(r["d"], r["q"], lw=0.8, ls="--" if r["edge"] == "through points" else "-",
+                         color=colours[i % 20], label=label)
+        ax1.plot(s["settlement_at_ultimate_m"], s["N_q"], "o", color=line.get_color())
+        ax2.plot(r["h"] / r["half_width"], s["N_q"], style[r["edge"]], color=line.get_color(), ms=8,
+                 mfc="none" if r["ppc"] > 1 else line.get_color())
+    ax1.axhline(prandtl, color="k", ls=":", lw=1,
+                label=f"Prandtl, phi' = {runs[0]['summary']['phi_deg']} deg")
+    ax1.set_xlabel("settlement d (m)")
+    ax1.set_ylabel("q / q_s")
+    ax1.set_xlim(0, max(r["d"].max() for r in runs))
+    ax1.legend(fontsize=6.5, loc="lower right")
+    ax1.set_title("footing: load-settlement (dots: ultimate load)")
+    ax2.axhline(prandtl, color="k", ls=":", lw=1, label="Prandtl")
+    ax2.axhspan(0.9 * prandtl, 1.1 * prandtl, color="0.92", label="Prandtl +/- 10 %")
+    for where, marker in style.items():
+        ax2.plot([], [], marker, color="0.3", label=f"edge {where}")
+    ax2.plot([], [], "o", color="0.3", mfc="none", label="2 x 2 points per cell")
+    ax2.set_xlabel("cell size / modelled footing width, h / (B/2)")
+    ax2.set_ylabel("N_q (ultimate load / surcharge)")
+    ax2.set_xlim(0, 1.1 * max(r["h"] / r["half_width"] for r in runs))
+    ax2.set_ylim(0, 1.15 * max(prandtl, max(r["summary"]["N_q"] for r in runs)))
+    ax2.legend(fontsize=7, loc="lower right")
+    ax2.set_title("N_q against the relative cell size (colours as on the left)")
+    fig.tight_layout()
+    fig.savefig(a.out, dpi=110)
+    print("wrote", a.out)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    sub = ap.add_subparsers(dest="command", required=True)
+    c = sub.add_parser("cases", help="write the case files")
+    c.add_argument("--out", required=True, help="directory")
+    c.add_argument("--base", default=os.path.join(HERE, "footing-coarse.json"))
+    c.add_argument("--cells-per-m", default="4,5,6,8,9,10,12")
+    c.add_argument("--points-per-cell-side", type=int, default=1)
+    c.add_argument("--depth", type=float, default=0.125, help="m")
+    c.add_argument("--mpm-client", default="build/mpm_client/mpm_client")
+    p = sub.add_parser("plot", help="draw finished runs")
+    p.add_argument("runs", nargs="+", metavar="RUN_DIR")
+    p.add_argument("--out", default="footing-mesh.png")
+    a = ap.parse_args()
+    if a.command == "cases":
+        write_cases(a)
+    else:
+        plot(a)
+
+
+if __name__ == "__main__":
+    main()
