@@ -66,12 +66,11 @@ def write_cases(a):
               f"--template-cache={os.path.join(a.out, 'templates')} --quiet")
 
 
-def edge_position(case):
-    """Where the first body's edge (+x side) falls: 'node line', 'between points' or
+def edge_position(case, body):
+    """Where the body's edge (+x side) falls: 'node line', 'between points' or
     'through points', with h (m) and the points per cell side."""
     h = case["grid"]["cell_size"]
     ppc = case["regions"][0].get("points_per_cell_side", 1)
-    body = case["bodies"][0]
     edge = (body["center"][0] + body["half_size"][0] - case["grid"]["origin"][0]) / h
     # Point boxes are h/ppc wide and tile each cell from its node line.
     k = edge * ppc
@@ -81,22 +80,28 @@ def edge_position(case):
 
 
 def load_run(run_dir):
+    for name in ("run.json", "summary.json", "timeseries.csv"):
+        if not os.path.isfile(os.path.join(run_dir, name)):
+            raise SystemExit(f"{run_dir}: no {name} (not a finished mpm_client run)")
     with open(os.path.join(run_dir, "run.json")) as f:
         case = json.load(f)["case"]
     with open(os.path.join(run_dir, "summary.json")) as f:
         summary = json.load(f)
+    if "N_q" not in summary:
+        raise SystemExit(f"{run_dir}: summary.json has no N_q (not a footing run?)")
     out = case["output"]
     body = out.get("plot_body") or case["bodies"][0]["name"]
+    spec = next(b for b in case["bodies"] if b["name"] == body)
     width = out["plot_width"] * case["solver"].get("thickness", 1.0)
     with open(os.path.join(run_dir, "timeseries.csv")) as f:
         rows = list(csv.DictReader(f))
     d = np.array([-float(r[body + "_dy"]) for r in rows])
     q = np.array([float(r[body + "_fy"]) for r in rows]) / width / summary["surcharge_Pa"]
     soil = case["regions"][0]
-    where, h, ppc = edge_position(case)
+    where, h, ppc = edge_position(case, spec)
     return dict(dir=run_dir, name=case["name"], summary=summary, d=d, q=q, h=h, ppc=ppc,
                 edge=where, domain=f"{soil['upper'][0]:g} x {soil['upper'][1]:g} m",
-                half_width=case["bodies"][0]["half_size"][0] * 2)
+                half_width=spec["half_size"][0] * 2)
 
 
 def plot(a):

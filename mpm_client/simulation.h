@@ -157,8 +157,8 @@ class Simulation {
   // Δt from the points' current wave speeds (SolverSpec::time_step_update_every).
   absl::Status UpdateTimeStep();
   void Log(const std::string& line) const;
-  // Says, at set-up, where a rectangle body's corners fall inside points'
-  // boxes (CornerOverhang): the load then acts on a wider strip than the body.
+  // Says, at set-up, where a rectangle body's corner lies inside a grid cell
+  // over soil (CornerOverhang): the load then acts on a wider strip than the body.
   void LogCornerOverhangs() const;
   // Logs each point the solver parked off the grid since the last call.
   void LogLostPoints();
