@@ -4,13 +4,16 @@ footing's edge falls.
 
   /usr/bin/python3 cases/footing_mesh.py cases --out=DIR [--base=cases/footing-coarse.json]
       [--cells-per-m=4,5,6,8,9,10,12] [--points-per-cell-side=1] [--depth=0.125]
+      [--seeds=1-9 --phi-deg=31.67,31.11,...]
   /usr/bin/python3 cases/footing_mesh.py plot RUN_DIR [RUN_DIR ...] --out=footing-mesh.png
 
 `cases` writes the base case on square cells of 1/n m for each n (the grid keeps 1.2 m of empty
 rows above the surface), pushed to --depth, and prints the mpm_client commands that run them.
 `plot` reads finished runs (run.json, summary.json, timeseries.csv) and draws q/q_s against the
 settlement and N_q (the case's ultimate-load rule) against h/(B/2), with Prandtl's value, and prints a
-table. A run is marked by where the footing's edge falls: on a node line; inside a cell, between
+table. With --seeds, `cases` writes each mesh once per packing seed, and --phi-deg gives each
+seed's phi' (friction_angle.py --seed=...) to its summary; `plot` then adds N_q against each
+run's phi' beside Prandtl's curve. A run is marked by where the footing's edge falls: on a node line; inside a cell, between
 two points' boxes (more than 1 point per cell); or through a column of points. Inside a cell the
 contact pushes that cell's soil with the footing, so the load acts on a wider strip
 (mpm_client notes such a corner at set-up; cases/README.md, "The footing's N_q").
@@ -28,20 +31,30 @@ import os
 import matplotlib
 import numpy as np
 
+from friction_angle import parse_seeds, prandtl_nq
+
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
-def variant(base, n, ppc, depth):
-    """The base case on square cells of 1/n m with ppc x ppc points, pushed to `depth` (m)."""
+def variant(base, n, ppc, depth, seed=None, phi_deg=None):
+    """The base case on square cells of 1/n m with ppc x ppc points, pushed to `depth` (m);
+    with `seed`, its template packed from that seed, and `phi_deg` (deg) for its summary."""
     c = json.loads(json.dumps(base))
     soil = c["regions"][0]
     width, height = soil["upper"][0], soil["upper"][1]
-    c["name"] = f"{base['name']}-mesh-{n}" + (f"-ppc{ppc}" if ppc != 1 else "")
+    c["name"] = (f"{base['name']}-mesh-{n}" + (f"-ppc{ppc}" if ppc != 1 else "")
+                 + (f"-seed{seed}" if seed is not None else ""))
     c["description"] = (f"{base['name']} on cells of 1/{n} m, {ppc} x {ppc} points per cell "
                         f"(cases/footing_mesh.py), pushed to d = {depth} m")
+    if seed is not None:
+        for t in c["templates"]:
+            t["seed"] = seed
+        c["description"] += f", packings of seed {seed}"
+    if phi_deg is not None:
+        c["output"]["phi_deg"] = phi_deg
     c["grid"]["cell_size"] = 1.0 / n
     c["grid"]["cells"] = [round(width * n), math.ceil((height + 1.2) * n)]
     soil["points_per_cell_side"] = ppc
@@ -56,14 +69,19 @@ def variant(base, n, ppc, depth):
 def write_cases(a):
     with open(a.base) as f:
         base = json.load(f)
+    seeds = parse_seeds(a.seeds) if a.seeds else [None]
+    phis = [float(x) for x in a.phi_deg.split(",")] if a.phi_deg else [None] * len(seeds)
+    if len(phis) != len(seeds):
+        raise SystemExit(f"--phi-deg gives {len(phis)} angles for {len(seeds)} seeds")
     os.makedirs(a.out, exist_ok=True)
     for n in (int(s) for s in a.cells_per_m.split(",")):
-        c = variant(base, n, a.points_per_cell_side, a.depth)
-        path = os.path.join(a.out, c["name"] + ".json")
-        with open(path, "w") as f:
-            json.dump(c, f, indent=1)
-        print(f"{a.mpm_client} run {path} --out={os.path.join(a.out, c['name'])} "
-              f"--template-cache={os.path.join(a.out, 'templates')} --quiet")
+        for seed, phi in zip(seeds, phis):
+            c = variant(base, n, a.points_per_cell_side, a.depth, seed, phi)
+            path = os.path.join(a.out, c["name"] + ".json")
+            with open(path, "w") as f:
+                json.dump(c, f, indent=1)
+            print(f"{a.mpm_client} run {path} --out={os.path.join(a.out, c['name'])} "
+                  f"--template-cache={os.path.join(a.out, 'templates')} --quiet")
 
 
 def edge_position(case, body):
@@ -89,6 +107,8 @@ def load_run(run_dir):
         summary = json.load(f)
     if "N_q" not in summary:
         raise SystemExit(f"{run_dir}: summary.json has no N_q (not a footing run?)")
+    if "N_q_prandtl" not in summary:
+        raise SystemExit(f"{run_dir}: summary.json has no N_q_prandtl (the case gives no phi_deg)")
     out = case["output"]
     body = out.get("plot_body") or case["bodies"][0]["name"]
     spec = next(b for b in case["bodies"] if b["name"] == body)
@@ -100,41 +120,66 @@ def load_run(run_dir):
     soil = case["regions"][0]
     where, h, ppc = edge_position(case, spec)
     return dict(dir=run_dir, name=case["name"], summary=summary, d=d, q=q, h=h, ppc=ppc,
+                seed=case["templates"][0].get("seed", 1), cfl=case["solver"]["cfl"],
                 edge=where, domain=f"{soil['upper'][0]:g} x {soil['upper'][1]:g} m",
                 half_width=spec["half_size"][0] * 2)
 
 
 def plot(a):
     runs = [load_run(r) for r in a.runs]
-    prandtl = runs[0]["summary"]["N_q_prandtl"]
-    print(f"{'run':<34} {'domain':>10} {'B/2 (m)':>8} {'h (m)':>7} {'ppc':>4} {'edge':>15} "
-          f"{'N_q':>6} {'d_ult (m)':>9} {'/Prandtl':>9}")
+    phis = sorted({r["summary"]["phi_deg"] for r in runs})
+    cfls = {r["cfl"] for r in runs}
+    print(f"{'run':<34} {'domain':>10} {'B/2 (m)':>8} {'h (m)':>7} {'ppc':>4} {'seed':>4} "
+          f"{'edge':>15} {'N_q':>6} {'d_ult (m)':>9} {'phi':>6} {'/Prandtl':>9}")
     for r in runs:
         s = r["summary"]
         print(f"{r['name']:<34} {r['domain']:>10} {r['half_width']:8.3f} {r['h']:7.4f} "
-              f"{r['ppc']:4d} {r['edge']:>15} {s['N_q']:6.2f} "
-              f"{s['settlement_at_ultimate_m']:9.4f} {s['N_q'] / prandtl:9.3f}")
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 5.2))
+              f"{r['ppc']:4d} {r['seed']:4d} {r['edge']:>15} {s['N_q']:6.2f} "
+              f"{s['settlement_at_ultimate_m']:9.4f} {s['phi_deg']:6.2f} "
+              f"{s['N_q'] / s['N_q_prandtl']:9.3f}")
+    # Runs on packings of other seeds carry their own phi' (footing_mesh.py cases --phi-deg):
+    # a third panel sets their N_q against Prandtl's curve.
+    fig, axes = plt.subplots(1, 2 if len(phis) == 1 else 3,
+                             figsize=(13, 5.2) if len(phis) == 1 else (19, 5.2))
+    ax1, ax2 = axes[0], axes[1]
     colours = plt.cm.tab20(np.linspace(0, 1, 20))
     style = {"node line": "o", "between points": "s", "through points": "x"}
     for i, r in enumerate(runs):
         s = r["summary"]
         label = (f"{r['domain']}, B/2 {r['half_width']:.3g}, h {r['h']:.3g}, "
-                 f"ppc {r['ppc']}: edge {r['edge']}")
+                 f"ppc {r['ppc']}: edge {r['edge']}"
+                 + (f", seed {r['seed']} (phi' {s['phi_deg']:g})" if len(phis) > 1 else "")
+                 + (f", CFL {r['cfl']:g}" if len(cfls) > 1 else ""))
         line, = ax1.plot(r["d"], r["q"], lw=0.8, ls="--" if r["edge"] == "through points" else "-",
                          color=colours[i % 20], label=label)
         ax1.plot(s["settlement_at_ultimate_m"], s["N_q"], "o", color=line.get_color())
         ax2.plot(r["h"] / r["half_width"], s["N_q"], style[r["edge"]], color=line.get_color(), ms=8,
                  mfc="none" if r["ppc"] > 1 else line.get_color())
-    ax1.axhline(prandtl, color="k", ls=":", lw=1,
-                label=f"Prandtl, phi' = {runs[0]['summary']['phi_deg']} deg")
+        if len(phis) > 1:
+            axes[2].plot(s["phi_deg"], s["N_q"], style[r["edge"]], color=line.get_color(), ms=8,
+                         mfc="none" if r["ppc"] > 1 else line.get_color())
+    prandtl = runs[0]["summary"]["N_q_prandtl"]
+    if len(phis) == 1:
+        ax1.axhline(prandtl, color="k", ls=":", lw=1, label=f"Prandtl, phi' = {phis[0]} deg")
+        ax2.axhline(prandtl, color="k", ls=":", lw=1, label="Prandtl")
+        ax2.axhspan(0.9 * prandtl, 1.1 * prandtl, color="0.92", label="Prandtl +/- 10 %")
+    else:
+        ax3 = axes[2]
+        phi = np.linspace(phis[0] - 1.5, phis[-1] + 1.0, 100)
+        nq = np.array([prandtl_nq(math.radians(x)) for x in phi])
+        ax3.plot(phi, nq, "k:", lw=1, label="Prandtl")
+        ax3.fill_between(phi, 0.9 * nq, 1.1 * nq, color="0.92", label="Prandtl +/- 10 %")
+        ax3.set_xlabel("the packing's peak phi' (deg, biaxial 10-30 kPa: friction_angle.py)")
+        ax3.set_ylabel("N_q")
+        ax3.set_xlim(phi[0], phi[-1])
+        ax3.set_ylim(0, 1.15 * max(nq.max(), max(r["summary"]["N_q"] for r in runs)))
+        ax3.legend(fontsize=7, loc="lower right")
+        ax3.set_title("N_q against each run's phi' (colours as on the left)")
     ax1.set_xlabel("settlement d (m)")
     ax1.set_ylabel("q / q_s")
     ax1.set_xlim(0, max(r["d"].max() for r in runs))
     ax1.legend(fontsize=6.5, loc="lower right")
     ax1.set_title("footing: load-settlement (dots: ultimate load)")
-    ax2.axhline(prandtl, color="k", ls=":", lw=1, label="Prandtl")
-    ax2.axhspan(0.9 * prandtl, 1.1 * prandtl, color="0.92", label="Prandtl +/- 10 %")
     for where, marker in style.items():
         ax2.plot([], [], marker, color="0.3", label=f"edge {where}")
     ax2.plot([], [], "o", color="0.3", mfc="none", label="2 x 2 points per cell")
@@ -158,6 +203,8 @@ def main():
     c.add_argument("--cells-per-m", default="4,5,6,8,9,10,12")
     c.add_argument("--points-per-cell-side", type=int, default=1)
     c.add_argument("--depth", type=float, default=0.125, help="m")
+    c.add_argument("--seeds", help="packing seeds, e.g. 1-9 (default: the base case's)")
+    c.add_argument("--phi-deg", help="each seed's phi', deg, comma-separated (friction_angle.py)")
     c.add_argument("--mpm-client", default="build/mpm_client/mpm_client")
     p = sub.add_parser("plot", help="draw finished runs")
     p.add_argument("runs", nargs="+", metavar="RUN_DIR")
