@@ -106,6 +106,9 @@ def main():
     ap.add_argument("--cs-from", type=float, default=0.15,
                     help="axial strain from which the stress ratio counts as critical state")
     a = ap.parse_args()
+    if a.cs_from >= a.strain:
+        ap.error(f"--cs-from={a.cs_from} must be below --strain={a.strain} (phi_cs is read "
+                 "from the rows beyond it)")
     os.makedirs(a.out, exist_ok=True)
     pressures = [float(x) for x in a.pressures.split(",")]
     results = {}
