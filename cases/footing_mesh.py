@@ -10,13 +10,14 @@ footing's edge falls.
 `cases` writes the base case on square cells of 1/n m for each n (the grid keeps 1.2 m of empty
 rows above the surface), pushed to --depth, and prints the mpm_client commands that run them.
 `plot` reads finished runs (run.json, summary.json, timeseries.csv) and draws q/q_s against the
-settlement and N_q (the case's ultimate-load rule) against h/(B/2), with Prandtl's value, and prints a
-table. With --seeds, `cases` writes each mesh once per packing seed, and --phi-deg gives each
+settlement and N_q (the case's ultimate-load rule) against h/(B/2), with Prandtl's value, and
+prints a table. With --seeds, `cases` writes each mesh once per packing seed, and --phi-deg gives each
 seed's phi' (friction_angle.py --seed=...) to its summary; `plot` then adds N_q against each
-run's phi' beside Prandtl's curve. A run is marked by where the footing's edge falls: on a node line; inside a cell, between
-two points' boxes (more than 1 point per cell); or through a column of points. Inside a cell the
-contact pushes that cell's soil with the footing, so the load acts on a wider strip
-(mpm_client notes such a corner at set-up; cases/README.md, "The footing's N_q").
+run's phi' beside Prandtl's curve. A run is marked by where the footing's edge falls: on a node
+line; inside a cell, between two points' boxes (more than 1 point per cell); or through a
+column of points. Inside a cell the contact pushes that cell's soil with the footing, so the
+load acts on a wider strip (mpm_client notes such a corner at set-up; cases/README.md, "The
+footing's N_q").
 
 The softening RVE (phi' 31.7 deg at the peak, about 20.5 at large strain: friction_angle.py)
 has no internal length, so N_q need not converge as h falls. Needs numpy and matplotlib
