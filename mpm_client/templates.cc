@@ -57,8 +57,8 @@ absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
   // The first progress line ("N discs, seed S") is the one worth a log line.
   bool announced = false;
   absl::StatusOr<dem::RveSnapshot> packing =
-      dem::PrepareTemplate(spec.parameter_set, spec.seed, spec.pressure, spec.void_ratio, &report,
-                           [&](const std::string& line) {
+      dem::PrepareTemplate(spec.parameter_set, spec.seed, spec.pressure, spec.void_ratio,
+                           /*num_particles=*/0, &report, [&](const std::string& line) {
                              if (log && !announced) log(absl::StrCat("  ", line));
                              announced = true;
                            });

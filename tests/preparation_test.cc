@@ -167,7 +167,8 @@ TEST(PreparationTest, ConsolidationSetReachesItsPorosity) {
 // it is refused before any work.
 TEST(PreparationTest, TemplatePackedToAnotherVoidRatio) {
   PreparationReport report;
-  absl::StatusOr<RveSnapshot> loose = PrepareTemplate("saturated-medium", 1, 20e3, 0.25, &report);
+  absl::StatusOr<RveSnapshot> loose =
+      PrepareTemplate("saturated-medium", 1, 20e3, 0.25, 0, &report);
   ASSERT_TRUE(loose.ok()) << loose.status();
   const RveState s = ObserveOf(*loose);
   std::printf("saturated-medium packed to e0 = 0.25 at 20 kPa: e0 = %.4f, Z = %.2f\n", s.void_ratio,
@@ -182,6 +183,23 @@ TEST(PreparationTest, TemplatePackedToAnotherVoidRatio) {
   }
 }
 
+// PrepareTemplate's particle count: a larger or smaller sample of the same
+// material (100 discs keep the test short), at the set's pressure within the
+// preparation's 1 %; a count outside [2, kMaxParticles] is refused before any
+// work.
+TEST(PreparationTest, TemplateWithAnotherParticleCount) {
+  PreparationReport report;
+  absl::StatusOr<RveSnapshot> small = PrepareTemplate("SET-dense", 1, 0, 0, 100, &report);
+  ASSERT_TRUE(small.ok()) << small.status();
+  EXPECT_EQ(small->radius.size(), 100u);
+  EXPECT_NEAR(Pressure(ObserveOf(*small)), 100e3, 0.01 * 100e3);
+  for (int n : {-5, 1, static_cast<int>(kMaxParticles) + 1}) {
+    EXPECT_EQ(PrepareTemplate("SET-dense", 1, 0, 0, n).status().code(),
+              absl::StatusCode::kInvalidArgument)
+        << n;
+  }
+}
+
 // PrepareTemplate's pressure: the set's e0 sought at that pressure. A
 // template compacted at 100 kPa and unloaded to 20 kPa swells instead
 // (saturated-medium seed 1: e 0.2329 → 0.2432, coordination 3.22 → 2.66),
@@ -189,7 +207,7 @@ TEST(PreparationTest, TemplatePackedToAnotherVoidRatio) {
 // preparation's 1 %, e0 within the steering's 0.01 (as SET-dense).
 TEST(PreparationTest, TemplateCompactedAtAGivenPressureKeepsItsVoidRatioThere) {
   PreparationReport report;
-  absl::StatusOr<RveSnapshot> low = PrepareTemplate("saturated-medium", 1, 20e3, 0, &report);
+  absl::StatusOr<RveSnapshot> low = PrepareTemplate("saturated-medium", 1, 20e3, 0, 0, &report);
   ASSERT_TRUE(low.ok()) << low.status();
   const RveState s = ObserveOf(*low);
   std::printf("saturated-medium at 20 kPa: e0 = %.4f, p = %.0f Pa, Z = %.2f\n", s.void_ratio,

@@ -63,6 +63,7 @@ ABSL_FLAG(std::string, material, "", "parameter set");
 ABSL_FLAG(uint64_t, seed, 1, "packing seed");
 ABSL_FLAG(double, pressure, 0, "preparation pressure, Pa");
 ABSL_FLAG(double, void_ratio, 0, "target void ratio of the preparation");
+ABSL_FLAG(int, particles, 0, "particle count of the preparation");
 ABSL_FLAG(double, confining, 0, "confining stress, Pa");
 ABSL_FLAG(double, strain, 0, "strain to stop at");
 ABSL_FLAG(std::string, out, "", "output file");
@@ -133,8 +134,8 @@ Server options:
 
 constexpr char kElementTestHelp[] = R"(rve_cli element-test — run an element test on one RVE
 
-  rve_cli element-test --test=NAME [--material=NAME --seed=N --pressure=PA --void-ratio=E]
-                       --out=FILE.csv [options]
+  rve_cli element-test --test=NAME [--material=NAME --seed=N --pressure=PA --void-ratio=E
+                       --particles=N] --out=FILE.csv [options]
   rve_cli element-test --server=HOST:PORT --template=NAME --test=NAME --out=FILE.csv [options]
 
 Locally, prepares the packing of --material/--seed and runs the test in this
@@ -152,6 +153,8 @@ Options:
                      p0); --confining then loads or unloads it from there
   --void-ratio=E     target void ratio of the packing at --pressure, in (0, 1) (local only;
                      default the set's e0)
+  --particles=N      discs in the packing, in [2, 1e6] (local only; default the set's, e.g.
+                     400): a larger sample of the same material
   --template=NAME    the server's template to test (with --server)
   --confining=PA     consolidation / lateral stress in Pa, compression + (default 100000)
   --strain=MAX       axial strain (biaxial, oedometer), volumetric strain (isotropic) or
@@ -171,7 +174,7 @@ constexpr char kPrepareHelp[] =
     R"(rve_cli prepare — prepare an RVE packing and print its initial state
 
   rve_cli prepare [--material=NAME] [--seed=N] [--pressure=PA] [--void-ratio=E]
-                  [--out=FILE.h5 [--name=NAME]]
+                  [--particles=N] [--out=FILE.h5 [--name=NAME]]
 
 Options:
   --material=NAME    parameter set (default SET-dense; see `rve_cli materials`)
@@ -181,6 +184,7 @@ Options:
   --void-ratio=E     target void ratio in (0, 1) instead of the set's e0 (the same material
                      packed denser or looser; the compaction friction, between 0 and the
                      material's, bounds what can be reached: the e0 reached is printed)
+  --particles=N      discs in the packing, in [2, 1e6] (default the set's count)
   --out=FILE.h5      also write the packing as a template file (for upload-template)
   --name=NAME        template name, [A-Za-z0-9._-]{1,128} (default MATERIAL-seedN)
 )";
@@ -455,10 +459,16 @@ absl::StatusOr<dem::RveSnapshot> PreparePacking(const Flags& flags, std::string*
   if (flags.contains("void-ratio") && !(void_ratio > 0 && void_ratio < 1)) {
     return UsageError("--void-ratio must lie in (0, 1)");
   }
+  int particles = 0;  // 0: the set's count
+  RETURN_IF_ERROR(Get(flags, "particles", &particles));
+  if (flags.contains("particles") &&
+      !(particles >= 2 && static_cast<std::size_t>(particles) <= dem::kMaxParticles)) {
+    return UsageError("--particles must lie in [2, 1000000]");
+  }
   std::fprintf(stderr, "preparing %s...\n", material->c_str());
   // Its first line is "N discs, seed S".
   ASSIGN_OR_RETURN(dem::RveSnapshot packing,
-                   dem::PrepareTemplate(*material, *seed, pressure, void_ratio, report,
+                   dem::PrepareTemplate(*material, *seed, pressure, void_ratio, particles, report,
                                         [](const std::string& line) {
                                           std::fprintf(stderr, "  %s\n", line.c_str());
                                         }));
@@ -515,10 +525,10 @@ absl::Status ElementTestCommand(const Flags& flags) {
     // The template fixes the packing: a material or seed here would be
     // silently ignored, which is worse than refusing it.
     if (flags.contains("material") || flags.contains("seed") || flags.contains("pressure") ||
-        flags.contains("void-ratio")) {
+        flags.contains("void-ratio") || flags.contains("particles")) {
       return UsageError(
-          "--material/--seed/--pressure/--void-ratio do not apply with --server (the template "
-          "fixes the packing)");
+          "--material/--seed/--pressure/--void-ratio/--particles do not apply with --server (the "
+          "template fixes the packing)");
     }
     if (template_name.empty()) return UsageError("--template=NAME is required with --server");
     title = absl::StrCat(test, " on ", template_name);
@@ -903,13 +913,14 @@ const std::vector<Command>& Commands() {
       {"element-test",
        kElementTestHelp,
        true,
-       {"test", "material", "seed", "pressure", "void-ratio", "confining", "strain", "out", "plot",
-        "rows", "inertial-number", "cyclic-control", "amplitude", "cycles", "template"},
+       {"test", "material", "seed", "pressure", "void-ratio", "particles", "confining", "strain",
+        "out", "plot", "rows", "inertial-number", "cyclic-control", "amplitude", "cycles",
+        "template"},
        &ElementTestCommand},
       {"prepare",
        kPrepareHelp,
        false,
-       {"material", "seed", "pressure", "void-ratio", "out", "name"},
+       {"material", "seed", "pressure", "void-ratio", "particles", "out", "name"},
        &PrepareCommand},
       {"materials", kMaterialsHelp, false, {}, &MaterialsCommand},
       {"info", kInfoHelp, true, {}, &InfoCommand},

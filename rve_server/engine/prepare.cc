@@ -215,7 +215,8 @@ absl::StatusOr<RveSnapshot> PreparePacking(
 
 absl::StatusOr<RveSnapshot> PrepareTemplate(
     absl::string_view parameter_set, std::uint64_t seed, double pressure, double void_ratio,
-    PreparationReport* report, const std::function<void(const std::string&)>& progress) {
+    int num_particles, PreparationReport* report,
+    const std::function<void(const std::string&)>& progress) {
   ASSIGN_OR_RETURN(ParameterSet set, FindParameterSet(parameter_set));
   set.preparation.seed = seed;
   if (pressure != 0) {
@@ -232,6 +233,13 @@ absl::StatusOr<RveSnapshot> PrepareTemplate(
           absl::StrCat("target void ratio ", void_ratio, " must lie in (0, 1)"));
     }
     set.preparation.target_void_ratio = void_ratio;
+  }
+  if (num_particles != 0) {
+    if (!(num_particles >= 2 && static_cast<std::size_t>(num_particles) <= kMaxParticles)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("particle count ", num_particles, " must lie in [2, ", kMaxParticles, "]"));
+    }
+    set.preparation.num_particles = num_particles;
   }
   if (progress) {
     progress(absl::StrFormat("%d discs, seed %d", set.preparation.num_particles, seed));

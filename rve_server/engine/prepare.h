@@ -72,13 +72,16 @@ absl::StatusOr<RveSnapshot> PreparePacking(
 // contacts. Where `void_ratio` > 0 it replaces the set's target e0: the
 // same material packed denser or looser (the compaction friction between 0
 // and the material's bounds what can be reached; the report gives the e0
-// reached). NotFound naming the known sets for an unknown name,
-// InvalidArgument for a pressure outside (0, kMaxPressure] or a void ratio
-// outside (0, 1). `progress`, when set, first receives "N discs, seed S",
+// reached). Where `num_particles` > 0 it replaces the set's count: a larger
+// (or smaller) sample of the same material, e.g. to see how much of an
+// element test's result is the sample's size. NotFound naming the known sets
+// for an unknown name, InvalidArgument for a pressure outside
+// (0, kMaxPressure], a void ratio outside (0, 1) or a count outside
+// [2, kMaxParticles]. `progress`, when set, first receives "N discs, seed S",
 // then PreparePacking's lines.
 absl::StatusOr<RveSnapshot> PrepareTemplate(
     absl::string_view parameter_set, std::uint64_t seed, double pressure = 0, double void_ratio = 0,
-    PreparationReport* report = nullptr,
+    int num_particles = 0, PreparationReport* report = nullptr,
     const std::function<void(const std::string&)>& progress = {});
 
 }  // namespace rvehub::dem
