@@ -388,6 +388,18 @@ std::unique_ptr<grpc::ClientContext> Ctx() {
   return ctx;
 }
 
+// rve_cli prepare --particles: the count printed and in the template's
+// default name, so that it is not taken for the set's own packing.
+TEST(CliTest, PrepareWithAnotherParticleCountNamesIt) {
+  const std::string file = TempPath("template-100discs.h5");
+  const Result r = RunCli(
+      absl::StrCat("prepare --material=SET-dense --seed=2 --particles=100 --out='", file, "'"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(absl::StrContains(r.output, "\nparticles 100\n")) << r.output;
+  EXPECT_TRUE(absl::StrContains(r.output, "template SET-dense-seed2-100discs\n")) << r.output;
+  std::filesystem::remove(file);
+}
+
 // rve_cli prepare --out (SET-dense, ~0.5 s) and upload-template; the name.
 std::string PrepareAndUpload(const Server& server, int seed) {
   const std::string file = TempPath(absl::StrCat("template", seed, ".h5"));

@@ -186,7 +186,8 @@ Options:
                      material's, bounds what can be reached: the e0 reached is printed)
   --particles=N      discs in the packing, in [2, 1e6] (default the set's count)
   --out=FILE.h5      also write the packing as a template file (for upload-template)
-  --name=NAME        template name, [A-Za-z0-9._-]{1,128} (default MATERIAL-seedN)
+  --name=NAME        template name, [A-Za-z0-9._-]{1,128} (default MATERIAL-seedN, with
+                     --particles MATERIAL-seedN-Mdiscs)
 )";
 
 constexpr char kMaterialsHelp[] = R"(rve_cli materials — the parameter sets and their parameters
@@ -586,9 +587,13 @@ absl::Status PrepareCommand(const Flags& flags) {
   if (out.empty()) return absl::OkStatus();
 
   store::TemplateRecord record;
-  record.name = name.empty() ? absl::StrCat(material, "-seed", seed) : name;
-  record.description = absl::StrFormat("material %s, seed %d, e0 = %.4f, p0 = %.1f Pa", material,
-                                       seed, report.void_ratio, report.pressure);
+  // Another count is another packing of the set: its default name says so.
+  const std::string count =
+      flags.contains("particles") ? absl::StrCat("-", rve.num_particles(), "discs") : "";
+  record.name = name.empty() ? absl::StrCat(material, "-seed", seed, count) : name;
+  record.description =
+      absl::StrFormat("material %s, seed %d, %d discs, e0 = %.4f, p0 = %.1f Pa", material, seed,
+                      rve.num_particles(), report.void_ratio, report.pressure);
   record.packing = std::move(packing);
   store::FileInfo info;
   info.created_by = CreatedBy();
