@@ -11,13 +11,13 @@ footing's edge falls.
 rows above the surface), pushed to --depth, and prints the mpm_client commands that run them.
 `plot` reads finished runs (run.json, summary.json, timeseries.csv) and draws q/q_s against the
 settlement and N_q (the case's ultimate-load rule) against h/(B/2), with Prandtl's value, and
-prints a table. With --seeds, `cases` writes each mesh once per packing seed, and --phi-deg gives each
-seed's phi' (friction_angle.py --seed=...) to its summary; `plot` then adds N_q against each
-run's phi' beside Prandtl's curve. A run is marked by where the footing's edge falls: on a node
-line; inside a cell, between two points' boxes (more than 1 point per cell); or through a
-column of points. Inside a cell the contact pushes that cell's soil with the footing, so the
-load acts on a wider strip (mpm_client notes such a corner at set-up; cases/README.md, "The
-footing's N_q").
+prints a table. With --seeds, `cases` writes each mesh once per packing seed, and --phi-deg
+gives each seed's phi' (friction_angle.py --seed=...) to its summary; `plot` then adds N_q
+against each run's phi' beside Prandtl's curve. A run is marked by where the footing's edge
+falls: on a node line; inside a cell, between two points' boxes (more than 1 point per cell);
+or through a column of points. Inside a cell the contact pushes that cell's soil with the
+footing, so the load acts on a wider strip (mpm_client notes such a corner at set-up;
+cases/README.md, "The footing's N_q").
 
 The softening RVE (phi' 31.7 deg at the peak, about 20.5 at large strain: friction_angle.py)
 has no internal length, so N_q need not converge as h falls. Needs numpy and matplotlib
@@ -70,7 +70,7 @@ def variant(base, n, ppc, depth, seed=None, phi_deg=None):
 def write_cases(a):
     with open(a.base) as f:
         base = json.load(f)
-    seeds = parse_seeds(a.seeds) if a.seeds else [None]
+    seeds = a.seeds or [None]
     phis = [float(x) for x in a.phi_deg.split(",")] if a.phi_deg else [None] * len(seeds)
     if len(phis) != len(seeds):
         raise SystemExit(f"--phi-deg gives {len(phis)} angles for {len(seeds)} seeds")
@@ -204,7 +204,8 @@ def main():
     c.add_argument("--cells-per-m", default="4,5,6,8,9,10,12")
     c.add_argument("--points-per-cell-side", type=int, default=1)
     c.add_argument("--depth", type=float, default=0.125, help="m")
-    c.add_argument("--seeds", help="packing seeds, e.g. 1-9 (default: the base case's)")
+    c.add_argument("--seeds", type=parse_seeds,
+                   help="packing seeds, e.g. 1-9 (default: the base case's)")
     c.add_argument("--phi-deg", help="each seed's phi', deg, comma-separated (friction_angle.py)")
     c.add_argument("--mpm-client", default="build/mpm_client/mpm_client")
     p = sub.add_parser("plot", help="draw finished runs")

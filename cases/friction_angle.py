@@ -57,11 +57,19 @@ def large_strain_ratio(path, from_strain):
 
 
 def parse_seeds(text):
-    """'3' -> [3]; '1-9' -> [1, ..., 9]; '1,4,7' -> [1, 4, 7]."""
+    """'3' -> [3]; '1-9' -> [1, ..., 9]; '1,4,7' -> [1, 4, 7]. An argparse type: a malformed
+    list or an empty range ('9-1') is a usage error naming it."""
     seeds = []
     for part in text.split(","):
         lo, _, hi = part.partition("-")
-        seeds.extend(range(int(lo), int(hi or lo) + 1))
+        try:
+            first, last = int(lo), int(hi or lo)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"'{part}' in '{text}' is not a seed or a range "
+                                             "of seeds (1, 1-9, 1,4,7)") from None
+        if first < 0 or last < first:
+            raise argparse.ArgumentTypeError(f"'{part}' in '{text}' is no range of seeds")
+        seeds.extend(range(first, last + 1))
     return seeds
 
 
@@ -71,14 +79,18 @@ def measure(a, seed, pressures):
     cs = []
     for p in pressures:
         path = os.path.join(a.out, f"{a.material}-seed{seed}-{p / 1e3:g}kPa.csv")
-        subprocess.run([a.rve_cli, "element-test", "--test=drained-biaxial",
+        test = subprocess.run([a.rve_cli, "element-test", "--test=drained-biaxial",
                         f"--material={a.material}", f"--seed={seed}", f"--confining={p}",
                         f"--strain={a.strain}", f"--inertial-number={a.inertial_number}",
                         *([f"--particles={a.particles}"] if a.particles else []),
                         # Rows every 0.02 % of strain, as the 8 % tests had: the peak is
                         # read off the rows.
-                        f"--rows={round(a.strain / 0.0002)}", f"--out={path}"], check=True,
-                       stderr=subprocess.DEVNULL)
+                        f"--rows={round(a.strain / 0.0002)}", f"--out={path}"],
+                       stderr=subprocess.PIPE, text=True)
+        if test.returncode != 0:
+            # rve_cli names what it refused (a bad --particles, an unknown material, ...).
+            raise SystemExit(f"rve_cli element-test failed (exit {test.returncode}) for seed "
+                             f"{seed} at {p:g} Pa:\n{test.stderr.strip()[-2000:]}")
         s1, s3 = peak_state(path, a.peak_within)
         radius, centre = (s1 - s3) / 2, (s1 + s3) / 2
         num += radius * centre
@@ -93,7 +105,7 @@ def measure(a, seed, pressures):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--material", default="footing-dense")
-    ap.add_argument("--seed", default="1",
+    ap.add_argument("--seed", default=[1], type=parse_seeds,
                     help="packing seed(s): 1, 1-9 or 1,4,7; with several, their spread")
     ap.add_argument("--rve-cli", default="build/rve_server/cli/rve_cli")
     ap.add_argument("--out", default="out/friction_angle")
@@ -117,7 +129,7 @@ def main():
     os.makedirs(a.out, exist_ok=True)
     pressures = [float(x) for x in a.pressures.split(",")]
     results = {}
-    for seed in parse_seeds(a.seed):
+    for seed in a.seed:
         phi, phi_cs = measure(a, seed, pressures)
         results[seed] = (math.degrees(phi), math.degrees(phi_cs))
         print(f"{a.material}, seed {seed}: phi' = {results[seed][0]:.2f} deg (least squares "
@@ -128,8 +140,9 @@ def main():
         # One 400-disc packing is a sample: its peak differs by a degree or more between
         # seeds, which moves Prandtl's N_q by a quarter.
         peaks = sorted(results.values())
+        seeds = ",".join(map(str, a.seed))
         for name, values in (("phi'", [r[0] for r in peaks]), ("phi_cs", [r[1] for r in peaks])):
-            print(f"{a.material}, seeds {a.seed}: {name} mean {statistics.mean(values):.2f} "
+            print(f"{a.material}, seeds {seeds}: {name} mean {statistics.mean(values):.2f} "
                   f"deg, standard deviation {statistics.stdev(values):.2f}, range "
                   f"{min(values):.2f}-{max(values):.2f}")
         mean = math.radians(statistics.mean(r[0] for r in peaks))

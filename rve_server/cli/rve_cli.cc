@@ -464,7 +464,7 @@ absl::StatusOr<dem::RveSnapshot> PreparePacking(const Flags& flags, std::string*
   RETURN_IF_ERROR(Get(flags, "particles", &particles));
   if (flags.contains("particles") &&
       !(particles >= 2 && static_cast<std::size_t>(particles) <= dem::kMaxParticles)) {
-    return UsageError("--particles must lie in [2, 1000000]");
+    return UsageError(absl::StrCat("--particles must lie in [2, ", dem::kMaxParticles, "]"));
   }
   std::fprintf(stderr, "preparing %s...\n", material->c_str());
   // Its first line is "N discs, seed S".
