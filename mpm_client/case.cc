@@ -26,6 +26,7 @@
 #include "rve_server/common/status_macros.h"
 #include "rve_server/common/text_file.h"
 #include "rve_server/engine/material.h"
+#include "rve_server/engine/rve.h"
 #include "rve_server/engine/snapshot.h"
 
 namespace rvehub::mpm {
@@ -708,6 +709,18 @@ Fields<TemplateSpec> TemplateFields(const std::string& base_dir) {
        },
        [](const TemplateSpec& t, OrderedJson& j) {
          if (FromSet(t) && t.void_ratio > 0) j["void_ratio"] = t.void_ratio;
+       }},
+      {"particles",
+       [](const Object& o, TemplateSpec* t) -> absl::Status {
+         RETURN_IF_ERROR(OnlyFromParameterSet(o, "particles"));
+         std::int64_t n = t->particles;
+         RETURN_IF_ERROR(
+             GetInteger(o, "particles", 2, static_cast<std::int64_t>(dem::kMaxParticles), &n));
+         t->particles = static_cast<int>(n);
+         return absl::OkStatus();
+       },
+       [](const TemplateSpec& t, OrderedJson& j) {
+         if (FromSet(t) && t.particles > 0) j["particles"] = t.particles;
        }},
       {"file",
        [base_dir](const Object& o, TemplateSpec* t) -> absl::Status {
@@ -1557,7 +1570,8 @@ CaseSize EstimateSize(const CaseSpec& spec) {
   for (const TemplateSpec& t : spec.templates) {
     // A prepared template's disc count is known; a file's is not read here.
     absl::StatusOr<dem::ParameterSet> set = dem::FindParameterSet(t.parameter_set);
-    const int discs = t.file.empty() && set.ok() ? set->preparation.num_particles : 400;
+    int discs = t.file.empty() && set.ok() ? set->preparation.num_particles : 400;
+    if (t.file.empty() && t.particles > 0) discs = t.particles;
     rve_bytes[t.name] = kRveBytesPerDisc * discs;
   }
   double bytes = kBytesPerNode * static_cast<double>(size.nodes);

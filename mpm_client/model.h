@@ -143,6 +143,9 @@ struct TemplateSpec {
   // Target void ratio of the preparation, [-] (0: the set's e0): the same
   // material packed denser or looser.
   double void_ratio = 0;
+  // Discs in the packing (0: the set's count): a larger sample of the same
+  // material, whose peak strength carries less sampling noise.
+  int particles = 0;
 };
 
 // Piecewise-linear velocity history: v(t) interpolated between the points,

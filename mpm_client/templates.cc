@@ -40,11 +40,12 @@ absl::StatusOr<store::TemplateRecord> FromFile(const TemplateSpec& spec) {
 absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
                                                const std::string& cache_dir,
                                                const std::function<void(const std::string&)>& log) {
-  // A template compacted at another pressure or to another void ratio is
-  // another packing.
+  // A template compacted at another pressure, to another void ratio or with
+  // another disc count is another packing.
   std::string stem = absl::StrCat(spec.parameter_set, "-seed", spec.seed);
   if (spec.pressure > 0) absl::StrAppend(&stem, "-p", absl::StrFormat("%.6g", spec.pressure), "Pa");
   if (spec.void_ratio > 0) absl::StrAppend(&stem, "-e", absl::StrFormat("%.6g", spec.void_ratio));
+  if (spec.particles > 0) absl::StrAppend(&stem, "-", spec.particles, "discs");
   const std::string path = (std::filesystem::path(cache_dir) / (stem + ".h5")).string();
   if (std::filesystem::exists(path)) {
     absl::StatusOr<std::vector<store::TemplateRecord>> cached = store::ReadTemplates(path);
@@ -58,7 +59,7 @@ absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
   bool announced = false;
   absl::StatusOr<dem::RveSnapshot> packing =
       dem::PrepareTemplate(spec.parameter_set, spec.seed, spec.pressure, spec.void_ratio,
-                           /*num_particles=*/0, &report, [&](const std::string& line) {
+                           spec.particles, &report, [&](const std::string& line) {
                              if (log && !announced) log(absl::StrCat("  ", line));
                              announced = true;
                            });
@@ -70,8 +71,8 @@ absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
   store::TemplateRecord record;
   record.name = stem;
   record.description =
-      absl::StrFormat("material %s, seed %d, e0 = %.4f, p0 = %.1f Pa", spec.parameter_set,
-                      spec.seed, report.void_ratio, report.pressure);
+      absl::StrFormat("material %s, seed %d, %d discs, e0 = %.4f, p0 = %.1f Pa", spec.parameter_set,
+                      spec.seed, packing->radius.size(), report.void_ratio, report.pressure);
   record.packing = *std::move(packing);
   std::error_code ec;
   std::filesystem::create_directories(cache_dir, ec);

@@ -15,8 +15,9 @@
 namespace rvehub::mpm {
 
 // One record per spec, in order, each named after its TemplateSpec::name.
-// `cache_dir` holds prepared templates as "<parameter_set>-seed<N>.h5"
-// (created when missing). `log` receives one line per preparation.
+// `cache_dir` holds prepared templates as "<parameter_set>-seed<N>.h5",
+// with "-p<P>Pa", "-e<E>" and "-<N>discs" where the spec sets pressure,
+// void_ratio or particles (created when missing). `log` receives one line per preparation.
 absl::StatusOr<std::vector<store::TemplateRecord>> ResolveTemplates(
     const std::vector<TemplateSpec>& specs, const std::string& cache_dir,
     const std::function<void(const std::string&)>& log = {});

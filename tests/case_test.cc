@@ -47,7 +47,8 @@ constexpr char kFullCase[] = R"json({
              "cfl": 0.4, "wave_modulus": 2.5e7, "end_time": 1.5, "thickness": 0.1,
              "shaking_amplitude": [0.05, 0], "shaking_frequency": 2},
   "templates": [
-    {"name": "dense", "parameter_set": "SET-dense", "seed": 7, "pressure": 6600, "void_ratio": 0.19},
+    {"name": "dense", "parameter_set": "SET-dense", "seed": 7, "pressure": 6600, "void_ratio": 0.19,
+     "particles": 1600},
     {"name": "stored", "file": "packings/x.h5", "template_name": "loose-1"}
   ],
   "regions": [
@@ -150,7 +151,9 @@ TEST_F(CaseTest, FullCaseParsesIntoExpectedSpec) {
   EXPECT_EQ(spec->templates[0].seed, 7u);
   EXPECT_EQ(spec->templates[0].pressure, 6600);
   EXPECT_EQ(spec->templates[0].void_ratio, 0.19);
+  EXPECT_EQ(spec->templates[0].particles, 1600);
   EXPECT_EQ(spec->templates[1].pressure, 0);
+  EXPECT_EQ(spec->templates[1].particles, 0);
   EXPECT_EQ(spec->templates[0].file, "");
   EXPECT_EQ(spec->templates[1].name, "stored");
   EXPECT_EQ(spec->templates[1].parameter_set, "");
@@ -571,6 +574,13 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
       {"/templates/1/void_ratio", 0.2, "/templates/1/void_ratio: only for templates prepared"},
       {"/templates/0/void_ratio", 0, "/templates/0/void_ratio: must be in (0, 1), got 0"},
       {"/templates/0/void_ratio", 1.2, "/templates/0/void_ratio: must be in (0, 1), got 1.2"},
+      {"/templates/1/particles", 1600, "/templates/1/particles: only for templates prepared"},
+      {"/templates/0/particles", 1,
+       "/templates/0/particles: must be an integer in 2..1000000, got 1"},
+      {"/templates/0/particles", 1000001,
+       "/templates/0/particles: must be an integer in 2..1000000, got 1000001"},
+      {"/templates/0/particles", 16.5,
+       "/templates/0/particles: must be an integer in 2..1000000, got 16.5"},
       // Geometry: off the grid, outside it, empty, overlapping.
       {"/regions/0/lower/0", 0.25,
        "/regions/0/lower/0: x = 0.25 m is not on a grid line (origin 0 m, cell size 0.5 m)"},
@@ -850,6 +860,14 @@ TEST_F(CaseTest, MemoryEstimateBoundsTheCase) {
   EXPECT_EQ(size.points, 2 * 1 * 4);  // 2 × 1 cells of 0.5 m, 2 × 2 points each
   EXPECT_NEAR(size.bytes,
               kBytesPerNode * size.nodes + size.points * (kBytesPerPoint + 400 * kRveBytesPerDisc),
+              1e-6);
+  // A larger sample of the material is counted as such.
+  Json larger = Json::parse(kMinimalCase);
+  larger["templates"][0]["particles"] = 1600;
+  absl::StatusOr<CaseSpec> spec1600 = Parse(larger.dump());
+  ASSERT_TRUE(spec1600.ok()) << spec1600.status();
+  EXPECT_NEAR(EstimateSize(*spec1600).bytes,
+              kBytesPerNode * size.nodes + size.points * (kBytesPerPoint + 1600 * kRveBytesPerDisc),
               1e-6);
   // 10^4 × 10^4 cells filled with points: ~5e3 GiB, refused naming the grid.
   Json doc = Json::parse(kMinimalCase);

@@ -223,6 +223,38 @@ TEST(SimulationTest, SingleElementMatchesElementTestUpToPeak) {
   EXPECT_NE(text.find("\"final_strain\": 0.15"), std::string::npos) << text;
 }
 
+// A template prepared with another disc count has that count, is cached
+// under its own name beside the set's own packing, and reads back from the
+// cache bit for bit.
+TEST(SimulationTest, TemplateWithAnotherParticleCountIsPreparedAndCached) {
+  const std::string cache = FreshDir("particles_cache");
+  TemplateSpec t;
+  t.name = "small";
+  t.parameter_set = "SET-dense";
+  t.seed = 3;
+  t.particles = 100;
+  absl::StatusOr<std::vector<store::TemplateRecord>> first = ResolveTemplates({t}, cache);
+  ASSERT_TRUE(first.ok()) << first.status();
+  ASSERT_EQ(first->size(), 1u);
+  EXPECT_EQ(first->front().name, "small");
+  EXPECT_EQ(first->front().packing.radius.size(), 100u);
+  EXPECT_TRUE(fs::exists(fs::path(cache) / "SET-dense-seed3-100discs.h5"));
+  absl::StatusOr<std::vector<store::TemplateRecord>> again = ResolveTemplates({t}, cache);
+  ASSERT_TRUE(again.ok()) << again.status();
+  EXPECT_EQ(again->front().packing.sx, first->front().packing.sx);
+  EXPECT_EQ(again->front().packing.sy, first->front().packing.sy);
+  EXPECT_EQ(again->front().packing.radius, first->front().packing.radius);
+  EXPECT_TRUE(absl::StrContains(again->front().description, "100 discs"))
+      << again->front().description;
+  // A bad count is the engine's error, named after the template.
+  t.particles = 1;
+  absl::StatusOr<std::vector<store::TemplateRecord>> bad = ResolveTemplates({t}, cache);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_TRUE(absl::StartsWith(bad.status().message(), "preparing template 'small': "))
+      << bad.status();
+}
+
 // A short single-element run: `steps` steps of the case.
 CaseSpec ShortCase(int steps, double* dt_out = nullptr) {
   CaseSpec spec = LoadOrDie("single-element-biaxial");
