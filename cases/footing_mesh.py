@@ -4,7 +4,7 @@ footing's edge falls.
 
   /usr/bin/python3 cases/footing_mesh.py cases --out=DIR [--base=cases/footing-coarse.json]
       [--cells-per-m=4,5,6,8,9,10,12] [--points-per-cell-side=1] [--depth=0.125]
-      [--seeds=1-9 --phi-deg=31.67,31.11,...]
+      [--seeds=1-9 --phi-deg=31.67,31.11,...] [--particles=1600]
   /usr/bin/python3 cases/footing_mesh.py plot RUN_DIR [RUN_DIR ...] --out=footing-mesh.png
 
 `cases` writes the base case on square cells of 1/n m for each n (the grid keeps 1.2 m of empty
@@ -13,7 +13,8 @@ rows above the surface), pushed to --depth, and prints the mpm_client commands t
 settlement and N_q (the case's ultimate-load rule) against h/(B/2), with Prandtl's value, and
 prints a table. With --seeds, `cases` writes each mesh once per packing seed, and --phi-deg
 gives each seed's phi' (friction_angle.py --seed=...) to its summary; `plot` then adds N_q
-against each run's phi' beside Prandtl's curve. A run is marked by where the footing's edge
+against each run's phi' beside Prandtl's curve. --particles prepares the templates with that
+many discs (a larger sample of the material; give its phi' with --phi-deg). A run is marked by where the footing's edge
 falls: on a node line; inside a cell, between two points' boxes (more than 1 point per cell);
 or through a column of points. Inside a cell the contact pushes that cell's soil with the
 footing, so the load acts on a wider strip (mpm_client notes such a corner at set-up;
@@ -40,20 +41,26 @@ import matplotlib.pyplot as plt  # noqa: E402
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
-def variant(base, n, ppc, depth, seed=None, phi_deg=None):
+def variant(base, n, ppc, depth, seed=None, phi_deg=None, particles=None):
     """The base case on square cells of 1/n m with ppc x ppc points, pushed to `depth` (m);
-    with `seed`, its template packed from that seed, and `phi_deg` (deg) for its summary."""
+    with `seed`, its template packed from that seed, with `particles`, of that many discs, and
+    `phi_deg` (deg) for its summary."""
     c = json.loads(json.dumps(base))
     soil = c["regions"][0]
     width, height = soil["upper"][0], soil["upper"][1]
     c["name"] = (f"{base['name']}-mesh-{n}" + (f"-ppc{ppc}" if ppc != 1 else "")
-                 + (f"-seed{seed}" if seed is not None else ""))
+                 + (f"-seed{seed}" if seed is not None else "")
+                 + (f"-{particles}discs" if particles else ""))
     c["description"] = (f"{base['name']} on cells of 1/{n} m, {ppc} x {ppc} points per cell "
                         f"(cases/footing_mesh.py), pushed to d = {depth} m")
     if seed is not None:
         for t in c["templates"]:
             t["seed"] = seed
         c["description"] += f", packings of seed {seed}"
+    if particles:
+        for t in c["templates"]:
+            t["particles"] = particles
+        c["description"] += f", {particles}-disc RVEs"
     if phi_deg is not None:
         c["output"]["phi_deg"] = phi_deg
     c["grid"]["cell_size"] = 1.0 / n
@@ -77,7 +84,7 @@ def write_cases(a):
     os.makedirs(a.out, exist_ok=True)
     for n in (int(s) for s in a.cells_per_m.split(",")):
         for seed, phi in zip(seeds, phis):
-            c = variant(base, n, a.points_per_cell_side, a.depth, seed, phi)
+            c = variant(base, n, a.points_per_cell_side, a.depth, seed, phi, a.particles)
             path = os.path.join(a.out, c["name"] + ".json")
             with open(path, "w") as f:
                 json.dump(c, f, indent=1)
@@ -122,6 +129,7 @@ def load_run(run_dir):
     where, h, ppc = edge_position(case, spec)
     return dict(dir=run_dir, name=case["name"], summary=summary, d=d, q=q, h=h, ppc=ppc,
                 seed=case["templates"][0].get("seed", 1), cfl=case["solver"]["cfl"],
+                discs=case["templates"][0].get("particles", 0),
                 edge=where, domain=f"{soil['upper'][0]:g} x {soil['upper'][1]:g} m",
                 half_width=spec["half_size"][0] * 2)
 
@@ -130,12 +138,13 @@ def plot(a):
     runs = [load_run(r) for r in a.runs]
     phis = sorted({r["summary"]["phi_deg"] for r in runs})
     cfls = {r["cfl"] for r in runs}
+    discs = {r["discs"] for r in runs}
     print(f"{'run':<34} {'domain':>10} {'B/2 (m)':>8} {'h (m)':>7} {'ppc':>4} {'seed':>4} "
-          f"{'edge':>15} {'N_q':>6} {'d_ult (m)':>9} {'phi':>6} {'/Prandtl':>9}")
+          f"{'discs':>5} {'edge':>15} {'N_q':>6} {'d_ult (m)':>9} {'phi':>6} {'/Prandtl':>9}")
     for r in runs:
         s = r["summary"]
         print(f"{r['name']:<34} {r['domain']:>10} {r['half_width']:8.3f} {r['h']:7.4f} "
-              f"{r['ppc']:4d} {r['seed']:4d} {r['edge']:>15} {s['N_q']:6.2f} "
+              f"{r['ppc']:4d} {r['seed']:4d} {r['discs'] or '-':>5} {r['edge']:>15} {s['N_q']:6.2f} "
               f"{s['settlement_at_ultimate_m']:9.4f} {s['phi_deg']:6.2f} "
               f"{s['N_q'] / s['N_q_prandtl']:9.3f}")
     # Runs on packings of other seeds carry their own phi' (footing_mesh.py cases --phi-deg):
@@ -150,7 +159,8 @@ def plot(a):
         label = (f"{r['domain']}, B/2 {r['half_width']:.3g}, h {r['h']:.3g}, "
                  f"ppc {r['ppc']}: edge {r['edge']}"
                  + (f", seed {r['seed']} (phi' {s['phi_deg']:g})" if len(phis) > 1 else "")
-                 + (f", CFL {r['cfl']:g}" if len(cfls) > 1 else ""))
+                 + (f", CFL {r['cfl']:g}" if len(cfls) > 1 else "")
+                 + (f", {r['discs'] or 'default'} discs" if len(discs) > 1 else ""))
         line, = ax1.plot(r["d"], r["q"], lw=0.8, ls="--" if r["edge"] == "through points" else "-",
                          color=colours[i % 20], label=label)
         ax1.plot(s["settlement_at_ultimate_m"], s["N_q"], "o", color=line.get_color())
@@ -207,6 +217,8 @@ def main():
     c.add_argument("--seeds", type=parse_seeds,
                    help="packing seeds, e.g. 1-9 (default: the base case's)")
     c.add_argument("--phi-deg", help="each seed's phi', deg, comma-separated (friction_angle.py)")
+    c.add_argument("--particles", type=int,
+                   help="discs per RVE template (default: the parameter set's)")
     c.add_argument("--mpm-client", default="build/mpm_client/mpm_client")
     p = sub.add_parser("plot", help="draw finished runs")
     p.add_argument("runs", nargs="+", metavar="RUN_DIR")
