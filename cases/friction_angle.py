@@ -26,18 +26,47 @@ import statistics
 import subprocess
 
 
-def peak_state(path, within):
-    """(sigma_1, sigma_3) at the peak deviator of a biaxial CSV up to axial strain `within`,
-    Pa, compression +."""
+def principal(row, axis):
+    """(sigma_1, sigma_3) of a biaxial row loaded along `axis` ('x' or 'y'), Pa."""
+    sxx, syy = float(row["sxx"]), float(row["syy"])
+    return (sxx, syy) if axis == "x" else (syy, sxx)
+
+
+def peak_state(path, within, axis="y"):
+    """(sigma_1, sigma_3, axial strain) at the peak deviator of a biaxial CSV up to axial
+    strain `within`, Pa, compression +."""
     best = None
     with open(path) as f:
         for row in csv.DictReader(f):
             if float(row["axial_strain"]) > within:
                 break
-            s1, s3 = float(row["syy"]), float(row["sxx"])
+            s1, s3 = principal(row, axis)
             if best is None or s1 - s3 > best[0] - best[1]:
-                best = (s1, s3)
+                best = (s1, s3, float(row["axial_strain"]))
     return best
+
+
+def dilatancy_angle(path, at_strain, half_width=0.005):
+    """Dilatancy angle psi (radians) around axial strain `at_strain`: plane strain,
+    sin psi = -d eps_v / (d eps_1 - d eps_3) with eps_3 = eps_v - eps_1 (compression +),
+    the slope d eps_v / d eps_1 fitted by least squares over +/- half_width of strain."""
+    xs, ys = [], []
+    with open(path) as f:
+        for row in csv.DictReader(f):
+            e1 = float(row["axial_strain"])
+            if abs(e1 - at_strain) <= half_width:
+                xs.append(e1)
+                ys.append(float(row["vol_strain"]))
+    mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
+    slope = (sum((x - mx) * (y - my) for x, y in zip(xs, ys))
+             / sum((x - mx) ** 2 for x in xs))
+    return math.asin(-slope / (2 - slope))
+
+
+def davis_angle(phi, psi):
+    """Davis's (1968) friction angle of a non-associated Mohr-Coulomb material, radians:
+    tan phi* = sin phi cos psi / (1 - sin phi sin psi); phi* = phi when psi = phi."""
+    return math.atan(math.sin(phi) * math.cos(psi) / (1 - math.sin(phi) * math.sin(psi)))
 
 
 def prandtl_nq(phi):
@@ -45,13 +74,13 @@ def prandtl_nq(phi):
     return math.tan(math.pi / 4 + phi / 2) ** 2 * math.exp(math.pi * math.tan(phi))
 
 
-def large_strain_ratio(path, from_strain):
+def large_strain_ratio(path, from_strain, axis="y"):
     """Mean (s1 - s3)/(s1 + s3) over the rows at axial strain >= from_strain."""
     ratios = []
     with open(path) as f:
         for row in csv.DictReader(f):
             if float(row["axial_strain"]) >= from_strain:
-                s1, s3 = float(row["syy"]), float(row["sxx"])
+                s1, s3 = principal(row, axis)
                 ratios.append((s1 - s3) / (s1 + s3))
     return sum(ratios) / len(ratios)
 
@@ -74,15 +103,18 @@ def parse_seeds(text):
 
 
 def measure(a, seed, pressures):
-    """Runs the biaxial tests of one seed; returns (phi', phi_cs) in radians."""
+    """Runs the biaxial tests of one seed; returns (phi', phi_cs, psi) in radians, psi the
+    mean dilatancy angle at the peaks."""
     num = den = 0.0
-    cs = []
+    cs, psis = [], []
+    axis = "" if a.axis == "y" else f"-{a.axis}"
     for p in pressures:
-        path = os.path.join(a.out, f"{a.material}-seed{seed}-{p / 1e3:g}kPa.csv")
+        path = os.path.join(a.out, f"{a.material}-seed{seed}-{p / 1e3:g}kPa{axis}.csv")
         test = subprocess.run([a.rve_cli, "element-test", "--test=drained-biaxial",
                         f"--material={a.material}", f"--seed={seed}", f"--confining={p}",
                         f"--strain={a.strain}", f"--inertial-number={a.inertial_number}",
                         *([f"--particles={a.particles}"] if a.particles else []),
+                        f"--axis={a.axis}",
                         # Rows every 0.02 % of strain, as the 8 % tests had: the peak is
                         # read off the rows.
                         f"--rows={round(a.strain / 0.0002)}", f"--out={path}"],
@@ -91,15 +123,17 @@ def measure(a, seed, pressures):
             # rve_cli names what it refused (a bad --particles, an unknown material, ...).
             raise SystemExit(f"rve_cli element-test failed (exit {test.returncode}) for seed "
                              f"{seed} at {p:g} Pa:\n{test.stderr.strip()[-2000:]}")
-        s1, s3 = peak_state(path, a.peak_within)
+        s1, s3, at = peak_state(path, a.peak_within, a.axis)
         radius, centre = (s1 - s3) / 2, (s1 + s3) / 2
         num += radius * centre
         den += centre * centre
-        cs.append(large_strain_ratio(path, a.cs_from))
-        print(f"seed {seed}, sigma3 = {p / 1e3:5.1f} kPa: peak sigma1 = {s1 / 1e3:7.2f} kPa, "
-              f"phi = {math.degrees(math.asin(radius / centre)):5.2f} deg, from "
-              f"{a.cs_from:.0%} strain on {math.degrees(math.asin(cs[-1])):5.2f} deg")
-    return math.asin(num / den), math.asin(sum(cs) / len(cs))
+        cs.append(large_strain_ratio(path, a.cs_from, a.axis))
+        psis.append(dilatancy_angle(path, at))
+        print(f"seed {seed}, sigma3 = {p / 1e3:5.1f} kPa: peak sigma1 = {s1 / 1e3:7.2f} kPa "
+              f"at {at:.2%}, phi = {math.degrees(math.asin(radius / centre)):5.2f} deg, psi = "
+              f"{math.degrees(psis[-1]):5.2f} deg; from {a.cs_from:.0%} strain on "
+              f"{math.degrees(math.asin(cs[-1])):5.2f} deg")
+    return math.asin(num / den), math.asin(sum(cs) / len(cs)), sum(psis) / len(psis)
 
 
 def main():
@@ -111,6 +145,8 @@ def main():
     ap.add_argument("--out", default="out/friction_angle")
     ap.add_argument("--pressures", default="10e3,15e3,20e3,25e3,30e3", help="Pa, comma-separated")
     ap.add_argument("--strain", type=float, default=0.30, help="axial strain at the end")
+    ap.add_argument("--axis", choices=("x", "y"), default="y",
+                    help="loading axis (x: the packing's strength across the usual one)")
     ap.add_argument("--particles", type=int, default=0,
                     help="discs per packing (default the set's, 400): a larger sample")
     ap.add_argument("--inertial-number", type=float, default=1e-3,
@@ -130,12 +166,15 @@ def main():
     pressures = [float(x) for x in a.pressures.split(",")]
     results = {}
     for seed in a.seed:
-        phi, phi_cs = measure(a, seed, pressures)
+        phi, phi_cs, psi = measure(a, seed, pressures)
         results[seed] = (math.degrees(phi), math.degrees(phi_cs))
+        davis = davis_angle(phi, psi)
         print(f"{a.material}, seed {seed}: phi' = {results[seed][0]:.2f} deg (least squares "
               f"over the Mohr circles), Prandtl N_q = {prandtl_nq(phi):.2f}; phi_cs = "
               f"{results[seed][1]:.2f} deg (mean stress ratio from {a.cs_from:.0%} axial "
-              f"strain on)")
+              f"strain on); psi = {math.degrees(psi):.2f} deg at the peaks, Davis's "
+              f"non-associated phi* = {math.degrees(davis):.2f} deg, N_q* = "
+              f"{prandtl_nq(davis):.2f}")
     if len(results) > 1:
         # One 400-disc packing is a sample: its peak differs by a degree or more between
         # seeds, which moves Prandtl's N_q by a quarter.

@@ -125,6 +125,78 @@ TEST(ElementTestTest, OedometerModuliMatchPublishedValues) {
   EXPECT_NEAR(lateral, 3.93e6, 0.4 * 3.93e6);
 }
 
+// The same oedometer loaded along x: the strain is 1 − F_xx, F_yy stays 1,
+// and the moduli come from σxx (constrained) and σyy (lateral). The packing
+// is isotropically compacted, so both lie within the y test's tolerances.
+TEST(ElementTestTest, OedometerAlongXSwapsTheAxes) {
+  ElementTestSpec spec;
+  spec.kind = ElementTestKind::kOedometer;
+  spec.max_strain = 0.002;
+  spec.axis = 0;
+  const std::vector<ElementTestRow> rows = RunOn("consolidation", spec);
+  ASSERT_GE(rows.size(), 2u);
+  const auto at = std::find_if(rows.begin(), rows.end(),
+                               [](const ElementTestRow& r) { return r.axial_strain_comp >= 2e-4; });
+  ASSERT_NE(at, rows.end());
+  const ElementTestRow& r0 = rows.front();
+  const double de = at->axial_strain_comp - r0.axial_strain_comp;
+  const double constrained = (at->sxx_comp - r0.sxx_comp) / de;  // Pa
+  const double lateral = (at->syy_comp - r0.syy_comp) / de;      // Pa
+  std::printf("oedometer along x: K + 4G/3 = %.3f MPa, K − 2G/3 = %.3f MPa\n", constrained / 1e6,
+              lateral / 1e6);
+  EXPECT_NEAR(at->vol_strain_comp, at->axial_strain_comp, 1e-12);
+  EXPECT_GE(rows.back().axial_strain_comp, 0.002);
+  EXPECT_NEAR(constrained, 25.06e6, 0.2 * 25.06e6);
+  EXPECT_GT(lateral, 0.0);
+  EXPECT_NEAR(lateral, 3.93e6, 0.4 * 3.93e6);
+}
+
+// The drained biaxial test along x holds σyy and compresses x: σxx becomes
+// the major stress, well above the confining one before 3 % strain.
+TEST(ElementTestTest, DrainedBiaxialAlongXHoldsSigmaYy) {
+  ElementTestSpec spec;
+  spec.kind = ElementTestKind::kDrainedBiaxial;
+  spec.confining = 100e3;
+  spec.max_strain = 0.03;
+  spec.rows = 60;
+  spec.axis = 0;
+  const std::vector<ElementTestRow> rows = RunOn("SPFEM-biaxial", spec);
+  ASSERT_GE(rows.size(), 60u);
+  double syy_min = rows[0].syy_comp, syy_max = rows[0].syy_comp, sxx_max = 0;
+  for (const ElementTestRow& r : rows) {
+    syy_min = std::min(syy_min, r.syy_comp);
+    syy_max = std::max(syy_max, r.syy_comp);
+    sxx_max = std::max(sxx_max, r.sxx_comp);
+  }
+  std::printf("biaxial along x: peak σxx = %.1f kPa, σyy in [%.1f, %.1f] kPa\n", sxx_max / 1e3,
+              syy_min / 1e3, syy_max / 1e3);
+  EXPECT_GE(syy_min, 0.97 * 100e3);
+  EXPECT_LE(syy_max, 1.03 * 100e3);
+  EXPECT_GT(sxx_max, 2.0 * 100e3);
+  EXPECT_GE(rows.back().axial_strain_comp, 0.03);
+  EXPECT_LT(rows.back().axial_strain_comp, 0.03 + 0.003);
+}
+
+// An axis other than x or y, or one for a test without a loading axis, is
+// refused before anything runs.
+TEST(ElementTestTest, BadAxisIsRefused) {
+  absl::StatusOr<Rve> rve = Rve::Create(Prepared("consolidation"));
+  ASSERT_TRUE(rve.ok()) << rve.status();
+  ElementTestSpec spec;
+  spec.axis = 2;
+  absl::StatusOr<std::vector<ElementTestRow>> rows = RunElementTest(*rve, spec);
+  ASSERT_FALSE(rows.ok());
+  EXPECT_EQ(rows.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(rows.status().message(), "axis = 2 is invalid: must be 0 (x) or 1 (y)");
+  spec.axis = 0;
+  spec.kind = ElementTestKind::kIsotropic;
+  rows = RunElementTest(*rve, spec);
+  ASSERT_FALSE(rows.ok());
+  EXPECT_EQ(rows.status().message(),
+            "axis = 0 is invalid: only the biaxial and oedometer tests have a loading axis");
+  EXPECT_EQ(rve->ToSnapshot().total_steps, 0);
+}
+
 // Isotropic compression: p grows with εv (monotonically up to the stress
 // fluctuations of 400 discs) and the void ratio falls.
 TEST(ElementTestTest, IsotropicCompressionStiffensAndDensifies) {

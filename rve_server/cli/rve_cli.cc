@@ -73,6 +73,7 @@ ABSL_FLAG(double, inertial_number, 0, "inertial number");
 ABSL_FLAG(std::string, cyclic_control, "", "strain or stress");
 ABSL_FLAG(double, amplitude, 0, "cyclic amplitude");
 ABSL_FLAG(int, cycles, 0, "cycles");
+ABSL_FLAG(std::string, axis, "", "loading axis, x or y");
 ABSL_FLAG(std::string, template, "", "template name on the server");
 ABSL_FLAG(std::string, name, "", "template name");
 ABSL_FLAG(std::string, run, "", "run id");
@@ -156,6 +157,8 @@ Options:
   --particles=N      discs in the packing, in [2, 1e6] (local only; default the set's, e.g.
                      400): a larger sample of the same material
   --template=NAME    the server's template to test (with --server)
+  --axis=x|y         loading axis of drained-biaxial and oedometer (default y; x holds σyy
+                     in the biaxial test): a packing's strength along another direction
   --confining=PA     consolidation / lateral stress in Pa, compression + (default 100000)
   --strain=MAX       axial strain (biaxial, oedometer), volumetric strain (isotropic) or
                      shear strain (simple shear) to stop at (default 0.1)
@@ -507,10 +510,18 @@ absl::Status ElementTestCommand(const Flags& flags) {
   RETURN_IF_ERROR(Get(flags, "cycles", &spec.cycles));
   RETURN_IF_ERROR(Get(flags, "cyclic-control", &cyclic));
   RETURN_IF_ERROR(Get(flags, "template", &template_name));
+  std::string axis = "y";
+  RETURN_IF_ERROR(Get(flags, "axis", &axis));
   if (out.empty()) return UsageError("--out=FILE.csv is required");
+  if (axis != "x" && axis != "y") return UsageError("--axis must be x or y");
+  spec.axis = axis == "x" ? 0 : 1;
   absl::StatusOr<dem::ElementTestKind> kind = dem::ParseElementTestKind(test);
   if (!kind.ok()) return UsageError(kind.status().message());
   spec.kind = *kind;
+  if (spec.axis != 1 && spec.kind != dem::ElementTestKind::kDrainedBiaxial &&
+      spec.kind != dem::ElementTestKind::kOedometer) {
+    return UsageError("--axis applies to drained-biaxial and oedometer only");
+  }
   if (cyclic == "strain") {
     spec.cyclic_control = dem::CyclicControl::kStrain;
   } else if (cyclic == "stress") {
@@ -920,7 +931,7 @@ const std::vector<Command>& Commands() {
        true,
        {"test", "material", "seed", "pressure", "void-ratio", "particles", "confining", "strain",
         "out", "plot", "rows", "inertial-number", "cyclic-control", "amplitude", "cycles",
-        "template"},
+        "template", "axis"},
        &ElementTestCommand},
       {"prepare",
        kPrepareHelp,

@@ -28,10 +28,10 @@ constexpr NamedKind kKinds[] = {
     {"cyclic-simple-shear", ElementTestKind::kCyclicSimpleShear},
 };
 
-ElementTestRow MakeRow(const RveState& s, const Eigen::Matrix2d& f, std::int64_t step) {
+ElementTestRow MakeRow(const RveState& s, const Eigen::Matrix2d& f, int axis, std::int64_t step) {
   ElementTestRow r;
   r.step = step;
-  r.axial_strain_comp = 1.0 - f(1, 1);
+  r.axial_strain_comp = 1.0 - f(axis, axis);
   r.vol_strain_comp = 1.0 - f.determinant();
   r.shear_strain = f(0, 1);
   r.sxx_comp = -s.stress(0, 0);
@@ -65,6 +65,12 @@ absl::Status CheckSpec(const ElementTestSpec& spec) {
   if (!(spec.inertial_number >= kMinInertialNumber && spec.inertial_number <= 0.1))
     return bad("inertial_number", spec.inertial_number, "must lie in [1e-6, 0.1]");
   if (spec.rows < 2 || spec.rows > 1000000) return bad("rows", spec.rows, "must lie in [2, 1e6]");
+  if (spec.axis != 0 && spec.axis != 1) return bad("axis", spec.axis, "must be 0 (x) or 1 (y)");
+  const bool axial =
+      spec.kind == ElementTestKind::kDrainedBiaxial || spec.kind == ElementTestKind::kOedometer;
+  if (!axial && spec.axis != 1) {
+    return bad("axis", spec.axis, "only the biaxial and oedometer tests have a loading axis");
+  }
   if (spec.kind == ElementTestKind::kCyclicSimpleShear) {
     if (!(spec.amplitude > 0) || !std::isfinite(spec.amplitude) ||
         (spec.cyclic_control == CyclicControl::kStress && spec.amplitude > kMaxPressure))
@@ -105,16 +111,19 @@ absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
   control.servo_integral_steps = kServoIntegralSteps;
   control.servo_gain = kServoGain;
   control.xy = {ControlMode::kStrainRate, 0.0};
+  // The loading axis's and the lateral component (biaxial, oedometer).
+  ComponentControl& along = spec.axis == 0 ? control.xx : control.yy;
+  ComponentControl& across = spec.axis == 0 ? control.yy : control.xx;
   switch (spec.kind) {
     case ElementTestKind::kDrainedBiaxial:
-      control.xx = {ControlMode::kStress, -spec.confining};
-      control.yy = {ControlMode::kStrainRate, -rate};
+      across = {ControlMode::kStress, -spec.confining};
+      along = {ControlMode::kStrainRate, -rate};
       break;
     case ElementTestKind::kIsotropic:
       control.xx = control.yy = {ControlMode::kStrainRate, -rate / std::sqrt(2.0)};
       break;
     case ElementTestKind::kOedometer:
-      control.yy = {ControlMode::kStrainRate, -rate};
+      along = {ControlMode::kStrainRate, -rate};
       break;
     case ElementTestKind::kUndrainedSimpleShear:
     case ElementTestKind::kCyclicSimpleShear:
@@ -153,7 +162,7 @@ absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
 
   std::vector<ElementTestRow> rows;
   std::int64_t step = 0;
-  rows.push_back(MakeRow(start, strain_f(), step));
+  rows.push_back(MakeRow(start, strain_f(), spec.axis, step));
   int half_cycles = 0;  // reversals done (cyclic)
   const int target_half_cycles = 2 * spec.cycles;
   double direction = 1.0;
@@ -172,7 +181,7 @@ absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
       s = rve.Run(control, steps_per_row);
     }
     step += steps_per_row;
-    rows.push_back(MakeRow(s, strain_f(), step));
+    rows.push_back(MakeRow(s, strain_f(), spec.axis, step));
     const ElementTestRow& r = rows.back();
     if (!cyclic) {
       if (progress) progress(std::min(1.0, measure(r) / spec.max_strain));

@@ -365,6 +365,20 @@ absl::StatusOr<dem::ElementTestSpec> FromProto(const v1::ElementTestRequest& r) 
       r.cyclic_stress_control() ? dem::CyclicControl::kStress : dem::CyclicControl::kStrain;
   if (r.amplitude() != 0) s.amplitude = r.amplitude();
   if (r.cycles() != 0) s.cycles = r.cycles();
+  switch (r.axis()) {
+    case v1::LOADING_AXIS_UNSPECIFIED:
+    case v1::LOADING_AXIS_Y:
+      s.axis = 1;
+      break;
+    case v1::LOADING_AXIS_X:
+      s.axis = 0;
+      break;
+    case v1::LOADING_AXIS_Z:
+      return absl::InvalidArgumentError("axis z needs a 3-D RVE; these are 2-D (x or y)");
+    default:
+      return absl::InvalidArgumentError(
+          absl::StrCat("axis must name a loading axis, got ", static_cast<int>(r.axis())));
+  }
   return s;
 }
 
@@ -433,6 +447,7 @@ void ToProto(const dem::ElementTestSpec& s, v1::ElementTestRequest* out) {
   out->set_cyclic_stress_control(s.cyclic_control == dem::CyclicControl::kStress);
   out->set_amplitude(s.amplitude);
   out->set_cycles(s.cycles);
+  out->set_axis(s.axis == 0 ? v1::LOADING_AXIS_X : v1::LOADING_AXIS_Y);
 }
 
 absl::Status FromProto(const v1::RveState& s, dem::RveState* out,
