@@ -316,6 +316,9 @@ TEST(CliTest, ServerCommandsWithoutServerAreUsageErrors) {
             "--material/--seed/--pressure/--void-ratio/--particles do not apply with --server"},
            {"prepare --particles=1", "--particles must lie in [2, 1000000]"},
            {"element-test --particles=2000000", "--particles must lie in [2, 1000000]"},
+           {"element-test --axis=z", "--axis must be x or y"},
+           {"element-test --test=isotropic --axis=x",
+            "--axis applies to drained-biaxial and oedometer only"},
            {"get --server=127.0.0.1:1 --id=1", "--run=RUN is required"},
            {"get --server=127.0.0.1:1 --run=a", "--id=N is required"},
            {"get --server=127.0.0.1:1 --run=a --id=x", "bad value for --id"},
@@ -536,6 +539,26 @@ TEST(CliServerTest, ElementTestOnTheServerMatchesTheLocalRun) {
   EXPECT_EQ(remote_text, local_text);
   EXPECT_GE(remote_rows.back()[kVol], 0.01);
   EXPECT_EQ(png_bytes.substr(0, 4), "\x89PNG");
+
+  // A test along x travels to the server as well: the same rows as locally.
+  const std::string along_x = "--test=oedometer --axis=x --strain=0.001 --rows=10";
+  const Result remote_x =
+      RunCli(absl::StrCat("element-test ", server.server_flag(), " --template=", name, " ", along_x,
+                          " --out='", remote_csv, "'"));
+  ASSERT_EQ(remote_x.exit_code, 0) << remote_x.output;
+  const Result local_x = RunCli(absl::StrCat("element-test --material=SET-dense --seed=1 ", along_x,
+                                             " --out='", local_csv, "'"));
+  ASSERT_EQ(local_x.exit_code, 0) << local_x.output;
+  const std::string remote_x_text = ReadFile(remote_csv), local_x_text = ReadFile(local_csv);
+  std::remove(remote_csv.c_str());
+  std::remove(local_csv.c_str());
+  EXPECT_EQ(remote_x_text, local_x_text);
+  const std::vector<std::vector<double>> x_rows = ParseRows(remote_x_text);
+  ASSERT_GT(x_rows.size(), 5u);
+  // Along x the axial strain is 1 − F_xx and equals the volumetric one.
+  EXPECT_GE(x_rows.back()[kAxial], 0.001);
+  EXPECT_NEAR(x_rows.back()[kVol], x_rows.back()[kAxial], 1e-9);
+  EXPECT_NE(remote_x_text, remote_text);
 
   const Result unknown = RunCli(absl::StrCat("element-test ", server.server_flag(),
                                              " --template=nope --out='", remote_csv, "'"));

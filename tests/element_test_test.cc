@@ -177,26 +177,6 @@ TEST(ElementTestTest, DrainedBiaxialAlongXHoldsSigmaYy) {
   EXPECT_LT(rows.back().axial_strain_comp, 0.03 + 0.003);
 }
 
-// An axis other than x or y, or one for a test without a loading axis, is
-// refused before anything runs.
-TEST(ElementTestTest, BadAxisIsRefused) {
-  absl::StatusOr<Rve> rve = Rve::Create(Prepared("consolidation"));
-  ASSERT_TRUE(rve.ok()) << rve.status();
-  ElementTestSpec spec;
-  spec.axis = 2;
-  absl::StatusOr<std::vector<ElementTestRow>> rows = RunElementTest(*rve, spec);
-  ASSERT_FALSE(rows.ok());
-  EXPECT_EQ(rows.status().code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_EQ(rows.status().message(), "axis = 2 is invalid: must be 0 (x) or 1 (y)");
-  spec.axis = 0;
-  spec.kind = ElementTestKind::kIsotropic;
-  rows = RunElementTest(*rve, spec);
-  ASSERT_FALSE(rows.ok());
-  EXPECT_EQ(rows.status().message(),
-            "axis = 0 is invalid: only the biaxial and oedometer tests have a loading axis");
-  EXPECT_EQ(rve->ToSnapshot().total_steps, 0);
-}
-
 // Isotropic compression: p grows with εv (monotonically up to the stress
 // fluctuations of 400 discs) and the void ratio falls.
 TEST(ElementTestTest, IsotropicCompressionStiffensAndDensifies) {

@@ -145,6 +145,21 @@ TEST_F(HardeningTest, UnboundedWorkIsRefusedWithTheFieldNamed) {
   while (reader2->Read(&update)) {
   }
   ExpectError(reader2->Finish(), grpc::StatusCode::INVALID_ARGUMENT, "confining");
+  // 2-D RVEs have no z axis; an axis the enum does not name is refused too.
+  test.set_confining_pressure(0);
+  test.set_axis(v1::LOADING_AXIS_Z);
+  auto ctx3 = h_.Context();
+  auto reader3 = h_.stub().RunElementTest(ctx3.get(), test);
+  while (reader3->Read(&update)) {
+  }
+  ExpectError(reader3->Finish(), grpc::StatusCode::INVALID_ARGUMENT, "axis z needs a 3-D RVE");
+  test.set_axis(static_cast<v1::LoadingAxis>(7));
+  auto ctx4 = h_.Context();
+  auto reader4 = h_.stub().RunElementTest(ctx4.get(), test);
+  while (reader4->Read(&update)) {
+  }
+  ExpectError(reader4->Finish(), grpc::StatusCode::INVALID_ARGUMENT,
+              "axis must name a loading axis, got 7");
 }
 
 // 2. A long increment (a relaxation to a tolerance it never reaches) stops

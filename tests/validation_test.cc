@@ -506,6 +506,12 @@ TEST(RunElementTestTest, BadSpecIsRefusedAndTheRveUntouched) {
       {"inertial_number", [](ElementTestSpec& s) { s.inertial_number = 0.0; }},
       {"inertial_number", [](ElementTestSpec& s) { s.inertial_number = 0.2; }},
       {"rows", [](ElementTestSpec& s) { s.rows = 1; }},
+      {"axis", [](ElementTestSpec& s) { s.axis = 2; }},
+      {"axis",
+       [](ElementTestSpec& s) {
+         s.kind = ElementTestKind::kIsotropic;
+         s.axis = 0;
+       }},
       {"cycles",
        [&](ElementTestSpec& s) {
          cyclic(s);
