@@ -13,10 +13,21 @@ penetration mobilises in a strain-softening soil (cases/pipe_compare.py).
 A 400-disc packing is one sample: --seed=1-9 measures nine packings and
 prints the mean, spread and range of phi' (footing-dense: 28.6-32.3 deg).
 --particles=1600 measures larger samples of the same material (footing-dense,
-seeds 1-6: 29.0 deg on average against 30.7 with 400 discs).
+seeds 1-6: 29.0 deg on average against 30.7 with 400 discs). --axis=x loads
+the packing along x instead of y: a small packing's strength depends on the
+direction (footing-dense seed 5: 28.6 deg along y, 33.9 along x; over 20
+seeds at 20 kPa the two directions of one packing differ by 1.4 deg on
+average, correlation 0.4, with no direction stronger on the whole). --axis=both
+fits the circles of both directions at once: a footing, whose principal
+stresses turn from vertical under it to horizontal beside it, loads both.
+
+Each seed also gets its dilatancy angle psi at the peaks and Davis's (1968)
+friction angle of a non-associated material, tan phi* = sin phi' cos psi /
+(1 - sin phi' sin psi), with its N_q*: Prandtl's N_q assumes psi = phi'.
 
   python3 cases/friction_angle.py [--material=footing-dense] [--seed=1 | --seed=1-9]
-      [--rve-cli=build/rve_server/cli/rve_cli] [--out=out/friction_angle]
+      [--particles=N] [--axis=y|x|both] [--rve-cli=build/rve_server/cli/rve_cli]
+      [--out=out/friction_angle]
 """
 import argparse
 import csv
@@ -107,14 +118,16 @@ def measure(a, seed, pressures):
     mean dilatancy angle at the peaks."""
     num = den = 0.0
     cs, psis = [], []
-    axis = "" if a.axis == "y" else f"-{a.axis}"
-    for p in pressures:
-        path = os.path.join(a.out, f"{a.material}-seed{seed}-{p / 1e3:g}kPa{axis}.csv")
+    # "both": the Mohr circles of the tests along y and along x in one fit.
+    axes = ["y", "x"] if a.axis == "both" else [a.axis]
+    for axis, p in ((axis, p) for axis in axes for p in pressures):
+        suffix = "" if axis == "y" else f"-{axis}"
+        path = os.path.join(a.out, f"{a.material}-seed{seed}-{p / 1e3:g}kPa{suffix}.csv")
         test = subprocess.run([a.rve_cli, "element-test", "--test=drained-biaxial",
                         f"--material={a.material}", f"--seed={seed}", f"--confining={p}",
                         f"--strain={a.strain}", f"--inertial-number={a.inertial_number}",
                         *([f"--particles={a.particles}"] if a.particles else []),
-                        f"--axis={a.axis}",
+                        f"--axis={axis}",
                         # Rows every 0.02 % of strain, as the 8 % tests had: the peak is
                         # read off the rows.
                         f"--rows={round(a.strain / 0.0002)}", f"--out={path}"],
@@ -123,13 +136,13 @@ def measure(a, seed, pressures):
             # rve_cli names what it refused (a bad --particles, an unknown material, ...).
             raise SystemExit(f"rve_cli element-test failed (exit {test.returncode}) for seed "
                              f"{seed} at {p:g} Pa:\n{test.stderr.strip()[-2000:]}")
-        s1, s3, at = peak_state(path, a.peak_within, a.axis)
+        s1, s3, at = peak_state(path, a.peak_within, axis)
         radius, centre = (s1 - s3) / 2, (s1 + s3) / 2
         num += radius * centre
         den += centre * centre
-        cs.append(large_strain_ratio(path, a.cs_from, a.axis))
+        cs.append(large_strain_ratio(path, a.cs_from, axis))
         psis.append(dilatancy_angle(path, at))
-        print(f"seed {seed}, sigma3 = {p / 1e3:5.1f} kPa: peak sigma1 = {s1 / 1e3:7.2f} kPa "
+        print(f"seed {seed}, along {axis}, sigma3 = {p / 1e3:5.1f} kPa: peak sigma1 = {s1 / 1e3:7.2f} kPa "
               f"at {at:.2%}, phi = {math.degrees(math.asin(radius / centre)):5.2f} deg, psi = "
               f"{math.degrees(psis[-1]):5.2f} deg; from {a.cs_from:.0%} strain on "
               f"{math.degrees(math.asin(cs[-1])):5.2f} deg")
@@ -145,8 +158,9 @@ def main():
     ap.add_argument("--out", default="out/friction_angle")
     ap.add_argument("--pressures", default="10e3,15e3,20e3,25e3,30e3", help="Pa, comma-separated")
     ap.add_argument("--strain", type=float, default=0.30, help="axial strain at the end")
-    ap.add_argument("--axis", choices=("x", "y"), default="y",
-                    help="loading axis (x: the packing's strength across the usual one)")
+    ap.add_argument("--axis", choices=("x", "y", "both"), default="y",
+                    help="loading axis (x: the packing's strength across the usual one; both: "
+                         "one fit over the tests along y and along x)")
     ap.add_argument("--particles", type=int, default=0,
                     help="discs per packing (default the set's, 400): a larger sample")
     ap.add_argument("--inertial-number", type=float, default=1e-3,
