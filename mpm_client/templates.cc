@@ -71,8 +71,7 @@ absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
   store::TemplateRecord record;
   record.name = stem;
   record.description =
-      absl::StrFormat("material %s, seed %d, %d discs, e0 = %.4f, p0 = %.1f Pa", spec.parameter_set,
-                      spec.seed, packing->radius.size(), report.void_ratio, report.pressure);
+      dem::TemplateDescription(spec.parameter_set, spec.seed, packing->radius.size(), report);
   record.packing = *std::move(packing);
   std::error_code ec;
   std::filesystem::create_directories(cache_dir, ec);

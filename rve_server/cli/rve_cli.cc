@@ -518,8 +518,7 @@ absl::Status ElementTestCommand(const Flags& flags) {
   absl::StatusOr<dem::ElementTestKind> kind = dem::ParseElementTestKind(test);
   if (!kind.ok()) return UsageError(kind.status().message());
   spec.kind = *kind;
-  if (spec.axis != 1 && spec.kind != dem::ElementTestKind::kDrainedBiaxial &&
-      spec.kind != dem::ElementTestKind::kOedometer) {
+  if (spec.axis != 1 && !dem::HasLoadingAxis(spec.kind)) {
     return UsageError("--axis applies to drained-biaxial and oedometer only");
   }
   if (cyclic == "strain") {
@@ -602,9 +601,7 @@ absl::Status PrepareCommand(const Flags& flags) {
   const std::string count =
       flags.contains("particles") ? absl::StrCat("-", rve.num_particles(), "discs") : "";
   record.name = name.empty() ? absl::StrCat(material, "-seed", seed, count) : name;
-  record.description =
-      absl::StrFormat("material %s, seed %d, %d discs, e0 = %.4f, p0 = %.1f Pa", material, seed,
-                      rve.num_particles(), report.void_ratio, report.pressure);
+  record.description = dem::TemplateDescription(material, seed, rve.num_particles(), report);
   record.packing = std::move(packing);
   store::FileInfo info;
   info.created_by = CreatedBy();

@@ -66,9 +66,7 @@ absl::Status CheckSpec(const ElementTestSpec& spec) {
     return bad("inertial_number", spec.inertial_number, "must lie in [1e-6, 0.1]");
   if (spec.rows < 2 || spec.rows > 1000000) return bad("rows", spec.rows, "must lie in [2, 1e6]");
   if (spec.axis != 0 && spec.axis != 1) return bad("axis", spec.axis, "must be 0 (x) or 1 (y)");
-  const bool axial =
-      spec.kind == ElementTestKind::kDrainedBiaxial || spec.kind == ElementTestKind::kOedometer;
-  if (!axial && spec.axis != 1) {
+  if (!HasLoadingAxis(spec.kind) && spec.axis != 1) {
     return bad("axis", spec.axis, "only the biaxial and oedometer tests have a loading axis");
   }
   if (spec.kind == ElementTestKind::kCyclicSimpleShear) {
@@ -84,6 +82,10 @@ absl::Status CheckSpec(const ElementTestSpec& spec) {
 }
 
 }  // namespace
+
+bool HasLoadingAxis(ElementTestKind kind) {
+  return kind == ElementTestKind::kDrainedBiaxial || kind == ElementTestKind::kOedometer;
+}
 
 absl::StatusOr<ElementTestKind> ParseElementTestKind(absl::string_view name) {
   std::string known;

@@ -59,6 +59,10 @@ struct ElementTestRow {
 
 absl::StatusOr<ElementTestKind> ParseElementTestKind(absl::string_view name);
 
+// Whether a test loads one axis (ElementTestSpec::axis applies): the drained
+// biaxial and oedometer tests.
+bool HasLoadingAxis(ElementTestKind kind);
+
 // Consolidates to spec.confining, then runs the test. `progress` receives
 // the fraction done in [0, 1]. `interrupt` (optional) is asked between DEM
 // steps; its status ends the test. Ranges: confining (0, 1e9] Pa,

@@ -247,4 +247,10 @@ absl::StatusOr<RveSnapshot> PrepareTemplate(
   return PreparePacking(set, {}, report, progress);
 }
 
+std::string TemplateDescription(absl::string_view parameter_set, std::uint64_t seed,
+                                std::size_t num_particles, const PreparationReport& report) {
+  return absl::StrFormat("material %s, seed %d, %d discs, e0 = %.4f, p0 = %.1f Pa", parameter_set,
+                         seed, num_particles, report.void_ratio, report.pressure);
+}
+
 }  // namespace rvehub::dem

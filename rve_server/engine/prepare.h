@@ -2,6 +2,7 @@
 #ifndef RVEHUB_RVE_SERVER_ENGINE_PREPARE_H_
 #define RVEHUB_RVE_SERVER_ENGINE_PREPARE_H_
 
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -83,6 +84,12 @@ absl::StatusOr<RveSnapshot> PrepareTemplate(
     absl::string_view parameter_set, std::uint64_t seed, double pressure = 0, double void_ratio = 0,
     int num_particles = 0, PreparationReport* report = nullptr,
     const std::function<void(const std::string&)>& progress = {});
+
+// The description a template prepared by PrepareTemplate carries in its file
+// (rve_cli prepare --out, mpm_client's template cache): "material M, seed S,
+// N discs, e0 = E, p0 = P Pa", from the report of its preparation.
+std::string TemplateDescription(absl::string_view parameter_set, std::uint64_t seed,
+                                std::size_t num_particles, const PreparationReport& report);
 
 }  // namespace rvehub::dem
 
