@@ -14,11 +14,11 @@ settlement and N_q (the case's ultimate-load rule) against h/(B/2), with Prandtl
 prints a table. With --seeds, `cases` writes each mesh once per packing seed, and --phi-deg
 gives each seed's phi' (friction_angle.py --seed=...) to its summary; `plot` then adds N_q
 against each run's phi' beside Prandtl's curve. --particles prepares the templates with that
-many discs (a larger sample of the material; give its phi' with --phi-deg). A run is marked by where the footing's edge
-falls: on a node line; inside a cell, between two points' boxes (more than 1 point per cell);
-or through a column of points. Inside a cell the contact pushes that cell's soil with the
-footing, so the load acts on a wider strip (mpm_client notes such a corner at set-up;
-cases/README.md, "The footing's N_q").
+many discs (a larger sample of the material; give its phi' with --phi-deg). A run is marked by
+where the footing's edge falls: on a node line; inside a cell, between two points' boxes (more
+than 1 point per cell); or through a column of points. Inside a cell the contact pushes that
+cell's soil with the footing, so the load acts on a wider strip (mpm_client notes such a
+corner at set-up; cases/README.md, "The footing's N_q").
 
 The softening RVE (phi' 31.7 deg at the peak, about 20.5 at large strain: friction_angle.py)
 has no internal length, so N_q need not converge as h falls. Needs numpy and matplotlib
@@ -144,7 +144,8 @@ def plot(a):
     for r in runs:
         s = r["summary"]
         print(f"{r['name']:<34} {r['domain']:>10} {r['half_width']:8.3f} {r['h']:7.4f} "
-              f"{r['ppc']:4d} {r['seed']:4d} {r['discs'] or '-':>5} {r['edge']:>15} {s['N_q']:6.2f} "
+              f"{r['ppc']:4d} {r['seed']:4d} {r['discs'] or '-':>5} {r['edge']:>15} "
+              f"{s['N_q']:6.2f} "
               f"{s['settlement_at_ultimate_m']:9.4f} {s['phi_deg']:6.2f} "
               f"{s['N_q'] / s['N_q_prandtl']:9.3f}")
     # Runs on packings of other seeds carry their own phi' (footing_mesh.py cases --phi-deg):

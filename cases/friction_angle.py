@@ -37,37 +37,36 @@ import statistics
 import subprocess
 
 
-def principal(row, axis):
-    """(sigma_1, sigma_3) of a biaxial row loaded along `axis` ('x' or 'y'), Pa."""
-    sxx, syy = float(row["sxx"]), float(row["syy"])
-    return (sxx, syy) if axis == "x" else (syy, sxx)
+def read_rows(path, axis="y"):
+    """The rows of a biaxial CSV loaded along `axis` ('x' or 'y') as (axial strain,
+    volumetric strain, sigma_1, sigma_3): strains [-], stresses Pa, compression +."""
+    with open(path) as f:
+        rows = []
+        for row in csv.DictReader(f):
+            sxx, syy = float(row["sxx"]), float(row["syy"])
+            s1, s3 = (sxx, syy) if axis == "x" else (syy, sxx)
+            rows.append((float(row["axial_strain"]), float(row["vol_strain"]), s1, s3))
+    return rows
 
 
-def peak_state(path, within, axis="y"):
-    """(sigma_1, sigma_3, axial strain) at the peak deviator of a biaxial CSV up to axial
+def peak_state(rows, within):
+    """(sigma_1, sigma_3, axial strain) at the peak deviator of read_rows' rows up to axial
     strain `within`, Pa, compression +."""
     best = None
-    with open(path) as f:
-        for row in csv.DictReader(f):
-            if float(row["axial_strain"]) > within:
-                break
-            s1, s3 = principal(row, axis)
-            if best is None or s1 - s3 > best[0] - best[1]:
-                best = (s1, s3, float(row["axial_strain"]))
+    for e1, _, s1, s3 in rows:
+        if e1 > within:
+            break
+        if best is None or s1 - s3 > best[0] - best[1]:
+            best = (s1, s3, e1)
     return best
 
 
-def dilatancy_angle(path, at_strain, half_width=0.005):
+def dilatancy_angle(rows, at_strain, half_width=0.005):
     """Dilatancy angle psi (radians) around axial strain `at_strain`: plane strain,
     sin psi = -d eps_v / (d eps_1 - d eps_3) with eps_3 = eps_v - eps_1 (compression +),
     the slope d eps_v / d eps_1 fitted by least squares over +/- half_width of strain."""
-    xs, ys = [], []
-    with open(path) as f:
-        for row in csv.DictReader(f):
-            e1 = float(row["axial_strain"])
-            if abs(e1 - at_strain) <= half_width:
-                xs.append(e1)
-                ys.append(float(row["vol_strain"]))
+    window = [(e1, ev) for e1, ev, _, _ in rows if abs(e1 - at_strain) <= half_width]
+    xs, ys = [w[0] for w in window], [w[1] for w in window]
     mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
     slope = (sum((x - mx) * (y - my) for x, y in zip(xs, ys))
              / sum((x - mx) ** 2 for x in xs))
@@ -85,14 +84,9 @@ def prandtl_nq(phi):
     return math.tan(math.pi / 4 + phi / 2) ** 2 * math.exp(math.pi * math.tan(phi))
 
 
-def large_strain_ratio(path, from_strain, axis="y"):
-    """Mean (s1 - s3)/(s1 + s3) over the rows at axial strain >= from_strain."""
-    ratios = []
-    with open(path) as f:
-        for row in csv.DictReader(f):
-            if float(row["axial_strain"]) >= from_strain:
-                s1, s3 = principal(row, axis)
-                ratios.append((s1 - s3) / (s1 + s3))
+def large_strain_ratio(rows, from_strain):
+    """Mean (s1 - s3)/(s1 + s3) over read_rows' rows at axial strain >= from_strain."""
+    ratios = [(s1 - s3) / (s1 + s3) for e1, _, s1, s3 in rows if e1 >= from_strain]
     return sum(ratios) / len(ratios)
 
 
@@ -124,26 +118,29 @@ def measure(a, seed, pressures):
         suffix = "" if axis == "y" else f"-{axis}"
         path = os.path.join(a.out, f"{a.material}-seed{seed}-{p / 1e3:g}kPa{suffix}.csv")
         test = subprocess.run([a.rve_cli, "element-test", "--test=drained-biaxial",
-                        f"--material={a.material}", f"--seed={seed}", f"--confining={p}",
-                        f"--strain={a.strain}", f"--inertial-number={a.inertial_number}",
-                        *([f"--particles={a.particles}"] if a.particles else []),
-                        f"--axis={axis}",
-                        # Rows every 0.02 % of strain, as the 8 % tests had: the peak is
-                        # read off the rows.
-                        f"--rows={round(a.strain / 0.0002)}", f"--out={path}"],
-                       stderr=subprocess.PIPE, text=True)
+                               f"--material={a.material}", f"--seed={seed}", f"--confining={p}",
+                               f"--strain={a.strain}", f"--inertial-number={a.inertial_number}",
+                               *([f"--particles={a.particles}"] if a.particles else []),
+                               f"--axis={axis}",
+                               # Rows every 0.02 % of strain, as the 8 % tests had: the peak
+                               # is read off the rows.
+                               f"--rows={round(a.strain / 0.0002)}", f"--out={path}"],
+                              stderr=subprocess.PIPE, text=True)
         if test.returncode != 0:
             # rve_cli names what it refused (a bad --particles, an unknown material, ...).
             raise SystemExit(f"rve_cli element-test failed (exit {test.returncode}) for seed "
-                             f"{seed} at {p:g} Pa:\n{test.stderr.strip()[-2000:]}")
-        s1, s3, at = peak_state(path, a.peak_within, axis)
+                             f"{seed} along {axis} at {p:g} Pa:\n"
+                             f"{test.stderr.strip()[-2000:]}")
+        rows = read_rows(path, axis)
+        s1, s3, at = peak_state(rows, a.peak_within)
         radius, centre = (s1 - s3) / 2, (s1 + s3) / 2
         num += radius * centre
         den += centre * centre
-        cs.append(large_strain_ratio(path, a.cs_from, axis))
-        psis.append(dilatancy_angle(path, at))
-        print(f"seed {seed}, along {axis}, sigma3 = {p / 1e3:5.1f} kPa: peak sigma1 = {s1 / 1e3:7.2f} kPa "
-              f"at {at:.2%}, phi = {math.degrees(math.asin(radius / centre)):5.2f} deg, psi = "
+        cs.append(large_strain_ratio(rows, a.cs_from))
+        psis.append(dilatancy_angle(rows, at))
+        print(f"seed {seed}, along {axis}, sigma3 = {p / 1e3:5.1f} kPa: peak sigma1 = "
+              f"{s1 / 1e3:7.2f} kPa at {at:.2%}, phi = "
+              f"{math.degrees(math.asin(radius / centre)):5.2f} deg, psi = "
               f"{math.degrees(psis[-1]):5.2f} deg; from {a.cs_from:.0%} strain on "
               f"{math.degrees(math.asin(cs[-1])):5.2f} deg")
     return math.asin(num / den), math.asin(sum(cs) / len(cs)), sum(psis) / len(psis)
