@@ -558,6 +558,10 @@ absl::string_view LostPointPolicyName(LostPointPolicy p) {
   return p == LostPointPolicy::kDrop ? "drop" : "stop";
 }
 
+constexpr Table<FBar> kFBars = {{"none", FBar::kNone}, {"nodal", FBar::kNodal}};
+
+absl::string_view FBarName(FBar f) { return f == FBar::kNodal ? "nodal" : "none"; }
+
 // A shaking table's speeds are of cm/s to m/s; its frequencies of Hz.
 constexpr Range kShakingSpeed{-100.0, 100.0, false, false};   // m/s
 constexpr Range kShakingFrequency{0.0, 1000.0, true, false};  // Hz
@@ -624,6 +628,7 @@ Fields<SolverSpec> SolverFields() {
                 kLostPointPolicies, &LostPointPolicyName),
       NumberField("mass_scale", &SolverSpec::mass_scale, Need::kOptional,
                   Range{1.0, 1e6, false, false}),
+      EnumField("f_bar", &SolverSpec::f_bar, Need::kOptional, "F-bar kind", kFBars, &FBarName),
   };
 }
 
@@ -1738,6 +1743,10 @@ absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::strin
     // The water's mass balance takes its porosity from the RVE's void ratio.
     if (spec.phases.saturated && spec.rve.max_void_ratio > 0.0) {
       return Bad(root.At("rve") + "/max_void_ratio", "a void-ratio cap is for dry cases only");
+    }
+    // The water's mass balance follows each point's own volume change.
+    if (spec.phases.saturated && spec.solver.f_bar != FBar::kNone) {
+      return Bad(root.At("solver") + "/f_bar", "F-bar is for dry cases only");
     }
     // The two-phase step's pressure solve is set up for one Δt.
     if (spec.phases.saturated && spec.solver.time_step_update_every > 0) {

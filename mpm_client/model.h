@@ -36,6 +36,16 @@ enum class LostPointPolicy {
           // and extents; dry cases only
 };
 
+// Which volume change a material point's RVE gets each step.
+enum class FBar {
+  kNone,   // its own: det ΔF_p from the grid velocities at the point
+  kNodal,  // F-bar: det ΔF averaged over the nodes around it (each node the
+           // volume-weighted mean of the points it supports, interpolated
+           // back), the deviatoric part its own. A point cannot be squeezed
+           // or opened alone while its neighbours do otherwise, the
+           // volumetric checkerboard of one point per cell; dry cases only
+};
+
 struct GridSpec {
   Eigen::Vector2d origin = Eigen::Vector2d::Zero();  // m, lower-left corner
   double cell_size = 0.1;                            // h, m (square cells)
@@ -94,6 +104,7 @@ struct SolverSpec {
   // sqrt(s) times longer. Kinetic energy and outputs keep the real mass. 1:
   // none, [-].
   double mass_scale = 1.0;
+  FBar f_bar = FBar::kNone;
 };
 
 // The box's velocity at time t (s), m/s (SolverSpec::shaking_amplitude).

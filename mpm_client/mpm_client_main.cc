@@ -48,6 +48,7 @@ ABSL_FLAG(std::string, template_cache, "", "template cache directory");
 ABSL_FLAG(int64_t, stop_after, 0, "stop after N steps");
 ABSL_FLAG(double, end_time, 0, "resume: the run's new end time, s");
 ABSL_FLAG(double, cfl, 0, "resume: a new CFL number");
+ABSL_FLAG(std::string, f_bar, "", "resume: F-bar from here on (none, nodal)");
 ABSL_FLAG(bool, quiet, false, "no progress lines");
 ABSL_FLAG(bool, no_recovery, false, "a lost server ends the run");
 ABSL_FLAG(double, min_timeout, 10, "floor of the adaptive RVE call deadline, s");
@@ -98,6 +99,8 @@ Option (resume):
   --cfl=NUMBER         go on with this CFL number (the case's solver.cfl; its time step
                        scales by the ratio): e.g. a run that became unstable, resumed from
                        a checkpoint before, with a smaller step
+  --f-bar=none|nodal   go on with this F-bar (the case's solver.f_bar): e.g. a run whose
+                       points get squeezed or opened alone, resumed with nodal F-bar
 
 Option (run, check):
   --set=PATH=VALUE     override one case field before the case is validated; repeatable.
@@ -133,7 +136,7 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
   cli::ArgSpec spec;
   spec.allowed = {"out",         "servers",     "threads",        "token-file", "tls-ca",
                   "timeout",     "min-timeout", "template-cache", "stop-after", "quiet",
-                  "no-recovery", "set",         "end-time",       "cfl"};
+                  "no-recovery", "set",         "end-time",       "cfl",        "f-bar"};
   spec.repeatable = {"set"};
   spec.bare = {"quiet", "no-recovery"};
   spec.rules = {{"threads", kThreadsRule},     {"timeout", kTimeoutRule},
@@ -177,6 +180,10 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
   if (c.name != "resume" && c.args.contains("cfl")) {
     return absl::InvalidArgumentError(
         "--cfl is for resume (a run sets solver.cfl in its case, or --set it)");
+  }
+  if (c.name != "resume" && c.args.contains("f-bar")) {
+    return absl::InvalidArgumentError(
+        "--f-bar is for resume (a run sets solver.f_bar in its case, or --set it)");
   }
   if (c.name == "resume" && c.args.contains("set")) {
     return absl::InvalidArgumentError(
@@ -258,6 +265,13 @@ absl::StatusOr<SimulationOptions> Options(const Args& a) {
     o.cfl = absl::GetFlag(FLAGS_cfl);
     if (!(o.cfl > 0) || o.cfl > 1)
       return absl::InvalidArgumentError(absl::StrCat("--cfl ", kCflRule));
+  }
+  if (a.contains("f-bar")) {
+    o.f_bar = absl::GetFlag(FLAGS_f_bar);
+    if (o.f_bar != "none" && o.f_bar != "nodal") {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--f-bar must be none or nodal, got '", o.f_bar, "'"));
+    }
   }
   if (a.contains("template-cache")) o.template_cache_dir = absl::GetFlag(FLAGS_template_cache);
   o.progress = !a.contains("quiet");

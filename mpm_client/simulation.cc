@@ -694,6 +694,9 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
     dt_ratio = options.cfl / spec->solver.cfl;
     overrides.push_back({"/solver/cfl", absl::StrFormat("%.17g", options.cfl)});
   }
+  if (!options.f_bar.empty()) {
+    overrides.push_back({"/solver/f_bar", absl::StrCat("\"", options.f_bar, "\"")});
+  }
   if (!overrides.empty()) {
     spec = ParseCase(c.case_json, ".", overrides);
     if (!spec.ok()) return spec.status();
@@ -725,6 +728,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
     sim->Log(absl::StrFormat("time step %.4g s -> %.4g s (CFL %.2f)", dt, sim->solver_->dt(),
                              options.cfl));
   }
+  if (!options.f_bar.empty()) sim->Log(absl::StrCat("F-bar: ", options.f_bar));
   sim->SetApplyOptions();
   sim->Log(absl::StrFormat("resumed %s at step %d, t = %.6g s", checkpoint_path,
                            sim->solver_->step(), sim->solver_->time()));

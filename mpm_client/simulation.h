@@ -65,6 +65,9 @@ struct SimulationOptions {
   // its time step from one; Δt changes by the ratio of the two and later
   // checkpoints carry the new number.
   double cfl = 0;
+  // Resume only: the run's F-bar from the checkpoint on, "none" or "nodal"
+  // (empty: the case's solver.f_bar); later checkpoints carry it.
+  std::string f_bar;
   bool progress = true;                         // progress lines on stderr
   std::function<void(const std::string&)> log;  // default: stderr
 };

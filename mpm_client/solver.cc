@@ -503,6 +503,7 @@ void Solver::Prepare() {
   node_fixed_.resize(nodes);
   impulse_.resize(walls_.size() + bodies_.size());
   body_velocity_.resize(bodies_.size());
+  in_plane_df_.resize(n);
   delta_f_.resize(n);
   rve_delta_f_.resize(n);
   response_.resize(n);
@@ -693,6 +694,13 @@ absl::Status Solver::UpdateStress() {
           "material point ", p, " at ", Format(mp.position[p]), " m would invert: det ",
           "ΔF = ", df.determinant(), " (time step too large?)"));
     }
+    in_plane_df_[p] = df;
+  }
+  if (solver_.f_bar == FBar::kNodal) {
+    AverageVolumeChange(shape_, mp.volume, NodeCount(grid_), in_plane_df_);
+  }
+  for (std::size_t p = 0; p < n; ++p) {
+    const Matrix2d& df = in_plane_df_[p];
     delta_f_[p].setIdentity();
     delta_f_[p].topLeftCorner<2, 2>() = df;
     rve_delta_f_[p].setIdentity();
@@ -837,6 +845,33 @@ double Solver::KineticEnergy() const {
     e += 0.5 * points_.mass[p] * points_.velocity[p].squaredNorm();
   }
   return e;
+}
+
+void AverageVolumeChange(std::span<const ShapeValues> shapes, std::span<const double> volume,
+                         int node_count, std::span<Matrix2d> df) {
+  std::vector<double> node_volume(node_count, 0.0), node_j(node_count, 0.0);
+  for (std::size_t p = 0; p < df.size(); ++p) {
+    const ShapeValues& s = shapes[p];
+    const double vj = volume[p] * df[p].determinant();  // m³
+    for (int k = 0; k < s.count; ++k) {
+      node_volume[s.node[k]] += s.weight[k] * volume[p];
+      node_j[s.node[k]] += s.weight[k] * vj;
+    }
+  }
+  for (int i = 0; i < node_count; ++i) {
+    if (node_volume[i] > 0.0) node_j[i] /= node_volume[i];
+  }
+  for (std::size_t p = 0; p < df.size(); ++p) {
+    const ShapeValues& s = shapes[p];
+    if (s.count == 0) continue;
+    double j_bar = 0.0, weight = 0.0;
+    for (int k = 0; k < s.count; ++k) {
+      j_bar += s.weight[k] * node_j[s.node[k]];
+      weight += s.weight[k];
+    }
+    // Plane strain: the in-plane factor sqrt scales the determinant by J̄/J.
+    df[p] *= std::sqrt(j_bar / (weight * df[p].determinant()));
+  }
 }
 
 Matrix2d RveIncrement(const Matrix2d& df, const PointResponse& last, double max_void_ratio) {

@@ -123,6 +123,17 @@ double LoadFactorAt(const std::vector<LoadFactorPoint>& history, double ramp_tim
 Eigen::Matrix2d RveIncrement(const Eigen::Matrix2d& df, const PointResponse& last,
                              double max_void_ratio);
 
+// F-bar with a nodal average (SolverSpec::f_bar kNodal): each point's
+// in-plane increment df_p scaled to the determinant J̄_p = Σ_I S_Ip J_I, where
+// J_I = Σ_q S_Iq V_q J_q / Σ_q S_Iq V_q is the volume-weighted mean of
+// J_q = det df_q over the points node I supports: df_p ← (J̄_p/J_p)^{1/2} df_p,
+// its shear and rotation kept. A homogeneous increment is unchanged (to
+// rounding). Points without nodes (parked off the grid) are left alone.
+// shapes, volume (V_p, m³) and df have one entry per point; node_count is
+// the grid's.
+void AverageVolumeChange(std::span<const ShapeValues> shapes, std::span<const double> volume,
+                         int node_count, std::span<Eigen::Matrix2d> df);
+
 class Solver {
  public:
   // Validates the spec (grid, walls on grid lines, bodies, PIC fraction) and
@@ -221,7 +232,8 @@ class Solver {
   // creeps through the wall (and, at the grid's edge, off the grid).
   Eigen::Vector2d KeepOffWalls(const Eigen::Vector2d& from, Eigen::Vector2d to) const;
   // ΔF = I + Δt·L with L = Σ_I v_I ⊗ ∇S_Ip from node_velocity_ (the
-  // solid's), one batched model update, then F, volumes, responses and
+  // solid's), its volume change averaged over the nodes where the case asks
+  // for F-bar, one batched model update, then F, volumes, responses and
   // stresses; FailedPrecondition for a point that would invert.
   absl::Status UpdateStress();
   // Adds each surface load's force (load_force_) to node_force_, spread
@@ -286,6 +298,7 @@ class Solver {
   std::vector<std::uint8_t> node_fixed_;            // per node: components a wall holds
   std::vector<SurfaceContact> contacts_;            // faces near bodies, this step
   std::vector<Eigen::Vector2d> body_velocity_;      // per body, m/s
+  std::vector<Eigen::Matrix2d> in_plane_df_;        // per point, ΔF in-plane (F-bar applied)
   std::vector<Eigen::Matrix3d> delta_f_;            // per point, the continuum's ΔF
   std::vector<Eigen::Matrix3d> rve_delta_f_;        // per point, what its RVE gets (RveIncrement)
   std::vector<PointResponse> response_;

@@ -45,7 +45,7 @@ constexpr char kFullCase[] = R"json({
   "grid": {"origin": [0, 0], "cell_size": 0.5, "cells": [4, 4]},
   "solver": {"shape": "gimp", "pic_fraction": 0.05, "gravity": [0, -9.81], "time_step": 1e-4,
              "cfl": 0.4, "wave_modulus": 2.5e7, "end_time": 1.5, "thickness": 0.1,
-             "shaking_amplitude": [0.05, 0], "shaking_frequency": 2},
+             "shaking_amplitude": [0.05, 0], "shaking_frequency": 2, "f_bar": "nodal"},
   "templates": [
     {"name": "dense", "parameter_set": "SET-dense", "seed": 7, "pressure": 6600, "void_ratio": 0.19,
      "particles": 1600},
@@ -196,6 +196,7 @@ TEST_F(CaseTest, FullCaseParsesIntoExpectedSpec) {
   EXPECT_EQ(spec->walls[2].friction, 0.4);
   EXPECT_EQ(spec->solver.shaking_amplitude, Eigen::Vector2d(0.05, 0.0));
   EXPECT_EQ(spec->solver.shaking_frequency, 2.0);
+  EXPECT_EQ(spec->solver.f_bar, FBar::kNodal);
   EXPECT_EQ(spec->walls[2].shaking_amplitude, Eigen::Vector2d(0.0785, 0.0));
   EXPECT_EQ(spec->walls[2].shaking_frequency, 2.5);
   EXPECT_EQ(spec->walls[0].shaking_frequency, 0.0);
@@ -267,6 +268,7 @@ TEST_F(CaseTest, MinimalCaseTakesModelDefaults) {
   EXPECT_EQ(spec->solver.time_step, defaults.solver.time_step);
   EXPECT_EQ(spec->solver.cfl, defaults.solver.cfl);
   EXPECT_EQ(spec->solver.time_step_update_every, 0);
+  EXPECT_EQ(spec->solver.f_bar, FBar::kNone);
   EXPECT_EQ(spec->solver.thickness, defaults.solver.thickness);
   EXPECT_EQ(spec->solver.shaking_amplitude, Eigen::Vector2d::Zero());
   EXPECT_EQ(spec->solver.shaking_frequency, 0.0);
@@ -341,6 +343,9 @@ void ExpectSameSpec(const CaseSpec& a, const CaseSpec& b) {
   EXPECT_EQ(a.solver.thickness, b.solver.thickness);
   EXPECT_EQ(a.solver.shaking_amplitude, b.solver.shaking_amplitude);
   EXPECT_EQ(a.solver.shaking_frequency, b.solver.shaking_frequency);
+  EXPECT_EQ(a.solver.lost_points, b.solver.lost_points);
+  EXPECT_EQ(a.solver.mass_scale, b.solver.mass_scale);
+  EXPECT_EQ(a.solver.f_bar, b.solver.f_bar);
   ASSERT_EQ(a.templates.size(), b.templates.size());
   for (size_t i = 0; i < a.templates.size(); ++i) {
     SCOPED_TRACE(absl::StrCat("template ", i));
@@ -542,6 +547,7 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
       {"/solver/shape", "cubic", "/solver/shape: unknown shape function \"cubic\" (linear, gimp)"},
       {"/solver/lost_points", "remove",
        "/solver/lost_points: unknown lost-point policy \"remove\" (stop, drop)"},
+      {"/solver/f_bar", "cell", "/solver/f_bar: unknown F-bar kind \"cell\" (none, nodal)"},
       {"/solver/mass_scale", 0.5, "/solver/mass_scale: must be in [1, 1000000], got 0.5"},
       // The full case fixes its time step.
       {"/solver/time_step_update_every", 100,
@@ -734,6 +740,7 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
       {"/solver/mass_scale", 100},
       {"/rve/max_void_ratio", 0.3},
       {"/solver/time_step_update_every", 100},
+      {"/solver/f_bar", "nodal"},
   };
   const std::vector<std::string> messages = {
       "/phases/permeability: must be in (0, 10], got 0",
@@ -752,6 +759,7 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
       "/solver/mass_scale: mass scaling is for dry cases only",
       "/rve/max_void_ratio: a void-ratio cap is for dry cases only",
       "/solver/time_step_update_every: an updated time step is for dry cases only",
+      "/solver/f_bar: F-bar is for dry cases only",
   };
   for (std::size_t i = 0; i < edits.size(); ++i) {
     SCOPED_TRACE(edits[i].first);

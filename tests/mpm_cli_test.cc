@@ -281,6 +281,8 @@ TEST(MpmCliTest, UsageErrorsExitTwoWithAMessage) {
            {absl::StrCat("run ", case_path, out, " --cfl=0.25"), "--cfl is for resume"},
            {"resume x.h5 --cfl=0", "--cfl must be a number in (0, 1]"},
            {"resume x.h5 --cfl=1.5", "--cfl must be a number in (0, 1]"},
+           {absl::StrCat("run ", case_path, out, " --f-bar=nodal"), "--f-bar is for resume"},
+           {"resume x.h5 --f-bar=cell", "--f-bar must be none or nodal, got 'cell'"},
        }) {
     const Result r = RunClient(c.args);
     EXPECT_EQ(r.exit_code, 2) << c.args << ": " << r;

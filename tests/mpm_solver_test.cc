@@ -437,6 +437,116 @@ TEST(RveIncrementTest, AnExpandingBlockOpensItsPointsButNotTheirPackingsAboveThe
   }
 }
 
+// --- F-bar: the volume change averaged over the nodes (solver.f_bar)
+
+// Shapes of one point per cell at the cell centres of an n × n grid of
+// cells of 0.1 m, with GIMP half-sizes of half a cell.
+std::vector<ShapeValues> CellCentreShapes(const GridSpec& grid, ShapeKind kind) {
+  std::vector<ShapeValues> shapes(grid.nx * grid.ny);
+  const double h = grid.cell_size;
+  for (int j = 0; j < grid.ny; ++j) {
+    for (int i = 0; i < grid.nx; ++i) {
+      const Vector2d x = grid.origin + h * Vector2d(i + 0.5, j + 0.5);
+      EXPECT_TRUE(
+          EvaluateShape(grid, kind, x, Vector2d::Constant(0.5 * h), shapes[i + grid.nx * j]));
+    }
+  }
+  return shapes;
+}
+
+TEST(FBarTest, KeepsAHomogeneousIncrementAndShearAndSharesOnePointsSqueeze) {
+  GridSpec grid;
+  grid.cell_size = 0.1;
+  grid.nx = grid.ny = 7;
+  for (ShapeKind kind : {ShapeKind::kLinear, ShapeKind::kGimp}) {
+    SCOPED_TRACE(kind == ShapeKind::kGimp ? "gimp" : "linear");
+    const std::vector<ShapeValues> shapes = CellCentreShapes(grid, kind);
+    const std::size_t n = shapes.size();
+    std::vector<double> volume(n, 0.01);  // m³
+    volume[3] = 0.012;                    // one point larger: weights by volume
+    // A homogeneous increment (squeeze, shear, rotation) stays as it is.
+    Matrix2d uniform;
+    uniform << 0.998, 0.004, -0.001, 0.997;
+    std::vector<Matrix2d> df(n, uniform);
+    AverageVolumeChange(shapes, volume, NodeCount(grid), df);
+    for (std::size_t p = 0; p < n; ++p) EXPECT_LT((df[p] - uniform).norm(), 1e-15) << p;
+    // One point in the middle squeezed by 1 % with a shear, the others at rest.
+    const std::size_t middle = 3 + 7 * 3;
+    Matrix2d squeeze;
+    squeeze << 0.995, 0.003, 0.0, 0.995;
+    df.assign(n, Matrix2d::Identity());
+    df[middle] = squeeze;
+    // A parked point (no nodes) keeps its increment.
+    std::vector<ShapeValues> with_parked = shapes;
+    with_parked[0].count = 0;
+    df[0] = squeeze;
+    double before = 0.0;
+    for (std::size_t p = 1; p < n; ++p) before += volume[p] * (df[p].determinant() - 1.0);
+    AverageVolumeChange(with_parked, volume, NodeCount(grid), df);
+    EXPECT_EQ(df[0], squeeze);
+    double after = 0.0, neighbours = 0.0;
+    for (std::size_t p = 1; p < n; ++p) {
+      after += volume[p] * (df[p].determinant() - 1.0);
+      if (p != middle && df[p].determinant() < 1.0 - 1e-6) neighbours += 1.0;
+    }
+    // The total volume change stays (the weights sum to one at every point);
+    // the point keeps a share and its neighbours take the rest.
+    EXPECT_NEAR(after, before, 1e-15);
+    const double j = df[middle].determinant();
+    EXPECT_GT(j, 0.995 * 0.995);
+    EXPECT_LT(j, 1.0 - 1e-4);
+    EXPECT_EQ(neighbours, 8.0);  // the 3 × 3 block around it: linear and GIMP alike
+    // Its shape change is its own: the increment is only scaled.
+    const double c = df[middle](0, 0) / squeeze(0, 0);
+    EXPECT_LT((df[middle] - c * squeeze).norm(), 1e-15);
+  }
+}
+
+TEST(FBarTest, TheSolverGivesPointsTheAveragedVolumeChange) {
+  // A column of one point per cell squeezed by a rough platen: the points
+  // under it are squeezed, those beside it not. With F-bar their RVEs get a
+  // smoother volume change with the same total.
+  CaseSpec spec = BlockCase(0.1, 8, 6, Vector2d(0.0, 0.0), Vector2d(0.8, 0.4), 1);
+  spec.solver.pic_fraction = 0.0;
+  spec.solver.time_step = 1e-3;
+  spec.walls = {MakeWall(1, 0.0, ContactKind::kRough)};
+  RigidBody platen;
+  platen.name = "platen";
+  platen.center = Vector2d(0.4, 0.45);
+  platen.half_size = Vector2d(0.1, 0.05);
+  platen.contact = ContactKind::kRough;
+  platen.velocity = {{0.0, Vector2d(0.0, -1.0)}};
+  spec.bodies = {platen};
+  std::map<FBar, std::vector<Matrix3d>> increments;
+  std::vector<double> volume;
+  for (FBar f : {FBar::kNone, FBar::kNodal}) {
+    spec.solver.f_bar = f;
+    RecordingModel model(0.2);
+    std::unique_ptr<Solver> solver = MakeSolver(spec, &model);
+    volume = solver->points().volume;
+    ASSERT_TRUE(solver->Step().ok());
+    increments[f] = model.last();
+    // The points' volumes follow what their RVEs got.
+    for (std::size_t p = 0; p < volume.size(); ++p) {
+      EXPECT_NEAR(solver->points().volume[p], volume[p] * model.last()[p].determinant(), 1e-15);
+    }
+  }
+  double total[2] = {0.0, 0.0}, most[2] = {0.0, 0.0};
+  for (FBar f : {FBar::kNone, FBar::kNodal}) {
+    const int k = f == FBar::kNodal ? 1 : 0;
+    for (std::size_t p = 0; p < volume.size(); ++p) {
+      const double dv = increments[f][p].determinant() - 1.0;
+      total[k] += volume[p] * dv;
+      most[k] = std::max(most[k], std::abs(dv));
+    }
+  }
+  std::printf("volume change: none %.6g m³ (largest |ΔJ| %.4g), nodal %.6g m³ (%.4g)\n", total[0],
+              most[0], total[1], most[1]);
+  EXPECT_LT(total[0], -1e-6);
+  EXPECT_NEAR(total[1], total[0], 1e-12 * std::abs(total[0]));
+  EXPECT_LT(most[1], 0.8 * most[0]);
+}
+
 TEST(FreeFlightTest, RigidTranslationConservesMomentumAndEnergyExactly) {
   for (ShapeKind kind : {ShapeKind::kLinear, ShapeKind::kGimp}) {
     CaseSpec spec = BlockCase(0.1, 20, 20, Vector2d(0.5, 0.5), Vector2d(1.5, 1.2), 3);

@@ -439,6 +439,33 @@ TEST(SimulationTest, ResumeWithASmallerCflHalvesTheTimeStep) {
       << refused.status();
 }
 
+// A run resumed with --f-bar goes on with it, and its later checkpoints carry
+// it: a second resume without the option keeps it, one with "none" drops it.
+TEST(SimulationTest, ResumeWithFBarCarriesIt) {
+  const std::string out = FreshDir("f_bar_resume");
+  SimulationOptions o = Options(out);
+  o.stop_after_steps = 4;
+  {
+    std::unique_ptr<Simulation> a = StartOrDie(ShortCase(20), o);
+    ASSERT_NE(a, nullptr);
+    ASSERT_TRUE(a->StepToEnd().ok());
+  }
+  for (const char* f_bar : {"nodal", "", "none"}) {
+    SCOPED_TRACE(f_bar);
+    o.f_bar = f_bar;
+    {
+      absl::StatusOr<std::unique_ptr<Simulation>> b = Simulation::Resume(out + "/checkpoint.h5", o);
+      ASSERT_TRUE(b.ok()) << b.status();
+      ASSERT_TRUE((*b)->StepToEnd().ok());
+    }
+    absl::StatusOr<store::SimCheckpoint> c = store::ReadSimCheckpoint(out + "/checkpoint.h5");
+    ASSERT_TRUE(c.ok()) << c.status();
+    absl::StatusOr<CaseSpec> carried = ParseCase(c->case_json, ".");
+    ASSERT_TRUE(carried.ok()) << carried.status();
+    EXPECT_EQ(carried->solver.f_bar, std::string(f_bar) == "none" ? FBar::kNone : FBar::kNodal);
+  }
+}
+
 // solver.time_step_update_every: Δt follows the points' wave speeds. The
 // first update (at rest, four identical RVEs) gives the start's step again;
 // as the element is loaded the step changes; the run ends at its end time;
