@@ -41,9 +41,10 @@ enum class FBar {
   kNone,   // its own: det ΔF_p from the grid velocities at the point
   kNodal,  // F-bar: det ΔF averaged over the nodes around it (each node the
            // volume-weighted mean of the points it supports, interpolated
-           // back), the deviatoric part its own. A point cannot be squeezed
-           // or opened alone while its neighbours do otherwise, the
-           // volumetric checkerboard of one point per cell; dry cases only
+           // back), the deviatoric part its own, and the mean stress in the
+           // internal forces averaged alike. A point cannot be squeezed or
+           // opened alone while its neighbours do otherwise, the volumetric
+           // checkerboard of one point per cell; dry cases only
 };
 
 struct GridSpec {

@@ -802,9 +802,20 @@ absl::Status Solver::Step() {
   // tractions; then v^{n+1} = v^n + Δt f/m.
   const Vector2d body = BodyAcceleration();
   for (int i = 0; i < nodes; ++i) node_force_[i] = node_mass_[i] * body;
+  // With F-bar the in-plane mean stress is averaged by the same map as the
+  // volume change (its adjoint): the forces then do the work the RVEs take.
+  std::vector<double> mean_stress;
+  if (solver_.f_bar == FBar::kNodal) {
+    std::vector<double> own(n);
+    for (std::size_t p = 0; p < n; ++p) own[p] = 0.5 * mp.stress[p].topLeftCorner<2, 2>().trace();
+    mean_stress = NodalAverage(shape_, mp.volume, own, nodes);
+    for (std::size_t p = 0; p < n; ++p) mean_stress[p] -= own[p];  // the change, Pa
+  }
   for (std::size_t p = 0; p < n; ++p) {
     const ShapeValues& s = shape_[p];
-    const Matrix2d sigma_v = mp.stress[p].topLeftCorner<2, 2>() * mp.volume[p];
+    Matrix2d sigma = mp.stress[p].topLeftCorner<2, 2>();
+    if (!mean_stress.empty()) sigma.diagonal().array() += mean_stress[p];
+    const Matrix2d sigma_v = sigma * mp.volume[p];
     for (int k = 0; k < s.count; ++k) node_force_[s.node[k]] -= sigma_v * s.gradient[k];
   }
   RETURN_IF_ERROR(AddLoadForces());
@@ -847,31 +858,41 @@ double Solver::KineticEnergy() const {
   return e;
 }
 
-void AverageVolumeChange(std::span<const ShapeValues> shapes, std::span<const double> volume,
-                         int node_count, std::span<Matrix2d> df) {
-  std::vector<double> node_volume(node_count, 0.0), node_j(node_count, 0.0);
-  for (std::size_t p = 0; p < df.size(); ++p) {
+std::vector<double> NodalAverage(std::span<const ShapeValues> shapes,
+                                 std::span<const double> weight, std::span<const double> value,
+                                 int node_count) {
+  std::vector<double> node_weight(node_count, 0.0), node_value(node_count, 0.0);
+  for (std::size_t p = 0; p < value.size(); ++p) {
     const ShapeValues& s = shapes[p];
-    const double vj = volume[p] * df[p].determinant();  // m³
     for (int k = 0; k < s.count; ++k) {
-      node_volume[s.node[k]] += s.weight[k] * volume[p];
-      node_j[s.node[k]] += s.weight[k] * vj;
+      node_weight[s.node[k]] += s.weight[k] * weight[p];
+      node_value[s.node[k]] += s.weight[k] * weight[p] * value[p];
     }
   }
   for (int i = 0; i < node_count; ++i) {
-    if (node_volume[i] > 0.0) node_j[i] /= node_volume[i];
+    if (node_weight[i] > 0.0) node_value[i] /= node_weight[i];
   }
-  for (std::size_t p = 0; p < df.size(); ++p) {
+  std::vector<double> out(value.begin(), value.end());
+  for (std::size_t p = 0; p < value.size(); ++p) {
     const ShapeValues& s = shapes[p];
     if (s.count == 0) continue;
-    double j_bar = 0.0, weight = 0.0;
+    double sum = 0.0, total = 0.0;
     for (int k = 0; k < s.count; ++k) {
-      j_bar += s.weight[k] * node_j[s.node[k]];
-      weight += s.weight[k];
+      sum += s.weight[k] * node_value[s.node[k]];
+      total += s.weight[k];
     }
-    // Plane strain: the in-plane factor sqrt scales the determinant by J̄/J.
-    df[p] *= std::sqrt(j_bar / (weight * df[p].determinant()));
+    out[p] = sum / total;
   }
+  return out;
+}
+
+void AverageVolumeChange(std::span<const ShapeValues> shapes, std::span<const double> volume,
+                         int node_count, std::span<Matrix2d> df) {
+  std::vector<double> j(df.size());
+  for (std::size_t p = 0; p < df.size(); ++p) j[p] = df[p].determinant();
+  const std::vector<double> j_bar = NodalAverage(shapes, volume, j, node_count);
+  // Plane strain: the in-plane factor sqrt scales the determinant by J̄/J.
+  for (std::size_t p = 0; p < df.size(); ++p) df[p] *= std::sqrt(j_bar[p] / j[p]);
 }
 
 Matrix2d RveIncrement(const Matrix2d& df, const PointResponse& last, double max_void_ratio) {

@@ -123,14 +123,22 @@ double LoadFactorAt(const std::vector<LoadFactorPoint>& history, double ramp_tim
 Eigen::Matrix2d RveIncrement(const Eigen::Matrix2d& df, const PointResponse& last,
                              double max_void_ratio);
 
+// The nodal average of a per-point quantity a: at each node the weighted mean
+// a_I = Σ_q S_Iq w_q a_q / Σ_q S_Iq w_q of the points it supports, and back
+// at each point ā_p = Σ_I S_Ip a_I / Σ_I S_Ip. Points without nodes (parked
+// off the grid) keep their own value. shapes, weight and value have one
+// entry per point; node_count is the grid's.
+std::vector<double> NodalAverage(std::span<const ShapeValues> shapes,
+                                 std::span<const double> weight, std::span<const double> value,
+                                 int node_count);
+
 // F-bar with a nodal average (SolverSpec::f_bar kNodal): each point's
-// in-plane increment df_p scaled to the determinant J̄_p = Σ_I S_Ip J_I, where
-// J_I = Σ_q S_Iq V_q J_q / Σ_q S_Iq V_q is the volume-weighted mean of
-// J_q = det df_q over the points node I supports: df_p ← (J̄_p/J_p)^{1/2} df_p,
+// in-plane increment df_p scaled to the determinant J̄_p, the NodalAverage of
+// J = det df weighted by the volumes V_p (m³): df_p ← (J̄_p/J_p)^{1/2} df_p,
 // its shear and rotation kept. A homogeneous increment is unchanged (to
-// rounding). Points without nodes (parked off the grid) are left alone.
-// shapes, volume (V_p, m³) and df have one entry per point; node_count is
-// the grid's.
+// rounding) and Σ V_p J_p is kept. The solver's internal forces then use the
+// in-plane mean stress averaged by the same map (its adjoint), so that the
+// forces do the work the RVEs take.
 void AverageVolumeChange(std::span<const ShapeValues> shapes, std::span<const double> volume,
                          int node_count, std::span<Eigen::Matrix2d> df);
 

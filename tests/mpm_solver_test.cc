@@ -502,6 +502,39 @@ TEST(FBarTest, KeepsAHomogeneousIncrementAndShearAndSharesOnePointsSqueeze) {
   }
 }
 
+// The force side uses the same average on the mean stress: the map must be
+// its own adjoint in the volume-weighted product (Σ w a b̄ = Σ w ā b), or the
+// internal forces would not do the work the packings take.
+TEST(FBarTest, TheNodalAverageIsSelfAdjointAndKeepsConstants) {
+  GridSpec grid;
+  grid.cell_size = 0.1;
+  grid.nx = 6;
+  grid.ny = 5;
+  const std::vector<ShapeValues> shapes = CellCentreShapes(grid, ShapeKind::kGimp);
+  const std::size_t n = shapes.size();
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(0.5, 1.5);
+  std::vector<double> w(n), a(n), b(n);
+  for (std::size_t p = 0; p < n; ++p) {
+    w[p] = 0.01 * u(rng);
+    a[p] = u(rng) - 1.0;
+    b[p] = 1e5 * u(rng);
+  }
+  const std::vector<double> a_bar = NodalAverage(shapes, w, a, NodeCount(grid));
+  const std::vector<double> b_bar = NodalAverage(shapes, w, b, NodeCount(grid));
+  double ab = 0.0, ba = 0.0, spread = 0.0, spread_bar = 0.0;
+  for (std::size_t p = 0; p < n; ++p) {
+    ab += w[p] * a[p] * b_bar[p];
+    ba += w[p] * a_bar[p] * b[p];
+    spread += w[p] * a[p] * a[p];
+    spread_bar += w[p] * a_bar[p] * a_bar[p];
+  }
+  EXPECT_NEAR(ab, ba, 1e-13 * std::abs(ab));
+  EXPECT_LT(spread_bar, 0.5 * spread);  // a noisy field is smoothed
+  const std::vector<double> constant(n, 2.5);
+  for (double c : NodalAverage(shapes, w, constant, NodeCount(grid))) EXPECT_NEAR(c, 2.5, 1e-15);
+}
+
 TEST(FBarTest, TheSolverGivesPointsTheAveragedVolumeChange) {
   // A column of one point per cell squeezed by a rough platen: the points
   // under it are squeezed, those beside it not. With F-bar their RVEs get a
