@@ -74,6 +74,19 @@ Wall MakeWall(int axis, double position, ContactKind contact, double mu = 0.0) {
   return w;
 }
 
+// A rough rectangle of half size `half` centred at `center`, moving at a
+// constant `velocity` (m/s).
+RigidBody RoughBlock(const std::string& name, const Vector2d& center, const Vector2d& half,
+                     const Vector2d& velocity) {
+  RigidBody body;
+  body.name = name;
+  body.center = center;
+  body.half_size = half;
+  body.contact = ContactKind::kRough;
+  body.velocity = {{0.0, velocity}};
+  return body;
+}
+
 std::unique_ptr<Solver> MakeSolver(const CaseSpec& spec, StressModel* model,
                                    const std::vector<Vector2d>& velocity = {}) {
   absl::StatusOr<MaterialPoints> points = FillRegions(spec);
@@ -543,13 +556,8 @@ TEST(FBarTest, TheSolverGivesPointsTheAveragedVolumeChange) {
   spec.solver.pic_fraction = 0.0;
   spec.solver.time_step = 1e-3;
   spec.walls = {MakeWall(1, 0.0, ContactKind::kRough)};
-  RigidBody platen;
-  platen.name = "platen";
-  platen.center = Vector2d(0.4, 0.45);
-  platen.half_size = Vector2d(0.1, 0.05);
-  platen.contact = ContactKind::kRough;
-  platen.velocity = {{0.0, Vector2d(0.0, -1.0)}};
-  spec.bodies = {platen};
+  spec.bodies = {
+      RoughBlock("platen", Vector2d(0.4, 0.45), Vector2d(0.1, 0.05), Vector2d(0.0, -1.0))};
   std::map<FBar, std::vector<Matrix3d>> increments;
   std::vector<double> volume;
   for (FBar f : {FBar::kNone, FBar::kNodal}) {
@@ -708,13 +716,8 @@ TEST(BodyTest, RoughBodyPushedIntoABlockIsResisted) {
   spec.solver.pic_fraction = 0.2;
   spec.solver.time_step = 0.2 * 0.05 / std::sqrt(PWaveModulus(youngs, nu) / rho);
   spec.walls = {MakeWall(1, 0.0, ContactKind::kRough)};
-  RigidBody footing;
-  footing.name = "footing";
-  footing.center = Vector2d(0.4, 0.45);
-  footing.half_size = Vector2d(0.1, 0.05);
-  footing.contact = ContactKind::kRough;
-  footing.velocity = {{0.0, Vector2d(0.0, -0.05)}};
-  spec.bodies = {footing};
+  spec.bodies = {
+      RoughBlock("footing", Vector2d(0.4, 0.45), Vector2d(0.1, 0.05), Vector2d(0.0, -0.05))};
   LinearElasticModel model(youngs, nu);
   std::unique_ptr<Solver> solver = MakeSolver(spec, &model);
   double impulse = 0.0;
