@@ -629,6 +629,9 @@ Fields<SolverSpec> SolverFields() {
       NumberField("mass_scale", &SolverSpec::mass_scale, Need::kOptional,
                   Range{1.0, 1e6, false, false}),
       EnumField("f_bar", &SolverSpec::f_bar, Need::kOptional, "F-bar kind", kFBars, &FBarName),
+      NumberField("nonlocal_radius", &SolverSpec::nonlocal_radius, Need::kOptional, kNonNegative),
+      NumberField("nonlocal_fraction", &SolverSpec::nonlocal_fraction, Need::kOptional,
+                  Range{0.0, 1.0, true, false}),
   };
 }
 
@@ -1748,10 +1751,28 @@ absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::strin
     if (spec.phases.saturated && spec.solver.f_bar != FBar::kNone) {
       return Bad(root.At("solver") + "/f_bar", "F-bar is for dry cases only");
     }
+    // Likewise: the water's mass balance follows each point's own strain.
+    if (spec.phases.saturated && spec.solver.nonlocal_radius > 0.0) {
+      return Bad(root.At("solver") + "/nonlocal_radius", "a nonlocal strain is for dry cases only");
+    }
     // The two-phase step's pressure solve is set up for one Δt.
     if (spec.phases.saturated && spec.solver.time_step_update_every > 0) {
       return Bad(root.At("solver") + "/time_step_update_every",
                  "an updated time step is for dry cases only");
+    }
+  }
+  if (const double radius = spec.solver.nonlocal_radius; radius > 0.0) {
+    const std::string at = root.At("solver") + "/nonlocal_radius";
+    // Each averages the strain its own way; one at a time keeps either's
+    // energy balance exact.
+    if (spec.solver.f_bar != FBar::kNone) return Bad(at, "not together with solver.f_bar");
+    // Below a tenth of a cell no point has a neighbour within it; beyond
+    // 8 cells the averaging would span most small domains and cost O(n·64²).
+    const double h = spec.grid.cell_size;
+    if (radius < 0.1 * h || radius > 8.0 * h) {
+      return Bad(at, absl::StrFormat("%.6g m must be 0 (off) or between 0.1 and 8 cells (%.6g to "
+                                     "%.6g m for cells of %.6g m)",
+                                     radius, 0.1 * h, 8.0 * h, h));
     }
   }
   if (const Json* output = root.Get("output")) {

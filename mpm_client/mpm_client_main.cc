@@ -49,6 +49,8 @@ ABSL_FLAG(int64_t, stop_after, 0, "stop after N steps");
 ABSL_FLAG(double, end_time, 0, "resume: the run's new end time, s");
 ABSL_FLAG(double, cfl, 0, "resume: a new CFL number");
 ABSL_FLAG(std::string, f_bar, "", "resume: F-bar from here on (none, nodal)");
+ABSL_FLAG(double, nonlocal_radius, 0, "resume: nonlocal strain radius from here on, m");
+ABSL_FLAG(double, nonlocal_fraction, 1, "resume: share of the nonlocal average from here on");
 ABSL_FLAG(bool, quiet, false, "no progress lines");
 ABSL_FLAG(bool, no_recovery, false, "a lost server ends the run");
 ABSL_FLAG(double, min_timeout, 10, "floor of the adaptive RVE call deadline, s");
@@ -101,6 +103,10 @@ Option (resume):
                        a checkpoint before, with a smaller step
   --f-bar=none|nodal   go on with this F-bar (the case's solver.f_bar): e.g. a run whose
                        points get squeezed or opened alone, resumed with nodal F-bar
+  --nonlocal-radius=M  go on with this nonlocal strain radius in m (the case's
+                       solver.nonlocal_radius; 0 turns it off)
+  --nonlocal-fraction=F  go on with this share of the nonlocal average in (0, 1] (the
+                       case's solver.nonlocal_fraction)
 
 Option (run, check):
   --set=PATH=VALUE     override one case field before the case is validated; repeatable.
@@ -119,6 +125,8 @@ constexpr char kTimeoutRule[] = "must be a number of seconds in (0, 1e7]";
 constexpr char kStopAfterRule[] = "must be a positive integer";
 constexpr char kEndTimeRule[] = "must be a time in (0, 1e6] s";
 constexpr char kCflRule[] = "must be a number in (0, 1]";
+constexpr char kNonlocalRadiusRule[] = "must be a length in [0, 1e3] m";
+constexpr char kNonlocalFractionRule[] = "must be a number in (0, 1]";
 
 struct Command {
   std::string name;    // run, resume, check, help
@@ -134,14 +142,33 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
     return c;
   }
   cli::ArgSpec spec;
-  spec.allowed = {"out",         "servers",     "threads",        "token-file", "tls-ca",
-                  "timeout",     "min-timeout", "template-cache", "stop-after", "quiet",
-                  "no-recovery", "set",         "end-time",       "cfl",        "f-bar"};
+  spec.allowed = {"out",
+                  "servers",
+                  "threads",
+                  "token-file",
+                  "tls-ca",
+                  "timeout",
+                  "min-timeout",
+                  "template-cache",
+                  "stop-after",
+                  "quiet",
+                  "no-recovery",
+                  "set",
+                  "end-time",
+                  "cfl",
+                  "f-bar",
+                  "nonlocal-radius",
+                  "nonlocal-fraction"};
   spec.repeatable = {"set"};
   spec.bare = {"quiet", "no-recovery"};
-  spec.rules = {{"threads", kThreadsRule},     {"timeout", kTimeoutRule},
-                {"min-timeout", kTimeoutRule}, {"stop-after", kStopAfterRule},
-                {"end-time", kEndTimeRule},    {"cfl", kCflRule}};
+  spec.rules = {{"threads", kThreadsRule},
+                {"timeout", kTimeoutRule},
+                {"min-timeout", kTimeoutRule},
+                {"stop-after", kStopAfterRule},
+                {"end-time", kEndTimeRule},
+                {"cfl", kCflRule},
+                {"nonlocal-radius", kNonlocalRadiusRule},
+                {"nonlocal-fraction", kNonlocalFractionRule}};
   ASSIGN_OR_RETURN(Args args, cli::ParseArgs(argc, argv, 1, spec));
   c.args = std::move(args);
   std::vector<std::string>& positional = c.args.positional;
@@ -184,6 +211,16 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
   if (c.name != "resume" && c.args.contains("f-bar")) {
     return absl::InvalidArgumentError(
         "--f-bar is for resume (a run sets solver.f_bar in its case, or --set it)");
+  }
+  if (c.name != "resume" && c.args.contains("nonlocal-radius")) {
+    return absl::InvalidArgumentError(
+        "--nonlocal-radius is for resume (a run sets solver.nonlocal_radius in its case, or "
+        "--set it)");
+  }
+  if (c.name != "resume" && c.args.contains("nonlocal-fraction")) {
+    return absl::InvalidArgumentError(
+        "--nonlocal-fraction is for resume (a run sets solver.nonlocal_fraction in its case, or "
+        "--set it)");
   }
   if (c.name == "resume" && c.args.contains("set")) {
     return absl::InvalidArgumentError(
@@ -272,6 +309,21 @@ absl::StatusOr<SimulationOptions> Options(const Args& a) {
       return absl::InvalidArgumentError(
           absl::StrCat("--f-bar must be none or nodal, got '", o.f_bar, "'"));
     }
+  }
+  if (a.contains("nonlocal-radius")) {
+    const double radius = absl::GetFlag(FLAGS_nonlocal_radius);
+    if (!(radius >= 0) || radius > 1e3) {
+      return absl::InvalidArgumentError(absl::StrCat("--nonlocal-radius ", kNonlocalRadiusRule));
+    }
+    o.nonlocal_radius = radius;
+  }
+  if (a.contains("nonlocal-fraction")) {
+    const double fraction = absl::GetFlag(FLAGS_nonlocal_fraction);
+    if (!(fraction > 0) || fraction > 1) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--nonlocal-fraction ", kNonlocalFractionRule));
+    }
+    o.nonlocal_fraction = fraction;
   }
   if (a.contains("template-cache")) o.template_cache_dir = absl::GetFlag(FLAGS_template_cache);
   o.progress = !a.contains("quiet");

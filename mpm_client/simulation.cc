@@ -697,6 +697,14 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
   if (!options.f_bar.empty()) {
     overrides.push_back({"/solver/f_bar", absl::StrCat("\"", options.f_bar, "\"")});
   }
+  if (options.nonlocal_radius) {
+    overrides.push_back(
+        {"/solver/nonlocal_radius", absl::StrFormat("%.17g", *options.nonlocal_radius)});
+  }
+  if (options.nonlocal_fraction) {
+    overrides.push_back(
+        {"/solver/nonlocal_fraction", absl::StrFormat("%.17g", *options.nonlocal_fraction)});
+  }
   if (!overrides.empty()) {
     spec = ParseCase(c.case_json, ".", overrides);
     if (!spec.ok()) return spec.status();
@@ -729,6 +737,12 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
                              options.cfl));
   }
   if (!options.f_bar.empty()) sim->Log(absl::StrCat("F-bar: ", options.f_bar));
+  if (options.nonlocal_radius) {
+    sim->Log(absl::StrFormat("nonlocal strain radius: %.4g m", *options.nonlocal_radius));
+  }
+  if (options.nonlocal_fraction) {
+    sim->Log(absl::StrFormat("nonlocal fraction: %.4g", *options.nonlocal_fraction));
+  }
   sim->SetApplyOptions();
   sim->Log(absl::StrFormat("resumed %s at step %d, t = %.6g s", checkpoint_path,
                            sim->solver_->step(), sim->solver_->time()));

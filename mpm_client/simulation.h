@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -68,6 +69,11 @@ struct SimulationOptions {
   // Resume only: the run's F-bar from the checkpoint on, "none" or "nodal"
   // (empty: the case's solver.f_bar); later checkpoints carry it.
   std::string f_bar;
+  // Resume only: the run's nonlocal strain radius from the checkpoint on, m
+  // (0 turns it off; unset: the case's solver.nonlocal_radius).
+  std::optional<double> nonlocal_radius;
+  // Resume only: its solver.nonlocal_fraction from the checkpoint on, (0, 1].
+  std::optional<double> nonlocal_fraction;
   bool progress = true;                         // progress lines on stderr
   std::function<void(const std::string&)> log;  // default: stderr
 };

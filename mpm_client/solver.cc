@@ -352,6 +352,20 @@ absl::StatusOr<std::unique_ptr<Solver>> Solver::Init(const CaseSpec& spec, Stres
       !std::isfinite(sv.shaking_frequency)) {
     return Invalid("solver", "shaking_amplitude must be finite and shaking_frequency >= 0");
   }
+  // The bins of NonlocalMap are ℓ wide: a radius far below the cell would
+  // make their count overflow (the case file bounds it to 0.1–8 cells).
+  if (!(sv.nonlocal_radius == 0.0 || (sv.nonlocal_radius >= 1e-3 * spec.grid.cell_size &&
+                                      sv.nonlocal_radius <= 1e3 * spec.grid.cell_size))) {
+    return Invalid("solver", absl::StrCat("nonlocal_radius = ", sv.nonlocal_radius,
+                                          " m must be 0 or within 1e-3 to 1e3 cells"));
+  }
+  if (!(sv.nonlocal_fraction > 0.0 && sv.nonlocal_fraction <= 1.0)) {
+    return Invalid(
+        "solver", absl::StrCat("nonlocal_fraction = ", sv.nonlocal_fraction, " must be in (0, 1]"));
+  }
+  if (sv.nonlocal_radius > 0.0 && spec.phases.saturated) {
+    return Invalid("solver", "a nonlocal strain is for dry cases only");
+  }
   std::unique_ptr<Solver> solver(new Solver());
   solver->grid_ = spec.grid;
   solver->solver_ = sv;
@@ -699,6 +713,21 @@ absl::Status Solver::UpdateStress() {
   if (solver_.f_bar == FBar::kNodal) {
     AverageVolumeChange(shape_, mp.volume, NodeCount(grid_), in_plane_df_);
   }
+  if (solver_.nonlocal_radius > 0.0) {
+    std::vector<std::uint8_t> active(n);
+    for (std::size_t p = 0; p < n; ++p) active[p] = !lost_[p] && shape_[p].count > 0;
+    nonlocal_ = NonlocalMap::Build(mp.position, mp.volume, active, solver_.nonlocal_radius,
+                                   solver_.thickness, solver_.nonlocal_fraction);
+    AverageStrainIncrement(nonlocal_, in_plane_df_);
+    for (std::size_t p = 0; p < n; ++p) {
+      if (!(in_plane_df_[p].determinant() > 0.0)) {
+        return absl::FailedPreconditionError(absl::StrCat(
+            "material point ", p, " at ", Format(mp.position[p]),
+            " m would invert with its averaged strain: det ΔF = ", in_plane_df_[p].determinant(),
+            " (time step too large?)"));
+      }
+    }
+  }
   for (std::size_t p = 0; p < n; ++p) {
     const Matrix2d& df = in_plane_df_[p];
     delta_f_[p].setIdentity();
@@ -811,9 +840,13 @@ absl::Status Solver::Step() {
     mean_stress = NodalAverage(shape_, mp.volume, own, nodes);
     for (std::size_t p = 0; p < n; ++p) mean_stress[p] -= own[p];  // the change, Pa
   }
+  // With a nonlocal strain the stresses are averaged by the same map.
+  std::vector<Matrix2d> nonlocal_stress;
+  if (solver_.nonlocal_radius > 0.0) nonlocal_stress = AverageInPlaneStress(nonlocal_, mp.stress);
   for (std::size_t p = 0; p < n; ++p) {
     const ShapeValues& s = shape_[p];
-    Matrix2d sigma = mp.stress[p].topLeftCorner<2, 2>();
+    Matrix2d sigma =
+        nonlocal_stress.empty() ? Matrix2d(mp.stress[p].topLeftCorner<2, 2>()) : nonlocal_stress[p];
     if (!mean_stress.empty()) sigma.diagonal().array() += mean_stress[p];
     const Matrix2d sigma_v = sigma * mp.volume[p];
     for (int k = 0; k < s.count; ++k) node_force_[s.node[k]] -= sigma_v * s.gradient[k];

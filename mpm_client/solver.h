@@ -20,6 +20,7 @@
 #include "absl/status/statusor.h"
 #include "mpm_client/body_contact.h"
 #include "mpm_client/model.h"
+#include "mpm_client/nonlocal.h"
 #include "mpm_client/shape.h"
 
 namespace rvehub::mpm {
@@ -307,6 +308,7 @@ class Solver {
   std::vector<SurfaceContact> contacts_;            // faces near bodies, this step
   std::vector<Eigen::Vector2d> body_velocity_;      // per body, m/s
   std::vector<Eigen::Matrix2d> in_plane_df_;        // per point, ΔF in-plane (F-bar applied)
+  NonlocalMap nonlocal_;                            // this step's (solver.nonlocal_radius)
   std::vector<Eigen::Matrix3d> delta_f_;            // per point, the continuum's ΔF
   std::vector<Eigen::Matrix3d> rve_delta_f_;        // per point, what its RVE gets (RveIncrement)
   std::vector<PointResponse> response_;

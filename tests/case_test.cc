@@ -269,6 +269,8 @@ TEST_F(CaseTest, MinimalCaseTakesModelDefaults) {
   EXPECT_EQ(spec->solver.cfl, defaults.solver.cfl);
   EXPECT_EQ(spec->solver.time_step_update_every, 0);
   EXPECT_EQ(spec->solver.f_bar, FBar::kNone);
+  EXPECT_EQ(spec->solver.nonlocal_radius, 0.0);
+  EXPECT_EQ(spec->solver.nonlocal_fraction, 0.5);
   EXPECT_EQ(spec->solver.thickness, defaults.solver.thickness);
   EXPECT_EQ(spec->solver.shaking_amplitude, Eigen::Vector2d::Zero());
   EXPECT_EQ(spec->solver.shaking_frequency, 0.0);
@@ -305,6 +307,30 @@ TEST_F(CaseTest, TimeStepUpdateIsAStepCountWrittenOnlyWhenOn) {
         MessageStartsWith(Parse(doc.dump()).status(),
                           "/solver/time_step_update_every: must be an integer in 0..1000000000"))
         << bad;
+  }
+}
+
+TEST_F(CaseTest, NonlocalRadiusAndFractionAreReadWrittenAndTheRadiusBoundedByTheCell) {
+  Json doc = Json::parse(kMinimalCase);  // cells of 0.5 m
+  doc["solver"]["nonlocal_radius"] = 1.25;
+  doc["solver"]["nonlocal_fraction"] = 0.75;
+  absl::StatusOr<CaseSpec> spec = Parse(doc.dump());
+  ASSERT_TRUE(spec.ok()) << spec.status();
+  EXPECT_EQ(spec->solver.nonlocal_radius, 1.25);
+  EXPECT_EQ(spec->solver.nonlocal_fraction, 0.75);
+  absl::StatusOr<CaseSpec> again = Parse(ToJson(*spec));
+  ASSERT_TRUE(again.ok()) << again.status();
+  EXPECT_EQ(again->solver.nonlocal_radius, 1.25);
+  EXPECT_EQ(again->solver.nonlocal_fraction, 0.75);
+  for (double radius : {0.04, 4.5}) {
+    doc["solver"]["nonlocal_radius"] = radius;
+    spec = Parse(doc.dump());
+    ASSERT_FALSE(spec.ok());
+    EXPECT_EQ(spec.status().code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_EQ(spec.status().message(),
+              absl::StrCat("/solver/nonlocal_radius: ", radius,
+                           " m must be 0 (off) or between 0.1 and 8 cells (0.05 to 4 m for "
+                           "cells of 0.5 m)"));
   }
 }
 
@@ -346,6 +372,8 @@ void ExpectSameSpec(const CaseSpec& a, const CaseSpec& b) {
   EXPECT_EQ(a.solver.lost_points, b.solver.lost_points);
   EXPECT_EQ(a.solver.mass_scale, b.solver.mass_scale);
   EXPECT_EQ(a.solver.f_bar, b.solver.f_bar);
+  EXPECT_EQ(a.solver.nonlocal_radius, b.solver.nonlocal_radius);
+  EXPECT_EQ(a.solver.nonlocal_fraction, b.solver.nonlocal_fraction);
   ASSERT_EQ(a.templates.size(), b.templates.size());
   for (size_t i = 0; i < a.templates.size(); ++i) {
     SCOPED_TRACE(absl::StrCat("template ", i));
@@ -548,6 +576,11 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
       {"/solver/lost_points", "remove",
        "/solver/lost_points: unknown lost-point policy \"remove\" (stop, drop)"},
       {"/solver/f_bar", "cell", "/solver/f_bar: unknown F-bar kind \"cell\" (none, nodal)"},
+      {"/solver/nonlocal_radius", -0.1, "/solver/nonlocal_radius: must be >= 0, got -0.1"},
+      {"/solver/nonlocal_fraction", 0, "/solver/nonlocal_fraction: must be in (0, 1], got 0"},
+      {"/solver/nonlocal_fraction", 1.5, "/solver/nonlocal_fraction: must be in (0, 1], got 1.5"},
+      // The full case has F-bar.
+      {"/solver/nonlocal_radius", 1.0, "/solver/nonlocal_radius: not together with solver.f_bar"},
       {"/solver/mass_scale", 0.5, "/solver/mass_scale: must be in [1, 1000000], got 0.5"},
       // The full case fixes its time step.
       {"/solver/time_step_update_every", 100,
@@ -741,6 +774,7 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
       {"/rve/max_void_ratio", 0.3},
       {"/solver/time_step_update_every", 100},
       {"/solver/f_bar", "nodal"},
+      {"/solver/nonlocal_radius", 0.2},
   };
   const std::vector<std::string> messages = {
       "/phases/permeability: must be in (0, 10], got 0",
@@ -760,6 +794,7 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
       "/rve/max_void_ratio: a void-ratio cap is for dry cases only",
       "/solver/time_step_update_every: an updated time step is for dry cases only",
       "/solver/f_bar: F-bar is for dry cases only",
+      "/solver/nonlocal_radius: a nonlocal strain is for dry cases only",
   };
   for (std::size_t i = 0; i < edits.size(); ++i) {
     SCOPED_TRACE(edits[i].first);

@@ -283,6 +283,14 @@ TEST(MpmCliTest, UsageErrorsExitTwoWithAMessage) {
            {"resume x.h5 --cfl=1.5", "--cfl must be a number in (0, 1]"},
            {absl::StrCat("run ", case_path, out, " --f-bar=nodal"), "--f-bar is for resume"},
            {"resume x.h5 --f-bar=cell", "--f-bar must be none or nodal, got 'cell'"},
+           {absl::StrCat("run ", case_path, out, " --nonlocal-radius=0.2"),
+            "--nonlocal-radius is for resume"},
+           {"resume x.h5 --nonlocal-radius=-1", "--nonlocal-radius must be a length in [0, 1e3] m"},
+           {"resume x.h5 --nonlocal-radius=wide",
+            "--nonlocal-radius must be a length in [0, 1e3] m"},
+           {absl::StrCat("run ", case_path, out, " --nonlocal-fraction=0.5"),
+            "--nonlocal-fraction is for resume"},
+           {"resume x.h5 --nonlocal-fraction=0", "--nonlocal-fraction must be a number in (0, 1]"},
        }) {
     const Result r = RunClient(c.args);
     EXPECT_EQ(r.exit_code, 2) << c.args << ": " << r;

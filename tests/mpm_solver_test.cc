@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <map>
@@ -16,6 +17,7 @@
 #include "mpm_client/body_contact.h"
 #include "mpm_client/elastic.h"
 #include "mpm_client/model.h"
+#include "mpm_client/nonlocal.h"
 #include "mpm_client/shape.h"
 #include "mpm_client/solver.h"
 
@@ -586,6 +588,264 @@ TEST(FBarTest, TheSolverGivesPointsTheAveragedVolumeChange) {
   EXPECT_LT(total[0], -1e-6);
   EXPECT_NEAR(total[1], total[0], 1e-12 * std::abs(total[0]));
   EXPECT_LT(most[1], 0.8 * most[0]);
+}
+
+// --- nonlocal strain: increments averaged over a radius (solver.nonlocal_radius)
+
+// A jittered lattice of points 0.1 m apart (nx × ny) with volumes about 0.01 m³.
+struct PointCloud {
+  std::vector<Vector2d> position;
+  std::vector<double> volume;
+  std::vector<std::uint8_t> active;
+};
+PointCloud Jittered(int nx, int ny, unsigned seed) {
+  PointCloud c;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> jitter(-0.02, 0.02), size(0.8, 1.2);
+  for (int j = 0; j < ny; ++j) {
+    for (int i = 0; i < nx; ++i) {
+      c.position.push_back(Vector2d(0.1 * i + jitter(rng), 0.1 * j + jitter(rng)));
+      c.volume.push_back(0.01 * size(rng));
+      c.active.push_back(1);
+    }
+  }
+  return c;
+}
+
+TEST(NonlocalTest, TheMapFindsEveryPairWithinTheRadiusAndKeepsTheOwnShareNonNegative) {
+  PointCloud c = Jittered(12, 9, 3);
+  c.active[17] = 0;  // parked: neither a neighbour nor averaged
+  const double radius = 0.25;
+  const NonlocalMap map = NonlocalMap::Build(c.position, c.volume, c.active, radius, 1.0, 1.0);
+  ASSERT_EQ(map.size(), c.position.size());
+  EXPECT_TRUE(map.Neighbours(17).empty());
+  std::size_t pairs = 0;
+  for (std::size_t p = 0; p < c.position.size(); ++p) {
+    // The bins find what a search over all pairs finds, in index order
+    // within each bin column.
+    std::vector<std::int32_t> expected;
+    for (std::size_t q = 0; q < c.position.size(); ++q) {
+      if (q != p && c.active[p] && c.active[q] && (c.position[q] - c.position[p]).norm() < radius) {
+        expected.push_back(static_cast<std::int32_t>(q));
+      }
+    }
+    std::vector<std::int32_t> found(map.Neighbours(p).begin(), map.Neighbours(p).end());
+    std::sort(found.begin(), found.end());
+    EXPECT_EQ(found, expected) << p;
+    pairs += found.size();
+    double share = 0.0;
+    for (std::size_t k = 0; k < found.size(); ++k) {
+      const std::int32_t q = map.Neighbours(p)[k];
+      const double c_pq = map.Coefficients(p)[k];
+      share += c_pq;
+      // V_p c_pq = V_q c_qp: the map is symmetric in the volume-weighted sum.
+      const auto back = map.Neighbours(q);
+      const std::size_t at = std::find(back.begin(), back.end(), p) - back.begin();
+      ASSERT_LT(at, back.size());
+      EXPECT_NEAR(c.volume[p] * c_pq, c.volume[q] * map.Coefficients(q)[at],
+                  1e-15 * c.volume[p] * c_pq);
+    }
+    EXPECT_LE(share, 1.0 - c.volume[p] / 0.25) << p;  // the own share ≥ V_p/S∞ > 0
+  }
+  // About 5 neighbours at 0.1 m spacing inside a radius of 2.5 spacings:
+  // π·2.5² − 1 ≈ 18.6 in the interior, fewer at the edges.
+  EXPECT_GT(pairs, 12 * c.position.size());
+}
+
+TEST(NonlocalTest, TheAverageKeepsConstantsAndTheTotalIsSelfAdjointAndSmooths) {
+  const PointCloud c = Jittered(10, 8, 7);
+  const std::size_t n = c.position.size();
+  const NonlocalMap map = NonlocalMap::Build(c.position, c.volume, c.active, 0.25, 1.0, 1.0);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<double> a(n), b(n), a_bar(n), b_bar(n);
+  for (std::size_t p = 0; p < n; ++p) {
+    a[p] = u(rng);
+    b[p] = 1e5 * u(rng);
+  }
+  map.Apply(a, a_bar);
+  map.Apply(b, b_bar);
+  double ab = 0.0, ba = 0.0, total = 0.0, total_bar = 0.0, spread = 0.0, spread_bar = 0.0;
+  for (std::size_t p = 0; p < n; ++p) {
+    ab += c.volume[p] * a[p] * b_bar[p];
+    ba += c.volume[p] * a_bar[p] * b[p];
+    total += c.volume[p] * a[p];
+    total_bar += c.volume[p] * a_bar[p];
+    spread += c.volume[p] * a[p] * a[p];
+    spread_bar += c.volume[p] * a_bar[p] * a_bar[p];
+  }
+  EXPECT_NEAR(ab, ba, 1e-12 * std::abs(1e5 * spread));
+  EXPECT_NEAR(total_bar, total, 1e-15 * n);  // Σ V a is kept
+  EXPECT_LT(spread_bar, 0.3 * spread);       // a noisy field is smoothed
+  const std::vector<double> constant(n, 2.5);
+  std::vector<double> out(n);
+  map.Apply(constant, out);
+  for (double v : out) EXPECT_EQ(v, 2.5);  // bit for bit
+  // A spike reaches exactly the points within the radius.
+  std::vector<double> spike(n, 0.0);
+  const std::size_t middle = 4 + 10 * 4;
+  spike[middle] = 1.0;
+  map.Apply(spike, out);
+  for (std::size_t p = 0; p < n; ++p) {
+    const bool near = (c.position[p] - c.position[middle]).norm() < 0.25;
+    if (p == middle) {
+      EXPECT_GT(out[p], 0.0);
+      EXPECT_LT(out[p], 0.5);
+    } else {
+      EXPECT_EQ(out[p] > 0.0, near) << p;
+    }
+  }
+}
+
+// The full average nearly annuls a field alternating from point to point
+// (what such a strain meets is what the map leaves of it); the blend with a
+// fraction m keeps 1 − m (1 + 0.06) of it.
+TEST(NonlocalTest, AFractionKeepsAPointToPointAlternationThatTheFullAverageAnnuls) {
+  PointCloud c;
+  for (int j = 0; j < 15; ++j) {
+    for (int i = 0; i < 15; ++i) {
+      c.position.push_back(Vector2d(0.1 * i, 0.1 * j));
+      c.volume.push_back(0.01);
+      c.active.push_back(1);
+    }
+  }
+  const std::size_t n = c.position.size(), middle = 7 + 15 * 7;
+  std::vector<double> alternating(n), out(n);
+  for (std::size_t p = 0; p < n; ++p) alternating[p] = (p % 2 == 0) ? 1.0 : -1.0;
+  for (double m : {1.0, 0.5}) {
+    const NonlocalMap map = NonlocalMap::Build(c.position, c.volume, c.active, 0.2, 1.0, m);
+    map.Apply(alternating, out);
+    // ℓ = 2h: 4 neighbours at h with w = 9/16, 4 at √2 h with 1/4, S∞ = 4.25 h²:
+    // (1 − 4·9/16 + 4/4)/4.25 = −1/17 of it with m = 1.
+    std::printf("m = %.1f: the alternation keeps %.4f of itself\n", m, out[middle]);
+    EXPECT_NEAR(out[middle], 1.0 - m * (1.0 + 1.0 / 17.0), 1e-12);
+  }
+}
+
+TEST(NonlocalTest, AnIncrementsStrainIsAveragedAndItsRotationKept) {
+  const PointCloud c = Jittered(7, 7, 1);
+  const std::size_t n = c.position.size();
+  const NonlocalMap map = NonlocalMap::Build(c.position, c.volume, c.active, 0.25, 1.0, 1.0);
+  // A homogeneous increment (squeeze, shear, rotation) stays bit for bit.
+  Matrix2d uniform;
+  uniform << 0.998, 0.004, -0.001, 0.997;
+  std::vector<Matrix2d> df(n, uniform);
+  AverageStrainIncrement(map, df);
+  for (const Matrix2d& d : df) EXPECT_EQ(d, uniform);
+  // One point sheared and rotated, the others at rest: its neighbours take a
+  // share of the shear strain, none of the rotation.
+  const std::size_t middle = 3 + 7 * 3;
+  Matrix2d shear;
+  shear << 1.0, 0.01, -0.004, 1.0;  // strain xy 0.003, spin 0.007
+  df.assign(n, Matrix2d::Identity());
+  df[middle] = shear;
+  AverageStrainIncrement(map, df);
+  const auto skew = [](const Matrix2d& d) { return 0.5 * (d(0, 1) - d(1, 0)); };
+  EXPECT_DOUBLE_EQ(skew(df[middle]), 0.007);
+  EXPECT_GT(df[middle](0, 1) + df[middle](1, 0), 0.0);
+  EXPECT_LT(df[middle](0, 1) + df[middle](1, 0), 0.5 * 0.006);
+  int sheared = 0;
+  for (std::size_t p = 0; p < n; ++p) {
+    if (p == middle) continue;
+    EXPECT_EQ(skew(df[p]), 0.0) << p;
+    EXPECT_EQ(df[p].diagonal(), Vector2d(1.0, 1.0)) << p;
+    if (df[p](0, 1) > 0.0) ++sheared;
+  }
+  EXPECT_EQ(sheared, static_cast<int>(map.Neighbours(middle).size()));
+}
+
+TEST(NonlocalTest, TheSolverGivesPointsTheAveragedStrain) {
+  // The rough platen of FBarTest: with a nonlocal radius of two cells the
+  // points' RVEs get a smoother strain with the same total volume change,
+  // the more so the larger the fraction.
+  CaseSpec spec = BlockCase(0.1, 8, 6, Vector2d(0.0, 0.0), Vector2d(0.8, 0.4), 1);
+  spec.solver.pic_fraction = 0.0;
+  spec.solver.time_step = 1e-3;
+  spec.walls = {MakeWall(1, 0.0, ContactKind::kRough)};
+  spec.bodies = {
+      RoughBlock("platen", Vector2d(0.4, 0.45), Vector2d(0.1, 0.05), Vector2d(0.0, -1.0))};
+  const std::pair<double, double> settings[] = {{0.0, 1.0}, {0.2, 1.0}, {0.2, 0.5}};
+  double total[3], most[3];
+  for (int k = 0; k < 3; ++k) {
+    spec.solver.nonlocal_radius = settings[k].first;
+    spec.solver.nonlocal_fraction = settings[k].second;
+    RecordingModel model(0.2);
+    std::unique_ptr<Solver> solver = MakeSolver(spec, &model);
+    const std::vector<double> volume = solver->points().volume;
+    ASSERT_TRUE(solver->Step().ok());
+    total[k] = most[k] = 0.0;
+    for (std::size_t p = 0; p < volume.size(); ++p) {
+      const Matrix3d& d = model.last()[p];
+      EXPECT_NEAR(solver->points().volume[p], volume[p] * d.determinant(), 1e-15);
+      total[k] += volume[p] * (d(0, 0) + d(1, 1) - 2.0);  // Σ V tr ε, m³
+      most[k] = std::max(most[k], (0.5 * (d + d.transpose()) - Matrix3d::Identity()).norm());
+    }
+  }
+  std::printf(
+      "Σ V tr ε (largest |ε|): local %.6g m³ (%.4g), m = 1 %.6g m³ (%.4g), m = 0.5 %.6g m³ "
+      "(%.4g)\n",
+      total[0], most[0], total[1], most[1], total[2], most[2]);
+  EXPECT_LT(total[0], -1e-6);
+  EXPECT_NEAR(total[1], total[0], 1e-12 * std::abs(total[0]));
+  EXPECT_NEAR(total[2], total[0], 1e-12 * std::abs(total[0]));
+  EXPECT_LT(most[1], 0.8 * most[0]);  // 0.72 of it
+  EXPECT_LT(most[2], 0.9 * most[0]);  // 0.86
+  EXPECT_GT(most[2], most[1]);
+}
+
+// The strain the points take and the stress the forces use are averaged by
+// the same self-adjoint map, so the averaged solver does the work its points
+// store: a free elastic block vibrating keeps its energy as the local one
+// does (FLIP, no damping).
+TEST(NonlocalTest, AFreeElasticBlockKeepsItsEnergy) {
+  const double youngs = 1e6, nu = 0.3, rho = 2000.0;
+  CaseSpec spec = BlockCase(0.1, 14, 14, Vector2d(0.2, 0.2), Vector2d(1.2, 1.2), 2, rho);
+  spec.solver.pic_fraction = 0.0;
+  spec.solver.time_step = 0.1 * 0.1 / std::sqrt(PWaveModulus(youngs, nu) / rho);
+  const auto energy = [&](const Solver& solver) {
+    const MaterialPoints& mp = solver.points();
+    double e = solver.KineticEnergy();
+    for (std::size_t p = 0; p < mp.size(); ++p) {
+      const Matrix3d& sigma = mp.stress[p];
+      const Matrix3d strain =
+          ((1.0 + nu) * sigma - nu * sigma.trace() * Matrix3d::Identity()) / youngs;
+      e += 0.5 * mp.volume[p] * (sigma.array() * strain.array()).sum();
+    }
+    return e;
+  };
+  double drift[3] = {0.0, 0.0, 0.0}, strain_energy[3] = {0.0, 0.0, 0.0};
+  for (int k = 0; k < 3; ++k) {
+    spec.solver.nonlocal_radius = k == 0 ? 0.0 : 0.25;
+    spec.solver.nonlocal_fraction = k == 2 ? 0.5 : 1.0;
+    LinearElasticModel model(youngs, nu);
+    absl::StatusOr<MaterialPoints> points = FillRegions(spec);
+    ASSERT_TRUE(points.ok()) << points.status();
+    for (std::size_t p = 0; p < points->size(); ++p) {
+      const Vector2d x = points->position[p] - Vector2d(0.7, 0.7);
+      // A bump in the middle: strains that vary within the radius.
+      points->velocity[p] = 0.05 * std::exp(-x.squaredNorm() / 0.02) * Vector2d(x.y(), 0.5 * x.x());
+    }
+    absl::StatusOr<std::unique_ptr<Solver>> solver =
+        Solver::Create(spec, *std::move(points), &model);
+    ASSERT_TRUE(solver.ok()) << solver.status();
+    const double e0 = energy(**solver);
+    double worst = 0.0;
+    for (int i = 0; i < 300; ++i) {
+      RunSteps(**solver, 1);
+      worst = std::max(worst, std::abs(energy(**solver) - e0) / e0);
+      strain_energy[k] = std::max(strain_energy[k], 1.0 - (*solver)->KineticEnergy() / e0);
+    }
+    drift[k] = worst;
+  }
+  std::printf(
+      "largest |E - E0|/E0 over 300 steps: local %.3g, nonlocal m = 1 %.3g, m = 0.5 %.3g; "
+      "strain energy up to %.3g, %.3g, %.3g of E0\n",
+      drift[0], drift[1], drift[2], strain_energy[0], strain_energy[1], strain_energy[2]);
+  for (int k = 1; k < 3; ++k) {
+    EXPECT_GT(strain_energy[k], 0.3);  // the bump was squeezed: a test of the forces
+    // With the forces on the points' own stresses instead: 0.35 (m = 1).
+    EXPECT_LT(drift[k], 2.0 * drift[0] + 1e-4);
+  }
 }
 
 TEST(FreeFlightTest, RigidTranslationConservesMomentumAndEnergyExactly) {

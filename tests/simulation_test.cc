@@ -466,6 +466,44 @@ TEST(SimulationTest, ResumeWithFBarCarriesIt) {
   }
 }
 
+// Likewise --nonlocal-radius and --nonlocal-fraction (cells of 1 m here): a
+// radius the case would refuse is refused at resume.
+TEST(SimulationTest, ResumeWithANonlocalStrainCarriesIt) {
+  const std::string out = FreshDir("nonlocal_resume");
+  SimulationOptions o = Options(out);
+  o.stop_after_steps = 4;
+  {
+    std::unique_ptr<Simulation> a = StartOrDie(ShortCase(20), o);
+    ASSERT_NE(a, nullptr);
+    ASSERT_TRUE(a->StepToEnd().ok());
+  }
+  o.nonlocal_radius = 0.01;
+  absl::StatusOr<std::unique_ptr<Simulation>> refused =
+      Simulation::Resume(out + "/checkpoint.h5", o);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.status().message().find(
+                "/solver/nonlocal_radius: 0.01 m must be 0 (off) or between 0.1 and 8 cells"),
+            std::string::npos)
+      << refused.status();
+  for (std::optional<double> radius :
+       {std::optional<double>(1.5), std::optional<double>(), std::optional<double>(0.0)}) {
+    SCOPED_TRACE(radius.value_or(-1));
+    o.nonlocal_radius = radius;
+    o.nonlocal_fraction = radius == 1.5 ? std::optional<double>(0.75) : std::nullopt;
+    {
+      absl::StatusOr<std::unique_ptr<Simulation>> b = Simulation::Resume(out + "/checkpoint.h5", o);
+      ASSERT_TRUE(b.ok()) << b.status();
+      ASSERT_TRUE((*b)->StepToEnd().ok());
+    }
+    absl::StatusOr<store::SimCheckpoint> c = store::ReadSimCheckpoint(out + "/checkpoint.h5");
+    ASSERT_TRUE(c.ok()) << c.status();
+    absl::StatusOr<CaseSpec> carried = ParseCase(c->case_json, ".");
+    ASSERT_TRUE(carried.ok()) << carried.status();
+    EXPECT_EQ(carried->solver.nonlocal_radius, radius.value_or(1.5));
+    EXPECT_EQ(carried->solver.nonlocal_fraction, 0.75);  // set once, then carried
+  }
+}
+
 // solver.time_step_update_every: Δt follows the points' wave speeds. The
 // first update (at rest, four identical RVEs) gives the start's step again;
 // as the element is loaded the step changes; the run ends at its end time;
