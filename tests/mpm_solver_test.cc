@@ -550,16 +550,24 @@ TEST(FBarTest, TheNodalAverageIsSelfAdjointAndKeepsConstants) {
   for (double c : NodalAverage(shapes, w, constant, NodeCount(grid))) EXPECT_NEAR(c, 2.5, 1e-15);
 }
 
-TEST(FBarTest, TheSolverGivesPointsTheAveragedVolumeChange) {
-  // A column of one point per cell squeezed by a rough platen: the points
-  // under it are squeezed, those beside it not. With F-bar their RVEs get a
-  // smoother volume change with the same total.
+// A block of 8 × 6 cells of 0.1 m, one point per cell, on a rough base,
+// under a rough platen 0.2 m wide pushed down at 1 m/s (Δt = 1 ms, FLIP):
+// the points under it are squeezed, those beside it not.
+CaseSpec PlatenOnABlock() {
   CaseSpec spec = BlockCase(0.1, 8, 6, Vector2d(0.0, 0.0), Vector2d(0.8, 0.4), 1);
   spec.solver.pic_fraction = 0.0;
   spec.solver.time_step = 1e-3;
   spec.walls = {MakeWall(1, 0.0, ContactKind::kRough)};
   spec.bodies = {
       RoughBlock("platen", Vector2d(0.4, 0.45), Vector2d(0.1, 0.05), Vector2d(0.0, -1.0))};
+  return spec;
+}
+
+TEST(FBarTest, TheSolverGivesPointsTheAveragedVolumeChange) {
+  // A column of one point per cell squeezed by a rough platen: the points
+  // under it are squeezed, those beside it not. With F-bar their RVEs get a
+  // smoother volume change with the same total.
+  CaseSpec spec = PlatenOnABlock();
   std::map<FBar, std::vector<Matrix3d>> increments;
   std::vector<double> volume;
   for (FBar f : {FBar::kNone, FBar::kNodal}) {
@@ -758,12 +766,7 @@ TEST(NonlocalTest, TheSolverGivesPointsTheAveragedStrain) {
   // The rough platen of FBarTest: with a nonlocal radius of two cells the
   // points' RVEs get a smoother strain with the same total volume change,
   // the more so the larger the fraction.
-  CaseSpec spec = BlockCase(0.1, 8, 6, Vector2d(0.0, 0.0), Vector2d(0.8, 0.4), 1);
-  spec.solver.pic_fraction = 0.0;
-  spec.solver.time_step = 1e-3;
-  spec.walls = {MakeWall(1, 0.0, ContactKind::kRough)};
-  spec.bodies = {
-      RoughBlock("platen", Vector2d(0.4, 0.45), Vector2d(0.1, 0.05), Vector2d(0.0, -1.0))};
+  CaseSpec spec = PlatenOnABlock();
   const std::pair<double, double> settings[] = {{0.0, 1.0}, {0.2, 1.0}, {0.2, 0.5}};
   double total[3], most[3];
   for (int k = 0; k < 3; ++k) {

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <optional>
 #include <string>
 
 #include "absl/strings/match.h"
@@ -439,29 +440,46 @@ TEST(SimulationTest, ResumeWithASmallerCflHalvesTheTimeStep) {
       << refused.status();
 }
 
+// ShortCase(20) stopped after 4 steps in `out`, then resumed there with `o`
+// to the end: the case the final checkpoint carries.
+std::optional<CaseSpec> ResumedAndCarried(const std::string& out, SimulationOptions o) {
+  absl::StatusOr<std::unique_ptr<Simulation>> b = Simulation::Resume(out + "/checkpoint.h5", o);
+  EXPECT_TRUE(b.ok()) << b.status();
+  if (!b.ok()) return std::nullopt;
+  const absl::Status run = (*b)->StepToEnd().status();
+  EXPECT_TRUE(run.ok()) << run;
+  b->reset();
+  absl::StatusOr<store::SimCheckpoint> c = store::ReadSimCheckpoint(out + "/checkpoint.h5");
+  EXPECT_TRUE(c.ok()) << c.status();
+  if (!c.ok()) return std::nullopt;
+  absl::StatusOr<CaseSpec> carried = ParseCase(c->case_json, ".");
+  EXPECT_TRUE(carried.ok()) << carried.status();
+  if (!carried.ok()) return std::nullopt;
+  return *std::move(carried);
+}
+
+// `o` with ShortCase(20) stopped after 4 steps in `out` (a checkpoint there).
+SimulationOptions StoppedShortRun(const std::string& out) {
+  SimulationOptions o = Options(out);
+  o.stop_after_steps = 4;
+  std::unique_ptr<Simulation> a = StartOrDie(ShortCase(20), o);
+  EXPECT_NE(a, nullptr);
+  if (a != nullptr) {
+    EXPECT_TRUE(a->StepToEnd().ok());
+  }
+  return o;
+}
+
 // A run resumed with --f-bar goes on with it, and its later checkpoints carry
 // it: a second resume without the option keeps it, one with "none" drops it.
 TEST(SimulationTest, ResumeWithFBarCarriesIt) {
   const std::string out = FreshDir("f_bar_resume");
-  SimulationOptions o = Options(out);
-  o.stop_after_steps = 4;
-  {
-    std::unique_ptr<Simulation> a = StartOrDie(ShortCase(20), o);
-    ASSERT_NE(a, nullptr);
-    ASSERT_TRUE(a->StepToEnd().ok());
-  }
+  SimulationOptions o = StoppedShortRun(out);
   for (const char* f_bar : {"nodal", "", "none"}) {
     SCOPED_TRACE(f_bar);
     o.f_bar = f_bar;
-    {
-      absl::StatusOr<std::unique_ptr<Simulation>> b = Simulation::Resume(out + "/checkpoint.h5", o);
-      ASSERT_TRUE(b.ok()) << b.status();
-      ASSERT_TRUE((*b)->StepToEnd().ok());
-    }
-    absl::StatusOr<store::SimCheckpoint> c = store::ReadSimCheckpoint(out + "/checkpoint.h5");
-    ASSERT_TRUE(c.ok()) << c.status();
-    absl::StatusOr<CaseSpec> carried = ParseCase(c->case_json, ".");
-    ASSERT_TRUE(carried.ok()) << carried.status();
+    const std::optional<CaseSpec> carried = ResumedAndCarried(out, o);
+    ASSERT_TRUE(carried.has_value());
     EXPECT_EQ(carried->solver.f_bar, std::string(f_bar) == "none" ? FBar::kNone : FBar::kNodal);
   }
 }
@@ -470,13 +488,7 @@ TEST(SimulationTest, ResumeWithFBarCarriesIt) {
 // radius the case would refuse is refused at resume.
 TEST(SimulationTest, ResumeWithANonlocalStrainCarriesIt) {
   const std::string out = FreshDir("nonlocal_resume");
-  SimulationOptions o = Options(out);
-  o.stop_after_steps = 4;
-  {
-    std::unique_ptr<Simulation> a = StartOrDie(ShortCase(20), o);
-    ASSERT_NE(a, nullptr);
-    ASSERT_TRUE(a->StepToEnd().ok());
-  }
+  SimulationOptions o = StoppedShortRun(out);
   o.nonlocal_radius = 0.01;
   absl::StatusOr<std::unique_ptr<Simulation>> refused =
       Simulation::Resume(out + "/checkpoint.h5", o);
@@ -490,15 +502,8 @@ TEST(SimulationTest, ResumeWithANonlocalStrainCarriesIt) {
     SCOPED_TRACE(radius.value_or(-1));
     o.nonlocal_radius = radius;
     o.nonlocal_fraction = radius == 1.5 ? std::optional<double>(0.75) : std::nullopt;
-    {
-      absl::StatusOr<std::unique_ptr<Simulation>> b = Simulation::Resume(out + "/checkpoint.h5", o);
-      ASSERT_TRUE(b.ok()) << b.status();
-      ASSERT_TRUE((*b)->StepToEnd().ok());
-    }
-    absl::StatusOr<store::SimCheckpoint> c = store::ReadSimCheckpoint(out + "/checkpoint.h5");
-    ASSERT_TRUE(c.ok()) << c.status();
-    absl::StatusOr<CaseSpec> carried = ParseCase(c->case_json, ".");
-    ASSERT_TRUE(carried.ok()) << carried.status();
+    const std::optional<CaseSpec> carried = ResumedAndCarried(out, o);
+    ASSERT_TRUE(carried.has_value());
     EXPECT_EQ(carried->solver.nonlocal_radius, radius.value_or(1.5));
     EXPECT_EQ(carried->solver.nonlocal_fraction, 0.75);  // set once, then carried
   }
