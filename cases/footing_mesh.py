@@ -14,14 +14,17 @@ settlement and N_q (the case's ultimate-load rule) against h/(B/2), with Prandtl
 prints a table. With --seeds, `cases` writes each mesh once per packing seed, and --phi-deg
 gives each seed's phi' (friction_angle.py --seed=...) to its summary; `plot` then adds N_q
 against each run's phi' beside Prandtl's curve. --particles prepares the templates with that
-many discs (a larger sample of the material; give its phi' with --phi-deg). A run is marked by
+many discs (a larger sample of the material; give its phi' with --phi-deg). For each set of
+runs that differ in h only (edge on a node line) `plot` fits N_q = N_0 + a h and prints N_0,
+the value for h -> 0; runs with a nonlocal strain (solver.nonlocal_radius l and
+nonlocal_fraction m, `--set` on the printed commands) are marked "l/m". A run is marked by
 where the footing's edge falls: on a node line; inside a cell, between two points' boxes (more
 than 1 point per cell); or through a column of points. Inside a cell the contact pushes that
 cell's soil with the footing, so the load acts on a wider strip (mpm_client notes such a
 corner at set-up; cases/README.md, "The footing's N_q").
 
-The softening RVE (phi' 31.7 deg at the peak, about 20.5 at large strain: friction_angle.py)
-has no internal length, so N_q need not converge as h falls. Needs numpy and matplotlib
+With the edge on a node line N_q falls with h at first order, as if the footing were one cell
+wider on each side (cases/README.md, "The footing's N_q"). Needs numpy and matplotlib
 (Debian's python3-numpy, python3-matplotlib).
 """
 import argparse
@@ -131,7 +134,34 @@ def load_run(run_dir):
                 seed=case["templates"][0].get("seed", 1), cfl=case["solver"]["cfl"],
                 discs=case["templates"][0].get("particles", 0),
                 edge=where, domain=f"{soil['upper'][0]:g} x {soil['upper'][1]:g} m",
-                half_width=spec["half_size"][0] * 2)
+                half_width=spec["half_size"][0] * 2,
+                averaging=nonlocal_label(case["solver"]))
+
+
+def nonlocal_label(solver):
+    """'l/m' of a run with a nonlocal strain (solver.nonlocal_radius, m; nonlocal_fraction), or
+    '' without. run.json has the fraction since it exists; the runs before it averaged fully."""
+    radius = solver.get("nonlocal_radius", 0.0)
+    return f"{radius:g}/{solver.get('nonlocal_fraction', 1.0):g}" if radius else ""
+
+
+def extrapolations(runs):
+    """N_q = N_0 + a h fitted over the meshes of each set of runs that differ in h only (edge on
+    a node line, 1 point per cell, h at most a quarter of the modelled half-width B/2, at least 3
+    meshes): [(runs, N_0, a)]. The slope
+    set against N_0 / (B/2) says how far the load spreads beyond the footing's edge."""
+    groups = {}
+    for r in runs:
+        if r["edge"] == "node line" and r["ppc"] == 1 and r["h"] <= r["half_width"] / 4 + 1e-9:
+            key = (r["domain"], r["half_width"], r["seed"], r["discs"], r["cfl"],
+                   r["averaging"])
+            groups.setdefault(key, []).append(r)
+    fits = []
+    for group in groups.values():
+        if len({r["h"] for r in group}) >= 3:
+            a, n0 = np.polyfit([r["h"] for r in group], [r["summary"]["N_q"] for r in group], 1)
+            fits.append((group, n0, a))
+    return fits
 
 
 def plot(a):
@@ -140,14 +170,25 @@ def plot(a):
     cfls = {r["cfl"] for r in runs}
     discs = {r["discs"] for r in runs}
     print(f"{'run':<34} {'domain':>10} {'B/2 (m)':>8} {'h (m)':>7} {'ppc':>4} {'seed':>4} "
-          f"{'discs':>5} {'edge':>15} {'N_q':>6} {'d_ult (m)':>9} {'phi':>6} {'/Prandtl':>9}")
+          f"{'discs':>5} {'l/m':>8} {'edge':>15} {'N_q':>6} {'d_ult (m)':>9} {'phi':>6} "
+          f"{'/Prandtl':>9}")
     for r in runs:
         s = r["summary"]
         print(f"{r['name']:<34} {r['domain']:>10} {r['half_width']:8.3f} {r['h']:7.4f} "
-              f"{r['ppc']:4d} {r['seed']:4d} {r['discs'] or '-':>5} {r['edge']:>15} "
+              f"{r['ppc']:4d} {r['seed']:4d} {r['discs'] or '-':>5} "
+              f"{r['averaging'] or '-':>8} {r['edge']:>15} "
               f"{s['N_q']:6.2f} "
               f"{s['settlement_at_ultimate_m']:9.4f} {s['phi_deg']:6.2f} "
               f"{s['N_q'] / s['N_q_prandtl']:9.3f}")
+    fits = extrapolations(runs)
+    for group, n0, slope in fits:
+        r = group[0]
+        print(f"N_q = N_0 + a h over h = {min(g['h'] for g in group):.4g}-"
+              f"{max(g['h'] for g in group):.4g} m ({len(group)} meshes; {r['domain']}, "
+              f"B/2 {r['half_width']:g} m, nonlocal l/m {r['averaging'] or '-'}): N_0 = {n0:.2f} "
+              f"({n0 / r['summary']['N_q_prandtl']:.3f} of Prandtl), "
+              f"a/N_0 = {slope / n0:.2f} per m "
+              f"(a footing one cell wider on each side: 1/(B/2) = {1 / r['half_width']:.2f})")
     # Runs on packings of other seeds carry their own phi' (footing_mesh.py cases --phi-deg):
     # a third panel sets their N_q against Prandtl's curve.
     fig, axes = plt.subplots(1, 2 if len(phis) == 1 else 3,
@@ -161,7 +202,8 @@ def plot(a):
                  f"ppc {r['ppc']}: edge {r['edge']}"
                  + (f", seed {r['seed']} (phi' {s['phi_deg']:g})" if len(phis) > 1 else "")
                  + (f", CFL {r['cfl']:g}" if len(cfls) > 1 else "")
-                 + (f", {r['discs'] or 'default'} discs" if len(discs) > 1 else ""))
+                 + (f", {r['discs'] or 'default'} discs" if len(discs) > 1 else "")
+                 + (f", nonlocal l/m {r['averaging']}" if r["averaging"] else ""))
         line, = ax1.plot(r["d"], r["q"], lw=0.8, ls="--" if r["edge"] == "through points" else "-",
                          color=colours[i % 20], label=label)
         ax1.plot(s["settlement_at_ultimate_m"], s["N_q"], "o", color=line.get_color())
@@ -170,6 +212,12 @@ def plot(a):
         if len(phis) > 1:
             axes[2].plot(s["phi_deg"], s["N_q"], style[r["edge"]], color=line.get_color(), ms=8,
                          mfc="none" if r["ppc"] > 1 else line.get_color())
+    for group, n0, slope in fits:
+        x = np.linspace(0, max(g["h"] for g in group) / group[0]["half_width"], 20)
+        ax2.plot(x, n0 + slope * x * group[0]["half_width"], "--", lw=0.8, color="0.4")
+        ax2.plot(0, n0, "*", color="0.4", ms=10)
+    if fits:
+        ax2.plot([], [], "--*", lw=0.8, color="0.4", label="N_0 + a h fitted (star: h -> 0)")
     prandtl = runs[0]["summary"]["N_q_prandtl"]
     if len(phis) == 1:
         ax1.axhline(prandtl, color="k", ls=":", lw=1, label=f"Prandtl, phi' = {phis[0]} deg")
