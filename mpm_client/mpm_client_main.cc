@@ -50,7 +50,7 @@ ABSL_FLAG(double, end_time, 0, "resume: the run's new end time, s");
 ABSL_FLAG(double, cfl, 0, "resume: a new CFL number");
 ABSL_FLAG(std::string, f_bar, "", "resume: F-bar from here on (none, nodal)");
 ABSL_FLAG(double, nonlocal_radius, 0, "resume: nonlocal strain radius from here on, m");
-ABSL_FLAG(double, nonlocal_fraction, 1, "resume: share of the nonlocal average from here on");
+ABSL_FLAG(double, nonlocal_fraction, 0.5, "resume: share of the nonlocal average from here on");
 ABSL_FLAG(bool, quiet, false, "no progress lines");
 ABSL_FLAG(bool, no_recovery, false, "a lost server ends the run");
 ABSL_FLAG(double, min_timeout, 10, "floor of the adaptive RVE call deadline, s");
@@ -200,27 +200,19 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
     }
     if (!c.args.contains("out")) return absl::InvalidArgumentError("summarise needs --out=DIR");
   }
-  if (c.name != "resume" && c.args.contains("end-time")) {
-    return absl::InvalidArgumentError(
-        "--end-time is for resume (a run sets solver.end_time in its case, or --set it)");
-  }
-  if (c.name != "resume" && c.args.contains("cfl")) {
-    return absl::InvalidArgumentError(
-        "--cfl is for resume (a run sets solver.cfl in its case, or --set it)");
-  }
-  if (c.name != "resume" && c.args.contains("f-bar")) {
-    return absl::InvalidArgumentError(
-        "--f-bar is for resume (a run sets solver.f_bar in its case, or --set it)");
-  }
-  if (c.name != "resume" && c.args.contains("nonlocal-radius")) {
-    return absl::InvalidArgumentError(
-        "--nonlocal-radius is for resume (a run sets solver.nonlocal_radius in its case, or "
-        "--set it)");
-  }
-  if (c.name != "resume" && c.args.contains("nonlocal-fraction")) {
-    return absl::InvalidArgumentError(
-        "--nonlocal-fraction is for resume (a run sets solver.nonlocal_fraction in its case, or "
-        "--set it)");
+  // Options that change a checkpointed run's case: a fresh run sets the
+  // case field itself.
+  constexpr std::pair<const char*, const char*> kResumeOnly[] = {
+      {"end-time", "end_time"},
+      {"cfl", "cfl"},
+      {"f-bar", "f_bar"},
+      {"nonlocal-radius", "nonlocal_radius"},
+      {"nonlocal-fraction", "nonlocal_fraction"}};
+  for (const auto& [flag, field] : kResumeOnly) {
+    if (c.name != "resume" && c.args.contains(flag)) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "--", flag, " is for resume (a run sets solver.", field, " in its case, or --set it)"));
+    }
   }
   if (c.name == "resume" && c.args.contains("set")) {
     return absl::InvalidArgumentError(
