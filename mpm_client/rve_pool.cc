@@ -74,21 +74,57 @@ int RvePool::num_alive() const {
   return static_cast<int>(std::count(lost_.begin(), lost_.end(), false));
 }
 
-absl::Duration RvePool::NextApplyDeadline() const {
-  if (options_.deadline_factor <= 0 || recent_batch_seconds_.empty())
-    return options_.apply_deadline;
-  const double slowest =
-      *std::max_element(recent_batch_seconds_.begin(), recent_batch_seconds_.end());
+absl::Duration RvePool::AdaptiveDeadline(const std::vector<double>& recent) const {
+  if (options_.deadline_factor <= 0 || recent.empty()) return options_.apply_deadline;
+  const double slowest = *std::max_element(recent.begin(), recent.end());
   const absl::Duration d =
       std::max(options_.min_apply_deadline, absl::Seconds(options_.deadline_factor * slowest)) *
       deadline_scale_;
   return std::min(d, options_.apply_deadline);
 }
 
+absl::Duration RvePool::NextApplyDeadline() const {
+  return AdaptiveDeadline(recent_batch_seconds_);
+}
+
+absl::Duration RvePool::NextStateCallDeadline() const {
+  return AdaptiveDeadline(recent_state_seconds_);
+}
+
+namespace {
+
+// Keeps the last few of a measured quantity.
+void Remember(std::vector<double>& recent, double value) {
+  constexpr std::size_t kRecent = 8;
+  if (recent.size() == kRecent) recent.erase(recent.begin());
+  recent.push_back(value);
+}
+
+}  // namespace
+
 absl::Status RvePool::ForEachEndpoint(const std::function<absl::Status(int)>& fn) {
+  return OnEachEndpoint(fn, /*state_call=*/false);
+}
+
+absl::Status RvePool::ForEachStateCall(const std::function<absl::Status(int)>& fn) {
+  return OnEachEndpoint(fn, /*state_call=*/true);
+}
+
+absl::Status RvePool::OnEachEndpoint(const std::function<absl::Status(int)>& fn, bool state_call) {
   std::vector<absl::Status> status(endpoints_.size());
+  std::vector<double> seconds(endpoints_.size(), 0.0);
+  if (state_call && options_.deadline_factor > 0) {
+    const absl::Duration deadline = NextStateCallDeadline();
+    for (const std::unique_ptr<client::RveEndpoint>& e : endpoints_) e->SetCallTimeout(deadline);
+  }
+  const std::function<absl::Status(int)> timed = [&](int k) {
+    const auto start = std::chrono::steady_clock::now();
+    absl::Status s = fn(k);
+    seconds[k] = SecondsSince(start);
+    return s;
+  };
   if (endpoints_.size() == 1) {
-    if (!lost_[0]) status[0] = fn(0);
+    if (!lost_[0]) status[0] = timed(0);
   } else {
     // Setup and checkpoint calls only (templates, creation, export, import,
     // drop: a few per run, not per step): a thread per endpoint for the
@@ -97,13 +133,15 @@ absl::Status RvePool::ForEachEndpoint(const std::function<absl::Status(int)>& fn
     std::vector<std::thread> threads;
     threads.reserve(endpoints_.size());
     for (int k = 0; k < num_endpoints(); ++k) {
-      if (!lost_[k]) threads.emplace_back([&fn, &status, k] { status[k] = fn(k); });
+      if (!lost_[k]) threads.emplace_back([&timed, &status, k] { status[k] = timed(k); });
     }
     for (std::thread& t : threads) t.join();
   }
   for (int k = 0; k < num_endpoints(); ++k) NoteFailure(k, status[k]);
   for (const absl::Status& s : status)
     if (!s.ok()) return s;
+  if (state_call)
+    Remember(recent_state_seconds_, *std::max_element(seconds.begin(), seconds.end()));
   return absl::OkStatus();
 }
 
@@ -497,17 +535,14 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(
     if (!b.status.ok()) return b.status;  // the first error by endpoint index
   }
   // Successful steps only: a missed deadline must not stretch the next one.
-  constexpr std::size_t kRecentSteps = 8;
-  if (recent_batch_seconds_.size() == kRecentSteps)
-    recent_batch_seconds_.erase(recent_batch_seconds_.begin());
-  recent_batch_seconds_.push_back(slowest);
+  Remember(recent_batch_seconds_, slowest);
   return out;
 }
 
 absl::StatusOr<std::vector<dem::RveState>> RvePool::Get(bool want_tangent) {
   if (assignment_.empty()) return NoRves();
   std::vector<dem::RveState> out(assignment_.size());
-  absl::Status s = ForEachEndpoint([&](int k) -> absl::Status {
+  absl::Status s = ForEachStateCall([&](int k) -> absl::Status {
     const std::vector<std::int64_t>& ids = points_[k];
     if (ids.empty()) return absl::OkStatus();
     absl::StatusOr<std::vector<client::RveOutcome>> r =
@@ -522,7 +557,7 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Get(bool want_tangent) {
 absl::StatusOr<std::vector<store::RveRecord>> RvePool::ExportAll() {
   if (assignment_.empty()) return NoRves();
   std::vector<std::vector<store::RveRecord>> parts(endpoints_.size());
-  absl::Status s = ForEachEndpoint([&](int k) -> absl::Status {
+  absl::Status s = ForEachStateCall([&](int k) -> absl::Status {
     const std::vector<std::int64_t>& ids = points_[k];
     if (ids.empty()) return absl::OkStatus();  // empty ids would export the whole run
     parts[k].reserve(ids.size());
@@ -574,7 +609,7 @@ absl::Status RvePool::ImportAll(std::vector<store::RveRecord> records) {
     r.run_id = run_id_;
     parts[assignment_[r.id]].push_back(std::move(r));
   }
-  return ForEachEndpoint([&](int k) -> absl::Status {
+  return ForEachStateCall([&](int k) -> absl::Status {
     if (parts[k].empty()) return absl::OkStatus();
     if (absl::Status s = endpoints_[k]->Import(std::move(parts[k])); !s.ok())
       return CallError(k, s, "importing RVEs");
@@ -583,7 +618,7 @@ absl::Status RvePool::ImportAll(std::vector<store::RveRecord> records) {
 }
 
 absl::Status RvePool::DropAll() {
-  return ForEachEndpoint([&](int k) -> absl::Status {
+  return ForEachStateCall([&](int k) -> absl::Status {
     absl::Status s = endpoints_[k]->Drop(run_id_);
     if (s.ok() || absl::IsNotFound(s)) return absl::OkStatus();
     return CallError(k, s, "dropping the run");
@@ -620,13 +655,13 @@ absl::Status RvePool::Migrate(std::vector<int> endpoint_of_point,
     r.run_id = run_id_;
     leaving[from].push_back(static_cast<std::int64_t>(p));
   }
-  RETURN_IF_ERROR(ForEachEndpoint([&](int k) -> absl::Status {
+  RETURN_IF_ERROR(ForEachStateCall([&](int k) -> absl::Status {
     if (arriving[k].empty()) return absl::OkStatus();
     if (absl::Status s = endpoints_[k]->Import(std::move(arriving[k])); !s.ok())
       return CallError(k, s, "moving RVEs in");
     return absl::OkStatus();
   }));
-  RETURN_IF_ERROR(ForEachEndpoint([&](int k) -> absl::Status {
+  RETURN_IF_ERROR(ForEachStateCall([&](int k) -> absl::Status {
     if (leaving[k].empty()) return absl::OkStatus();
     if (absl::Status s = endpoints_[k]->Drop(run_id_, leaving[k]); !s.ok())
       return CallError(k, s, "moving RVEs out");

@@ -57,6 +57,10 @@ struct PoolOptions {
   // most apply_deadline (which alone applies before the first step and when
   // the factor is 0). A hung server is then found in seconds, not minutes;
   // a batch that is slow for good reason costs a replay (RelaxDeadline).
+  // The calls that move states (Get, ExportAll, ImportAll, DropAll,
+  // Migrate, Restore: recovery points, moves, restores) get a deadline by
+  // the same rule from the slowest of their own last few calls: a server
+  // stopped during one is found as soon as during a step.
   double deadline_factor = 0.0;
   absl::Duration min_apply_deadline = absl::Seconds(10);
 };
@@ -113,6 +117,8 @@ class RvePool {
   void RelaxDeadline() { deadline_scale_ *= 2; }
   // The deadline the next Apply attempt gets.
   absl::Duration NextApplyDeadline() const;
+  // The deadline the next call that moves states gets.
+  absl::Duration NextStateCallDeadline() const;
 
   // Moves RVEs to `endpoint_of_point` (live endpoints): each moved point's
   // record (of `records`, the full states of every point, by id, as
@@ -201,6 +207,12 @@ class RvePool {
   // several; the first error by endpoint index. Endpoints failing
   // transiently are noted for TakeFailed.
   absl::Status ForEachEndpoint(const std::function<absl::Status(int)>& fn);
+  // ForEachEndpoint for calls that move states: they get
+  // NextStateCallDeadline and, when they succeed, are measured for the next.
+  absl::Status ForEachStateCall(const std::function<absl::Status(int)>& fn);
+  absl::Status OnEachEndpoint(const std::function<absl::Status(int)>& fn, bool state_call);
+  // The adaptive deadline from the slowest of `recent` calls, s.
+  absl::Duration AdaptiveDeadline(const std::vector<double>& recent) const;
   // The result of endpoint k's batch of a step: OK with states into `out`
   // and counts into `stats`, or the error, `transient` when a retry of the
   // same batch may cure it.
@@ -232,6 +244,7 @@ class RvePool {
   std::vector<bool> lost_;
   std::vector<int> failed_;                   // noted since the last TakeFailed, ascending
   std::vector<double> recent_batch_seconds_;  // the slowest batch of the last few steps
+  std::vector<double> recent_state_seconds_;  // the slowest endpoint of the last few state calls
   double deadline_scale_ = 1.0;
   std::vector<double> point_seconds_, point_work_, point_size_, busy_seconds_, engine_seconds_;
 };

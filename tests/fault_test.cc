@@ -32,6 +32,7 @@
 #include "absl/time/clock.h"
 #include "mpm_client/case.h"
 #include "mpm_client/output.h"
+#include "mpm_client/rve_pool.h"
 #include "mpm_client/simulation.h"
 #include "rve_server/client/endpoint.h"
 #include "store/checkpoint.h"
@@ -278,6 +279,57 @@ TEST(FaultTest, StoppedServerIsFoundAtTheDeadlineAndRejoinsAfterSigcont) {
   EXPECT_GT(f.summary->rves_moved, 0) << f.log.All();
   EXPECT_TRUE(f.log.Has("answers again")) << f.log.All();
   ExpectSameOutputs(reference, f.out);
+}
+
+// A server stopped while the client takes a recovery point (an export) is
+// found at the state calls' adaptive deadline, not the 10-minute default of
+// such calls (CI once saw a run wait out the test's 60 s for it): the pool
+// reports it for recovery like a stopped server found during a step.
+TEST(FaultTest, ServerStoppedDuringAnExportIsFoundAtTheDeadline) {
+  const std::string dir = FreshDir("export");
+  std::vector<std::unique_ptr<ServerProcess>> servers = StartServers(2, dir);
+  std::vector<std::unique_ptr<client::RveEndpoint>> endpoints;
+  for (const auto& s : servers) {
+    ASSERT_FALSE(s->address().empty());
+    absl::StatusOr<std::unique_ptr<client::RveEndpoint>> e =
+        client::MakeRemoteEndpoint(s->address(), {});
+    ASSERT_TRUE(e.ok()) << e.status();
+    endpoints.push_back(*std::move(e));
+  }
+  PoolOptions o;
+  o.apply_deadline = absl::Minutes(10);
+  o.deadline_factor = 20;
+  o.min_apply_deadline = absl::Seconds(2);
+  o.max_attempts = 2;
+  RvePool pool(std::move(endpoints), "export-run", o);
+  dem::RveSnapshot packing = dem::testing_util::Prepared("SET-dense");
+  packing.controls.min_steps = 10;
+  const std::vector<store::TemplateRecord> templates = {{"set-dense", "SET-dense", packing}};
+  ASSERT_TRUE(pool.UploadTemplates(templates).ok());
+  const std::vector<std::string> names(4, "set-dense");
+  ASSERT_TRUE(pool.Create(names).ok());
+  Eigen::Matrix3d compress = Eigen::Matrix3d::Identity();
+  compress(1, 1) = 1 - 1e-4;
+  ASSERT_TRUE(pool.Apply(1, std::vector<Eigen::Matrix3d>(4, compress)).ok());
+  ASSERT_TRUE(pool.ExportAll().ok());  // measured: milliseconds
+  ASSERT_EQ(pool.NextStateCallDeadline(), absl::Seconds(2));
+
+  servers[1]->Signal(SIGSTOP);
+  const auto t0 = std::chrono::steady_clock::now();
+  const absl::StatusOr<std::vector<store::RveRecord>> lost = pool.ExportAll();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  servers[1]->Signal(SIGCONT);
+  std::printf("export from a stopped server failed after %.2f s: %s\n", seconds,
+              lost.status().ToString().c_str());
+  EXPECT_TRUE(absl::IsDeadlineExceeded(lost.status())) << lost.status();
+  EXPECT_TRUE(absl::StrContains(lost.status().message(), servers[1]->address())) << lost.status();
+  EXPECT_GT(seconds, 1.9);
+  EXPECT_LT(seconds, 10.0);
+  EXPECT_EQ(pool.TakeFailed(), std::vector<int>{1});
+  // Woken, it answers and its RVEs are still there.
+  EXPECT_TRUE(pool.endpoint(1).Ping(absl::Seconds(5)).ok());
+  EXPECT_TRUE(pool.ExportAll().ok());
 }
 
 // The only server killed: the client waits for one to answer (probing every

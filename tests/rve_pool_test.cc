@@ -213,6 +213,7 @@ std::unique_ptr<client::PendingApply> Done(absl::StatusOr<std::vector<client::Rv
 class FaultyEndpoint final : public client::RveEndpoint {
  public:
   enum class Fault {
+    kNone,
     kLoseFirstReply,  // the first Apply commits, then its reply is "lost"
     kAlwaysUnavailable,
     kRefuse,  // InvalidArgument, as for a malformed request
@@ -221,6 +222,8 @@ class FaultyEndpoint final : public client::RveEndpoint {
       : inner_(std::move(inner)), fault_(fault) {}
 
   int apply_calls() const { return apply_calls_; }
+  // The last SetCallTimeout's (infinite before any).
+  absl::Duration call_timeout() const { return call_timeout_; }
 
   std::string name() const override { return "faulty"; }
   std::string label() const override { return "faulty endpoint"; }
@@ -240,6 +243,8 @@ class FaultyEndpoint final : public client::RveEndpoint {
                                                    absl::Duration deadline) override {
     const int call = ++apply_calls_;
     switch (fault_) {
+      case Fault::kNone:
+        return inner_->StartApply(run, step, increments, options, deadline);
       case Fault::kLoseFirstReply: {
         absl::StatusOr<std::vector<client::RveOutcome>> r =
             inner_->Apply(run, step, increments, options, deadline);
@@ -269,11 +274,13 @@ class FaultyEndpoint final : public client::RveEndpoint {
     return inner_->Drop(run, ids);
   }
   absl::Status Ping(absl::Duration timeout) override { return inner_->Ping(timeout); }
+  void SetCallTimeout(absl::Duration timeout) override { call_timeout_ = timeout; }
 
  private:
   std::unique_ptr<client::RveEndpoint> inner_;
   const Fault fault_;
   std::atomic<int> apply_calls_{0};
+  absl::Duration call_timeout_ = absl::InfiniteDuration();
 };
 
 TEST(RvePoolTest, EmbeddedAndRemotePoolsAgreeBitForBit) {
@@ -532,6 +539,55 @@ TEST(RvePoolTest, ApplyDeadlineFollowsTheMeasuredBatches) {
   Start(fixed);
   ApplyOrDie(fixed, 1);
   EXPECT_EQ(fixed.NextApplyDeadline(), fixed.options().apply_deadline);
+}
+
+// Calls that move states (recovery points, moves, restores) get a deadline
+// by the Apply rule from their own measured times: before any, the
+// configured one; then the floor (they take milliseconds here); relaxed
+// with the Apply deadline. A pool without the adaptive rule sets none.
+TEST(RvePoolTest, StateCallDeadlineFollowsTheMeasuredCalls) {
+  PoolOptions o;
+  o.apply_deadline = absl::Seconds(600);
+  o.deadline_factor = 20;
+  o.min_apply_deadline = absl::Seconds(3);
+  std::vector<FaultyEndpoint*> faulty;
+  std::vector<std::unique_ptr<client::RveEndpoint>> endpoints;
+  for (std::unique_ptr<client::RveEndpoint>& e : EmbeddedEndpoints(2)) {
+    auto f = std::make_unique<FaultyEndpoint>(std::move(e), FaultyEndpoint::Fault::kNone);
+    faulty.push_back(f.get());
+    endpoints.push_back(std::move(f));
+  }
+  RvePool pool(std::move(endpoints), kRun, o);
+  Start(pool);
+  ApplyOrDie(pool, 1);
+  EXPECT_EQ(pool.NextApplyDeadline(), absl::Seconds(3));
+  // Setup calls set nothing; the first state call gets the configured deadline.
+  EXPECT_EQ(faulty[0]->call_timeout(), absl::InfiniteDuration());
+  EXPECT_EQ(pool.NextStateCallDeadline(), absl::Seconds(600));
+  ASSERT_TRUE(pool.ExportAll().ok());
+  EXPECT_EQ(faulty[0]->call_timeout(), absl::Seconds(600));
+  EXPECT_EQ(faulty[1]->call_timeout(), absl::Seconds(600));
+  // Measured at milliseconds: the floor.
+  EXPECT_EQ(pool.NextStateCallDeadline(), absl::Seconds(3));
+  absl::StatusOr<std::vector<store::RveRecord>> records = pool.ExportAll();
+  ASSERT_TRUE(records.ok()) << records.status();
+  EXPECT_EQ(faulty[1]->call_timeout(), absl::Seconds(3));
+  pool.RelaxDeadline();
+  ASSERT_TRUE(pool.Restore(*std::move(records)).ok());
+  EXPECT_EQ(faulty[0]->call_timeout(), absl::Seconds(6));
+  EXPECT_EQ(pool.NextApplyDeadline(), absl::Seconds(6));
+  ApplyOrDie(pool, 2);  // the restored RVEs go on
+
+  auto only = std::make_unique<FaultyEndpoint>(client::MakeEmbeddedEndpoint(NewRegistry()),
+                                               FaultyEndpoint::Fault::kNone);
+  FaultyEndpoint* fixed_endpoint = only.get();
+  std::vector<std::unique_ptr<client::RveEndpoint>> one;
+  one.push_back(std::move(only));
+  RvePool fixed(std::move(one), kRun);  // deadline_factor 0
+  Start(fixed);
+  ASSERT_TRUE(fixed.ExportAll().ok());
+  EXPECT_EQ(fixed_endpoint->call_timeout(), absl::InfiniteDuration());
+  EXPECT_EQ(fixed.NextStateCallDeadline(), fixed.options().apply_deadline);
 }
 
 // Balancing by measured cost (issue 13): a skewed mix of 400- and 1600-disc

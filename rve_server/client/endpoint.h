@@ -110,6 +110,13 @@ class RveEndpoint {
   // OK when the endpoint answers a cheap call within `timeout`: a client
   // asks a server it lost whether it is back. Unavailable otherwise.
   virtual absl::Status Ping(absl::Duration timeout) = 0;
+
+  // The deadline of Get, Export, Import, Drop and PutTemplate from now on
+  // (not while one is under way): a client that finds hung servers by
+  // deadlines shortens it to what such calls were measured to take. A
+  // remote endpoint starts with RemoteOptions::call_timeout; the embedded
+  // one works in the caller's thread, has nothing to wait on and ignores it.
+  virtual void SetCallTimeout(absl::Duration timeout) { (void)timeout; }
 };
 
 // An RVE registry of this process's own, with `threads` workers.

@@ -164,6 +164,7 @@ class RemoteEndpoint final : public RveEndpoint {
       : address_(std::move(address)),
         options_(std::move(options)),
         remote_(remote),
+        call_timeout_(remote.call_timeout),
         stub_(v1::RveService::NewStub(MakeChannel(address_, options_))) {}
 
   // Asks the server for its limits; the reason when it does not answer.
@@ -201,7 +202,7 @@ class RemoteEndpoint final : public RveEndpoint {
     req.set_replace(true);
     v1::TemplateInfo info;
     grpc::ClientContext ctx;
-    Ready(ctx, remote_.call_timeout);
+    Ready(ctx, call_timeout_);
     return Error(FromGrpc(stub_->UploadTemplate(&ctx, req, &info)));
   }
 
@@ -301,7 +302,7 @@ class RemoteEndpoint final : public RveEndpoint {
       req.set_want_tangent(want_tangent);
       v1::GetStatesResponse resp;
       grpc::ClientContext ctx;
-      Ready(ctx, remote_.call_timeout);
+      Ready(ctx, call_timeout_);
       absl::Status s = FromGrpc(stub_->GetStates(&ctx, req, &resp));
       if (s.ok()) s = AppendOutcomes(resp.results(), ids.subspan(begin, end - begin), &out);
       return s;
@@ -316,14 +317,14 @@ class RemoteEndpoint final : public RveEndpoint {
     req.set_run_id(std::string(run));
     for (std::int64_t id : ids) req.add_ids(id);
     grpc::ClientContext ctx;
-    Ready(ctx, remote_.call_timeout);
+    Ready(ctx, call_timeout_);
     std::unique_ptr<grpc::ClientReader<v1::RveChunk>> reader = stub_->Export(&ctx, req);
     return Error(ReadExport(ctx, *reader, run, sink, FromGrpc));
   }
 
   absl::Status Import(std::vector<store::RveRecord> records) override {
     grpc::ClientContext ctx;
-    Ready(ctx, remote_.call_timeout);
+    Ready(ctx, call_timeout_);
     v1::ImportResponse resp;
     std::unique_ptr<grpc::ClientWriter<v1::RveChunk>> writer = stub_->Import(&ctx, &resp);
     return Error(WriteImport(
@@ -340,6 +341,8 @@ class RemoteEndpoint final : public RveEndpoint {
       return DropIds(run, ids.subspan(begin, end - begin));
     });
   }
+
+  void SetCallTimeout(absl::Duration timeout) override { call_timeout_ = timeout; }
 
   absl::Status Ping(absl::Duration timeout) override {
     grpc::ClientContext ctx;
@@ -379,13 +382,14 @@ class RemoteEndpoint final : public RveEndpoint {
     for (std::int64_t id : ids) req.add_ids(id);
     v1::DropResponse resp;
     grpc::ClientContext ctx;
-    Ready(ctx, remote_.call_timeout);
+    Ready(ctx, call_timeout_);
     return Error(FromGrpc(stub_->Drop(&ctx, req, &resp)));
   }
 
   const std::string address_;
   const ClientOptions options_;
   const RemoteOptions remote_;
+  absl::Duration call_timeout_;  // of the calls but Create and Apply
   std::unique_ptr<v1::RveService::Stub> stub_;
   int workers_ = 1;
   std::int64_t max_batch_ = 1;           // RVEs per message, set by Connect
