@@ -55,6 +55,7 @@ RvePool::RvePool(std::vector<std::unique_ptr<client::RveEndpoint>> endpoints, st
       points_(endpoints_.size()),
       last_apply_seconds_(endpoints_.size(), 0.0),
       lost_(endpoints_.size(), false),
+      round_seconds_(endpoints_.size(), 0.0),
       busy_seconds_(endpoints_.size(), 0.0),
       engine_seconds_(endpoints_.size(), 0.0) {}
 
@@ -362,10 +363,29 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Create(
       const std::string what = absl::StrCat("creating RVEs of template \"", t.name, "\"");
       auto own = controls.find(t.name);
       for (const CreateCall& c : t.calls) {
+        // The call's time is about its rounds of consolidations on the
+        // workers. Calls of template states alone consolidate nothing and
+        // are no measure.
+        const bool consolidates =
+            !c.initial.empty() &&
+            std::none_of(c.initial.begin(), c.initial.end(), [](const client::InitialStress& i) {
+              return i.kind == client::InitialStress::Kind::kTemplate;
+            });
+        const std::int64_t workers = std::max(1, endpoints_[k]->workers());
+        const double rounds = static_cast<double>(
+            (std::max<std::int64_t>(1, c.consolidations) + workers - 1) / workers);
+        if (consolidates && options_.deadline_factor > 0 && round_seconds_[k] > 0) {
+          endpoints_[k]->SetCreateTimeout(
+              std::max(options_.min_apply_deadline,
+                       absl::Seconds(options_.deadline_factor * round_seconds_[k] * rounds)));
+        }
+        const auto start = std::chrono::steady_clock::now();
         absl::StatusOr<std::vector<client::RveOutcome>> r = endpoints_[k]->Create(
             run_id_, t.name, c.ids, c.initial,
             own == controls.end() ? std::nullopt : std::optional<dem::Controls>(own->second));
         if (!r.ok()) return CallError(k, r.status(), what);
+        if (consolidates)
+          round_seconds_[k] = std::max(round_seconds_[k], SecondsSince(start) / rounds);
         RETURN_IF_ERROR(Collect(k, c.ids, *r, what, out));
         if (progress) {
           absl::MutexLock lock(&mu);

@@ -60,7 +60,12 @@ struct PoolOptions {
   // The calls that move states (Get, ExportAll, ImportAll, DropAll,
   // Migrate, Restore: recovery points, moves, restores) get a deadline by
   // the same rule from the slowest of their own last few calls: a server
-  // stopped during one is found as soon as during a step.
+  // stopped during one is found as soon as during a step. So do an
+  // endpoint's consolidating Create calls after its first:
+  // `deadline_factor` × the slowest round of consolidations (one per
+  // worker) it has done so far × the call's rounds, at least
+  // min_apply_deadline (creation may take longer than apply_deadline, so
+  // that is no cap there).
   double deadline_factor = 0.0;
   absl::Duration min_apply_deadline = absl::Seconds(10);
 };
@@ -149,7 +154,9 @@ class RvePool {
   // template and endpoint): those are sent in calls of a few at a time, and
   // `progress(done, total)` (optional; first with done = 0, then after each
   // call, from the endpoints' threads, one call at a time) counts the
-  // consolidations finished.
+  // consolidations finished. A remote endpoint's calls after its first
+  // have the adaptive deadline (PoolOptions): a server that hangs during
+  // creation ends it with DeadlineExceeded naming the server, not hours on.
   using CreateProgress = std::function<void(std::int64_t done, std::int64_t total)>;
   absl::StatusOr<std::vector<dem::RveState>> Create(
       std::span<const std::string> template_per_point,
@@ -245,6 +252,9 @@ class RvePool {
   std::vector<int> failed_;                   // noted since the last TakeFailed, ascending
   std::vector<double> recent_batch_seconds_;  // the slowest batch of the last few steps
   std::vector<double> recent_state_seconds_;  // the slowest endpoint of the last few state calls
+  // Per endpoint, the slowest round of consolidations (one per worker) its
+  // Create calls took so far, s.
+  std::vector<double> round_seconds_;
   double deadline_scale_ = 1.0;
   std::vector<double> point_seconds_, point_work_, point_size_, busy_seconds_, engine_seconds_;
 };

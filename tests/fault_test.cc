@@ -332,6 +332,52 @@ TEST(FaultTest, ServerStoppedDuringAnExportIsFoundAtTheDeadline) {
   EXPECT_TRUE(pool.ExportAll().ok());
 }
 
+// A server that hangs while the client creates the run's RVEs: its Create
+// calls after the first get a deadline from the first's measured time, so
+// the creation ends with an error naming the server instead of waiting out
+// RemoteOptions::create_timeout (2 h).
+TEST(FaultTest, ServerStoppedDuringCreationEndsItAtTheDeadline) {
+  const std::string dir = FreshDir("create");
+  std::vector<std::unique_ptr<ServerProcess>> servers = StartServers(1, dir);
+  ASSERT_FALSE(servers[0]->address().empty());
+  absl::StatusOr<std::unique_ptr<client::RveEndpoint>> endpoint =
+      client::MakeRemoteEndpoint(servers[0]->address(), {});
+  ASSERT_TRUE(endpoint.ok()) << endpoint.status();
+  std::vector<std::unique_ptr<client::RveEndpoint>> endpoints;
+  endpoints.push_back(*std::move(endpoint));
+  PoolOptions o;
+  o.deadline_factor = 3;
+  o.min_apply_deadline = absl::Seconds(2);
+  RvePool pool(std::move(endpoints), "create-run", o);
+  const std::vector<store::TemplateRecord> templates = {
+      {"set-dense", "SET-dense", dem::testing_util::Prepared("SET-dense")}};
+  ASSERT_TRUE(pool.UploadTemplates(templates).ok());
+  // Four depths: two calls of two consolidations on the server's 1 worker.
+  std::vector<client::InitialStress> initial;
+  for (double p : {40e3, 60e3, 80e3, 120e3}) {
+    initial.push_back({client::InitialStress::Kind::kIsotropic, p, 0.0, 0.0});
+  }
+  const std::vector<std::string> names(initial.size(), "set-dense");
+  std::chrono::steady_clock::time_point stopped;
+  const absl::StatusOr<std::vector<dem::RveState>> created =
+      pool.Create(names, initial, {}, [&](std::int64_t done, std::int64_t total) {
+        if (done == 2 && total == 4) {  // the first call is back
+          servers[0]->Signal(SIGSTOP);
+          stopped = std::chrono::steady_clock::now();
+        }
+      });
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - stopped).count();
+  servers[0]->Signal(SIGCONT);
+  std::printf("creation on a stopped server failed after %.2f s: %s\n", seconds,
+              created.status().ToString().c_str());
+  EXPECT_TRUE(absl::IsDeadlineExceeded(created.status())) << created.status();
+  EXPECT_TRUE(absl::StrContains(created.status().message(), servers[0]->address()))
+      << created.status();
+  EXPECT_GT(seconds, 1.9);
+  EXPECT_LT(seconds, 60.0);
+}
+
 // The only server killed: the client waits for one to answer (probing every
 // second, up to server_wait_s); a server restarted on the same address (a
 // supervisor's restart) is empty, takes every RVE from the recovery point,

@@ -222,8 +222,9 @@ class FaultyEndpoint final : public client::RveEndpoint {
       : inner_(std::move(inner)), fault_(fault) {}
 
   int apply_calls() const { return apply_calls_; }
-  // The last SetCallTimeout's (infinite before any).
+  // The last SetCallTimeout's and SetCreateTimeout's (infinite before any).
   absl::Duration call_timeout() const { return call_timeout_; }
+  absl::Duration create_timeout() const { return create_timeout_; }
 
   std::string name() const override { return "faulty"; }
   std::string label() const override { return "faulty endpoint"; }
@@ -275,12 +276,14 @@ class FaultyEndpoint final : public client::RveEndpoint {
   }
   absl::Status Ping(absl::Duration timeout) override { return inner_->Ping(timeout); }
   void SetCallTimeout(absl::Duration timeout) override { call_timeout_ = timeout; }
+  void SetCreateTimeout(absl::Duration timeout) override { create_timeout_ = timeout; }
 
  private:
   std::unique_ptr<client::RveEndpoint> inner_;
   const Fault fault_;
   std::atomic<int> apply_calls_{0};
   absl::Duration call_timeout_ = absl::InfiniteDuration();
+  absl::Duration create_timeout_ = absl::InfiniteDuration();
 };
 
 TEST(RvePoolTest, EmbeddedAndRemotePoolsAgreeBitForBit) {
@@ -561,8 +564,10 @@ TEST(RvePoolTest, StateCallDeadlineFollowsTheMeasuredCalls) {
   Start(pool);
   ApplyOrDie(pool, 1);
   EXPECT_EQ(pool.NextApplyDeadline(), absl::Seconds(3));
-  // Setup calls set nothing; the first state call gets the configured deadline.
+  // Setup calls set nothing (Start's Create has template states only, which
+  // consolidate nothing); the first state call gets the configured deadline.
   EXPECT_EQ(faulty[0]->call_timeout(), absl::InfiniteDuration());
+  EXPECT_EQ(faulty[0]->create_timeout(), absl::InfiniteDuration());
   EXPECT_EQ(pool.NextStateCallDeadline(), absl::Seconds(600));
   ASSERT_TRUE(pool.ExportAll().ok());
   EXPECT_EQ(faulty[0]->call_timeout(), absl::Seconds(600));
@@ -588,6 +593,44 @@ TEST(RvePoolTest, StateCallDeadlineFollowsTheMeasuredCalls) {
   ASSERT_TRUE(fixed.ExportAll().ok());
   EXPECT_EQ(fixed_endpoint->call_timeout(), absl::InfiniteDuration());
   EXPECT_EQ(fixed.NextStateCallDeadline(), fixed.options().apply_deadline);
+}
+
+// Create calls that consolidate get a deadline from the endpoint's first
+// (FaultTest.ServerStoppedDuringCreationEndsItAtTheDeadline stops a server
+// there): four depths on one worker are two calls of two consolidations; the
+// second gets 20 × the first's time, at least the floor. Without the
+// adaptive rule nothing is set.
+TEST(RvePoolTest, CreateDeadlineFollowsTheFirstConsolidations) {
+  std::vector<client::InitialStress> initial;
+  for (double p : {40e3, 60e3, 80e3, 120e3}) {
+    initial.push_back({client::InitialStress::Kind::kIsotropic, p, 0.0, 0.0});
+  }
+  const std::vector<std::string> names(initial.size(), "set-dense");
+  for (double factor : {20.0, 0.0}) {
+    PoolOptions o;
+    o.deadline_factor = factor;
+    o.min_apply_deadline = absl::Seconds(3);
+    auto only = std::make_unique<FaultyEndpoint>(client::MakeEmbeddedEndpoint(NewRegistry()),
+                                                 FaultyEndpoint::Fault::kNone);
+    FaultyEndpoint* endpoint = only.get();
+    std::vector<std::unique_ptr<client::RveEndpoint>> one;
+    one.push_back(std::move(only));
+    RvePool pool(std::move(one), kRun, o);
+    ASSERT_TRUE(pool.UploadTemplates(Templates()).ok());
+    std::vector<absl::Duration> seen;
+    ASSERT_TRUE(
+        pool.Create(names, initial, {},
+                    [&](std::int64_t, std::int64_t) { seen.push_back(endpoint->create_timeout()); })
+            .ok());
+    ASSERT_EQ(seen.size(), 3u);  // before any call, then after each of the two
+    EXPECT_EQ(seen[1], absl::InfiniteDuration()) << "factor " << factor;
+    if (factor > 0) {
+      EXPECT_GE(seen[2], absl::Seconds(3));
+      EXPECT_LT(seen[2], absl::InfiniteDuration());
+    } else {
+      EXPECT_EQ(seen[2], absl::InfiniteDuration());
+    }
+  }
 }
 
 // Balancing by measured cost (issue 13): a skewed mix of 400- and 1600-disc

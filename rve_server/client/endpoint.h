@@ -117,6 +117,8 @@ class RveEndpoint {
   // remote endpoint starts with RemoteOptions::call_timeout; the embedded
   // one works in the caller's thread, has nothing to wait on and ignores it.
   virtual void SetCallTimeout(absl::Duration timeout) { (void)timeout; }
+  // The same for Create (RemoteOptions::create_timeout at first).
+  virtual void SetCreateTimeout(absl::Duration timeout) { (void)timeout; }
 };
 
 // An RVE registry of this process's own, with `threads` workers.

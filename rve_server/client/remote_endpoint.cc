@@ -165,6 +165,7 @@ class RemoteEndpoint final : public RveEndpoint {
         options_(std::move(options)),
         remote_(remote),
         call_timeout_(remote.call_timeout),
+        create_timeout_(remote.create_timeout),
         stub_(v1::RveService::NewStub(MakeChannel(address_, options_))) {}
 
   // Asks the server for its limits; the reason when it does not answer.
@@ -246,7 +247,7 @@ class RemoteEndpoint final : public RveEndpoint {
       req.set_want_state(true);
       v1::CreateRvesResponse resp;
       grpc::ClientContext ctx;
-      Ready(ctx, remote_.create_timeout);
+      Ready(ctx, create_timeout_);
       absl::Status s = FromGrpc(stub_->CreateRves(&ctx, req, &resp));
       if (s.ok()) s = AppendOutcomes(resp.results(), ids.subspan(begin, end - begin), &out);
       // Creation is all or nothing on the server per message: drop the
@@ -343,6 +344,7 @@ class RemoteEndpoint final : public RveEndpoint {
   }
 
   void SetCallTimeout(absl::Duration timeout) override { call_timeout_ = timeout; }
+  void SetCreateTimeout(absl::Duration timeout) override { create_timeout_ = timeout; }
 
   absl::Status Ping(absl::Duration timeout) override {
     grpc::ClientContext ctx;
@@ -389,7 +391,8 @@ class RemoteEndpoint final : public RveEndpoint {
   const std::string address_;
   const ClientOptions options_;
   const RemoteOptions remote_;
-  absl::Duration call_timeout_;  // of the calls but Create and Apply
+  absl::Duration call_timeout_;    // of the calls but Create and Apply
+  absl::Duration create_timeout_;  // of Create
   std::unique_ptr<v1::RveService::Stub> stub_;
   int workers_ = 1;
   std::int64_t max_batch_ = 1;           // RVEs per message, set by Connect
