@@ -7,11 +7,13 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -90,6 +92,17 @@ ServerProcess::~ServerProcess() { Stop(); }
 void ServerProcess::Signal(int signal) {
   if (pid_ <= 0) return;
   kill(pid_, signal);
+  if (signal == SIGSTOP) {
+    // A stop takes effect once one of the server's threads runs to start
+    // it; on loaded cores its other threads can answer calls meanwhile.
+    // Bounded wait (10 s) for the kernel to report it stopped.
+    for (int i = 0; i < 10000; ++i) {
+      int status = 0;
+      if (waitpid(pid_, &status, WNOHANG | WUNTRACED) == pid_ && WIFSTOPPED(status)) return;
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    return;
+  }
   if (signal != SIGKILL) return;
   int status = 0;
   waitpid(pid_, &status, 0);

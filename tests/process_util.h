@@ -39,7 +39,8 @@ class ServerProcess {
   // SIGTERM (and SIGCONT, should it be stopped) and wait; the exit status
   // (−1 when it did not exit normally).
   int Stop();
-  // Sends `signal` (SIGKILL, SIGSTOP, SIGCONT…); after SIGKILL, waits for it.
+  // Sends `signal` (SIGKILL, SIGSTOP, SIGCONT…); after SIGKILL, waits for it
+  // to end, after SIGSTOP for it to be stopped (at most 10 s).
   void Signal(int signal);
   pid_t pid() const { return pid_; }
 
