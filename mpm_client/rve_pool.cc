@@ -75,21 +75,22 @@ int RvePool::num_alive() const {
   return static_cast<int>(std::count(lost_.begin(), lost_.end(), false));
 }
 
-absl::Duration RvePool::AdaptiveDeadline(const std::vector<double>& recent) const {
-  if (options_.deadline_factor <= 0 || recent.empty()) return options_.apply_deadline;
-  const double slowest = *std::max_element(recent.begin(), recent.end());
+absl::Duration RvePool::AdaptiveDeadline(double seconds, absl::Duration cap) const {
   const absl::Duration d =
-      std::max(options_.min_apply_deadline, absl::Seconds(options_.deadline_factor * slowest)) *
+      std::max(options_.min_apply_deadline, absl::Seconds(options_.deadline_factor * seconds)) *
       deadline_scale_;
-  return std::min(d, options_.apply_deadline);
+  return std::min(d, cap);
 }
 
-absl::Duration RvePool::NextApplyDeadline() const {
-  return AdaptiveDeadline(recent_batch_seconds_);
+absl::Duration RvePool::DeadlineAfter(const std::vector<double>& recent) const {
+  if (options_.deadline_factor <= 0 || recent.empty()) return options_.apply_deadline;
+  return AdaptiveDeadline(*std::max_element(recent.begin(), recent.end()), options_.apply_deadline);
 }
+
+absl::Duration RvePool::NextApplyDeadline() const { return DeadlineAfter(recent_batch_seconds_); }
 
 absl::Duration RvePool::NextStateCallDeadline() const {
-  return AdaptiveDeadline(recent_state_seconds_);
+  return DeadlineAfter(recent_state_seconds_);
 }
 
 namespace {
@@ -376,8 +377,7 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Create(
             (std::max<std::int64_t>(1, c.consolidations) + workers - 1) / workers);
         if (consolidates && options_.deadline_factor > 0 && round_seconds_[k] > 0) {
           endpoints_[k]->SetCreateTimeout(
-              std::max(options_.min_apply_deadline,
-                       absl::Seconds(options_.deadline_factor * round_seconds_[k] * rounds)));
+              AdaptiveDeadline(round_seconds_[k] * rounds, absl::InfiniteDuration()));
         }
         const auto start = std::chrono::steady_clock::now();
         absl::StatusOr<std::vector<client::RveOutcome>> r = endpoints_[k]->Create(

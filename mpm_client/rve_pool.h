@@ -218,8 +218,13 @@ class RvePool {
   // NextStateCallDeadline and, when they succeed, are measured for the next.
   absl::Status ForEachStateCall(const std::function<absl::Status(int)>& fn);
   absl::Status OnEachEndpoint(const std::function<absl::Status(int)>& fn, bool state_call);
-  // The adaptive deadline from the slowest of `recent` calls, s.
-  absl::Duration AdaptiveDeadline(const std::vector<double>& recent) const;
+  // The adaptive deadline for a call expected to take `seconds`: that ×
+  // deadline_factor, at least min_apply_deadline, × deadline_scale_, at
+  // most `cap`.
+  absl::Duration AdaptiveDeadline(double seconds, absl::Duration cap) const;
+  // AdaptiveDeadline of the slowest of `recent` calls, capped at
+  // apply_deadline; apply_deadline alone before any or with the factor 0.
+  absl::Duration DeadlineAfter(const std::vector<double>& recent) const;
   // The result of endpoint k's batch of a step: OK with states into `out`
   // and counts into `stats`, or the error, `transient` when a retry of the
   // same batch may cure it.

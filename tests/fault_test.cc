@@ -298,6 +298,21 @@ void ExpectGivenUpAtTheDeadline(const char* what, const absl::Status& s, const s
   EXPECT_LT(seconds, at_most);
 }
 
+// A pool over remote endpoints to `servers`; null (with a failure) when one
+// cannot be reached.
+std::unique_ptr<RvePool> PoolOn(const std::vector<std::unique_ptr<ServerProcess>>& servers,
+                                const std::string& run, const PoolOptions& options) {
+  std::vector<std::unique_ptr<client::RveEndpoint>> endpoints;
+  for (const auto& s : servers) {
+    absl::StatusOr<std::unique_ptr<client::RveEndpoint>> e =
+        client::MakeRemoteEndpoint(s->address(), {});
+    EXPECT_TRUE(e.ok()) << e.status();
+    if (!e.ok()) return nullptr;
+    endpoints.push_back(*std::move(e));
+  }
+  return std::make_unique<RvePool>(std::move(endpoints), run, options);
+}
+
 // A server stopped while the client takes a recovery point (an export) is
 // found at the state calls' adaptive deadline, not the 10-minute default of
 // such calls (CI once saw a run wait out the test's 60 s for it): the pool
@@ -305,20 +320,14 @@ void ExpectGivenUpAtTheDeadline(const char* what, const absl::Status& s, const s
 TEST(FaultTest, ServerStoppedDuringAnExportIsFoundAtTheDeadline) {
   const std::string dir = FreshDir("export");
   std::vector<std::unique_ptr<ServerProcess>> servers = StartServers(2, dir);
-  std::vector<std::unique_ptr<client::RveEndpoint>> endpoints;
-  for (const auto& s : servers) {
-    ASSERT_FALSE(s->address().empty());
-    absl::StatusOr<std::unique_ptr<client::RveEndpoint>> e =
-        client::MakeRemoteEndpoint(s->address(), {});
-    ASSERT_TRUE(e.ok()) << e.status();
-    endpoints.push_back(*std::move(e));
-  }
   PoolOptions o;
   o.apply_deadline = absl::Minutes(10);
   o.deadline_factor = 20;
   o.min_apply_deadline = absl::Seconds(2);
   o.max_attempts = 2;
-  RvePool pool(std::move(endpoints), "export-run", o);
+  std::unique_ptr<RvePool> remote = PoolOn(servers, "export-run", o);
+  ASSERT_NE(remote, nullptr);
+  RvePool& pool = *remote;
   dem::RveSnapshot packing = dem::testing_util::Prepared("SET-dense");
   packing.controls.min_steps = 10;
   const std::vector<store::TemplateRecord> templates = {{"set-dense", "SET-dense", packing}};
@@ -350,16 +359,12 @@ TEST(FaultTest, ServerStoppedDuringAnExportIsFoundAtTheDeadline) {
 TEST(FaultTest, ServerStoppedDuringCreationEndsItAtTheDeadline) {
   const std::string dir = FreshDir("create");
   std::vector<std::unique_ptr<ServerProcess>> servers = StartServers(1, dir);
-  ASSERT_FALSE(servers[0]->address().empty());
-  absl::StatusOr<std::unique_ptr<client::RveEndpoint>> endpoint =
-      client::MakeRemoteEndpoint(servers[0]->address(), {});
-  ASSERT_TRUE(endpoint.ok()) << endpoint.status();
-  std::vector<std::unique_ptr<client::RveEndpoint>> endpoints;
-  endpoints.push_back(*std::move(endpoint));
   PoolOptions o;
   o.deadline_factor = 3;
   o.min_apply_deadline = absl::Seconds(2);
-  RvePool pool(std::move(endpoints), "create-run", o);
+  std::unique_ptr<RvePool> remote = PoolOn(servers, "create-run", o);
+  ASSERT_NE(remote, nullptr);
+  RvePool& pool = *remote;
   const std::vector<store::TemplateRecord> templates = {
       {"set-dense", "SET-dense", dem::testing_util::Prepared("SET-dense")}};
   ASSERT_TRUE(pool.UploadTemplates(templates).ok());
