@@ -40,12 +40,8 @@ absl::StatusOr<store::TemplateRecord> FromFile(const TemplateSpec& spec) {
 absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
                                                const std::string& cache_dir,
                                                const std::function<void(const std::string&)>& log) {
-  // A template compacted at another pressure, to another void ratio or with
-  // another disc count is another packing.
-  std::string stem = absl::StrCat(spec.parameter_set, "-seed", spec.seed);
-  if (spec.pressure > 0) absl::StrAppend(&stem, "-p", absl::StrFormat("%.6g", spec.pressure), "Pa");
-  if (spec.void_ratio > 0) absl::StrAppend(&stem, "-e", absl::StrFormat("%.6g", spec.void_ratio));
-  if (spec.particles > 0) absl::StrAppend(&stem, "-", spec.particles, "discs");
+  const std::string stem = dem::TemplateName(spec.parameter_set, spec.seed, spec.pressure,
+                                             spec.void_ratio, spec.particles);
   const std::string path = (std::filesystem::path(cache_dir) / (stem + ".h5")).string();
   if (std::filesystem::exists(path)) {
     absl::StatusOr<std::vector<store::TemplateRecord>> cached = store::ReadTemplates(path);

@@ -403,6 +403,21 @@ TEST(CliTest, PrepareWithAnotherParticleCountNamesIt) {
   std::filesystem::remove(file);
 }
 
+// Likewise another compaction pressure or void ratio: each makes another
+// packing, so the default name carries it (the name mpm_client's template
+// cache gives the same preparation).
+TEST(CliTest, PrepareAtAnotherPressureAndVoidRatioNamesThem) {
+  const std::string file = TempPath("template-p-e.h5");
+  const Result r = RunCli(absl::StrCat(
+      "prepare --material=SET-dense --seed=2 --pressure=20000 --void-ratio=0.25 --particles=100 "
+      "--out='",
+      file, "'"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(absl::StrContains(r.output, "template SET-dense-seed2-p20000Pa-e0.25-100discs\n"))
+      << r.output;
+  std::filesystem::remove(file);
+}
+
 // rve_cli prepare --out (SET-dense, ~0.5 s) and upload-template; the name.
 std::string PrepareAndUpload(const Server& server, int seed) {
   const std::string file = TempPath(absl::StrCat("template", seed, ".h5"));

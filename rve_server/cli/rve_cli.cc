@@ -190,7 +190,9 @@ Options:
   --particles=N      discs in the packing, in [2, 1e6] (default the set's count)
   --out=FILE.h5      also write the packing as a template file (for upload-template)
   --name=NAME        template name, [A-Za-z0-9._-]{1,128} (default MATERIAL-seedN, with
-                     --particles MATERIAL-seedN-Mdiscs)
+                     -pPPa, -eE and -Mdiscs added for --pressure, --void-ratio and
+                     --particles, e.g. SET-dense-seed2-p20000Pa-e0.25-100discs: each
+                     makes another packing)
 )";
 
 constexpr char kMaterialsHelp[] = R"(rve_cli materials — the parameter sets and their parameters
@@ -446,8 +448,9 @@ void PrintMatrix(absl::string_view key, const Matrix& m) {
 // ---------------------------------------------------------------------------
 // Local commands.
 
+// `name`: the packing's default template name (dem::TemplateName).
 absl::StatusOr<dem::RveSnapshot> PreparePacking(const Flags& flags, std::string* material,
-                                                std::uint64_t* seed,
+                                                std::uint64_t* seed, std::string* name,
                                                 dem::PreparationReport* report) {
   *material = "SET-dense";
   *seed = 1;
@@ -469,6 +472,7 @@ absl::StatusOr<dem::RveSnapshot> PreparePacking(const Flags& flags, std::string*
       !(particles >= 2 && static_cast<std::size_t>(particles) <= dem::kMaxParticles)) {
     return UsageError(absl::StrCat("--particles must lie in [2, ", dem::kMaxParticles, "]"));
   }
+  *name = dem::TemplateName(*material, *seed, pressure, void_ratio, particles);
   std::fprintf(stderr, "preparing %s...\n", material->c_str());
   // Its first line is "N discs, seed S".
   ASSIGN_OR_RETURN(dem::RveSnapshot packing,
@@ -551,9 +555,11 @@ absl::Status ElementTestCommand(const Flags& flags) {
     std::string material;
     std::uint64_t seed;
     dem::PreparationReport report;
-    ASSIGN_OR_RETURN(dem::RveSnapshot packing, PreparePacking(flags, &material, &seed, &report));
+    std::string default_name;
+    ASSIGN_OR_RETURN(dem::RveSnapshot packing,
+                     PreparePacking(flags, &material, &seed, &default_name, &report));
     ASSIGN_OR_RETURN(dem::Rve rve, dem::Rve::Create(std::move(packing)));
-    title = absl::StrCat(test, " on ", material);
+    title = absl::StrCat(test, " on ", default_name);
     ProgressLine progress(title);
     rows = dem::RunElementTest(rve, spec, [&](double fraction) { progress.Update(fraction); });
     progress.Done();
@@ -582,7 +588,9 @@ absl::Status PrepareCommand(const Flags& flags) {
   std::string material;
   std::uint64_t seed;
   dem::PreparationReport report;
-  ASSIGN_OR_RETURN(dem::RveSnapshot packing, PreparePacking(flags, &material, &seed, &report));
+  std::string default_name;
+  ASSIGN_OR_RETURN(dem::RveSnapshot packing,
+                   PreparePacking(flags, &material, &seed, &default_name, &report));
   ASSIGN_OR_RETURN(dem::Rve rve, dem::Rve::Create(packing));
   const dem::RveState s = rve.Observe(/*want_tangent=*/true);
   std::printf("material %s\nparticles %d\nvoid_ratio %.6f\nporosity %.6f\n", material.c_str(),
@@ -597,10 +605,7 @@ absl::Status PrepareCommand(const Flags& flags) {
   if (out.empty()) return absl::OkStatus();
 
   store::TemplateRecord record;
-  // Another count is another packing of the set: its default name says so.
-  const std::string count =
-      flags.contains("particles") ? absl::StrCat("-", rve.num_particles(), "discs") : "";
-  record.name = name.empty() ? absl::StrCat(material, "-seed", seed, count) : name;
+  record.name = name.empty() ? default_name : name;
   record.description = dem::TemplateDescription(material, seed, rve.num_particles(), report);
   record.packing = std::move(packing);
   store::FileInfo info;

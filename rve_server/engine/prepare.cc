@@ -247,6 +247,15 @@ absl::StatusOr<RveSnapshot> PrepareTemplate(
   return PreparePacking(set, {}, report, progress);
 }
 
+std::string TemplateName(absl::string_view parameter_set, std::uint64_t seed, double pressure,
+                         double void_ratio, int num_particles) {
+  std::string name = absl::StrCat(parameter_set, "-seed", seed);
+  if (pressure > 0) absl::StrAppendFormat(&name, "-p%.6gPa", pressure);
+  if (void_ratio > 0) absl::StrAppendFormat(&name, "-e%.6g", void_ratio);
+  if (num_particles > 0) absl::StrAppend(&name, "-", num_particles, "discs");
+  return name;
+}
+
 std::string TemplateDescription(absl::string_view parameter_set, std::uint64_t seed,
                                 std::size_t num_particles, const PreparationReport& report) {
   return absl::StrFormat("material %s, seed %d, %d discs, e0 = %.4f, p0 = %.1f Pa", parameter_set,

@@ -85,6 +85,14 @@ absl::StatusOr<RveSnapshot> PrepareTemplate(
     int num_particles = 0, PreparationReport* report = nullptr,
     const std::function<void(const std::string&)>& progress = {});
 
+// The name of a packing prepared by PrepareTemplate when nobody names it
+// (rve_cli prepare --out, mpm_client's template cache files):
+// "<set>-seed<S>", then "-p<P>Pa", "-e<E>" and "-<N>discs" for whichever of
+// pressure, void_ratio and num_particles is asked for (0: the set's, left
+// out), since each makes another packing. Values as %.6g.
+std::string TemplateName(absl::string_view parameter_set, std::uint64_t seed, double pressure,
+                         double void_ratio, int num_particles);
+
 // The description a template prepared by PrepareTemplate carries in its file
 // (rve_cli prepare --out, mpm_client's template cache): "material M, seed S,
 // N discs, e0 = E, p0 = P Pa", from the report of its preparation.
