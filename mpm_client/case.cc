@@ -560,8 +560,6 @@ absl::string_view LostPointPolicyName(LostPointPolicy p) {
 
 constexpr Table<FBar> kFBars = {{"none", FBar::kNone}, {"nodal", FBar::kNodal}};
 
-absl::string_view FBarName(FBar f) { return f == FBar::kNodal ? "nodal" : "none"; }
-
 // A shaking table's speeds are of cm/s to m/s; its frequencies of Hz.
 constexpr Range kShakingSpeed{-100.0, 100.0, false, false};   // m/s
 constexpr Range kShakingFrequency{0.0, 1000.0, true, false};  // Hz
@@ -1656,6 +1654,16 @@ absl::Status ApplyOverride(const CaseOverride& o, Json& doc) {
 
 absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::string& base_dir) {
   return ParseCase(json_text, base_dir, {});
+}
+
+absl::string_view FBarName(FBar f) { return f == FBar::kNodal ? "nodal" : "none"; }
+
+absl::StatusOr<FBar> FBarFromName(absl::string_view name) {
+  for (const auto& [n, value] : kFBars) {
+    if (n == name) return value;
+  }
+  return absl::InvalidArgumentError(
+      absl::StrCat("must be one of ", Choices(kFBars), ", got ", Quote(name)));
 }
 
 absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::string& base_dir,

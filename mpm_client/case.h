@@ -30,6 +30,12 @@ struct CaseOverride {
   std::string value;    // JSON text, e.g. "4", "[1, 2]", "\"gimp\""
 };
 
+// solver.f_bar's names ("none", "nodal"), for mpm_client resume --f-bar.
+// FBarFromName is InvalidArgument "must be one of none, nodal, got \"x\"" for
+// any other name.
+absl::string_view FBarName(FBar f);
+absl::StatusOr<FBar> FBarFromName(absl::string_view name);
+
 // "PATH=VALUE": PATH a JSON pointer ("/rve/min_steps", "/regions/0/density")
 // or the same with dots ("rve.min_steps", "regions.0.density"); VALUE JSON, or
 // a string when it does not parse as JSON (--set name=sweep-3). InvalidArgument

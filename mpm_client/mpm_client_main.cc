@@ -296,11 +296,10 @@ absl::StatusOr<SimulationOptions> Options(const Args& a) {
       return absl::InvalidArgumentError(absl::StrCat("--cfl ", kCflRule));
   }
   if (a.contains("f-bar")) {
-    o.f_bar = absl::GetFlag(FLAGS_f_bar);
-    if (o.f_bar != "none" && o.f_bar != "nodal") {
-      return absl::InvalidArgumentError(
-          absl::StrCat("--f-bar must be none or nodal, got '", o.f_bar, "'"));
-    }
+    absl::StatusOr<FBar> f_bar = FBarFromName(absl::GetFlag(FLAGS_f_bar));
+    if (!f_bar.ok())
+      return absl::InvalidArgumentError(absl::StrCat("--f-bar ", f_bar.status().message()));
+    o.f_bar = *f_bar;
   }
   if (a.contains("nonlocal-radius")) {
     const double radius = absl::GetFlag(FLAGS_nonlocal_radius);

@@ -694,8 +694,8 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
     dt_ratio = options.cfl / spec->solver.cfl;
     overrides.push_back({"/solver/cfl", absl::StrFormat("%.17g", options.cfl)});
   }
-  if (!options.f_bar.empty()) {
-    overrides.push_back({"/solver/f_bar", absl::StrCat("\"", options.f_bar, "\"")});
+  if (options.f_bar) {
+    overrides.push_back({"/solver/f_bar", absl::StrCat("\"", FBarName(*options.f_bar), "\"")});
   }
   if (options.nonlocal_radius) {
     overrides.push_back(
@@ -736,7 +736,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
     sim->Log(absl::StrFormat("time step %.4g s -> %.4g s (CFL %.2f)", dt, sim->solver_->dt(),
                              options.cfl));
   }
-  if (!options.f_bar.empty()) sim->Log(absl::StrCat("F-bar: ", options.f_bar));
+  if (options.f_bar) sim->Log(absl::StrCat("F-bar: ", FBarName(*options.f_bar)));
   if (options.nonlocal_radius) {
     sim->Log(absl::StrFormat("nonlocal strain radius: %.4g m", *options.nonlocal_radius));
   }

@@ -66,9 +66,9 @@ struct SimulationOptions {
   // its time step from one; Δt changes by the ratio of the two and later
   // checkpoints carry the new number.
   double cfl = 0;
-  // Resume only: the run's F-bar from the checkpoint on, "none" or "nodal"
-  // (empty: the case's solver.f_bar); later checkpoints carry it.
-  std::string f_bar;
+  // Resume only: the run's F-bar from the checkpoint on (unset: the case's
+  // solver.f_bar); later checkpoints carry it.
+  std::optional<FBar> f_bar;
   // Resume only: the run's nonlocal strain radius from the checkpoint on, m
   // (0 turns it off; unset: the case's solver.nonlocal_radius).
   std::optional<double> nonlocal_radius;

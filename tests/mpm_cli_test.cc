@@ -282,7 +282,7 @@ TEST(MpmCliTest, UsageErrorsExitTwoWithAMessage) {
            {"resume x.h5 --cfl=0", "--cfl must be a number in (0, 1]"},
            {"resume x.h5 --cfl=1.5", "--cfl must be a number in (0, 1]"},
            {absl::StrCat("run ", case_path, out, " --f-bar=nodal"), "--f-bar is for resume"},
-           {"resume x.h5 --f-bar=cell", "--f-bar must be none or nodal, got 'cell'"},
+           {"resume x.h5 --f-bar=cell", "--f-bar must be one of none, nodal, got \"cell\""},
            {absl::StrCat("run ", case_path, out, " --nonlocal-radius=0.2"),
             "--nonlocal-radius is for resume"},
            {"resume x.h5 --nonlocal-radius=-1", "--nonlocal-radius must be a length in [0, 1e3] m"},

@@ -475,12 +475,13 @@ SimulationOptions StoppedShortRun(const std::string& out) {
 TEST(SimulationTest, ResumeWithFBarCarriesIt) {
   const std::string out = FreshDir("f_bar_resume");
   SimulationOptions o = StoppedShortRun(out);
-  for (const char* f_bar : {"nodal", "", "none"}) {
-    SCOPED_TRACE(f_bar);
+  for (std::optional<FBar> f_bar :
+       {std::optional(FBar::kNodal), std::optional<FBar>(), std::optional(FBar::kNone)}) {
+    SCOPED_TRACE(f_bar ? FBarName(*f_bar) : "unset");
     o.f_bar = f_bar;
     const std::optional<CaseSpec> carried = ResumedAndCarried(out, o);
     ASSERT_TRUE(carried.has_value());
-    EXPECT_EQ(carried->solver.f_bar, std::string(f_bar) == "none" ? FBar::kNone : FBar::kNodal);
+    EXPECT_EQ(carried->solver.f_bar, f_bar == FBar::kNone ? FBar::kNone : FBar::kNodal);
   }
 }
 
