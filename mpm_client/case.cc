@@ -246,9 +246,16 @@ absl::Status ReadString(const Json& v, absl::string_view ptr, bool non_empty, st
 }
 
 // Names of templates, regions, walls, bodies and tractions end up in file
-// and column names, so they are restricted to a portable alphabet.
+// and column names, so they are restricted to a portable alphabet. A
+// template's also goes onto the servers after the run id (up to 88
+// characters, MakeRunId) and a '.', within their 128: hence at most 32.
+inline constexpr std::size_t kMaxNameLength = 32;
+
 absl::Status ReadName(const Json& v, absl::string_view ptr, std::string* out) {
   RETURN_IF_ERROR(ReadString(v, ptr, true, out));
+  if (out->size() > kMaxNameLength) {
+    return Bad(ptr, "names have at most ", kMaxNameLength, " characters, got ", out->size());
+  }
   for (char c : *out) {
     if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.')) {
       return Bad(ptr, "names use letters, digits, '_', '-' and '.' only, got ", Quote(*out));

@@ -636,6 +636,8 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
       {"/bodies/1/name", "footing", "/bodies/1/name: duplicate body name \"footing\""},
       {"/tractions/2/name", "load", "/tractions/2/name: duplicate traction name \"load\""},
       {"/regions/0/name", "my soil", "/regions/0/name: names use letters, digits"},
+      {"/templates/0/name", std::string(33, 'a'),
+       "/templates/0/name: names have at most 32 characters, got 33"},
       // Velocity histories.
       {"/bodies/0/velocity/1/0", 0,
        "/bodies/0/velocity/1/0: times must increase strictly, got 0 s after 0 s"},
