@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "absl/status/statusor.h"
+#include "absl/strings/match.h"
 #include "gtest/gtest.h"
 #include "rve_server/engine/material.h"
 #include "rve_server/engine/prepare.h"
@@ -198,6 +199,18 @@ TEST(PreparationTest, TemplateWithAnotherParticleCount) {
               absl::StatusCode::kInvalidArgument)
         << n;
   }
+}
+
+// A stress the servo cannot reach is a clear refusal, not a deadline a
+// client would take for a hung server: 40 loose discs compacted straight to
+// 100 Pa jam past it and unjam into a gas (measured: σ = 0, 0.8 s).
+TEST(PreparationTest, AConsolidationThatCannotConvergeIsAFailedPrecondition) {
+  const absl::StatusOr<RveSnapshot> packing = PrepareTemplate("SET-dense", 1, 100, 0, 40);
+  ASSERT_FALSE(packing.ok());
+  EXPECT_EQ(packing.status().code(), absl::StatusCode::kFailedPrecondition) << packing.status();
+  EXPECT_TRUE(absl::StrContains(packing.status().message(),
+                                "consolidation to σxx = 100 Pa, σyy = 100 Pa did not converge"))
+      << packing.status();
 }
 
 // PrepareTemplate's pressure: the set's e0 sought at that pressure. A

@@ -91,7 +91,9 @@ absl::StatusOr<RveState> ConsolidateToStress(Rve& rve, double sxx, double syy, d
   }
   if (steps != nullptr) *steps += done;
   const RveState s = rve.Observe();
-  return absl::DeadlineExceededError(absl::StrFormat(
+  // Not DeadlineExceeded: no deadline passed, and a client would take that
+  // for a hung server and retry what fails the same way every time.
+  return absl::FailedPreconditionError(absl::StrFormat(
       "consolidation to σxx = %.4g Pa, σyy = %.4g Pa did not converge: σxx = %.4g Pa, "
       "σyy = %.4g Pa, unbalanced %.3g",
       sxx, syy, -s.stress(0, 0), -s.stress(1, 1), s.unbalanced_force_ratio));

@@ -35,6 +35,10 @@ struct PreparationReport {
 // stress has stayed close that many steps: at a few kPa the moving servo
 // keeps the ratio above 3e-3 and ran to its 600 000-step cap (3–4 s per
 // RVE); the relaxation that follows balances the packing either way.
+// FailedPrecondition "... did not converge" when 6 servo-and-relax rounds
+// leave it out of reach: e.g. a loose packing compacted straight to about
+// 100 Pa, which each jams past the stress and each unjams into a gas (no
+// contacts); compacting higher and unloading reaches it (below).
 //
 // kSettleSteps is the settle_steps material points are created with (the
 // registry): from a template at 100 or 20 kPa to 2–14 kPa it took 1 200 to
