@@ -249,12 +249,12 @@ absl::Status ReadString(const Json& v, absl::string_view ptr, bool non_empty, st
 // and column names, so they are restricted to a portable alphabet. A
 // template's also goes onto the servers after the run id (up to 88
 // characters, MakeRunId) and a '.', within their 128: hence at most 32.
-inline constexpr std::size_t kMaxNameLength = 32;
+inline constexpr std::size_t kMaxCaseNameLength = 32;
 
 absl::Status ReadName(const Json& v, absl::string_view ptr, std::string* out) {
   RETURN_IF_ERROR(ReadString(v, ptr, true, out));
-  if (out->size() > kMaxNameLength) {
-    return Bad(ptr, "names have at most ", kMaxNameLength, " characters, got ", out->size());
+  if (out->size() > kMaxCaseNameLength) {
+    return Bad(ptr, "names have at most ", kMaxCaseNameLength, " characters, got ", out->size());
   }
   for (char c : *out) {
     if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.')) {

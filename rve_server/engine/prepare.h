@@ -37,8 +37,8 @@ struct PreparationReport {
 // RVE); the relaxation that follows balances the packing either way.
 // FailedPrecondition "... did not converge" when 6 servo-and-relax rounds
 // leave it out of reach: e.g. a loose packing compacted straight to about
-// 100 Pa, which each jams past the stress and each unjams into a gas (no
-// contacts); compacting higher and unloading reaches it (below).
+// 100 Pa, which in every round jams past the stress and then unjams into a
+// gas (no contacts); compacting higher and unloading reaches it (below).
 //
 // kSettleSteps is the settle_steps material points are created with (the
 // registry): from a template at 100 or 20 kPa to 2–14 kPa it took 1 200 to
