@@ -239,6 +239,10 @@ TEST(FaultTest, ServerKilledAtARandomStepIsRecoveredFromBitIdentically) {
   ExpectSameOutputs(reference, f.out);
 }
 
+double SecondsSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
 TEST(FaultTest, StoppedServerIsFoundAtTheDeadlineAndRejoinsAfterSigcont) {
   const std::string reference = Reference("stop");
   const std::int64_t at = StrikeStep(50, 450);
@@ -255,7 +259,7 @@ TEST(FaultTest, StoppedServerIsFoundAtTheDeadlineAndRejoinsAfterSigcont) {
         for (int i = 0; i < 6000 && !log.Has("lost (run at step"); ++i) {
           std::this_thread::sleep_for(std::chrono::milliseconds(10));
         }
-        detected_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        detected_s = SecondsSince(t0);
         s.Signal(SIGCONT);
       },
       [](SimulationOptions& o) {
@@ -279,10 +283,6 @@ TEST(FaultTest, StoppedServerIsFoundAtTheDeadlineAndRejoinsAfterSigcont) {
   EXPECT_GT(f.summary->rves_moved, 0) << f.log.All();
   EXPECT_TRUE(f.log.Has("answers again")) << f.log.All();
   ExpectSameOutputs(reference, f.out);
-}
-
-double SecondsSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 // A call to a server stopped `seconds` ago gave up at a 2 s deadline:

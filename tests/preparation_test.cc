@@ -201,6 +201,15 @@ TEST(PreparationTest, TemplateWithAnotherParticleCount) {
   }
 }
 
+// The default name of a prepared packing says what was asked for, in a
+// template name's alphabet ([A-Za-z0-9._-]) at any pressure.
+TEST(PreparationTest, TemplateNameCarriesWhatWasAskedForInTheNameAlphabet) {
+  EXPECT_EQ(TemplateName("SET-dense", 1, 0, 0, 0), "SET-dense-seed1");
+  EXPECT_EQ(TemplateName("SET-dense", 2, 20e3, 0.25, 100),
+            "SET-dense-seed2-p20000Pa-e0.25-100discs");
+  EXPECT_EQ(TemplateName("SET-dense", 1, 2e6, 1e-5, 0), "SET-dense-seed1-p2e06Pa-e1e-05");
+}
+
 // A stress the servo cannot reach is a clear refusal, not a deadline a
 // client would take for a hung server: 40 loose discs compacted straight to
 // 100 Pa jam past it and unjam into a gas (measured: σ = 0, 0.8 s).

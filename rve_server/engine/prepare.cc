@@ -255,6 +255,8 @@ std::string TemplateName(absl::string_view parameter_set, std::uint64_t seed, do
   if (pressure > 0) absl::StrAppendFormat(&name, "-p%.6gPa", pressure);
   if (void_ratio > 0) absl::StrAppendFormat(&name, "-e%.6g", void_ratio);
   if (num_particles > 0) absl::StrAppend(&name, "-", num_particles, "discs");
+  // %g writes 2e+06 from 1e6 Pa up; '+' is not in a template name's alphabet.
+  name.erase(std::remove(name.begin(), name.end(), '+'), name.end());
   return name;
 }
 

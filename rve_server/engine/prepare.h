@@ -93,7 +93,8 @@ absl::StatusOr<RveSnapshot> PrepareTemplate(
 // (rve_cli prepare --out, mpm_client's template cache files):
 // "<set>-seed<S>", then "-p<P>Pa", "-e<E>" and "-<N>discs" for whichever of
 // pressure, void_ratio and num_particles is asked for (0: the set's, left
-// out), since each makes another packing. Values as %.6g.
+// out), since each makes another packing. Values as %.6g without '+'
+// (2e06 for 2 MPa), so the name is a valid template name.
 std::string TemplateName(absl::string_view parameter_set, std::uint64_t seed, double pressure,
                          double void_ratio, int num_particles);
 
