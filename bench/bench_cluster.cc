@@ -39,10 +39,10 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
-#include "absl/synchronization/mutex.h"
 #include "mpm_client/case.h"
 #include "mpm_client/output.h"
 #include "mpm_client/simulation.h"
+#include "rve_server/common/process.h"
 
 extern char** environ;
 
@@ -200,9 +200,7 @@ Result Run(const mpm::CaseSpec& spec, int n, const std::string& label, std::int6
 }  // namespace
 
 int main(int argc, char** argv) {
-  // As rve_server and mpm_client run: Debian's Abseil checks every mutex
-  // for deadlock cycles (~60 ns a lock), which production binaries turn off.
-  absl::SetMutexDeadlockDetectionMode(absl::OnDeadlockCycle::kIgnore);
+  rvehub::SetUpLongRunningProcess();  // as rve_server and mpm_client run
   std::string name = "footing-dense-ci";
   int max_servers = 3;
   std::int64_t strike_step = -1;

@@ -28,9 +28,9 @@
 #include <string>
 #include <vector>
 
-#include "absl/synchronization/mutex.h"
 #include "mpm_client/case.h"
 #include "mpm_client/simulation.h"
+#include "rve_server/common/process.h"
 #include "rve_server/service/server.h"
 
 namespace {
@@ -85,9 +85,7 @@ bool RunCase(const std::string& path, const std::vector<std::string>& servers, i
 }  // namespace
 
 int main(int argc, char** argv) {
-  // As rve_server and mpm_client run: Debian's Abseil checks every mutex
-  // for deadlock cycles (~60 ns a lock), which production binaries turn off.
-  absl::SetMutexDeadlockDetectionMode(absl::OnDeadlockCycle::kIgnore);
+  rvehub::SetUpLongRunningProcess();  // as rve_server and mpm_client run
   long steps = 0;
   int threads = 0;
   bool remote = false, full = false, baseline = false;

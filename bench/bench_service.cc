@@ -29,7 +29,7 @@
 #include <thread>
 #include <vector>
 
-#include "absl/synchronization/mutex.h"
+#include "rve_server/common/process.h"
 #include "rve_server/engine/material.h"
 #include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
@@ -210,9 +210,7 @@ Figures Measure(const dem::RveSnapshot& packing, int threads, int rves, int reps
 }  // namespace
 
 int main(int argc, char** argv) {
-  // As rve_server and mpm_client run: Debian's Abseil checks every mutex
-  // for deadlock cycles (~60 ns a lock), which production binaries turn off.
-  absl::SetMutexDeadlockDetectionMode(absl::OnDeadlockCycle::kIgnore);
+  rvehub::SetUpLongRunningProcess();  // as rve_server and mpm_client run
   int rves = 256, reps = 20;
   bool zero_only = false;
   for (int i = 1; i < argc; ++i) {

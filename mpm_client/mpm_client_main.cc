@@ -22,7 +22,6 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
-#include "absl/synchronization/mutex.h"
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
 #include "mpm_client/case.h"
@@ -32,6 +31,7 @@
 #include "nlohmann/json.hpp"
 #include "rve_server/client/channel.h"
 #include "rve_server/common/flags.h"
+#include "rve_server/common/process.h"
 #include "rve_server/common/status_macros.h"
 #include "rve_server/common/text_file.h"
 #include "rve_server/common/version.h"
@@ -416,10 +416,7 @@ class RunRecord {
 };
 
 int Main(int argc, char** argv) {
-  // Debian's Abseil is built with mutex deadlock detection on: a graph update
-  // per lock, and the embedded registry locks every RVE every step (~2 % of
-  // footing-dense). The tests keep it on.
-  absl::SetMutexDeadlockDetectionMode(absl::OnDeadlockCycle::kIgnore);
+  SetUpLongRunningProcess();
   absl::StatusOr<Command> command = Parse(argc, argv);
   if (!command.ok()) return Fail(command.status(), 2);
   if (command->name == "help") {

@@ -17,7 +17,7 @@
 #include "absl/flags/usage.h"
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
-#include "absl/synchronization/mutex.h"
+#include "rve_server/common/process.h"
 #include "rve_server/common/text_file.h"
 #include "rve_server/service/log.h"
 #include "rve_server/service/server.h"
@@ -89,9 +89,7 @@ int main(int argc, char** argv) {
   }
   absl::SetProgramUsageMessage(kUsage);
   absl::ParseCommandLine(argc, argv);
-  // Debian's Abseil is built with mutex deadlock detection on: a graph update
-  // per lock, and the registry locks every RVE of a batch. The tests keep it.
-  absl::SetMutexDeadlockDetectionMode(absl::OnDeadlockCycle::kIgnore);
+  rvehub::SetUpLongRunningProcess();
   using rvehub::service::ServerConfig;
   ServerConfig config;
   config.listen = absl::GetFlag(FLAGS_listen);
