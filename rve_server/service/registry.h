@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "absl/base/thread_annotations.h"
+#include "absl/container/btree_map.h"
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
@@ -179,7 +180,7 @@ class Registry {
     explicit Entry(dem::Rve r) : rve(std::move(r)) {}
   };
   using EntryPtr = std::shared_ptr<Entry>;
-  using Run = std::map<std::int64_t, EntryPtr>;
+  using Run = absl::btree_map<std::int64_t, EntryPtr>;
 
   // Entries of `ids` in a run (empty: all), or NotFound naming the missing.
   absl::StatusOr<std::vector<std::pair<std::int64_t, EntryPtr>>> Lookup(
