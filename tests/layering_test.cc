@@ -49,8 +49,9 @@ const std::vector<Layer>& Layers() {
        {"rve_server/engine/", "rve_server/common/status_macros.h", "absl/"},
        {"Eigen/"},
        /*standard_io=*/false},
-      // What every binary shares: Abseil and the standard library (plots: cairo).
-      {"rve_server/common", {"rve_server/common/", "absl/"}, {"cairo"}},
+      // What every binary shares: Abseil and the standard library (plots:
+      // cairo; the long-running binaries' heap settings: glibc's malloc.h).
+      {"rve_server/common", {"rve_server/common/", "absl/"}, {"cairo", "malloc.h"}},
       {"store",
        {"store/", "rve_server/engine/", "rve_server/common/", "absl/"},
        {"hdf5.h", "Eigen/"}},
