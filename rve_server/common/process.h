@@ -6,7 +6,7 @@
 
 namespace rvehub {
 
-// Call first in main(), before any thread starts.
+// Call early in main(), before any thread starts.
 // - Abseil's mutex deadlock detection off: Debian's Abseil is built with it
 //   on, a graph update per lock, and the registry locks every RVE of a batch
 //   every step (~2 % of footing-dense).

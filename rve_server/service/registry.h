@@ -180,6 +180,8 @@ class Registry {
     explicit Entry(dem::Rve r) : rve(std::move(r)) {}
   };
   using EntryPtr = std::shared_ptr<Entry>;
+  // Sorted ids (ListRuns, Get and Export answer in id order) at a few cache
+  // lines a lookup: Apply finds every id of its batch before the workers start.
   using Run = absl::btree_map<std::int64_t, EntryPtr>;
 
   // Entries of `ids` in a run (empty: all), or NotFound naming the missing.
