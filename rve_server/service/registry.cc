@@ -419,6 +419,19 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
   }
   std::stable_sort(order.begin(), order.end(),
                    [&](std::size_t a, std::size_t b) { return work[a] > work[b]; });
+  // The workers take runs of similar total work. An RVE without an increment
+  // yet is guessed at the batch's mean (all alike when none has run).
+  double known = 0, counted = 0;
+  for (std::int64_t w : work) {
+    known += w > 0 ? static_cast<double>(w) : 0.0;
+    counted += w > 0 ? 1.0 : 0.0;
+  }
+  const double guess = counted > 0 ? known / counted : 1.0;
+  std::vector<double> cost(order.size());
+  for (std::size_t j = 0; j < order.size(); ++j) {
+    const std::int64_t w = work[order[j]];
+    cost[j] = w > 0 ? static_cast<double>(w) : guess;
+  }
   auto record_work = [](Entry& e, const dem::RveState& s) {
     e.last_work.store((s.steps + 1) * e.rve.num_particles(), std::memory_order_relaxed);
   };
@@ -499,14 +512,17 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
     o.state = *std::move(s);
     o.deformation_gradient.topLeftCorner<2, 2>() = e.rve.DeformationGradient();
   };
-  pool_.ParallelFor(increments.size(), [&](std::size_t j) {
-    const std::size_t k = order[j];
-    absl::Status guarded = NoThrow([&] {
-      apply_one(k);
-      return absl::OkStatus();
-    });
-    if (!guarded.ok()) out[k].status = guarded;
-  });
+  pool_.ParallelFor(
+      increments.size(),
+      [&](std::size_t j) {
+        const std::size_t k = order[j];
+        absl::Status guarded = NoThrow([&] {
+          apply_one(k);
+          return absl::OkStatus();
+        });
+        if (!guarded.ok()) out[k].status = guarded;
+      },
+      cost);
   return out;
 }
 

@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <thread>
+#include <vector>
 
 namespace rvehub::service {
 namespace {
@@ -18,9 +20,21 @@ constexpr auto kWatchBeforeSleep = std::chrono::microseconds(1000);
 
 }  // namespace
 
+std::size_t GuidedRunEnd(const std::vector<double>& cost_before, std::size_t start, double shares) {
+  const std::size_t n = cost_before.size() - 1;
+  const double share = (cost_before[n] - cost_before[start]) / shares;
+  if (!(share > 0)) return start + 1;  // the rest costs nothing: one at a time
+  const auto end = std::lower_bound(cost_before.begin() + start + 1, cost_before.end() - 1,
+                                    cost_before[start] + share);
+  return static_cast<std::size_t>(end - cost_before.begin());
+}
+
 struct WorkerPool::Job {
   std::size_t n = 0;
   const std::function<void(std::size_t)>* fn = nullptr;
+  // Σ costs of the indices before k, k = 0 … n; empty: one index at a time.
+  std::vector<double> cost_before;
+  double shares = 0;  // the rest's cost is split in this many runs
   std::atomic<std::size_t> next{0};
   int active = 0;  // workers inside RunItems; guarded by the pool's mu_
 };
@@ -40,7 +54,20 @@ WorkerPool::~WorkerPool() {
 }
 
 void WorkerPool::RunItems(Job& job) {
-  for (std::size_t k = job.next++; k < job.n; k = job.next++) (*job.fn)(k);
+  if (job.cost_before.empty()) {
+    for (std::size_t k = job.next++; k < job.n; k = job.next++) (*job.fn)(k);
+    return;
+  }
+  std::size_t start = job.next.load();
+  for (;;) {
+    std::size_t end;
+    do {
+      if (start >= job.n) return;
+      end = GuidedRunEnd(job.cost_before, start, job.shares);
+    } while (!job.next.compare_exchange_weak(start, end));
+    for (std::size_t k = start; k < end; ++k) (*job.fn)(k);
+    start = job.next.load();
+  }
 }
 
 void WorkerPool::WorkerLoop() {
@@ -82,13 +109,22 @@ void WorkerPool::WorkerLoop() {
   }
 }
 
-void WorkerPool::ParallelFor(std::size_t n, const std::function<void(std::size_t)>& fn) {
+void WorkerPool::ParallelFor(std::size_t n, const std::function<void(std::size_t)>& fn,
+                             std::span<const double> costs) {
   if (n == 0) return;
   // The caller only waits, so that the server computes on exactly threads()
   // threads however many calls are in flight.
   Job job;
   job.n = n;
   job.fn = &fn;
+  if (costs.size() == n) {
+    job.cost_before.resize(n + 1, 0.0);
+    for (std::size_t k = 0; k < n; ++k) {
+      const double c = std::isfinite(costs[k]) && costs[k] > 0 ? costs[k] : 0.0;
+      job.cost_before[k + 1] = job.cost_before[k] + c;
+    }
+    job.shares = 2.0 * static_cast<double>(threads());
+  }
   absl::MutexLock lock(&mu_);
   queue_.push_back(&job);
   queued_.fetch_add(1, std::memory_order_release);
