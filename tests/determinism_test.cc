@@ -7,16 +7,20 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "absl/synchronization/mutex.h"
 #include "gtest/gtest.h"
 #include "rve_server/engine/material.h"
 #include "rve_server/engine/rve.h"
 #include "rve_server/engine/snapshot.h"
+#include "rve_server/service/registry.h"
 #include "rve_server/service/worker_pool.h"
 #include "tests/test_util.h"
 
@@ -117,6 +121,65 @@ TEST(DeterminismTest, WorkerPoolApplyIsIndependentOfThreadCount) {
   for (int round = 0; round < kRounds; ++round) last = alone.Apply(df[kRves - 1], options);
   ASSERT_TRUE(last.ok()) << last.status();
   ExpectIdenticalPackings(alone.ToSnapshot(), two[kRves - 1].ToSnapshot(), "batch vs alone");
+}
+
+// The registry's two ways of returning a batch — collected (Apply) or handed
+// to the caller RVE by RVE on the workers (ApplyEach, as the embedded client
+// uses it) — give the same bits on one worker and on two, every index once;
+// a whole-call error hands out nothing.
+TEST(DeterminismTest, RegistryApplyEachMatchesApplyOnAnyThreadCount) {
+  constexpr int kRves = 12;
+  std::vector<std::int64_t> ids;
+  std::vector<service::Increment> batch;
+  for (int k = 0; k < kRves; ++k) {
+    ids.push_back(100 + 7 * k);
+    batch.push_back({ids.back(), ShearIncrement(1.0 + 0.25 * k)});
+  }
+  auto make = [&](int threads) {
+    service::RegistryOptions o;
+    o.threads = threads;
+    auto r = std::make_unique<service::Registry>(o);
+    EXPECT_TRUE(r->PutTemplate({"dense", "", Prepared("SET-dense")}, false).ok());
+    EXPECT_TRUE(r->Create("run", "dense", ids, {}, std::nullopt, false).ok());
+    return r;
+  };
+  std::unique_ptr<service::Registry> collected = make(1), each_one = make(1), each_two = make(2);
+  ApplyOptions options;
+  options.want_tangent = true;
+  for (std::int64_t step = 1; step <= 3; ++step) {
+    absl::StatusOr<std::vector<service::RveOutcome>> a =
+        collected->Apply("run", step, service::ApplyMode::kCommit, options, batch);
+    ASSERT_TRUE(a.ok()) << a.status();
+    for (service::Registry* r : {each_one.get(), each_two.get()}) {
+      std::vector<service::RveOutcome> got(kRves);
+      std::vector<int> calls(kRves, 0);
+      absl::Mutex mu;
+      ASSERT_TRUE(r->ApplyEach("run", step, service::ApplyMode::kCommit, options, batch, {},
+                               [&](std::size_t k, service::RveOutcome&& o) {
+                                 absl::MutexLock lock(&mu);
+                                 ++calls[k];
+                                 got[k] = std::move(o);
+                               })
+                      .ok());
+      for (int k = 0; k < kRves; ++k) {
+        const std::string where = "step " + std::to_string(step) + ", index " + std::to_string(k);
+        ASSERT_EQ(calls[k], 1) << where;
+        ASSERT_TRUE(got[k].status.ok()) << got[k].status;
+        EXPECT_EQ(got[k].id, ids[k]) << where;
+        EXPECT_EQ(got[k].step, step) << where;
+        ExpectIdenticalStates((*a)[k].state, got[k].state, where);
+      }
+    }
+  }
+  // An unknown id: refused for the whole batch before any outcome.
+  std::vector<service::Increment> bad = batch;
+  bad.back().id = 99999;
+  int handed = 0;
+  const absl::Status refused =
+      each_two->ApplyEach("run", 4, service::ApplyMode::kCommit, options, bad, {},
+                          [&](std::size_t, service::RveOutcome&&) { ++handed; });
+  EXPECT_EQ(refused.code(), absl::StatusCode::kNotFound) << refused;
+  EXPECT_EQ(handed, 0);
 }
 
 TEST(DeterminismTest, RestartFromPackingContinuesBitIdentically) {

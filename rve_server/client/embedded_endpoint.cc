@@ -11,8 +11,8 @@ namespace rvehub::client {
 namespace {
 
 // The registry's types are the server's; the client's are its own. These
-// copy between the two (a few hundred bytes per RVE, nothing next to a DEM
-// step).
+// copy between the two (a few hundred bytes per RVE; Apply's on the workers,
+// where 7776 of them had taken 1.2 ms of each MPM step on the caller).
 service::InitialStress ToRegistry(const InitialStress& s) {
   service::InitialStress out;
   out.kind = s.kind == InitialStress::Kind::kIsotropic ? service::InitialStress::Kind::kIsotropic
@@ -24,17 +24,18 @@ service::InitialStress ToRegistry(const InitialStress& s) {
   return out;
 }
 
+void FromRegistry(service::RveOutcome&& o, RveOutcome& out) {
+  out.id = o.id;
+  out.status = std::move(o.status);
+  out.step = o.step;
+  out.state = std::move(o.state);
+  out.deformation_gradient = o.deformation_gradient;
+  out.engine_seconds = o.engine_seconds;
+}
+
 std::vector<RveOutcome> FromRegistry(std::vector<service::RveOutcome>&& outcomes) {
   std::vector<RveOutcome> out(outcomes.size());
-  for (std::size_t k = 0; k < outcomes.size(); ++k) {
-    service::RveOutcome& o = outcomes[k];
-    out[k].id = o.id;
-    out[k].status = std::move(o.status);
-    out[k].step = o.step;
-    out[k].state = std::move(o.state);
-    out[k].deformation_gradient = o.deformation_gradient;
-    out[k].engine_seconds = o.engine_seconds;
-  }
+  for (std::size_t k = 0; k < outcomes.size(); ++k) FromRegistry(std::move(outcomes[k]), out[k]);
   return out;
 }
 
@@ -96,11 +97,13 @@ class EmbeddedEndpoint final : public RveEndpoint {
       batch[k].id = increments[k].id;
       batch[k].delta_f = increments[k].delta_f;
     }
-    absl::StatusOr<std::vector<service::RveOutcome>> out =
-        registry_->Apply(run, step, service::ApplyMode::kCommit, options, batch, cancelled);
+    std::vector<RveOutcome> out(batch.size());
+    const absl::Status applied = registry_->ApplyEach(
+        run, step, service::ApplyMode::kCommit, options, batch, cancelled,
+        [&out](std::size_t k, service::RveOutcome&& o) { FromRegistry(std::move(o), out[k]); });
     const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
-    if (!out.ok()) return std::make_unique<DoneApply>(Error(out.status()), seconds);
-    return std::make_unique<DoneApply>(FromRegistry(*std::move(out)), seconds);
+    if (!applied.ok()) return std::make_unique<DoneApply>(Error(applied), seconds);
+    return std::make_unique<DoneApply>(std::move(out), seconds);
   }
 
   absl::StatusOr<std::vector<RveOutcome>> Get(absl::string_view run,

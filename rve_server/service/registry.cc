@@ -381,6 +381,18 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
                                                         const dem::ApplyOptions& options,
                                                         std::span<const Increment> increments,
                                                         const CancelFn& cancelled) {
+  // Not sized for a batch over the limit (ApplyEach refuses it).
+  const bool sized = static_cast<std::int64_t>(increments.size()) <= options_.max_batch;
+  std::vector<RveOutcome> out(sized ? increments.size() : 0);
+  RETURN_IF_ERROR(ApplyEach(run_id, step, mode, options, increments, cancelled,
+                            [&out](std::size_t k, RveOutcome&& o) { out[k] = std::move(o); }));
+  return out;
+}
+
+absl::Status Registry::ApplyEach(absl::string_view run_id, std::int64_t step, ApplyMode mode,
+                                 const dem::ApplyOptions& options,
+                                 std::span<const Increment> increments, const CancelFn& cancelled,
+                                 const OutcomeFn& done) {
   if (increments.empty()) return absl::InvalidArgumentError("empty batch: no increments");
   if (static_cast<std::int64_t>(increments.size()) > options_.max_batch) {
     return absl::InvalidArgumentError(absl::StrCat("batch of ", increments.size(),
@@ -406,7 +418,6 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
   }
   ASSIGN_OR_RETURN(auto entries, Lookup(run_id, ids));
 
-  std::vector<RveOutcome> out(increments.size());
   // Longest first: a batch whose last RVE taken is a long one ends with the
   // other workers idle (a shear band's RVEs take tens of DEM steps where the
   // rest take one). Each RVE's last increment predicts its next; the results
@@ -432,13 +443,16 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
     const std::int64_t w = work[order[j]];
     cost[j] = w > 0 ? static_cast<double>(w) : guess;
   }
+  // The first outcome the caller could not take (out of memory): the call's
+  // error, although its RVEs have moved on (a retry returns their results).
+  absl::Mutex failed_mu;
+  absl::Status failed;
   auto record_work = [](Entry& e, const dem::RveState& s) {
     e.last_work.store((s.steps + 1) * e.rve.num_particles(), std::memory_order_relaxed);
   };
-  auto apply_one = [&](std::size_t k) {
+  auto apply_one = [&](std::size_t k, RveOutcome& o) {
     const Increment& inc = increments[k];
     Entry& e = *(entries)[k].second;
-    RveOutcome& o = out[k];
     o.id = inc.id;
     absl::MutexLock lock(&e.mu);
     o.step = e.step;
@@ -516,14 +530,24 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Apply(absl::string_view run_id
       increments.size(),
       [&](std::size_t j) {
         const std::size_t k = order[j];
+        RveOutcome o;
         absl::Status guarded = NoThrow([&] {
-          apply_one(k);
+          apply_one(k, o);
           return absl::OkStatus();
         });
-        if (!guarded.ok()) out[k].status = guarded;
+        if (!guarded.ok()) o.status = guarded;
+        // Converting the outcome is the caller's, on this worker.
+        absl::Status handed = NoThrow([&] {
+          done(k, std::move(o));
+          return absl::OkStatus();
+        });
+        if (!handed.ok()) {
+          absl::MutexLock lock(&failed_mu);
+          if (failed.ok()) failed = handed;
+        }
       },
       cost);
-  return out;
+  return failed;
 }
 
 absl::StatusOr<std::vector<RveOutcome>> Registry::Get(absl::string_view run_id,

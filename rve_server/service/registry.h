@@ -135,6 +135,15 @@ class Registry {
                                                 ApplyMode mode, const dem::ApplyOptions& options,
                                                 std::span<const Increment> increments,
                                                 const CancelFn& cancelled = {});
+  // Apply handing each RVE's outcome to done(k, outcome), k its index in
+  // `increments`, on the worker that computed it instead of collecting them,
+  // so that a caller converts outcomes in parallel: `done` runs concurrently
+  // for distinct k, once per increment. A whole-call error returns before
+  // any `done`; `done` running out of memory is the call's error then.
+  using OutcomeFn = std::function<void(std::size_t, RveOutcome&&)>;
+  absl::Status ApplyEach(absl::string_view run_id, std::int64_t step, ApplyMode mode,
+                         const dem::ApplyOptions& options, std::span<const Increment> increments,
+                         const CancelFn& cancelled, const OutcomeFn& done);
 
   // Current states; empty ids: the whole run (sorted by id). Unknown ids get
   // a NotFound outcome; an unknown run is NotFound for the call. Ids given
