@@ -1,3 +1,4 @@
+#include <google/protobuf/arena.h>
 #include <grpcpp/grpcpp.h>
 
 #include <algorithm>
@@ -88,7 +89,10 @@ class RemoteApply final : public PendingApply {
   struct Message {
     grpc::ClientContext context;
     v1::ApplyRequest request;
-    v1::ApplyResponse response;
+    // The reply's thousands of small messages live on one arena: parsed
+    // without a malloc each and freed in a few blocks.
+    google::protobuf::Arena arena;
+    v1::ApplyResponse* response = google::protobuf::Arena::CreateMessage<v1::ApplyResponse>(&arena);
     grpc::Status status;
     std::vector<std::int64_t> ids;  // the request's, in order
   };
@@ -118,7 +122,7 @@ class RemoteApply final : public PendingApply {
     }
     for (const std::unique_ptr<Message>& m : messages_) {
       Message* message = m.get();
-      stub.async()->Apply(&message->context, &message->request, &message->response,
+      stub.async()->Apply(&message->context, &message->request, message->response,
                           [this, message](grpc::Status status) {
                             absl::MutexLock lock(&mu_);
                             message->status = std::move(status);
@@ -138,10 +142,13 @@ class RemoteApply final : public PendingApply {
       mu_.Await(absl::Condition(this, &RemoteApply::Done));
     }
     std::vector<RveOutcome> out;
+    std::size_t total = 0;
+    for (const std::unique_ptr<Message>& m : messages_) total += m->ids.size();
+    out.reserve(total);
     // The first error in message order, as if they had gone one by one.
     for (const std::unique_ptr<Message>& m : messages_) {
       absl::Status s = FromGrpc(m->status);
-      if (s.ok()) s = AppendOutcomes(m->response.results(), m->ids, &out);
+      if (s.ok()) s = AppendOutcomes(m->response->results(), m->ids, &out);
       if (!s.ok()) return Labelled(label_, s);
     }
     return out;
