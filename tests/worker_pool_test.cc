@@ -62,8 +62,7 @@ TEST(WorkerPoolTest, RunsOnWorkerThreadsOnly) {
 }
 
 // With costs, workers take runs of indices: still every index exactly once,
-// whatever the costs (zero, not finite, unsorted), alone or beside other
-// callers.
+// whatever the costs (zero, negative, not finite, unsorted).
 TEST(WorkerPoolTest, CostsGroupIndicesButEachRunsExactlyOnce) {
   WorkerPool pool(3);
   const double inf = std::numeric_limits<double>::infinity();

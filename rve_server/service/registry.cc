@@ -420,29 +420,25 @@ absl::Status Registry::ApplyEach(absl::string_view run_id, std::int64_t step, Ap
 
   // Longest first: a batch whose last RVE taken is a long one ends with the
   // other workers idle (a shear band's RVEs take tens of DEM steps where the
-  // rest take one). Each RVE's last increment predicts its next; the results
-  // do not depend on the order.
-  std::vector<std::size_t> order(increments.size());
-  std::vector<std::int64_t> work(increments.size());
-  for (std::size_t k = 0; k < order.size(); ++k) {
-    order[k] = k;
-    work[k] = entries[k].second->last_work.load(std::memory_order_relaxed);
-  }
-  std::stable_sort(order.begin(), order.end(),
-                   [&](std::size_t a, std::size_t b) { return work[a] > work[b]; });
-  // The workers take runs of similar total work. An RVE without an increment
-  // yet is guessed at the batch's mean (all alike when none has run).
+  // rest take one). Each RVE's last increment predicts its next, one without
+  // an increment yet is guessed at the batch's mean (all alike when none has
+  // run); the workers take runs of similar total work by the same guesses.
+  // The results do not depend on the order.
+  std::vector<double> work(increments.size());
   double known = 0, counted = 0;
-  for (std::int64_t w : work) {
-    known += w > 0 ? static_cast<double>(w) : 0.0;
-    counted += w > 0 ? 1.0 : 0.0;
+  for (std::size_t k = 0; k < work.size(); ++k) {
+    work[k] = static_cast<double>(entries[k].second->last_work.load(std::memory_order_relaxed));
+    known += work[k] > 0 ? work[k] : 0.0;
+    counted += work[k] > 0 ? 1.0 : 0.0;
   }
   const double guess = counted > 0 ? known / counted : 1.0;
-  std::vector<double> cost(order.size());
-  for (std::size_t j = 0; j < order.size(); ++j) {
-    const std::int64_t w = work[order[j]];
-    cost[j] = w > 0 ? static_cast<double>(w) : guess;
-  }
+  for (double& w : work) w = w > 0 ? w : guess;
+  std::vector<std::size_t> order(increments.size());
+  for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return work[a] > work[b]; });
+  std::vector<double> cost(order.size());  // in the order taken
+  for (std::size_t j = 0; j < order.size(); ++j) cost[j] = work[order[j]];
   // The first outcome the caller could not take (out of memory): the call's
   // error, although its RVEs have moved on (a retry returns their results).
   absl::Mutex failed_mu;
