@@ -191,8 +191,8 @@ grpc::Status RveServiceImpl::GetStates(grpc::ServerContext* ctx, const v1::GetSt
                                        v1::GetStatesResponse* resp) {
   return GuardHandler("GetStates", [&] { return DoGetStates(ctx, req, resp); });
 }
-grpc::Status RveServiceImpl::DoExport(grpc::ServerContext* ctx, const v1::ExportRequest* req,
-                                      grpc::ServerWriter<v1::RveChunk>* writer) {
+grpc::Status RveServiceImpl::Export(grpc::ServerContext* ctx, const v1::ExportRequest* req,
+                                    grpc::ServerWriter<v1::RveChunk>* writer) {
   return GuardHandler("Export", [&] { return DoExport(ctx, req, writer); });
 }
 grpc::Status RveServiceImpl::Import(grpc::ServerContext*, grpc::ServerReader<v1::RveChunk>*,
@@ -342,8 +342,8 @@ grpc::Status RveServiceImpl::DoGetStates(grpc::ServerContext* ctx, const v1::Get
   return grpc::Status::OK;
 }
 
-grpc::Status RveServiceImpl::Export(grpc::ServerContext* ctx, const v1::ExportRequest* req,
-                                    grpc::ServerWriter<v1::RveChunk>* writer) {
+grpc::Status RveServiceImpl::DoExport(grpc::ServerContext* ctx, const v1::ExportRequest* req,
+                                      grpc::ServerWriter<v1::RveChunk>* writer) {
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
   const std::vector<std::int64_t> ids = Ids(req->ids());
   // Chunks stay below the message limit with headroom for framing.
