@@ -300,6 +300,36 @@ TEST_F(HardeningTest, MalformedImportStreamsImportNothing) {
             source.records(0).packing().SerializeAsString());
 }
 
+// Apply reads its request's bytes itself (to parse it onto an arena): bytes
+// that are no ApplyRequest are the client's error and change nothing; a
+// valid request's results come back in its order, not the workers'.
+TEST_F(HardeningTest, MalformedApplyRequestIsRefusedAndChangesNothing) {
+  const std::string garbage("\xff\xff\xff\xff\x0f garbage", 14);
+  ExpectError(RawUnary(*h_.channel(), *h_.Context(), "/rvehub.v1.RveService/Apply", garbage),
+              grpc::StatusCode::INVALID_ARGUMENT, "not a valid ApplyRequest");
+  v1::GetStatesRequest get;
+  get.set_run_id("keep");
+  v1::GetStatesResponse states;
+  ASSERT_TRUE(h_.stub().GetStates(h_.Context().get(), get, &states).ok());
+  ASSERT_EQ(states.results_size(), 2);
+  for (const v1::RveResult& r : states.results()) EXPECT_EQ(r.step(), 0) << "id " << r.id();
+
+  v1::ApplyResponse resp;
+  ASSERT_TRUE(
+      h_.stub()
+          .Apply(h_.Context().get(), Harness::Commit("keep", 1, {2, 1}, Compress(1e-4)), &resp)
+          .ok());
+  ASSERT_EQ(resp.results_size(), 2);
+  EXPECT_EQ(resp.failed(), 0);
+  EXPECT_EQ(resp.results(0).id(), 2);
+  EXPECT_EQ(resp.results(1).id(), 1);
+  for (const v1::RveResult& r : resp.results()) {
+    EXPECT_EQ(r.code(), 0) << r.message();
+    EXPECT_EQ(r.step(), 1);
+    EXPECT_GT(r.state().mean_pressure(), 0.0);
+  }
+}
+
 // 5. A COMMIT whose reply could not be sent is refused before it commits.
 TEST(HardeningReplySize, OversizedReplyIsRefusedBeforeCommitting) {
   ServerConfig config;

@@ -1,5 +1,6 @@
 #include "rve_server/service/rve_service.h"
 
+#include <google/protobuf/arena.h>
 #include <grpcpp/impl/codegen/method_handler.h>
 
 #include <algorithm>
@@ -31,8 +32,23 @@ std::vector<std::int64_t> Ids(const google::protobuf::RepeatedField<std::int64_t
 // ~20 µs here), so that is done at most every kCancelPollInterval.
 constexpr auto kCancelPollInterval = std::chrono::milliseconds(5);
 
-// Index of Import among the service's methods (the order of the proto).
-constexpr int kImportMethodIndex = 6;
+// Index of a method among the service's: gRPC adds them in the proto's order.
+int MethodIndex(const char* name) {
+  return v1::ApplyRequest::descriptor()
+      ->file()
+      ->FindServiceByName("RveService")
+      ->FindMethodByName(name)
+      ->index();
+}
+
+// Arena blocks for ApplyOnArena: after a first small block, blocks of up to
+// 64 KB, a few dozen for a reply of 2048 RVEs (~1 MB).
+google::protobuf::ArenaOptions ReplyArenaOptions() {
+  google::protobuf::ArenaOptions options;
+  options.start_block_size = 4 << 10;
+  options.max_block_size = 64 << 10;
+  return options;
+}
 
 // A handler's body, with allocation failures turned into RESOURCE_EXHAUSTED:
 // a last line of defence only (validation refuses requests that would need
@@ -164,7 +180,14 @@ RveServiceImpl::RveServiceImpl(Registry& registry, ServiceOptions options)
       options_(std::move(options)),
       started_(std::chrono::steady_clock::now()) {
   MarkMethodStreamed(
-      kImportMethodIndex,
+      MethodIndex("Apply"),
+      new grpc::internal::StreamedUnaryHandler<grpc::ByteBuffer, grpc::ByteBuffer>(
+          [this](grpc::ServerContext* ctx,
+                 grpc::ServerUnaryStreamer<grpc::ByteBuffer, grpc::ByteBuffer>* stream) {
+            return GuardHandler("Apply", [&] { return ApplyOnArena(ctx, stream); });
+          }));
+  MarkMethodStreamed(
+      MethodIndex("Import"),
       new grpc::internal::ClientStreamingHandler<RveServiceImpl, grpc::ByteBuffer,
                                                  v1::ImportResponse>(
           [](RveServiceImpl* service, grpc::ServerContext* ctx,
@@ -308,22 +331,55 @@ grpc::Status RveServiceImpl::DoApply(grpc::ServerContext* ctx, const v1::ApplyRe
   const dem::ApplyOptions options = FromProto(req->options());
   absl::StatusOr<std::vector<Increment>> increments = FromProto(req->increments());
   if (!increments.ok()) return ToGrpc(increments.status());
-  absl::StatusOr<std::vector<RveOutcome>> out =
-      registry_.Apply(req->run_id(), req->step(), *mode, options, *increments, Canceller(ctx));
-  if (!out.ok()) return ToGrpc(out.status());
-  std::int64_t failed = 0;
-  for (const RveOutcome& o : *out) {
-    failed += o.status.ok() ? 0 : 1;
-    ToProto(o, resp->add_results());
+  // One result per increment, made here so that the workers only fill them
+  // in (distinct messages: no lock; on an arena, allocation is thread-safe).
+  // None for a batch over the limit (ApplyEach refuses it).
+  google::protobuf::RepeatedPtrField<v1::RveResult>* results = resp->mutable_results();
+  if (static_cast<std::int64_t>(increments->size()) <= registry_.options().max_batch) {
+    results->Reserve(static_cast<int>(increments->size()));
+    for (std::size_t k = 0; k < increments->size(); ++k) results->Add();
   }
-  resp->set_failed(failed);
+  std::atomic<std::int64_t> failed{0};
+  const absl::Status s =
+      registry_.ApplyEach(req->run_id(), req->step(), *mode, options, *increments, Canceller(ctx),
+                          [&](std::size_t k, RveOutcome&& o) {
+                            if (!o.status.ok()) failed.fetch_add(1, std::memory_order_relaxed);
+                            ToProto(o, results->Mutable(static_cast<int>(k)));
+                          });
+  if (!s.ok()) return ToGrpc(s);
+  resp->set_failed(failed.load());
   if (failed > 0) {
     Log("warn", "apply had failures",
         {{"run", req->run_id()},
          {"step", absl::StrCat(req->step())},
-         {"failed", absl::StrCat(failed)},
-         {"of", absl::StrCat(out->size())}});
+         {"failed", absl::StrCat(failed.load())},
+         {"of", absl::StrCat(increments->size())}});
   }
+  return grpc::Status::OK;
+}
+
+grpc::Status RveServiceImpl::ApplyOnArena(
+    grpc::ServerContext* ctx,
+    grpc::ServerUnaryStreamer<grpc::ByteBuffer, grpc::ByteBuffer>* stream) {
+  google::protobuf::Arena arena(ReplyArenaOptions());
+  auto* req = google::protobuf::Arena::CreateMessage<v1::ApplyRequest>(&arena);
+  auto* resp = google::protobuf::Arena::CreateMessage<v1::ApplyResponse>(&arena);
+  grpc::ByteBuffer bytes;
+  if (!stream->Read(&bytes)) {
+    return grpc::Status(grpc::StatusCode::CANCELLED, "Apply: the request never arrived");
+  }
+  if (!grpc::SerializationTraits<v1::ApplyRequest>::Deserialize(&bytes, req).ok()) {
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                        "Apply: the request is not a valid ApplyRequest message");
+  }
+  if (grpc::Status s = DoApply(ctx, req, resp); !s.ok()) return s;
+  bool own_buffer = false;
+  if (grpc::Status s =
+          grpc::SerializationTraits<v1::ApplyResponse>::Serialize(*resp, &bytes, &own_buffer);
+      !s.ok()) {
+    return s;
+  }
+  stream->Write(bytes);  // false: the client has gone; the status tells it nothing more
   return grpc::Status::OK;
 }
 
