@@ -40,6 +40,43 @@ std::vector<ContactForce> Rve::Contacts() const {
   return out;
 }
 
+namespace {
+
+// What ParticleTerms reads, one entry per particle.
+struct ParticleState {
+  std::size_t n;
+  const double* fx;  // N, sum of the contact forces
+  const double* fy;
+  const double* vx;  // m/s
+  const double* vy;
+  const double* om;           // rad/s
+  const double* inv_mass;     // 1/kg
+  const double* inv_inertia;  // 1/(kg m²)
+};
+
+// Per particle: |Σ contact forces| (N; far from overflow, so no hypot) into
+// resultant[i] and twice the kinetic energy m v² + I ω² (J) into
+// kinetic2[i]. Each particle is independent, so the loop runs in SIMD lanes
+// with the scalar operations' bits (an AVX2 clone where the CPU has it).
+__attribute__((target_clones("avx2", "default"))) void ParticleTerms(const ParticleState& a,
+                                                                     double* __restrict resultant,
+                                                                     double* __restrict kinetic2) {
+  const double* __restrict fx = a.fx;
+  const double* __restrict fy = a.fy;
+  const double* __restrict vx = a.vx;
+  const double* __restrict vy = a.vy;
+  const double* __restrict om = a.om;
+  const double* __restrict inv_mass = a.inv_mass;
+  const double* __restrict inv_inertia = a.inv_inertia;
+#pragma omp simd
+  for (std::size_t i = 0; i < a.n; ++i) {
+    resultant[i] = std::sqrt(fx[i] * fx[i] + fy[i] * fy[i]);
+    kinetic2[i] = (vx[i] * vx[i] + vy[i] * vy[i]) / inv_mass[i] + om[i] * om[i] / inv_inertia[i];
+  }
+}
+
+}  // namespace
+
 // The homogenised state from the sums of the last measured contact pass
 // (the last DEM step of an increment, or a pass that only reads the history)
 // and one pass over the particles. Love–Weber stress σ = (1/V) sym Σ f⊗b.
@@ -67,13 +104,18 @@ RveState Rve::Observe(bool want_tangent) const {
   s.void_ratio = (area - solid_area_) / solid_area_;
   s.porosity = s.void_ratio / (1.0 + s.void_ratio);
   s.coordination = 2.0 * static_cast<double>(nc) / static_cast<double>(n);
+  // Each particle's terms in SIMD lanes, then the sums in particle order.
+  internal::Scratch& scratch = internal::ThreadScratch();
+  scratch.resultant.resize(n);
+  scratch.kinetic2.resize(n);
+  ParticleTerms({n, fx_.data(), fy_.data(), p_.vx.data(), p_.vy.data(), p_.omega.data(),
+                 inv_mass_.data(), inv_inertia_.data()},
+                scratch.resultant.data(), scratch.kinetic2.data());
   double resultant = 0, rotation = 0, kinetic = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    // |Σ contact forces on i|; forces are far from overflow, so no hypot.
-    resultant += std::sqrt(fx_[i] * fx_[i] + fy_[i] * fy_[i]);
+    resultant += scratch.resultant[i];
     rotation += p_.theta[i];
-    kinetic += (p_.vx[i] * p_.vx[i] + p_.vy[i] * p_.vy[i]) / inv_mass_[i] +
-               p_.omega[i] * p_.omega[i] / inv_inertia_[i];
+    kinetic += scratch.kinetic2[i];
   }
   // Thornton's mechanical coordination: rattlers (0 or 1 contact) left out.
   const double n0 = static_cast<double>(m.rattlers0), n1 = static_cast<double>(m.rattlers1);

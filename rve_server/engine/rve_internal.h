@@ -65,14 +65,17 @@ inline Eigen::Matrix2d Rotation(double angle) {
 }
 
 // Scratch shared by every RVE on a thread (keeps RVEs small): the contact
-// pass's per-pair results and per-particle contact counts.
+// pass's per-pair results and per-particle contact counts, Observe's
+// per-particle terms.
 struct Scratch {
-  std::vector<double> count;  // contacts per particle
+  std::vector<std::int32_t> count;  // contacts per particle
   // Per listed pair, from the pair pass: force on i (N), torques on i and j
   // (N·m); while measuring, the six terms of the measured sums (see
   // PairPass), the elastic energy (J) and 1 for an active contact (else all 0).
   std::vector<double> fx, fy, ti, tj, elastic, active;
   std::array<std::vector<double>, 6> term;
+  // Per particle, for Observe: |Σ contact forces| (N), m v² + I ω² (J).
+  std::vector<double> resultant, kinetic2;
 };
 inline Scratch& ThreadScratch() {
   thread_local Scratch scratch;

@@ -228,10 +228,19 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
   PairPass<kRolling, kBonds, kHertz, static_cast<int>(kMeasure), kUpdate>(args, m);
 
   // Forces and torques per particle, in the order of one loop over rows i:
-  // row i's own pairs summed apart and added last.
+  // row i's own pairs summed apart and added last. kSums also counts each
+  // particle's contacts there (integers: exact in any order).
   fx_.assign(n, 0.0);
   fy_.assign(n, 0.0);
   tq_.assign(n, 0.0);
+  std::int32_t* __restrict count = nullptr;
+  const double* __restrict c_act = nullptr;
+  std::int64_t nc = 0;  // contacts
+  if constexpr (kSums) {
+    scratch.count.assign(n, 0);
+    count = scratch.count.data();
+    c_act = scratch.active.data();
+  }
   double* __restrict fx = fx_.data();
   double* __restrict fy = fy_.data();
   double* __restrict tq = tq_.data();
@@ -243,6 +252,7 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
   const std::uint32_t* __restrict nbr_j = nbr_j_.data();
   for (std::uint32_t i = 0; i < n; ++i) {
     double fxi = 0, fyi = 0, tqi = 0;
+    std::int32_t ci = 0;
     const std::uint32_t row_end = row_start[i + 1];
     for (std::uint32_t k = row_start[i]; k < row_end; ++k) {
       const std::uint32_t j = nbr_j[k];
@@ -252,10 +262,19 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
       fy[j] -= c_fy[k];
       tqi += c_ti[k];
       tq[j] += c_tj[k];
+      if constexpr (kSums) {
+        const std::int32_t active = c_act[k] != 0.0;
+        ci += active;
+        count[j] += active;
+      }
     }
     fx[i] += fxi;
     fy[i] += fyi;
     tq[i] += tqi;
+    if constexpr (kSums) {
+      count[i] += ci;
+      nc += ci;
+    }
   }
   forces_valid_ = true;
 
@@ -291,26 +310,15 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
       sums_valid_ = false;
     }
     if constexpr (kSums) {
-      // Contacts per particle: integer counts, exact in any order.
-      scratch.count.assign(n, 0.0);
-      double* __restrict count = scratch.count.data();
-      const double* __restrict c_act = scratch.active.data();
-      const std::uint32_t* __restrict nbr_i = nbr_i_.data();
-      double nc = 0;
-      for (std::size_t k = 0; k < m; ++k) {
-        count[nbr_i[k]] += c_act[k];
-        count[nbr_j[k]] += c_act[k];
-        nc += c_act[k];
-      }
       Sums& s = sums_;
       s.stress << sum[0], 0.5 * sum[1], 0.5 * sum[1], sum[2];  // symmetric part of Σ f⊗b
-      s.fabric << sum[3], sum[4], sum[4], nc - sum[3];
+      s.fabric << sum[3], sum[4], sum[4], static_cast<double>(nc) - sum[3];
       s.force_sum = sum[5];
-      s.num_contacts = static_cast<std::int64_t>(nc);
+      s.num_contacts = nc;
       s.rattlers0 = s.rattlers1 = 0;
       for (std::size_t i = 0; i < n; ++i) {
-        s.rattlers0 += count[i] == 0.0;
-        s.rattlers1 += count[i] == 1.0;
+        s.rattlers0 += count[i] == 0;
+        s.rattlers1 += count[i] == 1;
       }
       sums_valid_ = true;
     }
