@@ -1195,6 +1195,7 @@ Fields<RveSpec> RveFields() {
                   Range{0.0, 0.1}),
       IntegerField("min_steps", &RveSpec::min_steps, 0, 100000),
       FlagField("real_time", &RveSpec::real_time),
+      FlagField("full_state_every_step", &RveSpec::full_state_every_step),
       NumberField("max_void_ratio", &RveSpec::max_void_ratio, Need::kOptional, Range{0.0, 10.0}),
   };
 }

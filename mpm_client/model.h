@@ -291,6 +291,10 @@ struct RveSpec {
   // continuum, so a flowing or nearly stress-free RVE follows its inertial
   // response at the real strain rate instead of the quasi-static bound.
   bool real_time = false;
+  // Measure every RVE's full homogenised state at every MPM step. Off (the
+  // default), the RVEs measure the stress alone between outputs
+  // (ApplyOptions::stress_only): the same results, bit for bit, faster.
+  bool full_state_every_step = false;
   // e_max, [-]; 0: none. A point's RVE that carries no stress and is at or
   // above it is not opened further: a dilating increment reaches it without
   // its volume change (RveIncrement). Near zero pressure a granular material

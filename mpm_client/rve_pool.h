@@ -89,6 +89,8 @@ class RvePool {
   const PoolOptions& options() const { return options_; }
   // E.g. to ask for tangents from some step on.
   void set_apply_options(const dem::ApplyOptions& apply) { options_.apply_options = apply; }
+  // ApplyOptions::stress_only of the next Applies.
+  void set_stress_only(bool stress_only) { options_.apply_options.stress_only = stress_only; }
 
   // Material points 0..n−1 onto the live endpoints, balancing the summed
   // cost per worker (any unit, e.g. expected DEM steps or measured engine

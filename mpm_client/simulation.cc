@@ -45,8 +45,21 @@ class RveStressModel : public StressModel {
     absl::StatusOr<std::vector<dem::RveState>> states = pool_->Apply(step, delta_f);
     *seconds_ += Seconds(Clock::now() - t0);
     if (!states.ok()) return states.status();
-    for (std::size_t p = 0; p < out.size(); ++p) out[p] = ToResponse((*states)[p]);
+    for (std::size_t p = 0; p < out.size(); ++p) {
+      const dem::RveState& s = (*states)[p];
+      if (stress_only_) {  // the other fields stay as out[p] holds them
+        out[p].stress = s.stress;
+        out[p].void_ratio = s.void_ratio;
+        out[p].permeability = s.permeability;
+      } else {
+        out[p] = ToResponse(s);
+      }
+    }
     return absl::OkStatus();
+  }
+  void SetStressOnly(bool stress_only) override {
+    stress_only_ = stress_only;
+    pool_->set_stress_only(stress_only);
   }
 
   static PointResponse ToResponse(const dem::RveState& s) {
@@ -63,6 +76,7 @@ class RveStressModel : public StressModel {
  private:
   RvePool* pool_;
   double* seconds_;
+  bool stress_only_ = false;
 };
 
 // A run id unique among the runs a shared server hosts: case name, time and
@@ -1013,6 +1027,23 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
     if (update_every > 0 && solver_->step() % update_every == 0) {
       RETURN_IF_ERROR(UpdateTimeStep());
       RETURN_IF_ERROR(count_steps());
+    }
+    // Between outputs the RVEs measure the stress alone; a step whose frame,
+    // checkpoint or stop writes the points' fabric, rotation and
+    // coordination has them measured in full (decided from the step number
+    // and time alone, so a resumed or recovered run decides alike).
+    {
+      const std::int64_t next = solver_->step() + 1;
+      const double t_next = solver_->time() + solver_->dt(), half = 0.5 * solver_->dt();
+      const bool frame = next % o.frame_every == 0 || next >= total_steps ||
+                         std::any_of(o.frame_times.begin(), o.frame_times.end(), [&](double t) {
+                           return t_next >= t - half && t_next - 2 * half < t - half;
+                         });
+      const bool checkpoint = o.checkpoint_every > 0 && next % o.checkpoint_every == 0;
+      const bool stopping =
+          options_.stop_after_steps > 0 && sum.steps + 1 >= options_.stop_after_steps;
+      solver_->set_stress_only(!spec_.rve.full_state_every_step &&
+                               !(frame || checkpoint || stopping));
     }
     if (absl::Status s = solver_->Step(); !s.ok()) {
       // The RVE pool's errors name the step already.

@@ -735,6 +735,9 @@ absl::Status Solver::UpdateStress() {
     rve_delta_f_[p].setIdentity();
     rve_delta_f_[p].topLeftCorner<2, 2>() = RveIncrement(df, mp.response[p], max_void_ratio_);
   }
+  // Stress alone: the points' other fields go through the model unchanged.
+  if (stress_only_) response_.assign(mp.response.begin(), mp.response.end());
+  model_->SetStressOnly(stress_only_);
   RETURN_IF_ERROR(model_->Update(step_ + 1, rve_delta_f_, response_));
   for (std::size_t p = 0; p < n; ++p) {
     Matrix2d& f = mp.F[p];

@@ -44,6 +44,10 @@ class StressModel {
   // (delta_f.size() == out.size() == number of points).
   virtual absl::Status Update(std::int64_t step, std::span<const Eigen::Matrix3d> delta_f,
                               std::span<PointResponse> out) = 0;
+  // While set, the caller reads only out[p].stress, void_ratio and
+  // permeability of the Updates: a model may leave the other fields as out[p]
+  // holds them (the RVEs then measure the stress alone). Default: ignored.
+  virtual void SetStressOnly(bool stress_only) { (void)stress_only; }
 };
 
 // A surface traction carried by one material point (see SurfaceTraction).
@@ -176,6 +180,10 @@ class Solver {
   double time() const { return time_; }        // s
   std::int64_t step() const { return step_; }  // steps done
   double dt() const { return dt_; }            // s
+  // The next Steps need of the points' responses only the stress, void ratio
+  // and permeability (no output reads the rest): the model may measure
+  // those alone, and the points keep their other fields as they were.
+  void set_stress_only(bool stress_only) { stress_only_ = stress_only; }
   void set_dt(double dt) { dt_ = dt; }
   const MaterialPoints& points() const { return points_; }
   // Per point, 1 where it is off the grid and parked (SolverSpec::lost_points
@@ -312,6 +320,7 @@ class Solver {
   std::vector<Eigen::Matrix3d> delta_f_;            // per point, the continuum's ΔF
   std::vector<Eigen::Matrix3d> rve_delta_f_;        // per point, what its RVE gets (RveIncrement)
   std::vector<PointResponse> response_;
+  bool stress_only_ = false;     // set_stress_only
   double max_void_ratio_ = 0.0;  // RveSpec::max_void_ratio
 
   // Saturated cases (saturated.cc).

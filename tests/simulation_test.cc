@@ -332,6 +332,60 @@ TEST(SimulationTest, ResumeFromCheckpointIsBitIdentical) {
   EXPECT_EQ(ts->at("step"), (std::vector<double>{0, 5, 10, 15, 20, 25, 30, 35, 40}));
 }
 
+// Between outputs the RVEs measure the stress alone (ApplyOptions::
+// stress_only, rve.full_state_every_step off): the frames (regular and one
+// due at a frame time between them), the timeseries and the end state are
+// those of a run that measures every RVE in full at every step, bit for bit.
+TEST(SimulationTest, StressOnlyBetweenOutputsChangesNoResult) {
+  CaseSpec lean = ShortCase(40);
+  lean.output.frame_times = {0.031};  // due at step 15, between the regular frames
+  CaseSpec full = lean;
+  full.rve.full_state_every_step = true;
+  const std::string out_lean = FreshDir("stress_only_lean"),
+                    out_full = FreshDir("stress_only_full");
+  std::unique_ptr<Simulation> a = StartOrDie(lean, Options(out_lean));
+  std::unique_ptr<Simulation> b = StartOrDie(full, Options(out_full));
+  ASSERT_NE(a, nullptr);
+  ASSERT_NE(b, nullptr);
+  ASSERT_TRUE(a->StepToEnd().ok());
+  ASSERT_TRUE(b->StepToEnd().ok());
+  absl::StatusOr<store::SimCheckpoint> end_a = a->Snapshot();
+  absl::StatusOr<store::SimCheckpoint> end_b = b->Snapshot();
+  ASSERT_TRUE(end_a.ok()) << end_a.status();
+  ASSERT_TRUE(end_b.ok()) << end_b.status();
+  ExpectSameSnapshots(*end_a, *end_b);
+  absl::StatusOr<std::vector<store::ResultFrame>> fa = store::ReadResults(out_lean + "/results.h5");
+  absl::StatusOr<std::vector<store::ResultFrame>> fb = store::ReadResults(out_full + "/results.h5");
+  ASSERT_TRUE(fa.ok()) << fa.status();
+  ASSERT_TRUE(fb.ok()) << fb.status();
+  ASSERT_EQ(fa->size(), fb->size());
+  std::vector<std::int64_t> steps;
+  for (std::size_t k = 0; k < fa->size(); ++k) {
+    steps.push_back((*fa)[k].step);
+    ASSERT_EQ((*fa)[k].fields.size(), (*fb)[k].fields.size());
+    for (const store::ResultField& f : (*fa)[k].fields) {
+      dem::testing_util::ExpectSameBits(f.values, FrameField((*fb)[k], f.name),
+                                        ("frame " + std::to_string(k) + " " + f.name).c_str());
+    }
+  }
+  EXPECT_EQ(steps, (std::vector<std::int64_t>{0, 10, 15, 20, 30, 40}));
+  // The frames carry the fabric: measured at the frame's step, not left at 0.
+  const std::vector<double> fabric = FrameField((*fa)[2], "fabric_anisotropy");
+  ASSERT_FALSE(fabric.empty());
+  EXPECT_GT(fabric[0], 0.0);
+  absl::StatusOr<std::map<std::string, std::vector<double>>> ta =
+      ReadCsvColumns(out_lean + "/timeseries.csv");
+  absl::StatusOr<std::map<std::string, std::vector<double>>> tb =
+      ReadCsvColumns(out_full + "/timeseries.csv");
+  ASSERT_TRUE(ta.ok()) << ta.status();
+  ASSERT_TRUE(tb.ok()) << tb.status();
+  for (const auto& [name, values] : *ta) {
+    if (name == "wall_per_step_s") continue;
+    ASSERT_TRUE(tb->contains(name)) << name;
+    dem::testing_util::ExpectSameBits(values, tb->at(name), name.c_str());
+  }
+}
+
 // A finished run resumed with a later end time goes on as if the case had
 // asked for it: bit-identical to the longer run, and its checkpoint carries
 // the new end time. An end time not after the checkpoint's is refused.

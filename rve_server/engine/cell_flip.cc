@@ -104,7 +104,7 @@ void Rve::ApplyRigidRotation(double angle) {
   const Eigen::Matrix2d r = Rotation(angle);
   // The contact forces turn with the packing (the next step integrates
   // with them); the homogenised sums are measured again by that step.
-  sums_valid_ = false;
+  sums_valid_ = stress_valid_ = false;
   if (forces_valid_) {
     for (std::size_t i = 0; i < fx_.size(); ++i) {
       const double fx = fx_[i], fy = fy_[i];

@@ -109,6 +109,7 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
   ApplyRigidRotation(angle);
   Eigen::Matrix2d start = p_.cell;
   const Eigen::Matrix2d identity = Eigen::Matrix2d::Identity();
+  const Measure last = options.stress_only ? Measure::kStress : Measure::kSums;
   const std::int64_t steps = planned;
   for (std::int64_t k = 0; k < steps; ++k) {
     if (before && k > 0 && k % kInterruptCheckSteps == 0) {
@@ -120,7 +121,7 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
     const double tau = static_cast<double>(k + 1) / static_cast<double>(steps);
     const Eigen::Matrix2d next = (identity + (v - identity) * tau) * start;
     const Eigen::Matrix2d l = (next - p_.cell) * p_.cell.inverse() / dt_;
-    StepForcesLast(l, next, /*measure=*/k + 1 == steps);  // the last step homogenises
+    StepForcesLast(l, next, k + 1 == steps ? last : Measure::kNone);  // the last homogenises
     // A flip in Step changed the lattice basis: follow it (h' = h·U, U integer).
     if (p_.cell != next) start = start * (next.inverse() * p_.cell).array().round().matrix();
   }
@@ -135,7 +136,8 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
       return stopped;
     }
   }
-  RveState s = Observe(options.want_tangent);
+  RveState s =
+      options.stress_only ? ObserveStress(options.want_tangent) : Observe(options.want_tangent);
   s.steps = used;
   return s;
 }

@@ -22,8 +22,12 @@ void Rve::EnsureSums() const {
   }
 }
 
+void Rve::EnsureStress() const {
+  if (!stress_valid_) EnsureSums();
+}
+
 double Rve::MeanPressure() const {
-  EnsureSums();
+  EnsureStress();
   return -0.5 * (sums_.stress(0, 0) + sums_.stress(1, 1)) /
          (p_.cell.determinant() * p_.material.thickness);
 }
@@ -77,54 +81,18 @@ __attribute__((target_clones("avx2", "default"))) void ParticleTerms(const Parti
 
 }  // namespace
 
-// The homogenised state from the sums of the last measured contact pass
-// (the last DEM step of an increment, or a pass that only reads the history)
-// and one pass over the particles. Love–Weber stress σ = (1/V) sym Σ f⊗b.
-RveState Rve::Observe(bool want_tangent) const {
-  EnsureSums();
-  const std::size_t n = p_.radius.size();
-  const Sums& m = sums_;
-  const std::int64_t nc = m.num_contacts;
+// The state's stress, volume, porosity measures, Δt and mass scale (and the
+// tangent) from the known stress sums. Love–Weber stress σ = (1/V) sym Σ f⊗b.
+RveState Rve::ObserveCommon(bool want_tangent) const {
   RveState s;
   const Eigen::Matrix2d& h = p_.cell;
   const Material& mat = p_.material;
   const double area = h.determinant();
   s.volume = area * mat.thickness;
-  const Eigen::Matrix2d sym = 0.5 * (m.stress + m.stress.transpose()) / s.volume;
+  const Eigen::Matrix2d sym = 0.5 * (sums_.stress + sums_.stress.transpose()) / s.volume;
   s.stress.topLeftCorner<2, 2>() = sym;
-  s.num_contacts = nc;
-  if (nc > 0) {
-    s.fabric_defined = true;
-    const Eigen::Matrix2d phi = m.fabric / static_cast<double>(nc);
-    s.fabric.topLeftCorner<2, 2>() = phi;
-    const Eigen::Matrix2d fa = 4.0 * (phi - 0.5 * Eigen::Matrix2d::Identity());
-    s.fabric_anisotropy_tensor.topLeftCorner<2, 2>() = fa;
-    s.fabric_anisotropy = std::sqrt(0.5 * fa.squaredNorm());
-  }
   s.void_ratio = (area - solid_area_) / solid_area_;
   s.porosity = s.void_ratio / (1.0 + s.void_ratio);
-  s.coordination = 2.0 * static_cast<double>(nc) / static_cast<double>(n);
-  // Each particle's terms in SIMD lanes, then the sums in particle order.
-  internal::Scratch& scratch = internal::ThreadScratch();
-  scratch.resultant.resize(n);
-  scratch.kinetic2.resize(n);
-  ParticleTerms({n, fx_.data(), fy_.data(), p_.vx.data(), p_.vy.data(), p_.omega.data(),
-                 inv_mass_.data(), inv_inertia_.data()},
-                scratch.resultant.data(), scratch.kinetic2.data());
-  double resultant = 0, rotation = 0, kinetic = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    resultant += scratch.resultant[i];
-    rotation += p_.theta[i];
-    kinetic += scratch.kinetic2[i];
-  }
-  // Thornton's mechanical coordination: rattlers (0 or 1 contact) left out.
-  const double n0 = static_cast<double>(m.rattlers0), n1 = static_cast<double>(m.rattlers1);
-  const double active = static_cast<double>(n) - n0 - n1;
-  s.mechanical_coordination = active > 0 ? (2.0 * static_cast<double>(nc) - n1) / active : 0.0;
-  s.unbalanced_force_ratio =
-      nc > 0 ? (resultant / static_cast<double>(n)) / (m.force_sum / static_cast<double>(nc)) : 0.0;
-  s.mean_rotation = rotation / static_cast<double>(n);
-  s.kinetic_energy = 0.5 * kinetic;
   const double e = std::max(s.void_ratio, 0.0);
   s.permeability = p_.permeability_coefficient * e * e * e / (1.0 + e);
   s.time_step = dt_;
@@ -150,6 +118,54 @@ RveState Rve::Observe(bool want_tangent) const {
         for (int c = 0; c < 2; ++c)
           for (int e2 = 0; e2 < 2; ++e2) tangent(3 * a + b, 3 * c + e2) = d[a][b][c][e2] / s.volume;
   }
+  return s;
+}
+
+RveState Rve::ObserveStress(bool want_tangent) const {
+  EnsureStress();
+  return ObserveCommon(want_tangent);
+}
+
+// The homogenised state from the sums of the last measured contact pass
+// (the last DEM step of an increment, or a pass that only reads the history)
+// and one pass over the particles.
+RveState Rve::Observe(bool want_tangent) const {
+  EnsureSums();
+  RveState s = ObserveCommon(want_tangent);
+  const std::size_t n = p_.radius.size();
+  const Sums& m = sums_;
+  const std::int64_t nc = m.num_contacts;
+  s.num_contacts = nc;
+  if (nc > 0) {
+    s.fabric_defined = true;
+    const Eigen::Matrix2d phi = m.fabric / static_cast<double>(nc);
+    s.fabric.topLeftCorner<2, 2>() = phi;
+    const Eigen::Matrix2d fa = 4.0 * (phi - 0.5 * Eigen::Matrix2d::Identity());
+    s.fabric_anisotropy_tensor.topLeftCorner<2, 2>() = fa;
+    s.fabric_anisotropy = std::sqrt(0.5 * fa.squaredNorm());
+  }
+  s.coordination = 2.0 * static_cast<double>(nc) / static_cast<double>(n);
+  // Each particle's terms in SIMD lanes, then the sums in particle order.
+  internal::Scratch& scratch = internal::ThreadScratch();
+  scratch.resultant.resize(n);
+  scratch.kinetic2.resize(n);
+  ParticleTerms({n, fx_.data(), fy_.data(), p_.vx.data(), p_.vy.data(), p_.omega.data(),
+                 inv_mass_.data(), inv_inertia_.data()},
+                scratch.resultant.data(), scratch.kinetic2.data());
+  double resultant = 0, rotation = 0, kinetic = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    resultant += scratch.resultant[i];
+    rotation += p_.theta[i];
+    kinetic += scratch.kinetic2[i];
+  }
+  // Thornton's mechanical coordination: rattlers (0 or 1 contact) left out.
+  const double n0 = static_cast<double>(m.rattlers0), n1 = static_cast<double>(m.rattlers1);
+  const double active = static_cast<double>(n) - n0 - n1;
+  s.mechanical_coordination = active > 0 ? (2.0 * static_cast<double>(nc) - n1) / active : 0.0;
+  s.unbalanced_force_ratio =
+      nc > 0 ? (resultant / static_cast<double>(n)) / (m.force_sum / static_cast<double>(nc)) : 0.0;
+  s.mean_rotation = rotation / static_cast<double>(n);
+  s.kinetic_energy = 0.5 * kinetic;
   return s;
 }
 

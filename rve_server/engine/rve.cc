@@ -259,7 +259,7 @@ absl::Status Rve::SetFriction(double friction) {
         absl::StrCat("friction = ", friction, " is invalid: μ = tan φ must be >= 0"));
   }
   p_.material.friction = friction;
-  forces_valid_ = sums_valid_ = false;
+  forces_valid_ = sums_valid_ = stress_valid_ = false;
   ForEachContact([&](const ContactForce& c, std::uint32_t k) {
     if (!c.bonded) nbr_ft_[k] = CoulombCap(c.tangential_force, c.normal_force, friction);
   });
@@ -270,7 +270,7 @@ void Rve::BondContacts() {
   const double c = p_.material.bond_cohesion;
   if (c <= 0) return;
   if (nbr_bond_.size() != nbr_j_.size()) nbr_bond_.assign(nbr_j_.size(), 0.0);
-  forces_valid_ = sums_valid_ = false;
+  forces_valid_ = sums_valid_ = stress_valid_ = false;
   ForEachContact([&](const ContactForce& contact, std::uint32_t k) {
     if (contact.overlap > 0) {
       nbr_bond_[k] = BondStrength(c, p_.radius[contact.i], p_.radius[contact.j]);

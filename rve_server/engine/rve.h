@@ -73,6 +73,15 @@ struct ApplyOptions {
   // packing, one near zero pressure) the RVE then follows its own inertial
   // (rate-dependent) response at the continuum's strain rate. 0: no cap.
   double duration = 0.0;
+  // Measure the stress alone at the increment's end, for a caller that reads
+  // only the stress between its outputs (an MPM step): the state returned
+  // carries stress, volume, void ratio, porosity, permeability, steps, Δt,
+  // mass scale (and the tangent if asked for) and leaves the fabric, the
+  // contact counts and coordinations, the unbalanced-force ratio, the mean
+  // rotation and the kinetic energy at zero. The RVE itself evolves exactly
+  // as in a full call; a later full observation measures the rest, bit for
+  // bit. Saves most of the homogenisation of a one-DEM-step increment.
+  bool stress_only = false;
 };
 
 // Asked between DEM steps by the engine's long loops (Apply, Relax, Run,
@@ -192,6 +201,10 @@ class Rve {
   // reads the history and keeps them as a cache. Not safe to call on one Rve
   // from two threads at once (the cache), like every other member.
   RveState Observe(bool want_tangent = false) const;
+  // Observe's stress, volume, void ratio, porosity, permeability, Δt and
+  // mass scale (and tangent) alone; the rest stays zero (see
+  // ApplyOptions::stress_only). Needs only the stress sums.
+  RveState ObserveStress(bool want_tangent = false) const;
   // The active contacts of the current configuration, sorted by (i, j).
   std::vector<ContactForce> Contacts() const;
   // p = −tr σ/2 of the Love–Weber stress (Pa, compression +), from the same
@@ -237,9 +250,10 @@ class Rve {
     Eigen::Vector2d stiffness = Eigen::Vector2d::Zero();  // Pa, (1/V)Σ kn d⁴ n_x⁴ … for the servo
   };
   // What a contact pass measures besides the forces: nothing; the stress and
-  // servo stiffness of a forces-first step (Run's servo); or the
-  // homogenisation sums of the configuration (sums_).
-  enum class Measure { kNone, kServo, kSums };
+  // servo stiffness of a forces-first step (Run's servo); the
+  // homogenisation sums of the configuration (sums_); or their stress alone
+  // (sums_.stress; the other sums stay unknown).
+  enum class Measure { kNone, kServo, kSums, kStress };
   template <bool kRolling, bool kBonds, bool kHertz, Measure kMeasure, bool kUpdate>
   StepResult ContactLoop(const Eigen::Matrix2d& l);
   // The contact pass into fx_, fy_, tq_ (and sums_ when measuring): `update`
@@ -259,18 +273,23 @@ class Rve {
   // The same step with the contact pass at its end: velocities and positions
   // advance with the forces the previous step left (recomputed if unknown),
   // then the forces of the new positions follow, the history advancing with
-  // l. `measure`: that pass also forms the homogenisation sums, so Apply's
-  // last step homogenises the new configuration at no extra pass.
+  // l. `measure` (kNone, kSums or kStress): what that pass also sums, so
+  // Apply's last step homogenises the new configuration at no extra pass.
   // Leapfrog either way; the two differ only in which l advances the history
   // at a position (the step's own or the next one's).
   StepResult StepForcesLast(const Eigen::Matrix2d& l, const Eigen::Matrix2d& next_cell,
-                            bool measure);
+                            Measure measure);
   void AdvanceCell(const Eigen::Matrix2d& next_cell);  // cell, step count, flips, neighbours
   // (1/V)·sym Σ f⊗b summed as the definitions read (ForEachContact), Pa:
   // Run seeds its servo with it, as it always has.
   Eigen::Matrix2d DefinitionStress() const;
   // sums_ for the current state (a read-only contact pass if not known).
   void EnsureSums() const;
+  // sums_.stress for the current state (EnsureSums if not known).
+  void EnsureStress() const;
+  // The state's stress, volume, void ratio, porosity, permeability, Δt,
+  // mass scale and (want_tangent) tangent, from the known stress sums.
+  RveState ObserveCommon(bool want_tangent) const;
   void MaybeRebuild();
   void Rebuild(const std::vector<ContactHistory>& history);
   void MaybeFlip();
@@ -304,6 +323,7 @@ class Rve {
   double last_elastic_ = 0.0;  // J, in the normal springs at the last measured pass
   bool forces_valid_ = false;  // fx_, fy_, tq_ belong to the current positions
   bool sums_valid_ = false;    // sums_ too
+  bool stress_valid_ = false;  // sums_.stress too (true whenever sums_valid_ is)
   double dt_ = 0.0;
   // Half Verlet list in CSR form, rows i ascending, columns j > i ascending.
   std::vector<std::uint32_t> row_start_;

@@ -49,8 +49,8 @@ struct PairPassArgs {
 // particles, Coulomb cap, rolling spring, bond breakage) as the end of a DEM
 // step does; without it the stored history is only read, so a recomputation
 // gives the forces of the state bit for bit. kMeasure (0 none, 1 the servo's
-// stress and stiffness, 2 the homogenisation sums) also stores each pair's
-// terms for those sums. The pairs are independent: the loop runs in SIMD
+// stress and stiffness, 2 the homogenisation sums, 3 their stress alone)
+// also stores each pair's terms for those sums. The pairs are independent: the loop runs in SIMD
 // lanes (an AVX2 clone where the CPU has it) with selects for every branch,
 // each lane doing the scalar operations in the scalar order, so the bits do
 // not depend on the lane count or the CPU.
@@ -162,16 +162,20 @@ __attribute__((target_clones("avx2", "default"))) void PairPass(const PairPassAr
         o_t3[k] = active ? fcy * dy : 0.0;
         o_t4[k] = active ? kd2 * (nx * nx) * (nx * nx) : 0.0;
         o_t5[k] = active ? kd2 * (ny * ny) * (ny * ny) : 0.0;
-      } else {  // sym Σ f⊗b (xy twice), Σ n⊗n (xx, xy) and Σ |f|
+      } else {  // sym Σ f⊗b (xy twice); kMeasure 2: Σ n⊗n (xx, xy) and Σ |f|
         o_t0[k] = active ? fcx * dx : 0.0;
         o_t1[k] = active ? fcx * dy + fcy * dx : 0.0;
         o_t2[k] = active ? fcy * dy : 0.0;
-        o_t3[k] = active ? nx * nx : 0.0;
-        o_t4[k] = active ? nx * ny : 0.0;
-        o_t5[k] = active ? std::sqrt(fcx * fcx + fcy * fcy) : 0.0;
+        if constexpr (kMeasure == 2) {
+          o_t3[k] = active ? nx * nx : 0.0;
+          o_t4[k] = active ? nx * ny : 0.0;
+          o_t5[k] = active ? std::sqrt(fcx * fcx + fcy * fcy) : 0.0;
+        }
       }
-      o_el[k] = touching ? elastic : 0.0;  // counted before a bond breaks, as always
-      o_act[k] = active ? 1.0 : 0.0;
+      if constexpr (kMeasure != 3) {
+        o_el[k] = touching ? elastic : 0.0;  // counted before a bond breaks, as always
+        o_act[k] = active ? 1.0 : 0.0;
+      }
     }
   }
 }
@@ -191,6 +195,7 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
   const std::size_t m = nbr_j_.size();
   constexpr bool kAny = kMeasure != Measure::kNone;
   constexpr bool kServo = kMeasure == Measure::kServo, kSums = kMeasure == Measure::kSums;
+  constexpr bool kStressOnly = kMeasure == Measure::kStress;
   Scratch& scratch = ThreadScratch();
   for (std::vector<double>* v : {&scratch.fx, &scratch.fy, &scratch.ti, &scratch.tj}) {
     if (v->size() < m) v->resize(m);
@@ -289,15 +294,24 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
     const double* __restrict t3 = scratch.term[3].data();
     const double* __restrict t4 = scratch.term[4].data();
     const double* __restrict t5 = scratch.term[5].data();
-    for (std::size_t k = 0; k < m; ++k) {
-      sum[0] += t0[k];
-      sum[1] += t1[k];
-      sum[2] += t2[k];
-      sum[3] += t3[k];
-      sum[4] += t4[k];
-      sum[5] += t5[k];
+    if constexpr (kStressOnly) {
+      for (std::size_t k = 0; k < m; ++k) {
+        sum[0] += t0[k];
+        sum[1] += t1[k];
+        sum[2] += t2[k];
+      }
+    } else {
+      for (std::size_t k = 0; k < m; ++k) {
+        sum[0] += t0[k];
+        sum[1] += t1[k];
+        sum[2] += t2[k];
+        sum[3] += t3[k];
+        sum[4] += t4[k];
+        sum[5] += t5[k];
+      }
     }
-    if (kServo || track_energy_) {
+    // (Forces never measures the stress alone while the energy is tracked.)
+    if (kServo || (track_energy_ && !kStressOnly)) {
       double elastic = 0;
       for (std::size_t k = 0; k < m; ++k) elastic += scratch.elastic[k];
       last_elastic_ = elastic;
@@ -307,7 +321,12 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
     if constexpr (kServo) {
       out.stress << sum[0] / volume, sum[1] / volume, sum[2] / volume, sum[3] / volume;
       out.stiffness = Eigen::Vector2d(sum[4], sum[5]) / volume;
+      sums_valid_ = stress_valid_ = false;
+    }
+    if constexpr (kStressOnly) {
+      sums_.stress << sum[0], 0.5 * sum[1], 0.5 * sum[1], sum[2];  // as kSums below
       sums_valid_ = false;
+      stress_valid_ = true;
     }
     if constexpr (kSums) {
       Sums& s = sums_;
@@ -320,10 +339,10 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
         s.rattlers0 += count[i] == 0;
         s.rattlers1 += count[i] == 1;
       }
-      sums_valid_ = true;
+      sums_valid_ = stress_valid_ = true;
     }
   } else {
-    sums_valid_ = false;
+    sums_valid_ = stress_valid_ = false;
   }
   return out;
 }
@@ -331,6 +350,8 @@ Rve::StepResult Rve::ContactLoop(const Eigen::Matrix2d& l) {
 Rve::StepResult Rve::Forces(const Eigen::Matrix2d& l, Measure measure, bool update) {
   const bool rolling = !nbr_moment_.empty(), bonds = !nbr_bond_.empty();
   const bool hertz = p_.material.model == ContactModel::kHertzMindlin;
+  // The energy needs the elastic sum, which only the full sums carry.
+  if (measure == Measure::kStress && track_energy_) measure = Measure::kSums;
   // One instantiation per feature set keeps unused features out of the loop;
   // a pass that only reads the history always measures (it serves Observe).
   auto pick = [&]<Measure kMeasure, bool kUpdate>() {
@@ -351,6 +372,8 @@ Rve::StepResult Rve::Forces(const Eigen::Matrix2d& l, Measure measure, bool upda
       return pick.template operator()<Measure::kServo, true>();
     case Measure::kSums:
       return pick.template operator()<Measure::kSums, true>();
+    case Measure::kStress:
+      return pick.template operator()<Measure::kStress, true>();
     case Measure::kNone:
       break;
   }
@@ -471,12 +494,12 @@ Rve::StepResult Rve::Step(const Eigen::Matrix2d& l, const Eigen::Matrix2d& next_
       Forces(l, measure || track_energy_ ? Measure::kServo : Measure::kNone, /*update=*/true);
   Integrate();
   AdvanceCell(next_cell);
-  forces_valid_ = sums_valid_ = false;  // they were those of the old positions
+  forces_valid_ = sums_valid_ = stress_valid_ = false;  // those of the old positions
   return r;
 }
 
 Rve::StepResult Rve::StepForcesLast(const Eigen::Matrix2d& l, const Eigen::Matrix2d& next_cell,
-                                    bool measure) {
+                                    Measure measure) {
   // The forces of the current positions: those the last step left, or (after
   // a restore, a Run or a change of the contacts) recomputed from the state.
   if (!forces_valid_ || (track_energy_ && !sums_valid_)) Forces(l, Measure::kSums, false);
@@ -485,7 +508,8 @@ Rve::StepResult Rve::StepForcesLast(const Eigen::Matrix2d& l, const Eigen::Matri
   // The new positions' forces, with the history advanced by this step's
   // motion: the next step integrates with them and, measured, they are the
   // homogenised state of the new configuration.
-  return Forces(l, measure || track_energy_ ? Measure::kSums : Measure::kNone, /*update=*/true);
+  return Forces(l, track_energy_ && measure == Measure::kNone ? Measure::kSums : measure,
+                /*update=*/true);
 }
 
 void Rve::AdvanceCell(const Eigen::Matrix2d& next_cell) {

@@ -279,6 +279,7 @@ void ToProto(const dem::ApplyOptions& o, v1::ApplyOptions* out) {
   out->set_relax_tolerance(o.relax_tolerance);
   out->set_relax_max_steps(o.relax_max_steps);
   out->set_duration(o.duration);
+  out->set_stress_only(o.stress_only);
 }
 
 dem::ApplyOptions FromProto(const v1::ApplyOptions& o) {
@@ -290,6 +291,7 @@ dem::ApplyOptions FromProto(const v1::ApplyOptions& o) {
   if (o.relax_tolerance() != 0) out.relax_tolerance = o.relax_tolerance();
   if (o.relax_max_steps() != 0) out.relax_max_steps = o.relax_max_steps();
   out.duration = o.duration();
+  out.stress_only = o.stress_only();
   return out;
 }
 

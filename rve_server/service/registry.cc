@@ -461,11 +461,12 @@ absl::Status Registry::ApplyEach(absl::string_view run_id, std::int64_t step, Ap
                          " with a different ΔF; its current step is ", e.step));
         return;
       }
-      if (e.last_result.has_value() &&
+      if (e.last_result.has_value() && e.last_stress_only == options.stress_only &&
           (!options.want_tangent || e.last_result->tangent.has_value())) {
         o.state = *e.last_result;
-      } else {  // after a restore: same committed state, observed again
-        o.state = e.rve.Observe(options.want_tangent);
+      } else {  // after a restore, or asked otherwise: the committed state observed again
+        o.state = options.stress_only ? e.rve.ObserveStress(options.want_tangent)
+                                      : e.rve.Observe(options.want_tangent);
       }
       o.deformation_gradient.topLeftCorner<2, 2>() = e.rve.DeformationGradient();
       return;
@@ -518,6 +519,7 @@ absl::Status Registry::ApplyEach(absl::string_view run_id, std::int64_t step, Ap
     e.step = step;
     e.last_delta_f = inc.delta_f;
     e.last_result = *s;
+    e.last_stress_only = options.stress_only;
     o.step = step;
     o.state = *std::move(s);
     o.deformation_gradient.topLeftCorner<2, 2>() = e.rve.DeformationGradient();

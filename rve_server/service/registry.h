@@ -181,6 +181,7 @@ class Registry {
     Eigen::Matrix3d last_delta_f ABSL_GUARDED_BY(mu) = Eigen::Matrix3d::Identity();
     // Result of the last COMMIT, returned again for a retry of that step.
     std::optional<dem::RveState> last_result ABSL_GUARDED_BY(mu);
+    bool last_stress_only ABSL_GUARDED_BY(mu) = false;  // last_result has the stress alone
     std::int64_t memory_bytes = 0;  // fixed at creation
     // Work of the last increment, (DEM steps + 1) × particles: the guess for
     // the next one, by which Apply hands out the longest first. Read without
