@@ -5,6 +5,8 @@
 //   BM_FixedCellSetDense    engine at fixed cell (same work as the baseline)
 //   BM_BaselineAllPairs     plain reference DEM: AoS, all pairs every step
 //   BM_BatchApply64         64 RVEs × one small ΔF over the server's worker pool
+//   BM_ApplySmallIncrement  one MPM-sized increment (min_steps 1 or 20); ...StressOnly:
+//                           the same measuring the stress alone
 //   BM_ApplyManyRves        one-step increments on 1 or 4096 RVEs in turn (cache misses)
 //   BM_MemoryPerRve         RSS growth and Rve::MemoryBytes() per 400-disc RVE
 //
@@ -341,6 +343,27 @@ BENCHMARK(BM_ApplySmallIncrement)
     ->Arg(20)
     ->Unit(benchmark::kMicrosecond);
 
+// The one-step increment with ApplyOptions::stress_only, as an MPM step
+// between outputs asks for it: the last step sums the stress alone.
+void BM_ApplySmallIncrementStressOnly(benchmark::State& state) {
+  dem::RveSnapshot packing = DensePacking();
+  packing.controls.min_steps = 1;
+  dem::Rve rve = *dem::Rve::Create(packing);
+  Eigen::Matrix3d delta_f = Eigen::Matrix3d::Identity();
+  delta_f(0, 1) = 1e-6;
+  delta_f(1, 1) = 1.0 - 5e-7;
+  dem::ApplyOptions options;
+  options.stress_only = true;
+  for (auto _ : state) {
+    absl::StatusOr<dem::RveState> s = rve.Apply(delta_f, options);
+    if (!s.ok()) {
+      state.SkipWithError(s.status().ToString().c_str());
+      break;
+    }
+  }
+}
+BENCHMARK(BM_ApplySmallIncrementStressOnly)->Unit(benchmark::kMicrosecond);
+
 // One-step increments (min_steps 1) on `rves` RVEs in turn, as an MPM step
 // walks its points: with thousands of RVEs each increment starts from data
 // that left the caches since its RVE's last increment (the footing-dense case
@@ -489,6 +512,7 @@ void PrintSummary(const SummaryReporter& r) {
   const double definition_us = r.Get("BM_ObserveByDefinition", "us");
   const double one_us = r.Get("BM_ApplySmallIncrement/min_steps:1", "us");
   const double twenty_us = r.Get("BM_ApplySmallIncrement/min_steps:20", "us");
+  const double lean_us = r.Get("BM_ApplySmallIncrementStressOnly", "us");
   std::printf(
       "  increment of one DEM step: %.2f us = plain step %.2f us + %.2f us (%.2f steps: "
       "homogenisation in the step's contact pass, Observe %.2f us, Apply's own work); "
@@ -497,6 +521,10 @@ void PrintSummary(const SummaryReporter& r) {
       definition_us / step_us);
   std::printf("  increment of strain 1e-6: %.2f us with min_steps 1, %.2f us with 20 (%.1fx)\n",
               one_us, twenty_us, twenty_us / one_us);
+  std::printf(
+      "  the same measuring the stress alone (between an MPM run's outputs): %.2f us = plain "
+      "step + %.2f us (%.2f steps)\n",
+      lean_us, lean_us - step_us, (lean_us - step_us) / step_us);
   std::printf("  memory per 400-disc RVE: RSS %.1f KB, state %.1f KB   (goal <= %.0f KB)\n",
               rss / 1e3, bytes / 1e3, kGoalBytesPerRve / 1e3);
   if (!std::isnan(base)) {
