@@ -45,22 +45,10 @@ class RveStressModel : public StressModel {
     absl::StatusOr<std::vector<dem::RveState>> states = pool_->Apply(step, delta_f);
     *seconds_ += Seconds(Clock::now() - t0);
     if (!states.ok()) return states.status();
-    for (std::size_t p = 0; p < out.size(); ++p) {
-      const dem::RveState& s = (*states)[p];
-      if (stress_only_) {  // the other fields stay as out[p] holds them
-        out[p].stress = s.stress;
-        out[p].void_ratio = s.void_ratio;
-        out[p].permeability = s.permeability;
-      } else {
-        out[p] = ToResponse(s);
-      }
-    }
+    for (std::size_t p = 0; p < out.size(); ++p) out[p] = ToResponse((*states)[p]);
     return absl::OkStatus();
   }
-  void SetStressOnly(bool stress_only) override {
-    stress_only_ = stress_only;
-    pool_->set_stress_only(stress_only);
-  }
+  void SetStressOnly(bool stress_only) override { pool_->set_stress_only(stress_only); }
 
   static PointResponse ToResponse(const dem::RveState& s) {
     PointResponse r;
@@ -76,7 +64,6 @@ class RveStressModel : public StressModel {
  private:
   RvePool* pool_;
   double* seconds_;
-  bool stress_only_ = false;
 };
 
 // A run id unique among the runs a shared server hosts: case name, time and

@@ -735,15 +735,19 @@ absl::Status Solver::UpdateStress() {
     rve_delta_f_[p].setIdentity();
     rve_delta_f_[p].topLeftCorner<2, 2>() = RveIncrement(df, mp.response[p], max_void_ratio_);
   }
-  // Stress alone: the points' other fields go through the model unchanged.
-  if (stress_only_) response_.assign(mp.response.begin(), mp.response.end());
   model_->SetStressOnly(stress_only_);
   RETURN_IF_ERROR(model_->Update(step_ + 1, rve_delta_f_, response_));
   for (std::size_t p = 0; p < n; ++p) {
     Matrix2d& f = mp.F[p];
     f = (delta_f_[p].topLeftCorner<2, 2>() * f).eval();
     mp.volume[p] = mp.volume0[p] * f.determinant();
-    mp.response[p] = response_[p];
+    if (stress_only_) {  // the point keeps its other fields from its last full response
+      mp.response[p].stress = response_[p].stress;
+      mp.response[p].void_ratio = response_[p].void_ratio;
+      mp.response[p].permeability = response_[p].permeability;
+    } else {
+      mp.response[p] = response_[p];
+    }
     mp.stress[p] = response_[p].stress;
   }
   return absl::OkStatus();

@@ -45,8 +45,8 @@ class StressModel {
   virtual absl::Status Update(std::int64_t step, std::span<const Eigen::Matrix3d> delta_f,
                               std::span<PointResponse> out) = 0;
   // While set, the caller reads only out[p].stress, void_ratio and
-  // permeability of the Updates: a model may leave the other fields as out[p]
-  // holds them (the RVEs then measure the stress alone). Default: ignored.
+  // permeability of the Updates: a model may measure those alone and leave
+  // the other fields undefined (the RVEs then do). Default: ignored.
   virtual void SetStressOnly(bool stress_only) { (void)stress_only; }
 };
 
