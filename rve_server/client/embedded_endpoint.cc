@@ -10,35 +10,6 @@
 namespace rvehub::client {
 namespace {
 
-// The registry's types are the server's; the client's are its own. These
-// copy between the two (a few hundred bytes per RVE; Apply's on the workers,
-// where 7776 of them had taken 1.2 ms of each MPM step on the caller).
-service::InitialStress ToRegistry(const InitialStress& s) {
-  service::InitialStress out;
-  out.kind = s.kind == InitialStress::Kind::kIsotropic ? service::InitialStress::Kind::kIsotropic
-             : s.kind == InitialStress::Kind::kK0      ? service::InitialStress::Kind::kK0
-                                                       : service::InitialStress::Kind::kTemplate;
-  out.pressure = s.pressure;
-  out.vertical_compression = s.vertical_compression;
-  out.k0 = s.k0;
-  return out;
-}
-
-void FromRegistry(service::RveOutcome&& o, RveOutcome& out) {
-  out.id = o.id;
-  out.status = std::move(o.status);
-  out.step = o.step;
-  out.state = std::move(o.state);
-  out.deformation_gradient = o.deformation_gradient;
-  out.engine_seconds = o.engine_seconds;
-}
-
-std::vector<RveOutcome> FromRegistry(std::vector<service::RveOutcome>&& outcomes) {
-  std::vector<RveOutcome> out(outcomes.size());
-  for (std::size_t k = 0; k < outcomes.size(); ++k) FromRegistry(std::move(outcomes[k]), out[k]);
-  return out;
-}
-
 // An Apply already done inside StartApply.
 class DoneApply final : public PendingApply {
  public:
@@ -70,13 +41,10 @@ class EmbeddedEndpoint final : public RveEndpoint {
       absl::string_view run, absl::string_view template_name, std::span<const std::int64_t> ids,
       std::span<const InitialStress> initial,
       const std::optional<dem::Controls>& controls) override {
-    std::vector<service::InitialStress> stresses;
-    stresses.reserve(initial.size());
-    for (const InitialStress& s : initial) stresses.push_back(ToRegistry(s));
-    absl::StatusOr<std::vector<service::RveOutcome>> out =
-        registry_->Create(run, template_name, ids, stresses, controls, /*want_state=*/true);
+    absl::StatusOr<std::vector<RveOutcome>> out =
+        registry_->Create(run, template_name, ids, initial, controls, /*want_state=*/true);
     if (!out.ok()) return Error(out.status());
-    return FromRegistry(*std::move(out));
+    return out;
   }
 
   std::unique_ptr<PendingApply> StartApply(absl::string_view run, std::int64_t step,
@@ -92,15 +60,10 @@ class EmbeddedEndpoint final : public RveEndpoint {
         return absl::OkStatus();
       };
     }
-    std::vector<service::Increment> batch(increments.size());
-    for (std::size_t k = 0; k < increments.size(); ++k) {
-      batch[k].id = increments[k].id;
-      batch[k].delta_f = increments[k].delta_f;
-    }
-    std::vector<RveOutcome> out(batch.size());
-    const absl::Status applied = registry_->ApplyEach(
-        run, step, service::ApplyMode::kCommit, options, batch, cancelled,
-        [&out](std::size_t k, service::RveOutcome&& o) { FromRegistry(std::move(o), out[k]); });
+    std::vector<RveOutcome> out(increments.size());
+    const absl::Status applied =
+        registry_->ApplyEach(run, step, service::ApplyMode::kCommit, options, increments, cancelled,
+                             [&out](std::size_t k, RveOutcome&& o) { out[k] = std::move(o); });
     const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
     if (!applied.ok()) return std::make_unique<DoneApply>(Error(applied), seconds);
     return std::make_unique<DoneApply>(std::move(out), seconds);
@@ -109,9 +72,9 @@ class EmbeddedEndpoint final : public RveEndpoint {
   absl::StatusOr<std::vector<RveOutcome>> Get(absl::string_view run,
                                               std::span<const std::int64_t> ids,
                                               bool want_tangent) override {
-    absl::StatusOr<std::vector<service::RveOutcome>> out = registry_->Get(run, ids, want_tangent);
+    absl::StatusOr<std::vector<RveOutcome>> out = registry_->Get(run, ids, want_tangent);
     if (!out.ok()) return Error(out.status());
-    return FromRegistry(*std::move(out));
+    return out;
   }
 
   absl::Status Export(absl::string_view run, std::span<const std::int64_t> ids,

@@ -24,6 +24,7 @@
 #include "absl/synchronization/mutex.h"
 #include "rve_server/common/names.h"
 #include "rve_server/engine/rve.h"
+#include "rve_server/service/rve_batch.h"
 #include "rve_server/service/worker_pool.h"
 #include "store/record.h"
 
@@ -38,32 +39,10 @@ struct RegistryOptions {
 
 enum class ApplyMode { kCommit, kTrial };
 
-struct Increment {
-  std::int64_t id = 0;
-  Eigen::Matrix3d delta_f = Eigen::Matrix3d::Identity();  // [-]
-};
-
-// Outcome for one RVE of a batch call.
-struct RveOutcome {
-  std::int64_t id = 0;
-  absl::Status status;    // per-RVE result
-  std::int64_t step = 0;  // the RVE's committed step after the call
-  dem::RveState state;    // valid when status is OK
-  Eigen::Matrix3d deformation_gradient = Eigen::Matrix3d::Identity();  // F since creation
-  // Wall time the engine spent on this RVE in the call (Apply: DEM steps and
-  // homogenisation), s. A measurement for load figures, never part of a state.
-  double engine_seconds = 0.0;
-};
-
-// Initial stress of new RVEs (compression +, Pa). kTemplate keeps the
-// template's state as it is.
-struct InitialStress {
-  enum class Kind { kTemplate, kIsotropic, kK0 };
-  Kind kind = Kind::kTemplate;
-  double pressure = 0.0;              // kIsotropic: p, Pa
-  double vertical_compression = 0.0;  // kK0: σv = σyy, Pa
-  double k0 = 0.0;                    // kK0: σxx/σyy, [-]
-};
+// A batch call's values (rve_batch.h), the client endpoints' too.
+using ::rvehub::Increment;
+using ::rvehub::InitialStress;
+using ::rvehub::RveOutcome;
 
 struct TemplateSummary {
   std::string name;
