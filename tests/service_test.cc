@@ -100,6 +100,62 @@ TEST_F(ServiceTest, CreateApplyGetRoundTrip) {
   EXPECT_LT(info.memory_bytes(), 3 * 200000);
 }
 
+// The batch values cross the wire both ways through convert.h alone: an
+// outcome and an initial stress come back as they went.
+TEST(ServiceConvert, OutcomesAndInitialStressesRoundTrip) {
+  RveOutcome ok;
+  ok.id = 7;
+  ok.step = 3;
+  ok.engine_seconds = 2.5e-5;
+  ok.state.stress << -1e5, 2e3, 0, 2e3, -1.2e5, 0, 0, 0, 0;
+  ok.state.void_ratio = 0.181;
+  ok.deformation_gradient(0, 1) = 1e-3;
+  v1::RveResult wire;
+  ToProto(ok, &wire);
+  RveOutcome back;
+  ASSERT_TRUE(FromProto(wire, &back).ok());
+  EXPECT_EQ(back.id, 7);
+  EXPECT_EQ(back.step, 3);
+  EXPECT_EQ(back.engine_seconds, 2.5e-5);
+  EXPECT_TRUE(back.status.ok());
+  EXPECT_EQ(back.state.stress, ok.state.stress);
+  EXPECT_EQ(back.state.void_ratio, 0.181);
+  EXPECT_EQ(back.deformation_gradient, ok.deformation_gradient);
+
+  RveOutcome failed;
+  failed.id = 8;
+  failed.step = 2;
+  failed.status = absl::FailedPreconditionError("det ΔF = -1 must be > 0");
+  wire.Clear();
+  ToProto(failed, &wire);
+  wire.set_engine_seconds(std::numeric_limits<double>::quiet_NaN());
+  ASSERT_TRUE(FromProto(wire, &back).ok());
+  EXPECT_EQ(back.id, 8);
+  EXPECT_EQ(back.step, 2);
+  EXPECT_EQ(back.status, failed.status);
+  EXPECT_EQ(back.engine_seconds, 0.0);  // a non-finite time is no measurement
+
+  wire.Clear();
+  ToProto(ok, &wire);
+  wire.mutable_state()->mutable_stress()->RemoveLast();
+  EXPECT_FALSE(FromProto(wire, &back).ok());  // a tensor without 9 values
+
+  for (const InitialStress& s : {InitialStress{InitialStress::Kind::kIsotropic, 1.5e5, 0.0, 0.0},
+                                 InitialStress{InitialStress::Kind::kK0, 0.0, 2e4, 0.45}}) {
+    v1::InitialStress m;
+    ToProto(s, &m);
+    absl::StatusOr<InitialStress> r = FromProto(m);
+    ASSERT_TRUE(r.ok()) << r.status();
+    EXPECT_EQ(r->kind, s.kind);
+    EXPECT_EQ(r->pressure, s.pressure);
+    EXPECT_EQ(r->vertical_compression, s.vertical_compression);
+    EXPECT_EQ(r->k0, s.k0);
+  }
+  v1::InitialStress none;
+  ToProto(InitialStress{}, &none);  // kTemplate: nothing on the wire
+  EXPECT_FALSE(FromProto(none).ok());
+}
+
 TEST_F(ServiceTest, CreationConsolidatesToIsotropicAndK0States) {
   v1::CreateRvesRequest req;
   req.set_run_id("geo");

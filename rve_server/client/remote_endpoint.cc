@@ -24,34 +24,11 @@
 namespace rvehub::client {
 namespace {
 
-// Message assembly for the client's own types; the engine-level
-// conversions (matrices, states, controls, packings, records) are the
-// service's, in rve_server/service/convert.h.
-
-void ToProto(const InitialStress& s, v1::InitialStress* out) {
-  switch (s.kind) {
-    case InitialStress::Kind::kTemplate:
-      break;  // the server has no "template" kind: callers leave it out
-    case InitialStress::Kind::kIsotropic:
-      out->set_pressure(s.pressure);
-      break;
-    case InitialStress::Kind::kK0:
-      out->mutable_k0()->set_vertical_compression(s.vertical_compression);
-      out->mutable_k0()->set_k0(s.k0);
-      break;
-  }
-}
+// Messages to and from the batch values: rve_server/service/convert.h.
 
 absl::StatusOr<RveOutcome> OutcomeFromProto(const v1::RveResult& r) {
   RveOutcome o;
-  o.id = r.id();
-  o.step = r.step();
-  o.engine_seconds = std::isfinite(r.engine_seconds()) ? r.engine_seconds() : 0.0;
-  if (r.code() != 0) {
-    o.status = absl::Status(static_cast<absl::StatusCode>(r.code()), r.message());
-    return o;
-  }
-  if (absl::Status s = service::FromProto(r.state(), &o.state, &o.deformation_gradient); !s.ok()) {
+  if (absl::Status s = service::FromProto(r, &o); !s.ok()) {
     return absl::DataLossError(
         absl::StrCat("reply for material point ", r.id(), " is malformed: ", s.message()));
   }
@@ -239,7 +216,7 @@ class RemoteEndpoint final : public RveEndpoint {
       for (std::size_t k = begin; k < end; ++k) req.add_ids(ids[k]);
       // The server knows no "template" kind: such entries are left out.
       if (initial.size() == 1 && initial[0].kind != InitialStress::Kind::kTemplate) {
-        ToProto(initial[0], req.mutable_initial_stress());
+        service::ToProto(initial[0], req.mutable_initial_stress());
       } else if (initial.size() > 1) {
         for (std::size_t k = begin; k < end; ++k) {
           if (initial[k].kind == InitialStress::Kind::kTemplate) {
@@ -247,7 +224,7 @@ class RemoteEndpoint final : public RveEndpoint {
                 "material point ", ids[k],
                 ": per-point initial stresses must all be isotropic or K0 on a server"));
           }
-          ToProto(initial[k], req.add_initial_stresses());
+          service::ToProto(initial[k], req.add_initial_stresses());
         }
       }
       if (controls.has_value()) service::ToProto(*controls, req.mutable_controls());

@@ -1,5 +1,7 @@
 #include "rve_server/service/convert.h"
 
+#include <cmath>
+
 #include "absl/strings/str_cat.h"
 
 namespace rvehub::service {
@@ -334,6 +336,32 @@ absl::StatusOr<InitialStress> FromProto(const v1::InitialStress& s) {
     default:
       return absl::InvalidArgumentError("an initial stress names neither pressure nor k0");
   }
+}
+
+void ToProto(const InitialStress& s, v1::InitialStress* out) {
+  switch (s.kind) {
+    case InitialStress::Kind::kTemplate:
+      break;
+    case InitialStress::Kind::kIsotropic:
+      out->set_pressure(s.pressure);
+      break;
+    case InitialStress::Kind::kK0:
+      out->mutable_k0()->set_vertical_compression(s.vertical_compression);
+      out->mutable_k0()->set_k0(s.k0);
+      break;
+  }
+}
+
+absl::Status FromProto(const v1::RveResult& r, RveOutcome* out) {
+  out->id = r.id();
+  out->step = r.step();
+  out->engine_seconds = std::isfinite(r.engine_seconds()) ? r.engine_seconds() : 0.0;
+  if (r.code() != 0) {
+    out->status = absl::Status(static_cast<absl::StatusCode>(r.code()), r.message());
+    return absl::OkStatus();
+  }
+  out->status = absl::OkStatus();
+  return FromProto(r.state(), &out->state, &out->deformation_gradient);
 }
 
 absl::StatusOr<dem::ElementTestSpec> FromProto(const v1::ElementTestRequest& r) {

@@ -68,6 +68,13 @@ void ToProto(const dem::ElementTestSpec& s, v1::ElementTestRequest* out);
 // values, DataLoss for a tangent of neither 0 nor 81 values.
 absl::Status FromProto(const v1::RveState& s, dem::RveState* out,
                        Eigen::Matrix3d* deformation_gradient);
+// The inverse of FromProto(InitialStress). kTemplate sets neither pressure
+// nor k0: the wire has no such kind, and callers leave such stresses out.
+void ToProto(const InitialStress& s, v1::InitialStress* out);
+// The inverse of ToProto(RveOutcome): id, step, engine seconds (0 unless
+// finite) and the status from code and message; the state and F only when
+// the code is OK. An error (FromProto(RveState)'s) only for a malformed state.
+absl::Status FromProto(const v1::RveResult& r, RveOutcome* out);
 
 }  // namespace rvehub::service
 
