@@ -17,8 +17,8 @@
 // --steps: MPM steps per case (default 0: to the case's end time). Default
 // cases: the CI-sized ones (single-element-biaxial, footing-dense-ci,
 // biaxial-specimen-ci, column-collapse-ci); --full: footing-coarse,
-// biaxial-specimen-medium, column-collapse-full, footing-dense (hours before
-// issue 9; give --steps to sample them).
+// biaxial-specimen-medium and its -fast variant, column-collapse-full,
+// footing-dense (hours before issue 9; give --steps to sample them).
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -111,7 +111,8 @@ int main(int argc, char** argv) {
   if (cases.empty()) {
     const std::vector<std::string> names =
         full ? std::vector<std::string>{"footing-coarse", "biaxial-specimen-medium",
-                                        "column-collapse-full", "footing-dense"}
+                                        "biaxial-specimen-medium-fast", "column-collapse-full",
+                                        "footing-dense"}
              : std::vector<std::string>{"single-element-biaxial", "footing-dense-ci",
                                         "biaxial-specimen-ci", "column-collapse-ci"};
     for (const std::string& n : names)
