@@ -315,18 +315,25 @@ void BM_ObserveByDefinition(benchmark::State& state) {
 }
 BENCHMARK(BM_ObserveByDefinition)->Unit(benchmark::kMicrosecond);
 
-// One MPM-sized increment (strain 1e-6) with the quasi-static criterion
-// alone (min_steps 1): one DEM step plus the homogenisation.
-void BM_ApplySmallIncrement(benchmark::State& state) {
-  dem::RveSnapshot packing = DensePacking();
-  packing.controls.min_steps = state.range(0);
-  dem::Rve rve = *dem::Rve::Create(packing);
+// The MPM-sized increment the benchmarks below apply: simple shear 1e-6 with
+// a little compression, [-].
+Eigen::Matrix3d SmallIncrement() {
   Eigen::Matrix3d delta_f = Eigen::Matrix3d::Identity();
   delta_f(0, 1) = 1e-6;
   delta_f(1, 1) = 1.0 - 5e-7;
+  return delta_f;
+}
+
+// SmallIncrement() applied again and again to one RVE with `min_steps`.
+void ApplySmallIncrements(benchmark::State& state, std::int64_t min_steps,
+                          const dem::ApplyOptions& options) {
+  dem::RveSnapshot packing = DensePacking();
+  packing.controls.min_steps = min_steps;
+  dem::Rve rve = *dem::Rve::Create(packing);
+  const Eigen::Matrix3d delta_f = SmallIncrement();
   std::int64_t steps = 0;
   for (auto _ : state) {
-    absl::StatusOr<dem::RveState> s = rve.Apply(delta_f);
+    absl::StatusOr<dem::RveState> s = rve.Apply(delta_f, options);
     if (!s.ok()) {
       state.SkipWithError(s.status().ToString().c_str());
       break;
@@ -337,6 +344,12 @@ void BM_ApplySmallIncrement(benchmark::State& state) {
       static_cast<double>(steps) /
       static_cast<double>(std::max<std::int64_t>(1, state.iterations()));
 }
+
+// One MPM-sized increment (strain 1e-6) with the quasi-static criterion
+// alone (min_steps 1): one DEM step plus the homogenisation.
+void BM_ApplySmallIncrement(benchmark::State& state) {
+  ApplySmallIncrements(state, state.range(0), {});
+}
 BENCHMARK(BM_ApplySmallIncrement)
     ->ArgName("min_steps")
     ->Arg(1)
@@ -346,21 +359,9 @@ BENCHMARK(BM_ApplySmallIncrement)
 // The one-step increment with ApplyOptions::stress_only, as an MPM step
 // between outputs asks for it: the last step sums the stress alone.
 void BM_ApplySmallIncrementStressOnly(benchmark::State& state) {
-  dem::RveSnapshot packing = DensePacking();
-  packing.controls.min_steps = 1;
-  dem::Rve rve = *dem::Rve::Create(packing);
-  Eigen::Matrix3d delta_f = Eigen::Matrix3d::Identity();
-  delta_f(0, 1) = 1e-6;
-  delta_f(1, 1) = 1.0 - 5e-7;
   dem::ApplyOptions options;
   options.stress_only = true;
-  for (auto _ : state) {
-    absl::StatusOr<dem::RveState> s = rve.Apply(delta_f, options);
-    if (!s.ok()) {
-      state.SkipWithError(s.status().ToString().c_str());
-      break;
-    }
-  }
+  ApplySmallIncrements(state, 1, options);
 }
 BENCHMARK(BM_ApplySmallIncrementStressOnly)->Unit(benchmark::kMicrosecond);
 
@@ -372,9 +373,7 @@ void BM_ApplyManyRves(benchmark::State& state) {
   dem::RveSnapshot packing = DensePacking();
   packing.controls.min_steps = 1;
   std::vector<dem::Rve> rves(static_cast<std::size_t>(state.range(0)), *dem::Rve::Create(packing));
-  Eigen::Matrix3d delta_f = Eigen::Matrix3d::Identity();
-  delta_f(0, 1) = 1e-6;
-  delta_f(1, 1) = 1.0 - 5e-7;
+  const Eigen::Matrix3d delta_f = SmallIncrement();
   std::size_t next = 0;
   for (auto _ : state) {
     absl::StatusOr<dem::RveState> s = rves[next].Apply(delta_f);
