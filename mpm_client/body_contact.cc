@@ -43,13 +43,18 @@ void SignedDistance(const RigidBody& body, const Vector2d& center, const Vector2
 
 }  // namespace
 
+double DomainExtent(const Eigen::Matrix2d& f, const Vector2d& lp0, const Vector2d& n) {
+  return (f.transpose() * n).cwiseProduct(lp0).norm();  // |(n·F e_i)·lp0_i|, m
+}
+
+Vector2d DomainBound(const Eigen::Matrix2d& f, const Vector2d& lp0) { return f.cwiseAbs() * lp0; }
+
 BodyGap GapToBody(const RigidBody& body, const Vector2d& center, const Vector2d& x,
-                  const Vector2d& half_size) {
+                  const Eigen::Matrix2d& f, const Vector2d& lp0) {
   BodyGap out;
   double distance = 0.0;
   SignedDistance(body, center, x, distance, out.normal);
-  const double extent =
-      std::abs(out.normal.x()) * half_size.x() + std::abs(out.normal.y()) * half_size.y();
+  const double extent = DomainExtent(f, lp0, out.normal);
   out.gap = distance - extent;
   out.face = x - extent * out.normal;
   return out;

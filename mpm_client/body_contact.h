@@ -1,8 +1,8 @@
 // Contact of the soil with rigid bodies (footings, pipes, platens) at the
 // soil's surface, not at the grid nodes inside the body.
 //
-// Each material point near a body has a face towards it: its domain (the
-// GIMP half-sizes) reaches the distance `extent` along the body's normal. The
+// Each material point near a body has a face towards it: its material
+// reaches the distance `extent` along the body's normal (DomainExtent). The
 // contact constraint is that the soil's velocity interpolated at that face
 // (linear weights, over the nodes that carry mass) does not approach the body
 // faster than the gap between them closes in one step ("speculative"
@@ -38,12 +38,31 @@ struct BodyGap {
   Eigen::Vector2d face = Eigen::Vector2d::Zero();     // m, the point's face, x − extent·n
 };
 
-// The gap of a point at x with GIMP half-sizes half_size (m) to `body`
-// centred at `center`: the signed distance from x to the body's surface
-// (outside +; inside, to the nearest face), less the point's extent along the
-// normal, |n_x|·lp_x + |n_y|·lp_y (its box's support in that direction).
+// How far a point's material reaches from its centre along the unit vector
+// n, m: the support of the ellipse through the midpoints of its four faces,
+// x ± F e_i·lp0_i (lp0, m: its initial GIMP half-sizes), that is the image
+// under F of the circle inscribed in its initial box:
+// √((n·F e_x·lp0_x)² + (n·F e_y·lp0_y)²). On a face the midpoint is exact
+// (a rough platen over a barrelling row of points meets its material there);
+// off a corner it is the mean surface of a staircase of boxes, not the
+// corner's tip. Not the stretched box lp0_i·|F e_i| that the shape functions
+// use: under shear that box grows along both axes while the material only
+// slants (simple shear γ = 3 gives it 3.2 times the reach normal to the
+// shear plane), and a contact found with it acts on a point whose material
+// is still up to a cell from the body.
+double DomainExtent(const Eigen::Matrix2d& f, const Eigen::Vector2d& lp0, const Eigen::Vector2d& n);
+
+// The half-sizes of a box that holds the point's material, m: |F|·lp0, the
+// bound of the parallelogram F·[−lp0, lp0]² (a broad phase for contacts).
+Eigen::Vector2d DomainBound(const Eigen::Matrix2d& f, const Eigen::Vector2d& lp0);
+
+// The gap of a point at x, its initial GIMP half-sizes lp0 (m) carried by
+// the deformation gradient f, to `body` centred at `center`: the signed
+// distance from x to the body's surface (outside +; inside, to the nearest
+// face), less DomainExtent along the normal (with f = I, the initial box's
+// inscribed ellipse: √((n_x·lp0_x)² + (n_y·lp0_y)²)).
 BodyGap GapToBody(const RigidBody& body, const Eigen::Vector2d& center, const Eigen::Vector2d& x,
-                  const Eigen::Vector2d& half_size);
+                  const Eigen::Matrix2d& f, const Eigen::Vector2d& lp0);
 
 // How far past a rectangle body's corners the contact may push the soil,
 // m: where soil faces one of the body's faces within a cell h (m) of it at

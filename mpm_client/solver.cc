@@ -605,10 +605,10 @@ void Solver::FindContacts() {
     const Vector2d reach = BodyExtent(body) + Vector2d::Constant(margin);
     for (std::size_t p = 0; p < mp.size(); ++p) {
       if (lost_[p]) continue;
-      const Vector2d lp = CurrentHalfSize(mp.F[p], mp.half_size0[p]);
-      const Vector2d d = (mp.position[p] - center).cwiseAbs() - lp;
+      const Vector2d d =
+          (mp.position[p] - center).cwiseAbs() - DomainBound(mp.F[p], mp.half_size0[p]);
       if (d.x() > reach.x() || d.y() > reach.y()) continue;
-      const BodyGap where = GapToBody(body, center, mp.position[p], lp);
+      const BodyGap where = GapToBody(body, center, mp.position[p], mp.F[p], mp.half_size0[p]);
       if (where.gap > margin) continue;
       const ShapeValues& shape = shape_[p];
       const Vector2d arm = where.face - mp.position[p];  // m

@@ -1136,30 +1136,64 @@ TEST(BodyContactTest, GapsToRectanglesAndCircles) {
   RigidBody box;
   box.half_size = Vector2d(0.5, 0.25);
   const Vector2d c(1.0, 2.0), lp(0.1, 0.05);
+  const Eigen::Matrix2d I = Eigen::Matrix2d::Identity();
   // Below the base: the gap is the distance less the point's half-height.
-  BodyGap g = GapToBody(box, c, Vector2d(1.2, 1.5), lp);
+  BodyGap g = GapToBody(box, c, Vector2d(1.2, 1.5), I, lp);
   EXPECT_DOUBLE_EQ(g.gap, 0.25 - 0.05);
   EXPECT_EQ(g.normal, Vector2d(0.0, -1.0));
   EXPECT_TRUE(g.face.isApprox(Vector2d(1.2, 1.55)));
   // Beside it, the half-width counts.
-  g = GapToBody(box, c, Vector2d(1.8, 2.1), lp);
+  g = GapToBody(box, c, Vector2d(1.8, 2.1), I, lp);
   EXPECT_NEAR(g.gap, 0.3 - 0.1, 1e-15);
   EXPECT_EQ(g.normal, Vector2d(1.0, 0.0));
   // Off a corner: the distance to the corner along the diagonal, less the
-  // box's support in that direction.
-  g = GapToBody(box, c, Vector2d(1.5 + 0.3, 1.75 - 0.4), lp);
-  EXPECT_NEAR(g.gap, 0.5 - (0.6 * 0.1 + 0.8 * 0.05), 1e-15);
+  // reach of the box's inscribed ellipse in that direction.
+  g = GapToBody(box, c, Vector2d(1.5 + 0.3, 1.75 - 0.4), I, lp);
+  EXPECT_NEAR(g.gap, 0.5 - std::hypot(0.6 * 0.1, 0.8 * 0.05), 1e-15);
   EXPECT_TRUE(g.normal.isApprox(Vector2d(0.6, -0.8)));
   // Inside, near the base: negative, towards the nearest face.
-  g = GapToBody(box, c, Vector2d(1.0, 1.8), lp);
+  g = GapToBody(box, c, Vector2d(1.0, 1.8), I, lp);
   EXPECT_NEAR(g.gap, -0.05 - 0.05, 1e-15);
   EXPECT_EQ(g.normal, Vector2d(0.0, -1.0));
   RigidBody pipe;
   pipe.shape = RigidBody::Shape::kCircle;
   pipe.radius = 0.5;
-  g = GapToBody(pipe, c, c + Vector2d(0.6, 0.8), lp);
-  EXPECT_NEAR(g.gap, 0.5 - (0.6 * 0.1 + 0.8 * 0.05), 1e-15);
+  g = GapToBody(pipe, c, c + Vector2d(0.6, 0.8), I, lp);
+  EXPECT_NEAR(g.gap, 0.5 - std::hypot(0.6 * 0.1, 0.8 * 0.05), 1e-15);
   EXPECT_TRUE(g.normal.isApprox(Vector2d(0.6, 0.8)));
+}
+
+// A sheared point's material reaches as far as the ellipse through its
+// faces' midpoints, not as far as the stretched box its shape functions use.
+TEST(BodyContactTest, ShearedPointsReachAsFarAsTheirMaterial) {
+  const Vector2d lp0(0.025, 0.025);
+  Eigen::Matrix2d shear;
+  shear << 1.0, 3.0, 0.0, 1.0;  // simple shear γ = 3 along x
+  // Normal to the shear plane the material keeps its half-height; the
+  // stretched box would reach lp0·|F e_y| = 0.025·√10.
+  EXPECT_DOUBLE_EQ(DomainExtent(shear, lp0, Vector2d(0.0, 1.0)), 0.025);
+  EXPECT_NEAR(CurrentHalfSize(shear, lp0).y(), 0.025 * std::sqrt(10.0), 1e-15);
+  // Along it, the slanted faces' midpoints at x ± 0.075 and x ± 0.025.
+  EXPECT_NEAR(DomainExtent(shear, lp0, Vector2d(1.0, 0.0)), 0.025 * std::sqrt(10.0), 1e-15);
+  // The box that holds the slanted parallelogram, for the broad phase.
+  EXPECT_TRUE(DomainBound(shear, lp0).isApprox(Vector2d(0.1, 0.025)));
+  // Uniform stretch: the half-sizes stretch with it.
+  const Eigen::Matrix2d stretch = Eigen::Vector2d(1.2, 0.8).asDiagonal();
+  EXPECT_DOUBLE_EQ(DomainExtent(stretch, lp0, Vector2d(0.0, -1.0)), 0.02);
+  // A rotation keeps the reach of the inscribed circle, in every direction.
+  const double a = 0.3;
+  Eigen::Matrix2d rot;
+  rot << std::cos(a), -std::sin(a), std::sin(a), std::cos(a);
+  EXPECT_NEAR(DomainExtent(rot, lp0, Vector2d(0.6, 0.8)), 0.025, 1e-15);
+  // Under a pipe the point 0.04 m below its surface is 0.015 m clear of it,
+  // sheared or not; the stretched box would put it 0.039 m into contact.
+  RigidBody pipe;
+  pipe.shape = RigidBody::Shape::kCircle;
+  pipe.radius = 0.5;
+  const Vector2d c(4.5, 3.0), x = c - Vector2d(0.0, 0.54);
+  EXPECT_NEAR(GapToBody(pipe, c, x, shear, lp0).gap, 0.015, 1e-15);
+  EXPECT_NEAR(GapToBody(pipe, c, x, Eigen::Matrix2d::Identity(), CurrentHalfSize(shear, lp0)).gap,
+              0.04 - 0.025 * std::sqrt(10.0), 1e-15);
 }
 
 // A footing resting on a layer of points: an edge through the middle of a
