@@ -3,10 +3,13 @@
 material points at chosen frames, with the case's rigid bodies drawn where they were.
 
   /usr/bin/python3 cases/plot_fields.py CASE.json RUN_DIR [--frames=last|STEP,STEP,...]
-      [--fields=eps_q,void_ratio,rotation] [--xlim=0,4 --ylim=4,8] [--out=RUN_DIR/fields.png]
+      [--fields=eps_q,void_ratio,rotation] [--xlim=0,4 --ylim=4,8]
+      [--limits=eps_q=0:1.5,void_ratio=0.15:0.4] [--out=RUN_DIR/fields.png]
 
 Reads RUN_DIR/results.h5 (frames/STEP/...) and RUN_DIR/timeseries.csv (each body's
-<name>_dx, <name>_dy at the nearest recorded step). Needs numpy, h5py and matplotlib
+<name>_dx, <name>_dy at the nearest recorded step). --limits fixes a field's colour range
+(values beyond it take the end colours), so that a few points strained far beyond the rest
+do not wash out the shear bands. Needs numpy, h5py and matplotlib
 (Debian's python3-numpy, python3-h5py, python3-matplotlib).
 """
 import argparse
@@ -65,8 +68,17 @@ def main():
     ap.add_argument("--fields", default="eps_q,void_ratio,rotation")
     ap.add_argument("--xlim", default=None, help="x0,x1 in m")
     ap.add_argument("--ylim", default=None, help="y0,y1 in m")
+    ap.add_argument("--limits", default="", help="FIELD=LOW:HIGH,... colour ranges")
     ap.add_argument("--out", default=None)
     a = ap.parse_args()
+    limits = {}
+    for item in filter(None, a.limits.split(",")):
+        try:
+            name, span = item.split("=")
+            low, high = map(float, span.split(":"))
+        except ValueError:
+            ap.error(f"--limits: expected FIELD=LOW:HIGH, got {item!r}")
+        limits[name] = (low, high)
     with open(a.case) as f:
         case = json.load(f)
     bodies = case.get("bodies", [])
@@ -93,9 +105,11 @@ def main():
                                    [b["name"] for b in bodies], step)
             for j, name in enumerate(fields):
                 ax = axes[i][j]
+                low, high = limits.get(name, (None, None))
                 sc = ax.scatter(x, y, c=g[name][:], s=size, marker="s", cmap="viridis",
-                                linewidths=0)
-                fig.colorbar(sc, ax=ax, label=LABELS.get(name, name))
+                                linewidths=0, vmin=low, vmax=high)
+                fig.colorbar(sc, ax=ax, label=LABELS.get(name, name),
+                             extend="both" if name in limits else "neither")
                 for b in bodies:
                     draw_body(ax, b, offsets[b["name"]])
                 ax.set_aspect("equal")
