@@ -1763,11 +1763,7 @@ absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::strin
     if (spec.phases.saturated && spec.rve.max_void_ratio > 0.0) {
       return Bad(root.At("rve") + "/max_void_ratio", "a void-ratio cap is for dry cases only");
     }
-    // The water's mass balance follows each point's own volume change.
-    if (spec.phases.saturated && spec.solver.f_bar != FBar::kNone) {
-      return Bad(root.At("solver") + "/f_bar", "F-bar is for dry cases only");
-    }
-    // Likewise: the water's mass balance follows each point's own strain.
+    // The water's mass balance follows each point's own strain.
     if (spec.phases.saturated && spec.solver.nonlocal_radius > 0.0) {
       return Bad(root.At("solver") + "/nonlocal_radius", "a nonlocal strain is for dry cases only");
     }

@@ -43,8 +43,10 @@ enum class FBar {
            // volume-weighted mean of the points it supports, interpolated
            // back), the deviatoric part its own, and the mean stress in the
            // internal forces averaged alike. A point cannot be squeezed or
-           // opened alone while its neighbours do otherwise, the volumetric
-           // checkerboard of one point per cell; dry cases only
+           // opened alone while its neighbours do otherwise: the volumetric
+           // checkerboard of one point per cell, or one row of a cell opened
+           // beside another carrying its share (the forces see only the
+           // sum of σyy over a cell's rows). Saturated: the effective stress
 };
 
 struct GridSpec {

@@ -753,6 +753,17 @@ absl::Status Solver::UpdateStress() {
   return absl::OkStatus();
 }
 
+std::vector<double> Solver::FBarMeanStressChange() const {
+  if (solver_.f_bar != FBar::kNodal) return {};
+  const MaterialPoints& mp = points_;
+  const std::size_t n = mp.size();
+  std::vector<double> own(n);
+  for (std::size_t p = 0; p < n; ++p) own[p] = 0.5 * mp.stress[p].topLeftCorner<2, 2>().trace();
+  std::vector<double> change = NodalAverage(shape_, mp.volume, own, NodeCount(grid_));
+  for (std::size_t p = 0; p < n; ++p) change[p] -= own[p];
+  return change;
+}
+
 absl::Status Solver::AddLoadForces() {
   // A traction goes to the nodes around the surface position that carry
   // mass, weights renormalised over them: once the surface has moved into a
@@ -838,15 +849,7 @@ absl::Status Solver::Step() {
   // tractions; then v^{n+1} = v^n + Δt f/m.
   const Vector2d body = BodyAcceleration();
   for (int i = 0; i < nodes; ++i) node_force_[i] = node_mass_[i] * body;
-  // With F-bar the in-plane mean stress is averaged by the same map as the
-  // volume change (its adjoint): the forces then do the work the RVEs take.
-  std::vector<double> mean_stress;
-  if (solver_.f_bar == FBar::kNodal) {
-    std::vector<double> own(n);
-    for (std::size_t p = 0; p < n; ++p) own[p] = 0.5 * mp.stress[p].topLeftCorner<2, 2>().trace();
-    mean_stress = NodalAverage(shape_, mp.volume, own, nodes);
-    for (std::size_t p = 0; p < n; ++p) mean_stress[p] -= own[p];  // the change, Pa
-  }
+  const std::vector<double> mean_stress = FBarMeanStressChange();
   // With a nonlocal strain the stresses are averaged by the same map.
   std::vector<Matrix2d> nonlocal_stress;
   if (solver_.nonlocal_radius > 0.0) nonlocal_stress = AverageInPlaneStress(nonlocal_, mp.stress);

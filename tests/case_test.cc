@@ -775,7 +775,6 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
       {"/solver/mass_scale", 100},
       {"/rve/max_void_ratio", 0.3},
       {"/solver/time_step_update_every", 100},
-      {"/solver/f_bar", "nodal"},
       {"/solver/nonlocal_radius", 0.2},
   };
   const std::vector<std::string> messages = {
@@ -795,7 +794,6 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
       "/solver/mass_scale: mass scaling is for dry cases only",
       "/rve/max_void_ratio: a void-ratio cap is for dry cases only",
       "/solver/time_step_update_every: an updated time step is for dry cases only",
-      "/solver/f_bar: F-bar is for dry cases only",
       "/solver/nonlocal_radius: a nonlocal strain is for dry cases only",
   };
   for (std::size_t i = 0; i < edits.size(); ++i) {
@@ -817,6 +815,13 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
   ASSERT_TRUE(body.ok()) << body.status();
   ASSERT_EQ(body->bodies.size(), 1u);
   EXPECT_TRUE(body->phases.saturated);
+  // So is F-bar: the effective stress's volume change shared over the nodes.
+  Json with_f_bar = base;
+  with_f_bar["solver"]["f_bar"] = "nodal";
+  absl::StatusOr<CaseSpec> f_bar = ParseCase(with_f_bar.dump(), path.parent_path().string());
+  ASSERT_TRUE(f_bar.ok()) << f_bar.status();
+  EXPECT_EQ(f_bar->solver.f_bar, FBar::kNodal);
+  EXPECT_TRUE(f_bar->phases.saturated);
   // Single shaken walls are refused: a saturated box is shaken whole, in its
   // frame (solver.shaking_amplitude).
   Json shaken = base;
