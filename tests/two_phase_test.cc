@@ -446,28 +446,40 @@ TEST(TwoPhaseSolverTest, ConstantRateOfStrainUnderAnImpermeablePlaten) {
 
 // A saturated column under gravity, started hydrostatic with the skeleton at
 // its effective geostatic stress, stays at rest with p = ρ_f g (y_w − y).
-TEST(TwoPhaseSolverTest, HydrostaticColumnStaysAtRest) {
-  const double g = 9.81;
+// The column under gravity g (m/s²) with the water table at its top, its
+// points at the effective geostatic stress σ'v = (ρ_sat − ρ_f) g depth,
+// σ'h = K0 σ'v (tension +), in `model` too; `start` gets the initial points.
+std::unique_ptr<Solver> GeostaticColumn(double g, FBar f_bar, LinearElasticModel* model,
+                                        MaterialPoints* start) {
   Column column(1e-3, g);
   column.spec.phases.water_table = Column::kH;
-  LinearElasticModel model(Column::kYoungs, Column::kPoisson);
-  MaterialPoints start;
-  std::unique_ptr<Solver> solver = MakeSolver(column.spec, &model, &start);
-  ASSERT_NE(solver, nullptr);
-  // σ'v = (ρ_sat − ρ_f) g depth, σ'h = K0 σ'v (tension +).
+  column.spec.solver.f_bar = f_bar;
+  std::unique_ptr<Solver> solver = MakeSolver(column.spec, model, start);
+  if (solver == nullptr) return nullptr;
   const double rho_sat =
       (1 - Column::kPorosity) * Column::kRhoS + Column::kPorosity * Column::kRhoF;
   const double k0 = Column::kPoisson / (1 - Column::kPoisson);
-  std::vector<Matrix3d> stress(start.size(), Matrix3d::Zero());
-  for (std::size_t p = 0; p < start.size(); ++p) {
-    const double depth = Column::kH - start.position[p].y();
-    EXPECT_NEAR(start.pore_pressure[p], Column::kRhoF * g * depth, 1e-9);
-    const double sv = (rho_sat - Column::kRhoF) * g * depth;
+  std::vector<Matrix3d> stress(start->size(), Matrix3d::Zero());
+  for (std::size_t p = 0; p < start->size(); ++p) {
+    const double sv = (rho_sat - Column::kRhoF) * g * (Column::kH - start->position[p].y());
     stress[p](1, 1) = -sv;
     stress[p](0, 0) = stress[p](2, 2) = -k0 * sv;
     solver->mutable_points().stress[p] = stress[p];
   }
-  model.SetStress(stress);
+  model->SetStress(stress);
+  return solver;
+}
+
+TEST(TwoPhaseSolverTest, HydrostaticColumnStaysAtRest) {
+  const double g = 9.81;
+  LinearElasticModel model(Column::kYoungs, Column::kPoisson);
+  MaterialPoints start;
+  std::unique_ptr<Solver> solver = GeostaticColumn(g, FBar::kNone, &model, &start);
+  ASSERT_NE(solver, nullptr);
+  for (std::size_t p = 0; p < start.size(); ++p) {
+    const double depth = Column::kH - start.position[p].y();
+    EXPECT_NEAR(start.pore_pressure[p], Column::kRhoF * g * depth, 1e-9);
+  }
   for (int i = 0; i < 400; ++i) ASSERT_TRUE(solver->Step().ok()) << i;
   const MaterialPoints& mp = solver->points();
   double vmax = 0.0, worst = 0.0;
@@ -534,24 +546,10 @@ TEST(TwoPhaseSolverTest, FBarConsolidatesAnElasticColumnAsWithout) {
   EXPECT_GT(apart, 1e-6);  // F-bar acted
   EXPECT_LT(apart, 0.002);
 
-  Column column(1e-3, 9.81);
-  column.spec.phases.water_table = Column::kH;
-  column.spec.solver.f_bar = FBar::kNodal;
   LinearElasticModel model(Column::kYoungs, Column::kPoisson);
   MaterialPoints start;
-  std::unique_ptr<Solver> solver = MakeSolver(column.spec, &model, &start);
+  std::unique_ptr<Solver> solver = GeostaticColumn(9.81, FBar::kNodal, &model, &start);
   ASSERT_NE(solver, nullptr);
-  const double rho_sat =
-      (1 - Column::kPorosity) * Column::kRhoS + Column::kPorosity * Column::kRhoF;
-  const double k0 = Column::kPoisson / (1 - Column::kPoisson);
-  std::vector<Matrix3d> stress(start.size(), Matrix3d::Zero());
-  for (std::size_t p = 0; p < start.size(); ++p) {
-    const double sv = (rho_sat - Column::kRhoF) * 9.81 * (Column::kH - start.position[p].y());
-    stress[p](1, 1) = -sv;
-    stress[p](0, 0) = stress[p](2, 2) = -k0 * sv;
-    solver->mutable_points().stress[p] = stress[p];
-  }
-  model.SetStress(stress);
   for (int i = 0; i < 400; ++i) ASSERT_TRUE(solver->Step().ok()) << i;
   double vmax = 0.0;
   for (const Vector2d& v : solver->points().velocity) vmax = std::max(vmax, v.norm());
