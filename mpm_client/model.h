@@ -42,11 +42,12 @@ enum class FBar {
   kNodal,  // F-bar: det ΔF averaged over the nodes around it (each node the
            // volume-weighted mean of the points it supports, interpolated
            // back), the deviatoric part its own, and the mean stress in the
-           // internal forces averaged alike. A point cannot be squeezed or
-           // opened alone while its neighbours do otherwise: the volumetric
-           // checkerboard of one point per cell, or one row of a cell opened
-           // beside another carrying its share (the forces see only the
-           // sum of σyy over a cell's rows). Saturated: the effective stress
+           // internal forces averaged alike. A point's volume cannot then
+           // change alone while its neighbours' do otherwise: the volumetric
+           // checkerboard of one point per cell, or one row of a cell dilated
+           // open beside another carrying its share (the forces see only the
+           // sum of σyy over a cell's rows). In a saturated case it acts on
+           // the effective stress
 };
 
 struct GridSpec {
