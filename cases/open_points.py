@@ -66,6 +66,17 @@ def main():
     ap.add_argument("--field", default="p", help="the frame dataset that colours the points")
     ap.add_argument("--limits", default="", help="LO,HI of the colour scale (kPa)")
     a = ap.parse_args()
+    if a.every < 1:
+        ap.error(f"--every must be >= 1, got {a.every}")
+    if a.per_cell < 0:
+        ap.error(f"--per-cell must be >= 1 (0: from the case), got {a.per_cell}")
+    if a.out and a.limits:
+        try:
+            lo, hi = map(float, a.limits.split(","))
+        except ValueError:
+            ap.error(f"--limits must be LO,HI in kPa, got {a.limits!r}")
+        if not lo < hi:
+            ap.error(f"--limits needs LO < HI, got {a.limits!r}")
     panels = []
     for spec in a.runs:
         run, label = (spec.split("=", 1) + [os.path.basename(spec.rstrip("/"))])[:2]
@@ -102,7 +113,7 @@ def main():
                     line += f"; unmoved {dead.sum()}, open among them {np.sum(open_ & dead)}"
                 print(line)
             if a.out:
-                s = min(steps, key=lambda k: abs(f["frames"][k].attrs["time"] - a.time))
+                s = min(steps, key=lambda step: abs(f["frames"][step].attrs["time"] - a.time))
                 g = f["frames"][s]
                 panels.append((label, g.attrs["time"], g["position"][:, :2],
                                g[a.field][:] / 1e3, g["coordination"][:] < a.z))

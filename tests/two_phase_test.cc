@@ -444,8 +444,6 @@ TEST(TwoPhaseSolverTest, ConstantRateOfStrainUnderAnImpermeablePlaten) {
   EXPECT_NEAR(load, expected, 0.02 * expected);
 }
 
-// A saturated column under gravity, started hydrostatic with the skeleton at
-// its effective geostatic stress, stays at rest with p = ρ_f g (y_w − y).
 // The column under gravity g (m/s²) with the water table at its top, its
 // points at the effective geostatic stress σ'v = (ρ_sat − ρ_f) g depth,
 // σ'h = K0 σ'v (tension +), in `model` too; `start` gets the initial points.
@@ -470,6 +468,8 @@ std::unique_ptr<Solver> GeostaticColumn(double g, FBar f_bar, LinearElasticModel
   return solver;
 }
 
+// A saturated column under gravity, started hydrostatic with the skeleton at
+// its effective geostatic stress, stays at rest with p = ρ_f g (y_w − y).
 TEST(TwoPhaseSolverTest, HydrostaticColumnStaysAtRest) {
   const double g = 9.81;
   LinearElasticModel model(Column::kYoungs, Column::kPoisson);
