@@ -326,16 +326,13 @@ absl::Status Solver::StepSaturated() {
     node_fluid_force_[i] = node_fluid_mass_[i] * body;
   }
   // F-bar: the effective mean stress averaged as the volume change was.
-  const std::vector<double> mean_stress = FBarMeanStressChange();
+  const std::vector<Matrix2d> effective = ForceStresses();
   for (std::size_t p = 0; p < n; ++p) {
     const ShapeValues& s = shape_[p];
     const double porosity = Porosity(p), v = mp.volume[p];
     // kIncremental: p^n; kStabilised: the water at rest's p_r.
     const double pressure = incremental ? mp.pore_pressure[p] : RestPressure(mp.position[p].y());
-    const double mean_change = mean_stress.empty() ? 0.0 : mean_stress[p];  // Pa
-    const Matrix2d total_v =
-        (mp.stress[p].topLeftCorner<2, 2>() - (pressure - mean_change) * Matrix2d::Identity()) *
-        v;
+    const Matrix2d total_v = (effective[p] - pressure * Matrix2d::Identity()) * v;
     const double drag_v = dt_ * DarcyDrag(porosity, rho_f, Permeability(p)) * v;
     for (int k = 0; k < s.count; ++k) {
       const int i = s.node[k];

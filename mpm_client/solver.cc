@@ -753,15 +753,23 @@ absl::Status Solver::UpdateStress() {
   return absl::OkStatus();
 }
 
-std::vector<double> Solver::FBarMeanStressChange() const {
-  if (solver_.f_bar != FBar::kNodal) return {};
+std::vector<Matrix2d> Solver::ForceStresses() const {
   const MaterialPoints& mp = points_;
   const std::size_t n = mp.size();
-  std::vector<double> own(n);
-  for (std::size_t p = 0; p < n; ++p) own[p] = 0.5 * mp.stress[p].topLeftCorner<2, 2>().trace();
-  std::vector<double> change = NodalAverage(shape_, mp.volume, own, NodeCount(grid_));
-  for (std::size_t p = 0; p < n; ++p) change[p] -= own[p];
-  return change;
+  std::vector<Matrix2d> sigma;
+  if (solver_.nonlocal_radius > 0.0) {
+    sigma = AverageInPlaneStress(nonlocal_, mp.stress);  // the strain's map
+  } else {
+    sigma.resize(n);
+    for (std::size_t p = 0; p < n; ++p) sigma[p] = mp.stress[p].topLeftCorner<2, 2>();
+  }
+  if (solver_.f_bar == FBar::kNodal) {
+    std::vector<double> own(n);
+    for (std::size_t p = 0; p < n; ++p) own[p] = 0.5 * sigma[p].trace();
+    const std::vector<double> mean = NodalAverage(shape_, mp.volume, own, NodeCount(grid_));
+    for (std::size_t p = 0; p < n; ++p) sigma[p].diagonal().array() += mean[p] - own[p];
+  }
+  return sigma;
 }
 
 absl::Status Solver::AddLoadForces() {
@@ -849,16 +857,10 @@ absl::Status Solver::Step() {
   // tractions; then v^{n+1} = v^n + Δt f/m.
   const Vector2d body = BodyAcceleration();
   for (int i = 0; i < nodes; ++i) node_force_[i] = node_mass_[i] * body;
-  const std::vector<double> mean_stress = FBarMeanStressChange();
-  // With a nonlocal strain the stresses are averaged by the same map.
-  std::vector<Matrix2d> nonlocal_stress;
-  if (solver_.nonlocal_radius > 0.0) nonlocal_stress = AverageInPlaneStress(nonlocal_, mp.stress);
+  const std::vector<Matrix2d> sigma = ForceStresses();
   for (std::size_t p = 0; p < n; ++p) {
     const ShapeValues& s = shape_[p];
-    Matrix2d sigma =
-        nonlocal_stress.empty() ? Matrix2d(mp.stress[p].topLeftCorner<2, 2>()) : nonlocal_stress[p];
-    if (!mean_stress.empty()) sigma.diagonal().array() += mean_stress[p];
-    const Matrix2d sigma_v = sigma * mp.volume[p];
+    const Matrix2d sigma_v = sigma[p] * mp.volume[p];
     for (int k = 0; k < s.count; ++k) node_force_[s.node[k]] -= sigma_v * s.gradient[k];
   }
   RETURN_IF_ERROR(AddLoadForces());

@@ -253,11 +253,13 @@ class Solver {
   // for F-bar, one batched model update, then F, volumes, responses and
   // stresses; FailedPrecondition for a point that would invert.
   absl::Status UpdateStress();
-  // With F-bar (kNodal), per point the change (Pa) that the nodal average,
-  // the adjoint of the volume-change map, makes to its in-plane mean stress
-  // (the effective stress of a saturated case); empty without F-bar. Added to
-  // the stress in the internal forces, so that they do the work the RVEs take.
-  std::vector<double> FBarMeanStressChange() const;
+  // Per point, the in-plane stress (Pa, tension +; a saturated case's
+  // effective stress) its internal forces use: its own, averaged by the
+  // nonlocal map where the case has one, and with F-bar (kNodal) its mean
+  // stress replaced by the nodal average, the adjoint of the volume-change
+  // map. Either way the forces do the work the RVEs take (one formula for
+  // the dry and the saturated steps).
+  std::vector<Eigen::Matrix2d> ForceStresses() const;
   // Adds each surface load's force (load_force_) to node_force_, spread
   // over the nodes around its surface position that carry mass;
   // FailedPrecondition where none does.
