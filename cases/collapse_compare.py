@@ -6,9 +6,12 @@ angle of the dead zone (the wedge of points that never moved).
   /usr/bin/python3 cases/collapse_compare.py RUN_DIR[=LABEL] ... [--out=collapse.png]
       [--dead=0.01]
 
-Beside d* from the farthest point it prints the front where the deposit is at least 2 and
-3 points thick: the paper measures d_f "after removing the scatter points" not in contact
-with the main deposit, and a sheet one or two points thick along the base is where such
+Beside d* from the farthest point it prints the front of the main deposit: the paper
+measures d_f "after removing the scatter points" not in contact with the main deposit. Two
+points are taken as in contact when they lie within --link initial point spacings (2: a gap
+of at most one missing point); the main deposit is the largest set of points so linked, and
+the others (drawn grey) are scatter. It also prints where the main deposit is at least 2
+and 3 points thick, since a sheet one or two points thick along the base is where such
 readings part.
 
 The energy panel is the paper's Fig. 27: kinetic, potential and dissipated energy over the
@@ -16,7 +19,8 @@ initial potential energy, E_d = E_p0 - E_p - E_k (paper: E_k peaks at 0.1 E_p0 n
 E_d ends at 0.55 E_p0); it needs the timeseries' potential_energy column (runs from
 2026-11-27 on) and the base at y = 0, where the collapse cases put it.
 
-Reads each RUN_DIR's timeseries.csv (time, front_x, kinetic_energy) and results.h5
+Reads each RUN_DIR's timeseries.csv (time, front_x, kinetic_energy; deposit_front_x where
+the run wrote it, else the main deposit's front comes from every frame) and results.h5
 (frames/STEP/position, eps_q). d0 is the column's initial width: the largest initial x of
 the points plus their half spacing, as summary.json's run-out (cases/FORMAT.md). A point is
 in the dead zone when its displacement from its initial position never exceeded
@@ -41,19 +45,31 @@ def read_series(run):
         rows = list(csv.DictReader(f))
     t = np.array([float(r["time"]) for r in rows])
     front = np.array([float(r["front_x"]) for r in rows])
+    deposit = (np.array([float(r["deposit_front_x"]) for r in rows])
+               if "deposit_front_x" in rows[0] else None)
     ke = np.array([float(r["kinetic_energy"]) for r in rows])
     pe = (np.array([float(r["potential_energy"]) for r in rows])
           if "potential_energy" in rows[0] else None)
-    return t, front, ke, pe
+    return t, front, deposit, ke, pe
 
 
 def read_frames(run):
-    """Positions (m) of every frame in step order, and the last frame's eps_q."""
+    """Times (s) and positions (m) of every frame in step order, and the last frame's eps_q."""
     with h5py.File(os.path.join(run, "results.h5"), "r") as f:
         steps = sorted(f["frames"].keys(), key=int)
+        times = np.array([f["frames"][s].attrs["time"] for s in steps])
         pos = np.stack([f["frames"][s]["position"][:, :2] for s in steps])
         eps_q = f["frames"][steps[-1]]["eps_q"][:]
-    return pos, eps_q
+    return times, pos, eps_q
+
+
+def stop_time(t, front, tolerance):
+    """The first time from which the front stays within tolerance of its last value
+    (summary.json's front_stop_time_s)."""
+    k = len(front) - 1
+    while k > 0 and abs(front[k - 1] - front[-1]) <= tolerance:
+        k -= 1
+    return t[k]
 
 
 def thick_front(final, spacing, layers):
@@ -66,6 +82,34 @@ def thick_front(final, spacing, layers):
         if y[near].max() + spacing / 2 >= layers * spacing - 1e-9:
             return x[i] + spacing / 2
     return 0.0
+
+
+def main_deposit(final, spacing, link):
+    """Mask of the points in the largest set linked by distances <= link·spacing."""
+    reach = link * spacing
+    n = len(final)
+    parent = np.arange(n)
+
+    def root(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    bins = {}
+    for i, key in enumerate(map(tuple, np.floor(final / reach).astype(int))):
+        bins.setdefault(key, []).append(i)
+    for (bx, by), members in bins.items():
+        near = [j for dx in (-1, 0, 1) for dy in (-1, 0, 1) for j in bins.get((bx + dx, by + dy), [])]
+        near = np.array(near)
+        for i in members:
+            close = near[np.linalg.norm(final[near] - final[i], axis=1) <= reach]
+            for j in close:
+                ri, rj = root(i), root(j)
+                if ri != rj:
+                    parent[ri] = rj
+    roots = np.array([root(i) for i in range(n)])
+    return roots == np.bincount(roots).argmax()
 
 
 def dead_zone(pos, d0, dead):
@@ -91,13 +135,17 @@ def main():
     ap.add_argument("--out", default="collapse.png")
     ap.add_argument("--dead", type=float, default=0.01,
                     help="dead-zone displacement threshold as a fraction of d0")
+    ap.add_argument("--link", type=float, default=2.0,
+                    help="points within this many initial spacings are in contact")
     a = ap.parse_args()
+    if not a.link > 0:
+        ap.error(f"--link must be > 0, got {a.link}")
     runs = [(r.split("=", 1) + [os.path.basename(r.rstrip("/"))])[:2] for r in a.runs]
     panels = 3 + len(runs)
     fig, axes = plt.subplots(1, panels, figsize=(5 * panels, 4))
     for run, label in runs:
-        t, front, ke, pe = read_series(run)
-        pos, eps_q = read_frames(run)
+        t, front, deposit, ke, pe = read_series(run)
+        frame_t, pos, eps_q = read_frames(run)
         x0 = pos[0, :, 0]
         spacing = np.diff(np.unique(np.round(x0, 9))).min()
         d0 = x0.max() + spacing / 2
@@ -108,10 +156,26 @@ def main():
         print(f"{label}: d* = {runout:.3f} at t = {t[-1]:.3f} s, front {d_f:.3f} m, "
               f"peak KE {ke.max():.4g} J at {t[ke.argmax()]:.3f} s, dead zone {mask.sum()} "
               f"points, angle {angle_text}")
-        fronts = [(k, thick_front(pos[-1], spacing, k)) for k in (2, 3)]
-        print(f"{label}: where the deposit is at least " + ", ".join(
+        main = main_deposit(pos[-1], spacing, a.link)
+        main_front = pos[-1, main, 0].max() + spacing / 2
+        print(f"{label}: main deposit (linked within {a.link:g} spacings; {np.sum(~main)} "
+              f"scatter points off it): front {main_front:.3f} m, d* {(main_front - d0) / d0:.3f}")
+        fronts = [(k, thick_front(pos[-1][main], spacing, k)) for k in (2, 3)]
+        print(f"{label}: where the main deposit is at least " + ", ".join(
             f"{k} points thick: {x:.3f} m (d* {(x - d0) / d0:.2f})" for k, x in fronts))
-        axes[0].plot(t, front + spacing / 2, label=label)
+        # The main deposit's front in time: the run's own column where it wrote one
+        # (two spacings), else from every frame.
+        if deposit is not None and a.link == 2.0:
+            dep_t, dep = t, deposit
+        else:
+            dep_t = frame_t
+            dep = np.array([p[main_deposit(p, spacing, a.link), 0].max() for p in pos])
+        stop = stop_time(dep_t, dep, 0.01 * d0)
+        still = "at rest" if stop <= 0.9 * dep_t[-1] else "still moving at the end"
+        print(f"{label}: main deposit's front within 1 % of d0 of its last value from "
+              f"{stop:.3f} s ({still})")
+        line, = axes[0].plot(dep_t, dep + spacing / 2, label=label)
+        axes[0].plot(t, front + spacing / 2, ":", color=line.get_color(), lw=0.8)
         axes[1].plot(t, ke, label=label)
         if pe is not None:
             ep0 = pe[0]
@@ -126,6 +190,9 @@ def main():
                         vmax=max(1.0, np.percentile(eps_q, 95)))
         ax.scatter(pos[-1, mask, 0], pos[-1, mask, 1], s=8, facecolors="none",
                    edgecolors="red", linewidths=0.5, label=f"dead zone ({angle_text})")
+        if (~main).any():
+            ax.scatter(pos[-1, ~main, 0], pos[-1, ~main, 1], s=10, color="grey", marker="x",
+                       linewidths=0.6, label=f"scatter ({np.sum(~main)})")
         ax.set_aspect("equal")
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
@@ -134,7 +201,7 @@ def main():
         fig.colorbar(sc, ax=ax, label="eps_q (-)", shrink=0.7)
     axes[0].set_xlabel("time (s)")
     axes[0].set_ylabel("front d_f (m)")
-    axes[0].set_title("front")
+    axes[0].set_title("main deposit's front (dotted: farthest point)")
     axes[0].legend()
     axes[1].set_xlabel("time (s)")
     axes[1].set_ylabel("kinetic energy (J)")

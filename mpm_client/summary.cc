@@ -140,10 +140,16 @@ absl::StatusOr<Summary> Collapse(const CaseSpec& spec, const Columns& columns) {
   if (spec.regions.empty())
     return absl::InvalidArgumentError("the collapse summary needs a region");
   ASSIGN_OR_RETURN(const std::vector<double>* time, Column(columns, "time"));
-  ASSIGN_OR_RETURN(const std::vector<double>* front, Column(columns, "front_x"));
+  ASSIGN_OR_RETURN(const std::vector<double>* farthest, Column(columns, "front_x"));
+  // The main deposit's front where the run wrote it (runs before it: the
+  // farthest point).
+  const std::vector<double>* front = farthest;
+  if (columns.contains("deposit_front_x")) {
+    ASSIGN_OR_RETURN(front, Column(columns, "deposit_front_x"));
+  }
   const MaterialRegion& column = spec.regions.front();
   const double d0 = column.upper.x() - column.lower.x();  // m
-  // The front column holds point centres: add the initial half spacing.
+  // The front columns hold point centres: add the initial half spacing.
   const double half = 0.5 * spec.grid.cell_size / column.points_per_cell_side;
   const double df = front->back() + half - column.lower.x();
   const double stop = FrontStopTime(*time, *front, 0.01 * d0);
@@ -152,6 +158,7 @@ absl::StatusOr<Summary> Collapse(const CaseSpec& spec, const Columns& columns) {
   const double at_rest = time->empty() || stop <= 0.9 * time->back() ? 1.0 : 0.0;
   return Summary{{"runout_normalised", (df - d0) / d0},
                  {"final_front_m", df + column.lower.x()},
+                 {"farthest_point_m", farthest->back() + half},
                  {"front_stop_time_s", stop},
                  {"front_at_rest", at_rest}};
 }
@@ -299,6 +306,53 @@ absl::StatusOr<UltimateLoad> FindUltimateLoad(std::span<const double> settlement
   // Only the last slope can be above every later one's median (0 here).
   const std::size_t i = slopes.back().first;
   return UltimateLoad{i, light[i], settlement[i], false};
+}
+
+double MainDepositFront(std::span<const Eigen::Vector2d> position,
+                        std::span<const std::uint8_t> skip, double link) {
+  // Points binned on cells of side `link`, sorted by cell (then index): a
+  // point's neighbours within `link` lie in the 3 × 3 cells around its own.
+  using Key = std::pair<std::int64_t, std::int64_t>;
+  std::vector<std::pair<Key, std::size_t>> binned;
+  for (std::size_t p = 0; p < position.size(); ++p) {
+    if (!skip.empty() && skip[p]) continue;
+    binned.push_back({{static_cast<std::int64_t>(std::floor(position[p].x() / link)),
+                       static_cast<std::int64_t>(std::floor(position[p].y() / link))},
+                      p});
+  }
+  if (binned.empty()) return -std::numeric_limits<double>::infinity();
+  std::sort(binned.begin(), binned.end());
+  std::vector<std::size_t> parent(position.size());
+  for (std::size_t p = 0; p < parent.size(); ++p) parent[p] = p;
+  const auto root = [&](std::size_t p) {
+    while (parent[p] != p) p = parent[p] = parent[parent[p]];
+    return p;
+  };
+  for (const auto& [key, p] : binned) {
+    for (std::int64_t dx = -1; dx <= 1; ++dx) {
+      for (std::int64_t dy = -1; dy <= 1; ++dy) {
+        const Key cell{key.first + dx, key.second + dy};
+        auto it = std::lower_bound(binned.begin(), binned.end(), std::make_pair(cell, std::size_t{0}));
+        for (; it != binned.end() && it->first == cell; ++it) {
+          const std::size_t q = it->second;
+          if (q <= p || (position[q] - position[p]).squaredNorm() > link * link) continue;
+          const std::size_t a = root(p), b = root(q);
+          if (a != b) parent[std::max(a, b)] = std::min(a, b);  // the lower index roots
+        }
+      }
+    }
+  }
+  std::vector<std::size_t> size(position.size(), 0);
+  for (const auto& entry : binned) ++size[root(entry.second)];
+  std::size_t main = root(binned.front().second);
+  for (std::size_t r = 0; r < size.size(); ++r) {
+    if (size[r] > size[main] || (size[r] == size[main] && r < main)) main = r;
+  }
+  double front = -std::numeric_limits<double>::infinity();
+  for (const auto& entry : binned) {
+    if (root(entry.second) == main) front = std::max(front, position[entry.second].x());
+  }
+  return front;
 }
 
 double FrontStopTime(std::span<const double> time, std::span<const double> front,

@@ -4,12 +4,14 @@
 #define RVEHUB_MPM_CLIENT_SUMMARY_H_
 
 #include <cstddef>
+#include <cstdint>
 #include <map>
 #include <span>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "Eigen/Core"
 #include "absl/status/statusor.h"
 #include "mpm_client/model.h"
 
@@ -45,6 +47,16 @@ absl::StatusOr<UltimateLoad> FindUltimateLoad(std::span<const double> settlement
 // last value; the last time if it never settles.
 double FrontStopTime(std::span<const double> time, std::span<const double> front, double tolerance);
 
+// The front of a flow's main deposit, m: the largest x among the largest
+// set of points linked by distances of at most `link` (m), so that points
+// thrown clear of the deposit do not count (liang-zhao-mpm-dem eq. 48 takes
+// d_f "after removing the scatter points which is not in contact with the
+// main deposit"). Points with skip[p] (parked off the grid; skip may be
+// empty) take no part. Of equally large sets, the one holding the lowest
+// index. −∞ without points. O(n log n), deterministic.
+double MainDepositFront(std::span<const Eigen::Vector2d> position,
+                        std::span<const std::uint8_t> skip, double link);
+
 // The summary kind of a case: OutputSpec::summary, or from its plot.
 std::string SummaryKind(const OutputSpec& out);
 
@@ -73,9 +85,11 @@ using Summary = std::vector<std::pair<std::string, double>>;
 // the horizontal one's magnitude, over the second half of the sideways
 // travel) and lateral_travel_m; collapse:
 // runout_normalised (d_f − d_0)/d_0 with d_0 the region's width and d_f the
-// front at the end plus the points' initial half spacing, front_stop_time_s,
-// front_at_rest (1 when the front was still over the last 10 % of the run,
-// else 0: the run-out is a lower bound);
+// main deposit's front at the end (column deposit_front_x; front_x, the
+// farthest point, for a timeseries without it) plus the points' initial
+// half spacing, final_front_m (d_f from x = 0), farthest_point_m (front_x's
+// likewise), front_stop_time_s, front_at_rest (1 when the front was still
+// over the last 10 % of the run, else 0: the run-out is a lower bound);
 // biaxial: peak_stress_Pa and peak_strain (nominal: the platen's force over
 // the region's width, its travel over the region's height; compression +;
 // the mean σyy and εyy of the points without a platen), final_stress_Pa,

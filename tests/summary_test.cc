@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <map>
 #include <numbers>
 #include <string>
@@ -142,6 +144,37 @@ CaseSpec RegionWithBody(double width, double height, int ppc, double h, const st
   return spec;
 }
 
+// A deposit of 10 × 3 points 0.1 m apart with a sheet running out along
+// its base, points 0.19 m apart (linked at 0.2 m), then one point 0.25 m
+// past the sheet (scatter) and a pair far off (a second, smaller set).
+TEST(SummaryTest, MainDepositFrontDropsScatterPoints) {
+  std::vector<Eigen::Vector2d> x;
+  for (int j = 0; j < 3; ++j) {
+    for (int i = 0; i < 10; ++i) x.emplace_back(0.1 * i, 0.1 * j);
+  }
+  for (int k = 1; k <= 5; ++k) x.emplace_back(0.9 + 0.19 * k, 0.0);  // to 1.85 m
+  x.emplace_back(2.1, 0.0);
+  x.emplace_back(3.0, 0.5);
+  x.emplace_back(3.1, 0.5);
+  EXPECT_DOUBLE_EQ(MainDepositFront(x, {}, 0.2), 0.9 + 0.19 * 5);
+  // A longer link reaches the scatter point; a shorter one cuts the sheet.
+  EXPECT_DOUBLE_EQ(MainDepositFront(x, {}, 0.26), 2.1);
+  EXPECT_DOUBLE_EQ(MainDepositFront(x, {}, 0.15), 0.9);
+  // A parked point takes no part: without the sheet's third point the
+  // deposit ends at its second.
+  std::vector<std::uint8_t> skip(x.size(), 0);
+  skip[30 + 2] = 1;
+  EXPECT_DOUBLE_EQ(MainDepositFront(x, skip, 0.2), 0.9 + 0.19 * 2);
+  // The order of the points does not matter.
+  std::vector<Eigen::Vector2d> reversed(x.rbegin(), x.rend());
+  EXPECT_DOUBLE_EQ(MainDepositFront(reversed, {}, 0.2), 0.9 + 0.19 * 5);
+  // Negative coordinates bin alike; no points: −∞.
+  std::vector<Eigen::Vector2d> shifted;
+  for (const Eigen::Vector2d& p : x) shifted.push_back(p - Eigen::Vector2d(5.0, 5.0));
+  EXPECT_DOUBLE_EQ(MainDepositFront(shifted, {}, 0.2), 0.9 + 0.19 * 5 - 5.0);
+  EXPECT_EQ(MainDepositFront({}, {}, 0.2), -std::numeric_limits<double>::infinity());
+}
+
 TEST(SummaryTest, FootingCollapseBiaxialAndPipeFigures) {
   // Footing: B·t = 0.5 m², 20 kPa surcharge, φ' 30°.
   CaseSpec footing = Region(3, 2, 1, 0.25);
@@ -192,6 +225,18 @@ TEST(SummaryTest, FootingCollapseBiaxialAndPipeFigures) {
   m = std::map<std::string, double>(s->begin(), s->end());
   EXPECT_DOUBLE_EQ(m["front_stop_time_s"], 1.5);
   EXPECT_EQ(m["front_at_rest"], 0.0);
+  // With the main deposit's front written, the run-out is its: a point
+  // thrown to 2.4375 m no longer counts, but is reported.
+  c["front_x"] = {0.9375, 1.5, 2.0, 2.4375};
+  c["deposit_front_x"] = {0.9375, 1.5, 1.7375, 1.7375};
+  s = Summarise(collapse, c);
+  ASSERT_TRUE(s.ok()) << s.status();
+  m = std::map<std::string, double>(s->begin(), s->end());
+  EXPECT_NEAR(m["runout_normalised"], 0.8, 1e-12);
+  EXPECT_NEAR(m["final_front_m"], 1.8, 1e-12);
+  EXPECT_NEAR(m["farthest_point_m"], 2.5, 1e-12);
+  EXPECT_DOUBLE_EQ(m["front_stop_time_s"], 1.0);
+  EXPECT_EQ(m["front_at_rest"], 1.0);
 
   // Biaxial with a platen: force over the width, travel over the height.
   CaseSpec biaxial = RegionWithBody(0.05, 0.1, 1, 0.0125, "platen");
