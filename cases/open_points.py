@@ -3,6 +3,7 @@
 
   /usr/bin/python3 cases/open_points.py RUN_DIR[=LABEL] ... [--every=K] [--z=0.5]
       [--dead=0.01] [--per-cell=K] [--out=PNG --time=T --field=p --limits=LO,HI]
+      [--series=PNG]
 
 With several points per cell the internal forces see only the sum over a cell's rows of
 σyy (and over its columns of σxx): with GIMP's points at h/4 and 3h/4 of an undeformed cell
@@ -20,7 +21,8 @@ geostatic stress).
 
 With --out it draws one panel per run at the frame nearest --time: the points coloured by
 --field (a frame dataset: p, excess_pore_pressure, ... in kPa when in Pa), the open ones
-ringed in red.
+ringed in red. With --series it draws, for every frame of each run, the share of points
+without contacts and (saturated runs) the mean excess pore pressure against time.
 
 Reads RUN_DIR/results.h5 (frames/STEP/position, coordination, p; the first frame's
 positions give the lattice). Needs numpy and h5py (Debian's python3-numpy, python3-h5py),
@@ -65,6 +67,8 @@ def main():
     ap.add_argument("--time", type=float, default=0.0, help="s, the frame drawn")
     ap.add_argument("--field", default="p", help="the frame dataset that colours the points")
     ap.add_argument("--limits", default="", help="LO,HI of the colour scale (kPa)")
+    ap.add_argument("--series", default="",
+                    help="draw the open share and mean excess pore pressure against time (PNG)")
     a = ap.parse_args()
     if a.every < 1:
         ap.error(f"--every must be >= 1, got {a.every}")
@@ -77,7 +81,7 @@ def main():
             ap.error(f"--limits must be LO,HI in kPa, got {a.limits!r}")
         if not lo < hi:
             ap.error(f"--limits needs LO < HI, got {a.limits!r}")
-    panels = []
+    panels, series = [], []
     for spec in a.runs:
         run, label = (spec.split("=", 1) + [os.path.basename(spec.rstrip("/"))])[:2]
         with h5py.File(os.path.join(run, "results.h5"), "r") as f:
@@ -90,10 +94,15 @@ def main():
             moved = np.zeros(len(p0))
             chosen = set(steps[::a.every] + [steps[-1]])
             print(f"{label}: {len(p0)} points, {len(np.unique(cell))} cells of {k} x {k}")
+            history = []  # (t, open share, mean excess pore pressure kPa or nan)
             for s in steps:
                 g = f["frames"][s]
                 pos = g["position"][:, :2]
                 moved = np.maximum(moved, np.linalg.norm(pos - p0, axis=1))
+                if a.series:
+                    dp = (np.mean(g["excess_pore_pressure"][:]) / 1e3
+                          if "excess_pore_pressure" in g else np.nan)
+                    history.append((g.attrs["time"], np.mean(g["coordination"][:] < a.z), dp))
                 if s not in chosen:
                     continue
                 z, p = g["coordination"][:], g["p"][:]
@@ -112,6 +121,8 @@ def main():
                     dead = moved < a.dead * width
                     line += f"; unmoved {dead.sum()}, open among them {np.sum(open_ & dead)}"
                 print(line)
+            if a.series:
+                series.append((label, np.array(history)))
             if a.out:
                 s = min(steps, key=lambda step: abs(f["frames"][step].attrs["time"] - a.time))
                 g = f["frames"][s]
@@ -119,6 +130,8 @@ def main():
                                g[a.field][:] / 1e3, g["coordination"][:] < a.z))
     if a.out:
         draw(panels, a)
+    if a.series:
+        draw_series(series, a)
 
 
 def draw(panels, a):
@@ -141,6 +154,29 @@ def draw(panels, a):
     fig.tight_layout()
     fig.savefig(a.out, dpi=110)
     print(f"wrote {a.out}")
+
+
+def draw_series(series, a):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    wet = any(np.isfinite(h[:, 2]).any() for _, h in series)
+    fig, axes = plt.subplots(1, 2 if wet else 1, figsize=(11 if wet else 5.5, 4), squeeze=False)
+    for label, h in series:
+        axes[0][0].plot(h[:, 0], 100 * h[:, 1], label=label)
+        if wet and np.isfinite(h[:, 2]).any():
+            axes[0][1].plot(h[:, 0], h[:, 2], label=label)
+    axes[0][0].set_xlabel("t (s)")
+    axes[0][0].set_ylabel(f"points without contacts, Z < {a.z} (%)")
+    axes[0][0].legend(fontsize=7)
+    if wet:
+        axes[0][1].set_xlabel("t (s)")
+        axes[0][1].set_ylabel("mean excess pore pressure (kPa)")
+        axes[0][1].axhline(0, color="grey", lw=0.5)
+        axes[0][1].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(a.series, dpi=110)
+    print(f"wrote {a.series}")
 
 
 if __name__ == "__main__":
