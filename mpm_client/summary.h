@@ -11,7 +11,6 @@
 #include <utility>
 #include <vector>
 
-#include "Eigen/Core"
 #include "absl/status/statusor.h"
 #include "mpm_client/model.h"
 
