@@ -756,7 +756,6 @@ TEST(SimulationTest, SaturatedPlatenConsolidatesAtAConstantRateOfStrain) {
   EXPECT_NEAR(load, mean_p - mean_syy, 1e-3 * load);
 }
 
-// A saturated run resumes bit for bit and runs alike on two servers.
 // Saturated column collapse (liang-zhao-wu-soga-2023 §4.3), reduced:
 // collapse-saturated-ci, dense SET RVEs, k = 1e-2 m/s, dt = 2e-4 s, to 0.6 s
 // (it blew up at 0.094 s before the free-surface nodes were taken as those
@@ -848,6 +847,7 @@ TEST(SimulationTest, SaturatedImpulseSendsARayleighWave) {
   EXPECT_LT(t[b_peak], 0.02);
 }
 
+// A saturated run resumes bit for bit and runs alike on two servers.
 TEST(SimulationTest, SaturatedResumeAndRemoteAreBitIdentical) {
   setenv("GRPC_CLIENT_CHANNEL_BACKUP_POLL_INTERVAL_MS", "50", 1);
   CaseSpec spec = LoadOrDie("consolidation-1d-ci");
