@@ -196,7 +196,8 @@ def main():
         ax.set_aspect("equal")
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
-        ax.set_title(f"{label}: deposit at {t[-1]:.2f} s, d* = {runout:.2f}")
+        ax.set_title(f"{label}: deposit at {t[-1]:.2f} s, d* = {(main_front - d0) / d0:.2f} "
+                     f"(farthest point {runout:.2f})", fontsize=9)
         ax.legend(loc="upper right", fontsize=8)
         fig.colorbar(sc, ax=ax, label="eps_q (-)", shrink=0.7)
     axes[0].set_xlabel("time (s)")
