@@ -412,8 +412,8 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
     // The main deposit's front (m): points within two initial spacings of
     // each other are in contact; those thrown clear are scatter.
     const MaterialRegion& r = spec_.regions.front();
-    row.push_back(MainDepositFront(mp.position, lost, 2.0 * spec_.grid.cell_size /
-                                                          r.points_per_cell_side));
+    row.push_back(
+        MainDepositFront(mp.position, lost, 2.0 * spec_.grid.cell_size / r.points_per_cell_side));
   }
   if (spec_.phases.saturated) {
     // The surface's settlement: the mean of (y0 − y) over the points that

@@ -332,7 +332,8 @@ double MainDepositFront(std::span<const Eigen::Vector2d> position,
     for (std::int64_t dx = -1; dx <= 1; ++dx) {
       for (std::int64_t dy = -1; dy <= 1; ++dy) {
         const Key cell{key.first + dx, key.second + dy};
-        auto it = std::lower_bound(binned.begin(), binned.end(), std::make_pair(cell, std::size_t{0}));
+        auto it =
+            std::lower_bound(binned.begin(), binned.end(), std::make_pair(cell, std::size_t{0}));
         for (; it != binned.end() && it->first == cell; ++it) {
           const std::size_t q = it->second;
           if (q <= p || (position[q] - position[p]).squaredNorm() > link * link) continue;

@@ -659,7 +659,8 @@ TEST(FBarTest, TheForcesDoTheWorkThePackingsTake) {
     const std::vector<Vector2d> v0 = points->velocity;
     std::vector<double> mass = points->mass;
     FixedStressModel model(stress);
-    absl::StatusOr<std::unique_ptr<Solver>> solver = Solver::Create(spec, *std::move(points), &model);
+    absl::StatusOr<std::unique_ptr<Solver>> solver =
+        Solver::Create(spec, *std::move(points), &model);
     ASSERT_TRUE(solver.ok()) << solver.status();
     ASSERT_TRUE((*solver)->Step().ok());
     const MaterialPoints& after = (*solver)->points();
@@ -667,12 +668,16 @@ TEST(FBarTest, TheForcesDoTheWorkThePackingsTake) {
     for (std::size_t p = 0; p < n; ++p) {
       kinetic += mass[p] * v0[p].dot(after.velocity[p] - v0[p]);
       const Matrix2d strain = model.last()[p].topLeftCorner<2, 2>() - Matrix2d::Identity();
-      const double work = after.volume[p] * (stress[p].topLeftCorner<2, 2>().cwiseProduct(strain)).sum();
+      const double work =
+          after.volume[p] * (stress[p].topLeftCorner<2, 2>().cwiseProduct(strain)).sum();
       packings += work;
       scale += std::abs(work);
     }
     std::printf("%s: kinetic %.9g J, packings %.9g J (sum of |work| %.4g J)\n",
-                k == 0 ? "local" : k == 1 ? "f_bar" : "nonlocal", kinetic, packings, scale);
+                k == 0   ? "local"
+                : k == 1 ? "f_bar"
+                         : "nonlocal",
+                kinetic, packings, scale);
     EXPECT_GT(std::abs(packings), 0.05 * scale);
     EXPECT_NEAR(kinetic, -packings, 1e-5 * scale);
   }
