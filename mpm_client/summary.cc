@@ -314,8 +314,9 @@ double MainDepositFront(std::span<const Eigen::Vector2d> position,
   // point's neighbours within `link` lie in the 3 × 3 cells around its own.
   using Key = std::pair<std::int64_t, std::int64_t>;
   std::vector<std::pair<Key, std::size_t>> binned;
+  if (!(link > 0.0) || !std::isfinite(link)) return -std::numeric_limits<double>::infinity();
   for (std::size_t p = 0; p < position.size(); ++p) {
-    if (!skip.empty() && skip[p]) continue;
+    if ((!skip.empty() && skip[p]) || !position[p].allFinite()) continue;
     binned.push_back({{static_cast<std::int64_t>(std::floor(position[p].x() / link)),
                        static_cast<std::int64_t>(std::floor(position[p].y() / link))},
                       p});

@@ -51,8 +51,9 @@ double FrontStopTime(std::span<const double> time, std::span<const double> front
 // thrown clear of the deposit do not count (liang-zhao-mpm-dem eq. 48 takes
 // d_f "after removing the scatter points which is not in contact with the
 // main deposit"). Points with skip[p] (parked off the grid; skip may be
-// empty) take no part. Of equally large sets, the one holding the lowest
-// index. −∞ without points. O(n log n), deterministic.
+// empty) and non-finite positions take no part. Of equally large sets, the
+// one holding the lowest index. −∞ without points or without a finite
+// link > 0. O(n log n), deterministic.
 double MainDepositFront(std::span<const Eigen::Vector2d> position,
                         std::span<const std::uint8_t> skip, double link);
 

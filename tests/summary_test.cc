@@ -173,6 +173,14 @@ TEST(SummaryTest, MainDepositFrontDropsScatterPoints) {
   for (const Eigen::Vector2d& p : x) shifted.push_back(p - Eigen::Vector2d(5.0, 5.0));
   EXPECT_DOUBLE_EQ(MainDepositFront(shifted, {}, 0.2), 0.9 + 0.19 * 5 - 5.0);
   EXPECT_EQ(MainDepositFront({}, {}, 0.2), -std::numeric_limits<double>::infinity());
+  // A non-finite position is left out; a link that is no length gives −∞.
+  std::vector<Eigen::Vector2d> with_nan = x;
+  with_nan.emplace_back(std::nan(""), 0.0);
+  with_nan.emplace_back(std::numeric_limits<double>::infinity(), 0.0);
+  EXPECT_DOUBLE_EQ(MainDepositFront(with_nan, {}, 0.2), 0.9 + 0.19 * 5);
+  for (double bad : {0.0, -0.2, std::nan(""), std::numeric_limits<double>::infinity()}) {
+    EXPECT_EQ(MainDepositFront(x, {}, bad), -std::numeric_limits<double>::infinity()) << bad;
+  }
 }
 
 TEST(SummaryTest, FootingCollapseBiaxialAndPipeFigures) {
