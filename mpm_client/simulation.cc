@@ -204,9 +204,7 @@ std::vector<std::string> Simulation::Columns() const {
   }
   if (spec_.solver.lost_points == LostPointPolicy::kDrop) c.push_back("lost_points");
   if (spec_.solver.time_step_update_every > 0) c.push_back("time_step");
-  if (SummaryKind(spec_.output) == "collapse" && !spec_.regions.empty()) {
-    c.push_back("deposit_front_x");
-  }
+  if (WritesDepositFront()) c.push_back("deposit_front_x");
   if (spec_.phases.saturated) {
     c.push_back("surface_settlement");
     for (const PressureMonitor& m : spec_.phases.monitors) {
@@ -218,6 +216,10 @@ std::vector<std::string> Simulation::Columns() const {
     }
   }
   return c;
+}
+
+bool Simulation::WritesDepositFront() const {
+  return SummaryKind(spec_.output) == "collapse" && !spec_.regions.empty();
 }
 
 namespace {
@@ -408,12 +410,11 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
               solver_->KineticEnergy(), solver_->PotentialEnergy(), front_x, top_y, wall_per_step});
   if (spec_.solver.lost_points == LostPointPolicy::kDrop) row.push_back(lost_points);
   if (spec_.solver.time_step_update_every > 0) row.push_back(solver_->dt());
-  if (SummaryKind(spec_.output) == "collapse" && !spec_.regions.empty()) {
+  if (WritesDepositFront()) {
     // The main deposit's front (m): points within two initial spacings of
     // each other are in contact; those thrown clear are scatter.
-    const MaterialRegion& r = spec_.regions.front();
     row.push_back(
-        MainDepositFront(mp.position, lost, 2.0 * spec_.grid.cell_size / r.points_per_cell_side));
+        MainDepositFront(mp.position, lost, kDepositLinkSpacings * InitialPointSpacing(spec_)));
   }
   if (spec_.phases.saturated) {
     // The surface's settlement: the mean of (y0 − y) over the points that

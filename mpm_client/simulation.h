@@ -161,6 +161,8 @@ class Simulation {
   // Per-server load and idle share since the last progress line.
   std::string ServerLoadLine();
   std::vector<std::string> Columns() const;
+  // Whether the timeseries carries deposit_front_x (collapse summaries).
+  bool WritesDepositFront() const;
   // The options sent with every Apply, from the case and the solver's Δt.
   void SetApplyOptions();
   // Δt from the points' current wave speeds (SolverSpec::time_step_update_every).

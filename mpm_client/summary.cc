@@ -150,7 +150,7 @@ absl::StatusOr<Summary> Collapse(const CaseSpec& spec, const Columns& columns) {
   const MaterialRegion& column = spec.regions.front();
   const double d0 = column.upper.x() - column.lower.x();  // m
   // The front columns hold point centres: add the initial half spacing.
-  const double half = 0.5 * spec.grid.cell_size / column.points_per_cell_side;
+  const double half = 0.5 * InitialPointSpacing(spec);
   const double df = front->back() + half - column.lower.x();
   const double stop = FrontStopTime(*time, *front, 0.01 * d0);
   // A front still moving at the end "stops" at the last row: the run-out is
@@ -306,6 +306,11 @@ absl::StatusOr<UltimateLoad> FindUltimateLoad(std::span<const double> settlement
   // Only the last slope can be above every later one's median (0 here).
   const std::size_t i = slopes.back().first;
   return UltimateLoad{i, light[i], settlement[i], false};
+}
+
+double InitialPointSpacing(const CaseSpec& spec) {
+  if (spec.regions.empty()) return 0.0;
+  return spec.grid.cell_size / spec.regions.front().points_per_cell_side;
 }
 
 double MainDepositFront(std::span<const Eigen::Vector2d> position,

@@ -57,6 +57,12 @@ double FrontStopTime(std::span<const double> time, std::span<const double> front
 double MainDepositFront(std::span<const Eigen::Vector2d> position,
                         std::span<const std::uint8_t> skip, double link);
 
+// The first region's initial point spacing, m: h / points_per_cell_side (0
+// without a region). Collapse runs link points within kDepositLinkSpacings
+// of it into one deposit (MainDepositFront).
+double InitialPointSpacing(const CaseSpec& spec);
+inline constexpr double kDepositLinkSpacings = 2.0;
+
 // The summary kind of a case: OutputSpec::summary, or from its plot.
 std::string SummaryKind(const OutputSpec& out);
 
