@@ -1194,6 +1194,7 @@ Fields<RveSpec> RveFields() {
       NumberField("max_inertial_number", &RveSpec::max_inertial_number, Need::kOptional,
                   Range{0.0, 0.1}),
       IntegerField("min_steps", &RveSpec::min_steps, 0, 100000),
+      NumberField("max_stretch", &RveSpec::max_stretch, Need::kOptional, Range{0.0, 0.5}),
       FlagField("real_time", &RveSpec::real_time),
       FlagField("full_state_every_step", &RveSpec::full_state_every_step),
       NumberField("max_void_ratio", &RveSpec::max_void_ratio, Need::kOptional, Range{0.0, 10.0}),
@@ -1207,6 +1208,12 @@ absl::Status ParseRve(const Json& j, const std::string& ptr, RveSpec* rve) {
   if (rve->max_void_ratio > 0.0 && rve->max_void_ratio < 0.1) {
     return Bad(ptr + "/max_void_ratio", "must be 0 (no cap) or in [0.1, 10], got ",
                Num(rve->max_void_ratio));
+  }
+  // A stretch of more than half in one MPM step is a broken continuum, not
+  // an increment; below 0.01 nearly every flow would stop.
+  if (rve->max_stretch > 0.0 && rve->max_stretch < 0.01) {
+    return Bad(ptr + "/max_stretch", "must be 0 (the template's) or in [0.01, 0.5], got ",
+               Num(rve->max_stretch));
   }
   return absl::OkStatus();
 }

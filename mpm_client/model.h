@@ -289,6 +289,12 @@ struct RveSpec {
   // Set in the controls of every RVE the case creates (0: the template's own).
   double max_inertial_number = 0.0;  // bound on I = γ̇·d·sqrt(ρ/p) per increment, [-]
   std::int64_t min_steps = 0;        // DEM steps per increment at least
+  // Per-increment bound on the stretch |V − I| (Frobenius) of ΔF = V·R, [-].
+  // The RVE deforms its cell along a straight path over the increment's DEM
+  // steps, so a looser bound changes nothing for increments within the
+  // template's (0.05): it lets a rare larger one through instead of stopping
+  // the run (a saturated scatter point swollen to e ≫ 1, issue 12).
+  double max_stretch = 0.0;
   // Cap every increment's DEM steps at the MPM step's own duration
   // (ApplyOptions::duration = Δt): an RVE never deforms slower than the
   // continuum, so a flowing or nearly stress-free RVE follows its inertial

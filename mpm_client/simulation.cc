@@ -576,14 +576,15 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   }
   sim->pool_->Assign(cost);
   sim->pool_->SetPointSizes(cost);
-  // Each template's own controls with the case's DEM steps per increment
-  // and inertial-number bound, where the case sets them.
+  // Each template's own controls with the case's DEM steps per increment,
+  // inertial-number bound and stretch bound, where the case sets them.
   std::map<std::string, dem::Controls> controls;
-  if (spec.rve.min_steps > 0 || spec.rve.max_inertial_number > 0) {
+  if (spec.rve.min_steps > 0 || spec.rve.max_inertial_number > 0 || spec.rve.max_stretch > 0) {
     for (const store::TemplateRecord& t : sim->templates_) {
       dem::Controls c = t.packing.controls;
       if (spec.rve.min_steps > 0) c.min_steps = spec.rve.min_steps;
       if (spec.rve.max_inertial_number > 0) c.max_inertial_number = spec.rve.max_inertial_number;
+      if (spec.rve.max_stretch > 0) c.max_stretch = spec.rve.max_stretch;
       controls[sim->ServerTemplateName(t.name)] = c;
     }
   }

@@ -79,7 +79,7 @@ constexpr char kFullCase[] = R"json({
     {"name": "side", "region": "top", "surface": "-x", "pressure": 5e3,
      "history": [[0, 0], [0.01, 1], [0.02, 0]]}
   ],
-  "rve": {"max_inertial_number": 1e-3, "min_steps": 50, "real_time": true},
+  "rve": {"max_inertial_number": 1e-3, "min_steps": 50, "max_stretch": 0.2, "real_time": true},
   "output": {"frame_every": 50, "timeseries_every": 5, "checkpoint_every": 1000,
              "progress_every": 10, "plot": "load-settlement", "plot_body": "footing",
              "plot_width": 0.5, "phi_deg": 30}
@@ -243,6 +243,7 @@ TEST_F(CaseTest, FullCaseParsesIntoExpectedSpec) {
 
   EXPECT_EQ(spec->rve.max_inertial_number, 1e-3);
   EXPECT_EQ(spec->rve.min_steps, 50);
+  EXPECT_EQ(spec->rve.max_stretch, 0.2);
   EXPECT_TRUE(spec->rve.real_time);
 
   EXPECT_EQ(spec->output.frame_every, 50);
@@ -284,6 +285,7 @@ TEST_F(CaseTest, MinimalCaseTakesModelDefaults) {
   EXPECT_TRUE(spec->bodies.empty());
   EXPECT_TRUE(spec->tractions.empty());
   EXPECT_EQ(spec->rve.min_steps, defaults.rve.min_steps);
+  EXPECT_EQ(spec->rve.max_stretch, 0.0);
   EXPECT_EQ(spec->output.frame_every, defaults.output.frame_every);
   EXPECT_EQ(spec->output.checkpoint_every, defaults.output.checkpoint_every);
   EXPECT_EQ(spec->output.plot, "stress-strain");
@@ -453,6 +455,7 @@ void ExpectSameSpec(const CaseSpec& a, const CaseSpec& b) {
   }
   EXPECT_EQ(a.rve.max_inertial_number, b.rve.max_inertial_number);
   EXPECT_EQ(a.rve.min_steps, b.rve.min_steps);
+  EXPECT_EQ(a.rve.max_stretch, b.rve.max_stretch);
   EXPECT_EQ(a.rve.real_time, b.rve.real_time);
   EXPECT_EQ(a.phases.saturated, b.phases.saturated);
   EXPECT_EQ(a.phases.fluid_density, b.phases.fluid_density);
@@ -586,6 +589,9 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
       {"/solver/time_step_update_every", 100,
        "/solver/time_step_update_every: only where the time step comes from the RVEs' tangent "
        "(solver.time_step and solver.wave_modulus 0)"},
+      {"/rve/max_stretch", 0.6, "/rve/max_stretch: must be in [0, 0.5], got 0.6"},
+      {"/rve/max_stretch", 0.001,
+       "/rve/max_stretch: must be 0 (the template's) or in [0.01, 0.5], got 0.001"},
       {"/rve/max_void_ratio", 0.05,
        "/rve/max_void_ratio: must be 0 (no cap) or in [0.1, 10], got 0.05"},
       {"/tractions/0/surface", "x", "/tractions/0/surface: unknown surface \"x\" (+x, -x, +y, -y)"},

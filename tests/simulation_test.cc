@@ -386,6 +386,25 @@ TEST(SimulationTest, StressOnlyBetweenOutputsChangesNoResult) {
   }
 }
 
+// rve.max_stretch reaches the controls of every RVE the case creates (and so
+// its checkpoint); without it they keep the template's 0.05.
+TEST(SimulationTest, StretchBoundReachesEveryRve) {
+  CaseSpec spec = ShortCase(1);
+  for (const double bound : {0.0, 0.3}) {
+    SCOPED_TRACE(bound);
+    spec.rve.max_stretch = bound;
+    std::unique_ptr<Simulation> sim =
+        StartOrDie(spec, Options(FreshDir("stretch_bound_" + std::to_string(bound > 0))));
+    ASSERT_NE(sim, nullptr);
+    absl::StatusOr<store::SimCheckpoint> snap = sim->Snapshot();
+    ASSERT_TRUE(snap.ok()) << snap.status();
+    ASSERT_EQ(snap->rves.size(), 4u);
+    for (const store::RveRecord& r : snap->rves) {
+      EXPECT_EQ(r.packing.controls.max_stretch, bound > 0 ? bound : 0.05) << r.id;
+    }
+  }
+}
+
 // A finished run resumed with a later end time goes on as if the case had
 // asked for it: bit-identical to the longer run, and its checkpoint carries
 // the new end time. An end time not after the checkpoint's is refused.
