@@ -518,6 +518,7 @@ void Solver::Prepare() {
   impulse_.resize(walls_.size() + bodies_.size());
   body_velocity_.resize(bodies_.size());
   in_plane_df_.resize(n);
+  f_bar_apart_.assign(n, 0);
   delta_f_.resize(n);
   rve_delta_f_.resize(n);
   response_.resize(n);
@@ -711,7 +712,8 @@ absl::Status Solver::UpdateStress() {
     in_plane_df_[p] = df;
   }
   if (solver_.f_bar == FBar::kNodal) {
-    AverageVolumeChange(shape_, mp.volume, NodeCount(grid_), in_plane_df_);
+    for (std::size_t p = 0; p < n; ++p) f_bar_apart_[p] = HasComeApart(mp.response[p]);
+    AverageVolumeChange(shape_, FBarWeights(), NodeCount(grid_), in_plane_df_);
   }
   if (solver_.nonlocal_radius > 0.0) {
     std::vector<std::uint8_t> active(n);
@@ -753,6 +755,14 @@ absl::Status Solver::UpdateStress() {
   return absl::OkStatus();
 }
 
+std::vector<double> Solver::FBarWeights() const {
+  std::vector<double> w(points_.volume.begin(), points_.volume.end());
+  for (std::size_t p = 0; p < w.size(); ++p) {
+    if (f_bar_apart_[p]) w[p] = 0.0;
+  }
+  return w;
+}
+
 std::vector<Matrix2d> Solver::ForceStresses() const {
   const MaterialPoints& mp = points_;
   const std::size_t n = mp.size();
@@ -766,7 +776,7 @@ std::vector<Matrix2d> Solver::ForceStresses() const {
   if (solver_.f_bar == FBar::kNodal) {
     std::vector<double> own(n);
     for (std::size_t p = 0; p < n; ++p) own[p] = 0.5 * sigma[p].trace();
-    const std::vector<double> mean = NodalAverage(shape_, mp.volume, own, NodeCount(grid_));
+    const std::vector<double> mean = NodalAverage(shape_, FBarWeights(), own, NodeCount(grid_));
     for (std::size_t p = 0; p < n; ++p) sigma[p].diagonal().array() += mean[p] - own[p];
   }
   return sigma;
@@ -920,13 +930,14 @@ std::vector<double> NodalAverage(std::span<const ShapeValues> shapes,
   std::vector<double> out(value.begin(), value.end());
   for (std::size_t p = 0; p < value.size(); ++p) {
     const ShapeValues& s = shapes[p];
-    if (s.count == 0) continue;
+    if (s.count == 0 || !(weight[p] > 0.0)) continue;
     double sum = 0.0, total = 0.0;
     for (int k = 0; k < s.count; ++k) {
+      if (!(node_weight[s.node[k]] > 0.0)) continue;  // only points left out reach it
       sum += s.weight[k] * node_value[s.node[k]];
       total += s.weight[k];
     }
-    out[p] = sum / total;
+    if (total > 0.0) out[p] = sum / total;
   }
   return out;
 }
@@ -938,6 +949,10 @@ void AverageVolumeChange(std::span<const ShapeValues> shapes, std::span<const do
   const std::vector<double> j_bar = NodalAverage(shapes, volume, j, node_count);
   // Plane strain: the in-plane factor sqrt scales the determinant by J̄/J.
   for (std::size_t p = 0; p < df.size(); ++p) df[p] *= std::sqrt(j_bar[p] / j[p]);
+}
+
+bool HasComeApart(const PointResponse& last) {
+  return last.void_ratio >= kApartVoidRatio && last.stress == Matrix3d::Zero();
 }
 
 Matrix2d RveIncrement(const Matrix2d& df, const PointResponse& last, double max_void_ratio) {

@@ -130,16 +130,35 @@ Eigen::Matrix2d RveIncrement(const Eigen::Matrix2d& df, const PointResponse& las
 
 // The nodal average of a per-point quantity a: at each node the weighted mean
 // a_I = Σ_q S_Iq w_q a_q / Σ_q S_Iq w_q of the points it supports, and back
-// at each point ā_p = Σ_I S_Ip a_I / Σ_I S_Ip. Points without nodes (parked
-// off the grid) keep their own value. shapes, weight and value have one
-// entry per point; node_count is the grid's.
+// at each point ā_p = Σ_I S_Ip a_I / Σ_I S_Ip over its nodes that some point
+// of weight > 0 reaches. Points without nodes (parked off the grid) and
+// points of weight 0 keep their own value; the latter add nothing to the
+// nodes. shapes, weight and value have one entry per point; node_count is
+// the grid's.
 std::vector<double> NodalAverage(std::span<const ShapeValues> shapes,
                                  std::span<const double> weight, std::span<const double> value,
                                  int node_count);
 
+// Void ratio from which a packing without any stress has come apart from
+// the soil around it (F-bar leaves it out, HasComeApart), [-]: n = 0.5, far
+// looser than any disc packing that still holds contacts (the sets here
+// lose their last ones near e 0.3), so only points thrown clear or swollen
+// away from the soil are concerned, never a packing opened inside a cell.
+inline constexpr double kApartVoidRatio = 1.0;
+
+// Whether F-bar leaves a point out, from its last result: its packing
+// carries no stress at all and its void ratio is at least kApartVoidRatio.
+// Such a point takes its own volume change and stress and adds nothing to
+// the averages. Kept in, its share of its neighbours' mean stress pushes
+// its nodes apart with a force in proportion to its own volume, which it
+// then gains: a saturated scatter point in collapse-saturated-medium swelled
+// so to e = 115 and blew up at 3.62 s (cases/README.md).
+bool HasComeApart(const PointResponse& last);
+
 // F-bar with a nodal average (SolverSpec::f_bar kNodal): each point's
 // in-plane increment df_p scaled to the determinant J̄_p, the NodalAverage of
-// J = det df weighted by the volumes V_p (m³): df_p ← (J̄_p/J_p)^{1/2} df_p,
+// J = det df weighted by the volumes V_p (m³; 0 for a point left out, which
+// keeps its df): df_p ← (J̄_p/J_p)^{1/2} df_p,
 // its shear and rotation kept. A homogeneous increment is unchanged (to
 // rounding) and Σ V_p J_p is kept. The solver's internal forces then use the
 // in-plane mean stress averaged by the same map (its adjoint), so that the
@@ -185,6 +204,17 @@ class Solver {
   // those alone, and the points keep their other fields as they were.
   void set_stress_only(bool stress_only) { stress_only_ = stress_only; }
   void set_dt(double dt) { dt_ = dt; }
+  // Per point, the in-plane stress (Pa, tension +; a saturated case's
+  // effective stress) its internal forces use: its own, averaged by the
+  // nonlocal map where the case has one, and with F-bar (kNodal) its mean
+  // stress replaced by the nodal average, the adjoint of the volume-change
+  // map (points left out of F-bar, HasComeApart, keep their own). Either way
+  // the forces do the work the RVEs take (one formula for the dry and the
+  // saturated steps). Public for tests and diagnostics.
+  std::vector<Eigen::Matrix2d> ForceStresses() const;
+  // F-bar's averaging weights: each point's current volume (m³), 0 for the
+  // points left out this step (f_bar_apart_).
+  std::vector<double> FBarWeights() const;
   const MaterialPoints& points() const { return points_; }
   // Per point, 1 where it is off the grid and parked (SolverSpec::lost_points
   // kDrop), as of the last step; derived from the positions, so not state.
@@ -253,13 +283,6 @@ class Solver {
   // for F-bar, one batched model update, then F, volumes, responses and
   // stresses; FailedPrecondition for a point that would invert.
   absl::Status UpdateStress();
-  // Per point, the in-plane stress (Pa, tension +; a saturated case's
-  // effective stress) its internal forces use: its own, averaged by the
-  // nonlocal map where the case has one, and with F-bar (kNodal) its mean
-  // stress replaced by the nodal average, the adjoint of the volume-change
-  // map. Either way the forces do the work the RVEs take (one formula for
-  // the dry and the saturated steps).
-  std::vector<Eigen::Matrix2d> ForceStresses() const;
   // Adds each surface load's force (load_force_) to node_force_, spread
   // over the nodes around its surface position that carry mass;
   // FailedPrecondition where none does.
@@ -323,9 +346,10 @@ class Solver {
   std::vector<SurfaceContact> contacts_;            // faces near bodies, this step
   std::vector<Eigen::Vector2d> body_velocity_;      // per body, m/s
   std::vector<Eigen::Matrix2d> in_plane_df_;        // per point, ΔF in-plane (F-bar applied)
-  NonlocalMap nonlocal_;                            // this step's (solver.nonlocal_radius)
-  std::vector<Eigen::Matrix3d> delta_f_;            // per point, the continuum's ΔF
-  std::vector<Eigen::Matrix3d> rve_delta_f_;        // per point, what its RVE gets (RveIncrement)
+  std::vector<std::uint8_t> f_bar_apart_;     // per point, 1: left out of F-bar (HasComeApart)
+  NonlocalMap nonlocal_;                      // this step's (solver.nonlocal_radius)
+  std::vector<Eigen::Matrix3d> delta_f_;      // per point, the continuum's ΔF
+  std::vector<Eigen::Matrix3d> rve_delta_f_;  // per point, what its RVE gets (RveIncrement)
   std::vector<PointResponse> response_;
   bool stress_only_ = false;     // set_stress_only
   double max_void_ratio_ = 0.0;  // RveSpec::max_void_ratio

@@ -550,6 +550,53 @@ TEST(FBarTest, TheNodalAverageIsSelfAdjointAndKeepsConstants) {
   for (double c : NodalAverage(shapes, w, constant, NodeCount(grid))) EXPECT_NEAR(c, 2.5, 1e-15);
 }
 
+// A point of weight 0 (one that has come apart, HasComeApart) keeps its own
+// value and moves no other point's average: the others average as if it
+// were not there, bit for bit.
+TEST(FBarTest, APointOfWeightZeroKeepsItsValueAndMovesNoOther) {
+  GridSpec grid;
+  grid.cell_size = 0.1;
+  grid.nx = 6;
+  grid.ny = 5;
+  const std::vector<ShapeValues> shapes = CellCentreShapes(grid, ShapeKind::kGimp);
+  const std::size_t n = shapes.size();
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0.5, 1.5);
+  std::vector<double> w(n), a(n);
+  for (std::size_t p = 0; p < n; ++p) {
+    w[p] = 0.01 * u(rng);
+    a[p] = 1e5 * u(rng);
+  }
+  const std::size_t apart = 2 + 6 * 2;  // inside: its nodes have other points
+  std::vector<double> w_out = w;
+  w_out[apart] = 0.0;
+  std::vector<double> a_big = a;
+  a_big[apart] = 1e9;  // whatever it holds
+  const std::vector<double> with = NodalAverage(shapes, w, a, NodeCount(grid));
+  const std::vector<double> out = NodalAverage(shapes, w_out, a_big, NodeCount(grid));
+  std::vector<ShapeValues> without_shapes;
+  std::vector<double> without_w, without_a;
+  for (std::size_t p = 0; p < n; ++p) {
+    if (p == apart) continue;
+    without_shapes.push_back(shapes[p]);
+    without_w.push_back(w[p]);
+    without_a.push_back(a[p]);
+  }
+  const std::vector<double> without =
+      NodalAverage(without_shapes, without_w, without_a, NodeCount(grid));
+  EXPECT_EQ(out[apart], 1e9);
+  EXPECT_NE(with[apart], a[apart]);  // with its weight it is averaged
+  for (std::size_t p = 0, q = 0; p < n; ++p) {
+    if (p == apart) continue;
+    EXPECT_EQ(out[p], without[q++]) << p;
+  }
+  // Alone on its nodes (a grid of one point): nothing to average with.
+  const std::vector<ShapeValues> one = {shapes[apart]};
+  EXPECT_EQ(
+      NodalAverage(one, std::vector<double>{0.0}, std::vector<double>{3.0}, NodeCount(grid))[0],
+      3.0);
+}
+
 // A block of 8 × 6 cells of 0.1 m, one point per cell, on a rough base,
 // under a rough platen 0.2 m wide pushed down at 1 m/s (Δt = 1 ms, FLIP):
 // the points under it are squeezed, those beside it not.
@@ -679,6 +726,68 @@ TEST(FBarTest, TheForcesDoTheWorkThePackingsTake) {
                          : "nonlocal",
                 kinetic, packings, scale);
     EXPECT_GT(std::abs(packings), 0.05 * scale);
+    EXPECT_NEAR(kinetic, -packings, 1e-5 * scale);
+  }
+}
+
+// F-bar leaves out a point whose packing carries no stress at e >= 1
+// (HasComeApart): it takes its own volume change, and its force uses its own
+// (zero) stress rather than a share of its neighbours' mean stress, which,
+// times its own swollen volume, pushed it apart further (collapse-saturated-
+// medium: e = 115, then a blow-up). The forces still do the work the
+// packings take. Checked on the block of the test above, one inner point
+// (index 11) made a stress-free packing at e = 1.5 (left out) or 0.9 (kept).
+TEST(FBarTest, APointThatHasComeApartTakesItsOwnIncrementAndNoShare) {
+  for (const double e : {1.5, 0.9}) {
+    SCOPED_TRACE(e);
+    CaseSpec spec = BlockCase(0.1, 10, 8, Vector2d(0.2, 0.2), Vector2d(0.8, 0.6), 2);
+    spec.solver.pic_fraction = 0.0;
+    spec.solver.time_step = 1e-7;
+    absl::StatusOr<MaterialPoints> points = FillRegions(spec);
+    ASSERT_TRUE(points.ok()) << points.status();
+    const std::size_t n = points->size(), apart = 11;
+    std::vector<Matrix3d> stress(n, Matrix3d::Zero());
+    for (std::size_t p = 0; p < n; ++p) {
+      const Vector2d x = points->position[p];
+      points->velocity[p] = Vector2d(0.3 * std::sin(5.0 * x.x()) * std::cos(3.0 * x.y()),
+                                     0.2 * std::cos(4.0 * x.x()) + 0.5 * x.x() * x.y());
+      if (p == apart) continue;
+      stress[p].diagonal() = Eigen::Vector3d(-1e5 - 1e3 * p, -1.2e5, -1.1e5);
+      points->response[p].stress = stress[p];
+    }
+    points->response[apart].stress.setZero();
+    points->response[apart].void_ratio = e;
+    ASSERT_EQ(HasComeApart(points->response[apart]), e >= 1.0);
+    const std::vector<Vector2d> v0 = points->velocity;
+    const std::vector<double> mass = points->mass;
+    // The same step without F-bar gives each point its own increment.
+    CaseSpec plain = spec;
+    spec.solver.f_bar = FBar::kNodal;
+    FixedStressModel model(stress), model_plain(stress);
+    absl::StatusOr<std::unique_ptr<Solver>> solver = Solver::Create(spec, *points, &model);
+    absl::StatusOr<std::unique_ptr<Solver>> own =
+        Solver::Create(plain, *std::move(points), &model_plain);
+    ASSERT_TRUE(solver.ok()) << solver.status();
+    ASSERT_TRUE(own.ok()) << own.status();
+    ASSERT_TRUE((*solver)->Step().ok());
+    ASSERT_TRUE((*own)->Step().ok());
+    const bool left_out = e >= 1.0;
+    EXPECT_EQ(model.last()[apart] == model_plain.last()[apart], left_out);
+    const Matrix2d force_stress = (*solver)->ForceStresses()[apart];
+    EXPECT_EQ(force_stress == Matrix2d::Zero(), left_out);
+    if (!left_out) {
+      EXPECT_LT(force_stress.trace(), -1e4);  // Pa: a share of the block's
+    }
+    const MaterialPoints& after = (*solver)->points();
+    double kinetic = 0.0, packings = 0.0, scale = 0.0;  // J (per unit thickness)
+    for (std::size_t p = 0; p < n; ++p) {
+      kinetic += mass[p] * v0[p].dot(after.velocity[p] - v0[p]);
+      const Matrix2d strain = model.last()[p].topLeftCorner<2, 2>() - Matrix2d::Identity();
+      const double work =
+          after.volume[p] * (stress[p].topLeftCorner<2, 2>().cwiseProduct(strain)).sum();
+      packings += work;
+      scale += std::abs(work);
+    }
     EXPECT_NEAR(kinetic, -packings, 1e-5 * scale);
   }
 }
