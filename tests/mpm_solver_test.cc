@@ -517,14 +517,20 @@ TEST(FBarTest, KeepsAHomogeneousIncrementAndShearAndSharesOnePointsSqueeze) {
   }
 }
 
-// The force side uses the same average on the mean stress: the map must be
-// its own adjoint in the volume-weighted product (Σ w a b̄ = Σ w ā b), or the
-// internal forces would not do the work the packings take.
-TEST(FBarTest, TheNodalAverageIsSelfAdjointAndKeepsConstants) {
+// 6 × 5 cells of 0.1 m, for the nodal-average tests.
+GridSpec SixByFive() {
   GridSpec grid;
   grid.cell_size = 0.1;
   grid.nx = 6;
   grid.ny = 5;
+  return grid;
+}
+
+// The force side uses the same average on the mean stress: the map must be
+// its own adjoint in the volume-weighted product (Σ w a b̄ = Σ w ā b), or the
+// internal forces would not do the work the packings take.
+TEST(FBarTest, TheNodalAverageIsSelfAdjointAndKeepsConstants) {
+  const GridSpec grid = SixByFive();
   const std::vector<ShapeValues> shapes = CellCentreShapes(grid, ShapeKind::kGimp);
   const std::size_t n = shapes.size();
   std::mt19937 rng(5);
@@ -554,10 +560,7 @@ TEST(FBarTest, TheNodalAverageIsSelfAdjointAndKeepsConstants) {
 // value and moves no other point's average: the others average as if it
 // were not there, bit for bit.
 TEST(FBarTest, APointOfWeightZeroKeepsItsValueAndMovesNoOther) {
-  GridSpec grid;
-  grid.cell_size = 0.1;
-  grid.nx = 6;
-  grid.ny = 5;
+  const GridSpec grid = SixByFive();
   const std::vector<ShapeValues> shapes = CellCentreShapes(grid, ShapeKind::kGimp);
   const std::size_t n = shapes.size();
   std::mt19937 rng(7);
@@ -667,6 +670,27 @@ class FixedStressModel : public StressModel {
   std::vector<Matrix3d> last_;
 };
 
+// Over one step from velocities v0 to `after`: the kinetic energy's change
+// Σ m v0·Δv and the packings' work Σ V σ:(ΔF − I) with the increments the
+// model took, and Σ |V σ:(ΔF − I)| as their scale, J per unit thickness.
+struct Work {
+  double kinetic, packings, scale;
+};
+Work StepWork(const std::vector<double>& mass, const std::vector<Vector2d>& v0,
+              const MaterialPoints& after, const std::vector<Matrix3d>& increments,
+              const std::vector<Matrix3d>& stress) {
+  Work w{0.0, 0.0, 0.0};
+  for (std::size_t p = 0; p < mass.size(); ++p) {
+    w.kinetic += mass[p] * v0[p].dot(after.velocity[p] - v0[p]);
+    const Matrix2d strain = increments[p].topLeftCorner<2, 2>() - Matrix2d::Identity();
+    const double work =
+        after.volume[p] * (stress[p].topLeftCorner<2, 2>().cwiseProduct(strain)).sum();
+    w.packings += work;
+    w.scale += std::abs(work);
+  }
+  return w;
+}
+
 // The internal forces must do the work the packings take. Over one free step
 // (no walls, loads or gravity; FLIP) Σ_p m_p v_p·Δv_p = Δt Σ_I f_I·v_I, and
 // the packings take Σ_p V_p σ_p:(ΔF_p − I) = −Δt Σ_I f_I·v_I to first order
@@ -711,15 +735,7 @@ TEST(FBarTest, TheForcesDoTheWorkThePackingsTake) {
     ASSERT_TRUE(solver.ok()) << solver.status();
     ASSERT_TRUE((*solver)->Step().ok());
     const MaterialPoints& after = (*solver)->points();
-    double kinetic = 0.0, packings = 0.0, scale = 0.0;  // J (per unit thickness)
-    for (std::size_t p = 0; p < n; ++p) {
-      kinetic += mass[p] * v0[p].dot(after.velocity[p] - v0[p]);
-      const Matrix2d strain = model.last()[p].topLeftCorner<2, 2>() - Matrix2d::Identity();
-      const double work =
-          after.volume[p] * (stress[p].topLeftCorner<2, 2>().cwiseProduct(strain)).sum();
-      packings += work;
-      scale += std::abs(work);
-    }
+    const auto [kinetic, packings, scale] = StepWork(mass, v0, after, model.last(), stress);
     std::printf("%s: kinetic %.9g J, packings %.9g J (sum of |work| %.4g J)\n",
                 k == 0   ? "local"
                 : k == 1 ? "f_bar"
@@ -779,15 +795,7 @@ TEST(FBarTest, APointThatHasComeApartTakesItsOwnIncrementAndNoShare) {
       EXPECT_LT(force_stress.trace(), -1e4);  // Pa: a share of the block's
     }
     const MaterialPoints& after = (*solver)->points();
-    double kinetic = 0.0, packings = 0.0, scale = 0.0;  // J (per unit thickness)
-    for (std::size_t p = 0; p < n; ++p) {
-      kinetic += mass[p] * v0[p].dot(after.velocity[p] - v0[p]);
-      const Matrix2d strain = model.last()[p].topLeftCorner<2, 2>() - Matrix2d::Identity();
-      const double work =
-          after.volume[p] * (stress[p].topLeftCorner<2, 2>().cwiseProduct(strain)).sum();
-      packings += work;
-      scale += std::abs(work);
-    }
+    const auto [kinetic, packings, scale] = StepWork(mass, v0, after, model.last(), stress);
     EXPECT_NEAR(kinetic, -packings, 1e-5 * scale);
   }
 }
