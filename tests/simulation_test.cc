@@ -776,18 +776,22 @@ TEST(SimulationTest, SaturatedPlatenConsolidatesAtAConstantRateOfStrain) {
 }
 
 // Saturated column collapse (liang-zhao-wu-soga-2023 §4.3), reduced:
-// collapse-saturated-ci, dense SET RVEs, k = 1e-2 m/s, dt = 2e-4 s, to 0.6 s
-// (it blew up at 0.094 s before the free-surface nodes were taken as those
-// under 0.9 of soil). The dilating dense column draws the water in: excess
-// pore pressure negative at both monitors from the first steps (measured:
-// Δp/σ'v0 = −1.69 in the middle, −1.17 at the base at 0.06 s), and it moves
-// far more slowly than the dry column with the same Δt (front 1.514 m at
-// 0.6 s, kinetic-energy peak 838 J at 0.44 s): measured 1.082 m and 124 J. Its
-// excess pore pressure is counted from the current surface
-// (excess_pressure_from): the front point, at the drained surface with
-// p ≈ 0 at 0.6 s, reads −0.66 kPa (its column's top, interpolated, lies
-// 0.07 m above it), where the initial water table 0.23 m above it would
-// read −2.3 kPa.
+// collapse-saturated-ci, dense SET RVEs, k = 1e-2 m/s, dt = 2e-4 s, F-bar as
+// the full columns, to 1.5 s (it blew up at 0.094 s before the free-surface
+// nodes were taken as those under 0.9 of soil). The paper's three signs,
+// against the dry column with the same Δt and F-bar (column-collapse-ci,
+// measured: front point 1.616 m at 0.6 s, kinetic-energy peak 1036 J at
+// 0.41 s, main deposit's front point 1.875 m at 1.5 s):
+// - the dilating dense column draws the water in: excess pore pressure
+//   negative at both monitors from the first steps (measured: Δp/σ'v0 =
+//   −1.68 in the middle, −1.11 at the base at 0.06 s);
+// - it collapses more slowly (measured: 1.205 m at 0.6 s) and its kinetic
+//   energy peaks lower (785 J at 0.65 s);
+// - it runs out farther (2.600 m at 1.5 s; both columns still move).
+// The bounds sit halfway between the two columns' figures. Its excess pore
+// pressure is counted from the current surface (excess_pressure_from): the
+// front point, at the drained surface with p ≈ 0, reads −0.64 kPa at 1.5 s,
+// not the −9 kPa of the initial water table 0.9 m above it.
 TEST(SimulationTest, SaturatedDenseColumnCollapsesSlowlyWithSuction) {
   std::string out;
   const std::map<std::string, std::vector<double>> ts =
@@ -796,7 +800,7 @@ TEST(SimulationTest, SaturatedDenseColumnCollapsesSlowlyWithSuction) {
   absl::StatusOr<std::vector<store::ResultFrame>> frames = store::ReadResults(out + "/results.h5");
   ASSERT_TRUE(frames.ok()) << frames.status();
   const store::ResultFrame& last = frames->back();
-  EXPECT_NEAR(last.time, 0.6, 1e-9);
+  EXPECT_NEAR(last.time, 1.5, 1e-9);
   const std::vector<double> pore = FrameField(last, "pore_pressure"),
                             excess = FrameField(last, "excess_pore_pressure");
   ASSERT_FALSE(pore.empty());
@@ -806,20 +810,26 @@ TEST(SimulationTest, SaturatedDenseColumnCollapsesSlowlyWithSuction) {
     if (last.position[2 * p] > last.position[2 * front]) front = p;
   }
   EXPECT_NEAR(pore[front], 0.0, 100.0);          // Pa: drained surface
-  EXPECT_LT(last.position[2 * front + 1], 0.8);  // m: 0.2 m below the initial table
+  EXPECT_LT(last.position[2 * front + 1], 0.2);  // m: on the base, far below the initial table
   EXPECT_NEAR(excess[front], 0.0, 1000.0);
   const std::vector<double>& t = ts.at("time");
   double peak = 0.0;
+  int checked = 0;
   for (std::size_t r = 0; r < t.size(); ++r) {
     peak = std::max(peak, ts.at("kinetic_energy")[r]);
     if (std::abs(t[r] - 0.06) < 1e-6) {
       EXPECT_LT(ts.at("middle_excess_ratio")[r], -0.5) << "t " << t[r];
       EXPECT_LT(ts.at("base_excess_ratio")[r], -0.5) << "t " << t[r];
+      ++checked;
+    }
+    if (std::abs(t[r] - 0.6) < 1e-6) {
+      EXPECT_LT(ts.at("front_x")[r], 1.41) << "t " << t[r];  // m; dry 1.616
+      ++checked;
     }
   }
-  EXPECT_GT(ts.at("front_x").back(), 1.0);   // it does collapse
-  EXPECT_LT(ts.at("front_x").back(), 1.3);   // dry: 1.514 m
-  EXPECT_LT(peak, 300.0);                    // J; dry: 838 J
+  EXPECT_EQ(checked, 2);
+  EXPECT_LT(peak, 910.0);                            // J; dry 1036
+  EXPECT_GT(ts.at("deposit_front_x").back(), 2.24);  // m; dry 1.875
 }
 
 // §4.4, wave-propagation-ci: a half-sine pulse (eq. 38) on the surface of a
