@@ -13,7 +13,8 @@ of at most one missing point); the main deposit is the largest set of points so 
 the others (drawn grey) are scatter. It also prints where the main deposit is at least 2
 and 3 points thick, since a sheet one or two points thick along the base is where such
 readings part, and where 98 and 99 % of the points lie behind (the points carry equal
-shares of the column's mass): a reading that no single link decides.
+shares of the column's mass): a reading that no single link decides (summary.json's
+runout_normalised_mass98 and _mass99 since session 35).
 
 The energy panel is the paper's Fig. 27: kinetic, potential and dissipated energy over the
 initial potential energy, E_d = E_p0 - E_p - E_k (paper: E_k peaks at 0.1 E_p0 near 0.4 s,

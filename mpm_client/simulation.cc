@@ -204,7 +204,11 @@ std::vector<std::string> Simulation::Columns() const {
   }
   if (spec_.solver.lost_points == LostPointPolicy::kDrop) c.push_back("lost_points");
   if (spec_.solver.time_step_update_every > 0) c.push_back("time_step");
-  if (WritesDepositFront()) c.push_back("deposit_front_x");
+  if (WritesDepositFront()) {
+    for (const char* name : {"deposit_front_x", "mass_front_98_x", "mass_front_99_x"}) {
+      c.push_back(name);
+    }
+  }
   if (spec_.phases.saturated) {
     c.push_back("surface_settlement");
     for (const PressureMonitor& m : spec_.phases.monitors) {
@@ -415,6 +419,8 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
     // each other are in contact; those thrown clear are scatter.
     row.push_back(
         MainDepositFront(mp.position, lost, kDepositLinkSpacings * InitialPointSpacing(spec_)));
+    // And read by mass (m): where 98 and 99 % of the points' mass lie behind.
+    for (double share : {0.98, 0.99}) row.push_back(MassFront(mp.position, mp.mass, lost, share));
   }
   if (spec_.phases.saturated) {
     // The surface's settlement: the mean of (y0 − y) over the points that

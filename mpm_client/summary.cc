@@ -156,11 +156,19 @@ absl::StatusOr<Summary> Collapse(const CaseSpec& spec, const Columns& columns) {
   // A front still moving at the end "stops" at the last row: the run-out is
   // then a lower bound. At rest means unmoved over the last 10 % of the run.
   const double at_rest = time->empty() || stop <= 0.9 * time->back() ? 1.0 : 0.0;
-  return Summary{{"runout_normalised", (df - d0) / d0},
-                 {"final_front_m", df + column.lower.x()},
-                 {"farthest_point_m", farthest->back() + half},
-                 {"front_stop_time_s", stop},
-                 {"front_at_rest", at_rest}};
+  Summary out{{"runout_normalised", (df - d0) / d0},
+              {"final_front_m", df + column.lower.x()},
+              {"farthest_point_m", farthest->back() + half},
+              {"front_stop_time_s", stop},
+              {"front_at_rest", at_rest}};
+  for (const auto& [column_name, key] :
+       {std::pair{"mass_front_98_x", "runout_normalised_mass98"},
+        std::pair{"mass_front_99_x", "runout_normalised_mass99"}}) {
+    if (!columns.contains(column_name)) continue;
+    ASSIGN_OR_RETURN(const std::vector<double>* x, Column(columns, column_name));
+    out.emplace_back(key, (x->back() + half - column.lower.x() - d0) / d0);
+  }
+  return out;
 }
 
 absl::StatusOr<Summary> Biaxial(const CaseSpec& spec, const Columns& columns) {
@@ -360,6 +368,32 @@ double MainDepositFront(std::span<const Eigen::Vector2d> position,
     if (root(entry.second) == main) front = std::max(front, position[entry.second].x());
   }
   return front;
+}
+
+double MassFront(std::span<const Eigen::Vector2d> position, std::span<const double> mass,
+                 std::span<const std::uint8_t> skip, double share) {
+  constexpr double kNone = -std::numeric_limits<double>::infinity();
+  if (!(share > 0.0 && share <= 1.0) || mass.size() != position.size()) return kNone;
+  std::vector<std::pair<double, std::size_t>> order;  // (x, index): ties by index
+  double total = 0.0;                                 // kg
+  for (std::size_t p = 0; p < position.size(); ++p) {
+    if ((!skip.empty() && skip[p]) || !position[p].allFinite() || !std::isfinite(mass[p]) ||
+        !(mass[p] > 0.0)) {
+      continue;
+    }
+    order.push_back({position[p].x(), p});
+    total += mass[p];
+  }
+  if (order.empty()) return kNone;
+  std::sort(order.begin(), order.end());
+  // Summed in x order, so the result does not depend on the points' order
+  // but for rounding in the last place of `total`; the last point closes it.
+  double behind = 0.0;
+  for (std::size_t k = 0; k + 1 < order.size(); ++k) {
+    behind += mass[order[k].second];
+    if (behind >= share * total) return order[k].first;
+  }
+  return order.back().first;
 }
 
 double FrontStopTime(std::span<const double> time, std::span<const double> front,

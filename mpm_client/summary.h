@@ -57,6 +57,17 @@ double FrontStopTime(std::span<const double> time, std::span<const double> front
 double MainDepositFront(std::span<const Eigen::Vector2d> position,
                         std::span<const std::uint8_t> skip, double link);
 
+// The front of a flow read by mass, m: the smallest x such that the points
+// at or behind it hold at least `share` (0 < share ≤ 1) of the points'
+// total mass. No single point or link decides it, where the main deposit's
+// front turns on whether a thin sheet's points stay linked (the §4.3 dry
+// column's moved by 0.16 m when two surface points shifted a few cm).
+// Points with skip[p], a non-finite position or a mass that is not finite
+// and positive take no part. −∞ without such points or with `share` outside
+// (0, 1]. O(n log n), deterministic.
+double MassFront(std::span<const Eigen::Vector2d> position, std::span<const double> mass,
+                 std::span<const std::uint8_t> skip, double share);
+
 // The first region's initial point spacing, m: h / points_per_cell_side (0
 // without a region). Collapse runs link points within kDepositLinkSpacings
 // of it into one deposit (MainDepositFront).
@@ -95,7 +106,9 @@ using Summary = std::vector<std::pair<std::string, double>>;
 // farthest point, for a timeseries without it) plus the points' initial
 // half spacing, final_front_m (d_f from x = 0), farthest_point_m (front_x's
 // likewise), front_stop_time_s, front_at_rest (1 when the front was still
-// over the last 10 % of the run, else 0: the run-out is a lower bound);
+// over the last 10 % of the run, else 0: the run-out is a lower bound), and
+// where the timeseries has them runout_normalised_mass98 and _mass99 (the
+// same with d_f from mass_front_98_x and mass_front_99_x: MassFront);
 // biaxial: peak_stress_Pa and peak_strain (nominal: the platen's force over
 // the region's width, its travel over the region's height; compression +;
 // the mean σyy and εyy of the points without a platen), final_stress_Pa,

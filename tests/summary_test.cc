@@ -183,6 +183,65 @@ TEST(SummaryTest, MainDepositFrontDropsScatterPoints) {
   }
 }
 
+// Ten points of 1 kg at x = 0, 0.1, …, 0.9 m and a sheet of five of
+// 0.2 kg to 1.4 m: 11 kg in all.
+TEST(SummaryTest, MassFrontIsWhereAShareOfTheMassLiesBehind) {
+  std::vector<Eigen::Vector2d> x;
+  std::vector<double> m;
+  for (int i = 0; i < 10; ++i) {
+    x.emplace_back(0.1 * i, 0.0);
+    m.push_back(1.0);
+  }
+  for (int k = 1; k <= 5; ++k) {
+    x.emplace_back(0.9 + 0.1 * k, 0.05);
+    m.push_back(0.2);
+  }
+  // 10 kg lie behind 0.9 m (0.909 of 11), 10.8 kg behind 1.3 m (0.982).
+  EXPECT_DOUBLE_EQ(MassFront(x, m, {}, 0.9), 0.9);
+  EXPECT_DOUBLE_EQ(MassFront(x, m, {}, 0.95), 0.9 + 0.1 * 3);  // 10.6 kg; 10.4 at 1.1 m
+  EXPECT_DOUBLE_EQ(MassFront(x, m, {}, 0.98), 1.3);
+  EXPECT_DOUBLE_EQ(MassFront(x, m, {}, 0.99), 1.4);
+  EXPECT_DOUBLE_EQ(MassFront(x, m, {}, 1.0), 1.4);
+  EXPECT_DOUBLE_EQ(MassFront(x, m, {}, 0.05), 0.0);
+  // Mass, not the count of points: with equal masses 0.9 of 15 points lie
+  // behind the 14th point, 1.3 m.
+  const std::vector<double> equal(x.size(), 1.0);
+  EXPECT_DOUBLE_EQ(MassFront(x, equal, {}, 0.9), 1.3);
+  // "At least": half of four points lies behind the second.
+  EXPECT_DOUBLE_EQ(MassFront(std::span<const Eigen::Vector2d>(x).first(4),
+                             std::span<const double>(equal).first(4), {}, 0.5),
+                   0.1);
+  // The order of the points does not matter.
+  std::vector<Eigen::Vector2d> rx(x.rbegin(), x.rend());
+  std::vector<double> rm(m.rbegin(), m.rend());
+  EXPECT_DOUBLE_EQ(MassFront(rx, rm, {}, 0.98), 1.3);
+  // A parked point, a non-finite position and a mass that is no mass take no
+  // part: without the sheet's last point 10.8 of 10.8 kg lie behind 1.3 m.
+  std::vector<std::uint8_t> skip(x.size(), 0);
+  skip.back() = 1;
+  EXPECT_DOUBLE_EQ(MassFront(x, m, skip, 0.99), 1.3);
+  std::vector<Eigen::Vector2d> bad_x = x;
+  std::vector<double> bad_m = m;
+  for (double v : {std::nan(""), std::numeric_limits<double>::infinity()}) {
+    bad_x.emplace_back(v, 0.0);
+    bad_m.push_back(1.0);
+    bad_x.emplace_back(5.0, 0.0);
+    bad_m.push_back(v);
+  }
+  bad_x.emplace_back(6.0, 0.0);
+  bad_m.push_back(0.0);
+  bad_x.emplace_back(7.0, 0.0);
+  bad_m.push_back(-1.0);
+  EXPECT_DOUBLE_EQ(MassFront(bad_x, bad_m, {}, 0.99), 1.4);
+  // No points, masses that do not match the points, a share outside (0, 1]: −∞.
+  constexpr double kNone = -std::numeric_limits<double>::infinity();
+  EXPECT_EQ(MassFront({}, {}, {}, 0.98), kNone);
+  EXPECT_EQ(MassFront(x, std::span<const double>(m).first(3), {}, 0.98), kNone);
+  for (double share : {0.0, -0.5, 1.01, std::nan("")}) {
+    EXPECT_EQ(MassFront(x, m, {}, share), kNone) << share;
+  }
+}
+
 TEST(SummaryTest, FootingCollapseBiaxialAndPipeFigures) {
   // Footing: B·t = 0.5 m², 20 kPa surcharge, φ' 30°.
   CaseSpec footing = Region(3, 2, 1, 0.25);
@@ -247,6 +306,14 @@ TEST(SummaryTest, FootingCollapseBiaxialAndPipeFigures) {
   EXPECT_NEAR(m["farthest_point_m"], 2.5, 1e-12);
   EXPECT_DOUBLE_EQ(m["front_stop_time_s"], 1.0);
   EXPECT_EQ(m["front_at_rest"], 1.0);
+  EXPECT_FALSE(m.contains("runout_normalised_mass98"));
+  // With the fronts read by mass written, their run-outs too.
+  c["mass_front_98_x"] = {0.9375, 1.2, 1.3375, 1.3375};
+  c["mass_front_99_x"] = {0.9375, 1.3, 1.5375, 1.5375};
+  m = by_name(collapse, c);
+  EXPECT_NEAR(m["runout_normalised"], 0.8, 1e-12);
+  EXPECT_NEAR(m["runout_normalised_mass98"], 0.4, 1e-12);
+  EXPECT_NEAR(m["runout_normalised_mass99"], 0.6, 1e-12);
 
   // Biaxial with a platen: force over the width, travel over the height.
   CaseSpec biaxial = RegionWithBody(0.05, 0.1, 1, 0.0125, "platen");
