@@ -375,19 +375,19 @@ double MassFront(std::span<const Eigen::Vector2d> position, std::span<const doub
   constexpr double kNone = -std::numeric_limits<double>::infinity();
   if (!(share > 0.0 && share <= 1.0) || mass.size() != position.size()) return kNone;
   std::vector<std::pair<double, std::size_t>> order;  // (x, index): ties by index
-  double total = 0.0;                                 // kg
   for (std::size_t p = 0; p < position.size(); ++p) {
     if ((!skip.empty() && skip[p]) || !position[p].allFinite() || !std::isfinite(mass[p]) ||
         !(mass[p] > 0.0)) {
       continue;
     }
     order.push_back({position[p].x(), p});
-    total += mass[p];
   }
   if (order.empty()) return kNone;
   std::sort(order.begin(), order.end());
-  // Summed in x order, so the result does not depend on the points' order
-  // but for rounding in the last place of `total`; the last point closes it.
+  // Both sums in x order, so that the points' order does not round them
+  // differently; the last point closes it whatever the rounding.
+  double total = 0.0;  // kg
+  for (const auto& entry : order) total += mass[entry.second];
   double behind = 0.0;
   for (std::size_t k = 0; k + 1 < order.size(); ++k) {
     behind += mass[order[k].second];
