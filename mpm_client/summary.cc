@@ -161,12 +161,15 @@ absl::StatusOr<Summary> Collapse(const CaseSpec& spec, const Columns& columns) {
               {"farthest_point_m", farthest->back() + half},
               {"front_stop_time_s", stop},
               {"front_at_rest", at_rest}};
-  for (const auto& [column_name, key] :
-       {std::pair{"mass_front_98_x", "runout_normalised_mass98"},
-        std::pair{"mass_front_99_x", "runout_normalised_mass99"}}) {
-    if (!columns.contains(column_name)) continue;
-    ASSIGN_OR_RETURN(const std::vector<double>* x, Column(columns, column_name));
-    out.emplace_back(key, (x->back() + half - column.lower.x() - d0) / d0);
+  // The same read by mass, and when that front came to rest.
+  for (const char* share : {"98", "99"}) {
+    const std::string name = absl::StrCat("mass_front_", share, "_x");
+    if (!columns.contains(name)) continue;
+    ASSIGN_OR_RETURN(const std::vector<double>* x, Column(columns, name));
+    out.emplace_back(absl::StrCat("runout_normalised_mass", share),
+                     (x->back() + half - column.lower.x() - d0) / d0);
+    out.emplace_back(absl::StrCat("front_stop_time_mass", share, "_s"),
+                     FrontStopTime(*time, *x, 0.01 * d0));
   }
   return out;
 }

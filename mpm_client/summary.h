@@ -108,7 +108,8 @@ using Summary = std::vector<std::pair<std::string, double>>;
 // likewise), front_stop_time_s, front_at_rest (1 when the front was still
 // over the last 10 % of the run, else 0: the run-out is a lower bound), and
 // where the timeseries has them runout_normalised_mass98 and _mass99 (the
-// same with d_f from mass_front_98_x and mass_front_99_x: MassFront);
+// same with d_f from mass_front_98_x and mass_front_99_x: MassFront) and
+// front_stop_time_mass98_s and _mass99_s (FrontStopTime of those columns);
 // biaxial: peak_stress_Pa and peak_strain (nominal: the platen's force over
 // the region's width, its travel over the region's height; compression +;
 // the mean σyy and εyy of the points without a platen), final_stress_Pa,

@@ -307,13 +307,17 @@ TEST(SummaryTest, FootingCollapseBiaxialAndPipeFigures) {
   EXPECT_DOUBLE_EQ(m["front_stop_time_s"], 1.0);
   EXPECT_EQ(m["front_at_rest"], 1.0);
   EXPECT_FALSE(m.contains("runout_normalised_mass98"));
-  // With the fronts read by mass written, their run-outs too.
-  c["mass_front_98_x"] = {0.9375, 1.2, 1.3375, 1.3375};
+  // With the fronts read by mass written, their run-outs and stop times too:
+  // here the 98 % front rests from 0.5 s (within 1 % of d0 from there).
+  c["mass_front_98_x"] = {0.9375, 1.33, 1.3375, 1.3375};
   c["mass_front_99_x"] = {0.9375, 1.3, 1.5375, 1.5375};
   m = by_name(collapse, c);
   EXPECT_NEAR(m["runout_normalised"], 0.8, 1e-12);
   EXPECT_NEAR(m["runout_normalised_mass98"], 0.4, 1e-12);
   EXPECT_NEAR(m["runout_normalised_mass99"], 0.6, 1e-12);
+  EXPECT_DOUBLE_EQ(m["front_stop_time_mass98_s"], 0.5);
+  EXPECT_DOUBLE_EQ(m["front_stop_time_mass99_s"], 1.0);
+  EXPECT_DOUBLE_EQ(m["front_stop_time_s"], 1.0);
 
   // Biaxial with a platen: force over the width, travel over the height.
   CaseSpec biaxial = RegionWithBody(0.05, 0.1, 1, 0.0125, "platen");
