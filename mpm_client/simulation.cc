@@ -205,9 +205,8 @@ std::vector<std::string> Simulation::Columns() const {
   if (spec_.solver.lost_points == LostPointPolicy::kDrop) c.push_back("lost_points");
   if (spec_.solver.time_step_update_every > 0) c.push_back("time_step");
   if (WritesDepositFront()) {
-    for (const char* name : {"deposit_front_x", "mass_front_98_x", "mass_front_99_x"}) {
-      c.push_back(name);
-    }
+    c.push_back("deposit_front_x");
+    for (const int percent : kMassFrontPercents) c.push_back(MassFrontColumn(percent));
   }
   if (spec_.phases.saturated) {
     c.push_back("surface_settlement");
@@ -420,7 +419,9 @@ absl::Status Simulation::WriteRow(double wall_per_step) {
     row.push_back(
         MainDepositFront(mp.position, lost, kDepositLinkSpacings * InitialPointSpacing(spec_)));
     // And read by mass (m): where 98 and 99 % of the points' mass lie behind.
-    for (double share : {0.98, 0.99}) row.push_back(MassFront(mp.position, mp.mass, lost, share));
+    for (const int percent : kMassFrontPercents) {
+      row.push_back(MassFront(mp.position, mp.mass, lost, percent / 100.0));
+    }
   }
   if (spec_.phases.saturated) {
     // The surface's settlement: the mean of (y0 − y) over the points that

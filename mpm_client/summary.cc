@@ -151,8 +151,16 @@ absl::StatusOr<Summary> Collapse(const CaseSpec& spec, const Columns& columns) {
   const double d0 = column.upper.x() - column.lower.x();  // m
   // The front columns hold point centres: add the initial half spacing.
   const double half = 0.5 * InitialPointSpacing(spec);
-  const double df = front->back() + half - column.lower.x();
-  const double stop = FrontStopTime(*time, *front, 0.01 * d0);
+  // A front column's last row as a distance from the column's wall, m, and
+  // from when it stayed within 1 % of d0 of it, s.
+  const auto final_distance = [&](const std::vector<double>& x) {
+    return x.back() + half - column.lower.x();
+  };
+  const auto stop_time = [&](const std::vector<double>& x) {
+    return FrontStopTime(*time, x, 0.01 * d0);
+  };
+  const double df = final_distance(*front);
+  const double stop = stop_time(*front);
   // A front still moving at the end "stops" at the last row: the run-out is
   // then a lower bound. At rest means unmoved over the last 10 % of the run.
   const double at_rest = time->empty() || stop <= 0.9 * time->back() ? 1.0 : 0.0;
@@ -162,14 +170,13 @@ absl::StatusOr<Summary> Collapse(const CaseSpec& spec, const Columns& columns) {
               {"front_stop_time_s", stop},
               {"front_at_rest", at_rest}};
   // The same read by mass, and when that front came to rest.
-  for (const char* share : {"98", "99"}) {
-    const std::string name = absl::StrCat("mass_front_", share, "_x");
+  for (const int percent : kMassFrontPercents) {
+    const std::string name = MassFrontColumn(percent);
     if (!columns.contains(name)) continue;
     ASSIGN_OR_RETURN(const std::vector<double>* x, Column(columns, name));
-    out.emplace_back(absl::StrCat("runout_normalised_mass", share),
-                     (x->back() + half - column.lower.x() - d0) / d0);
-    out.emplace_back(absl::StrCat("front_stop_time_mass", share, "_s"),
-                     FrontStopTime(*time, *x, 0.01 * d0));
+    out.emplace_back(absl::StrCat("runout_normalised_mass", percent),
+                     (final_distance(*x) - d0) / d0);
+    out.emplace_back(absl::StrCat("front_stop_time_mass", percent, "_s"), stop_time(*x));
   }
   return out;
 }
@@ -398,6 +405,8 @@ double MassFront(std::span<const Eigen::Vector2d> position, std::span<const doub
   }
   return order.back().first;
 }
+
+std::string MassFrontColumn(int percent) { return absl::StrCat("mass_front_", percent, "_x"); }
 
 double FrontStopTime(std::span<const double> time, std::span<const double> front,
                      double tolerance) {

@@ -67,6 +67,10 @@ double MainDepositFront(std::span<const Eigen::Vector2d> position,
 // (0, 1]. O(n log n), deterministic.
 double MassFront(std::span<const Eigen::Vector2d> position, std::span<const double> mass,
                  std::span<const std::uint8_t> skip, double share);
+// The shares, in %, whose MassFront collapse runs write, each as the column
+// MassFrontColumn(percent) ("mass_front_98_x"); the summary reads them back.
+inline constexpr int kMassFrontPercents[] = {98, 99};
+std::string MassFrontColumn(int percent);
 
 // The first region's initial point spacing, m: h / points_per_cell_side (0
 // without a region). Collapse runs link points within kDepositLinkSpacings
