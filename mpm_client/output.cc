@@ -39,17 +39,26 @@ absl::StatusOr<std::unique_ptr<TimeseriesWriter>> TimeseriesWriter::Create(
   return std::unique_ptr<TimeseriesWriter>(new TimeseriesWriter(f, path, columns.size()));
 }
 
-absl::StatusOr<std::unique_ptr<TimeseriesWriter>> TimeseriesWriter::Resume(
-    const std::string& path, const std::vector<std::string>& columns, std::int64_t step) {
+absl::Status TimeseriesWriter::CheckColumns(const std::string& path,
+                                            const std::vector<std::string>& columns) {
   std::ifstream in(path);
   if (!in) return IoError("cannot read", path);
   std::string line;
-  const std::string header = Header(columns);
-  if (!std::getline(in, line) || line + "\n" != header) {
+  if (!std::getline(in, line) || line + "\n" != Header(columns)) {
     return absl::FailedPreconditionError(
         absl::StrCat(path, " does not have the columns of this case; cannot resume into it"));
   }
-  std::string kept = header;
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::unique_ptr<TimeseriesWriter>> TimeseriesWriter::Resume(
+    const std::string& path, const std::vector<std::string>& columns, std::int64_t step) {
+  RETURN_IF_ERROR(CheckColumns(path, columns));
+  std::ifstream in(path);
+  if (!in) return IoError("cannot read", path);
+  std::string line;
+  std::getline(in, line);  // the header, checked
+  std::string kept = Header(columns);
   while (std::getline(in, line)) {
     std::vector<absl::string_view> cells = absl::StrSplit(line, ',');
     double row_step = 0;

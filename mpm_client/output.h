@@ -27,9 +27,16 @@ class TimeseriesWriter {
   static absl::StatusOr<std::unique_ptr<TimeseriesWriter>> Create(
       const std::string& path, const std::vector<std::string>& columns);
   // Keeps the rows of an existing file up to and including `step` (a resumed
-  // run writes the later ones again); the header must equal `columns`.
+  // run writes the later ones again); the header must equal `columns`
+  // (CheckColumns).
   static absl::StatusOr<std::unique_ptr<TimeseriesWriter>> Resume(
       const std::string& path, const std::vector<std::string>& columns, std::int64_t step);
+  // Whether `path` can be resumed into, reading only: FailedPrecondition when
+  // its header is not `columns` (a run written by a binary with other
+  // columns), an I/O error when it cannot be read. A resume checks it before
+  // it touches any of the run's files.
+  static absl::Status CheckColumns(const std::string& path,
+                                   const std::vector<std::string>& columns);
   ~TimeseriesWriter();
 
   // One value per column (17 significant digits: doubles round-trip).

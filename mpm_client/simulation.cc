@@ -293,6 +293,11 @@ absl::Status Simulation::OpenOutputs(bool resume) {
   const std::string dir = options_.out_dir;
   const std::string h5 = dir + "/results.h5", xdmf = dir + "/results.xdmf";
   const std::string csv = dir + "/timeseries.csv";
+  // A timeseries this run cannot continue is refused before the results
+  // file is touched.
+  if (resume && std::filesystem::exists(csv)) {
+    RETURN_IF_ERROR(TimeseriesWriter::CheckColumns(csv, Columns()));
+  }
   ASSIGN_OR_RETURN(std::unique_ptr<store::ResultsWriter> results,
                    resume && std::filesystem::exists(h5)
                        ? store::ResultsWriter::Open(h5, xdmf, "mpm_client", solver_->step())

@@ -543,6 +543,35 @@ SimulationOptions StoppedShortRun(const std::string& out) {
   return o;
 }
 
+// A run whose timeseries has other columns than this binary writes (a
+// collapse run from before its mass-front columns) is refused at resume with
+// a specific error, and none of its files changes: the header is checked
+// before the results file is opened (which would mark it resumed).
+TEST(SimulationTest, ResumeIntoOtherColumnsIsRefusedAndTouchesNothing) {
+  const std::string out = FreshDir("resume_other_columns");
+  const SimulationOptions o = StoppedShortRun(out);
+  const auto bytes = [&](const std::string& name) {
+    std::ifstream in(out + "/" + name, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  std::string csv = bytes("timeseries.csv");
+  ASSERT_TRUE(absl::StartsWith(csv, "time,step,"));
+  csv.replace(0, 4, "TIME");  // another header
+  // A temporary stream: written and closed in this statement.
+  std::ofstream(out + "/timeseries.csv", std::ios::binary) << csv;
+  const std::vector<std::string> files = {"results.h5", "results.xdmf", "timeseries.csv",
+                                          "checkpoint.h5"};
+  std::vector<std::string> before;
+  for (const std::string& f : files) before.push_back(bytes(f));
+  absl::StatusOr<std::unique_ptr<Simulation>> b = Simulation::Resume(out + "/checkpoint.h5", o);
+  EXPECT_EQ(b.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_TRUE(absl::StrContains(b.status().message(), "does not have the columns of this case"))
+      << b.status();
+  for (std::size_t i = 0; i < files.size(); ++i) {
+    EXPECT_TRUE(bytes(files[i]) == before[i]) << files[i] << " changed";  // binary: no dump
+  }
+}
+
 // A run resumed with --f-bar goes on with it, and its later checkpoints carry
 // it: a second resume without the option keeps it, one with "none" drops it.
 TEST(SimulationTest, ResumeWithFBarCarriesIt) {
