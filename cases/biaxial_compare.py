@@ -5,7 +5,7 @@ compression +) on one panel, with the DEM element test on the same RVE, and the 
 stress at the end listed.
 
   /usr/bin/python3 cases/biaxial_compare.py RUN_DIR[=LABEL] [RUN_DIR[=LABEL] ...] [--reference=CSV]
-      [--out=biaxial-meshes.png]
+      [--out=biaxial-meshes.png] [--title=TEXT]
 
 Each RUN_DIR holds run.json (its case: the first region and the plot_body, else the first
 body) and timeseries.csv (<body>_fy, <body>_dy). The reference is an `rve_cli element-test`
@@ -45,6 +45,8 @@ def main():
     parser.add_argument("runs", nargs="+", help="RUN_DIR or RUN_DIR=LABEL")
     parser.add_argument("--reference", default=None)
     parser.add_argument("--out", default="biaxial-meshes.png")
+    parser.add_argument("--title", default="biaxial specimen on the paper's meshes (liang-zhao-mpm-dem §3.2)",
+                        help="the figure's title (say what the runs share, e.g. their time step)")
     args = parser.parse_args()
 
     fig, ax = plt.subplots(figsize=(7.5, 5))
@@ -65,7 +67,7 @@ def main():
         ax.plot(100 * ref["axial_strain"], ref["syy"] / 1e3, "k--", lw=1.2, label="DEM element test")
     ax.set_xlabel("nominal axial strain: platen travel / height (%)")
     ax.set_ylabel("nominal axial stress: platen force / width (kPa)")
-    ax.set_title("biaxial specimen on the paper's meshes (liang-zhao-mpm-dem §3.2)")
+    ax.set_title(args.title)
     ax.set_xlim(0, 15)
     ax.set_ylim(bottom=0)
     ax.grid(alpha=0.3)
