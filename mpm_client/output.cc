@@ -4,6 +4,7 @@
 #include <cerrno>
 #include <cstring>
 #include <fstream>
+#include <istream>
 #include <sstream>
 
 #include "absl/strings/numbers.h"
@@ -25,6 +26,18 @@ std::string Header(const std::vector<std::string>& columns) {
   return absl::StrCat(absl::StrJoin(columns, ","), "\n");
 }
 
+// Reads the first line of `in` (the file at `path`): FailedPrecondition unless
+// it is the header of `columns`.
+absl::Status ReadHeader(std::istream& in, const std::string& path,
+                        const std::vector<std::string>& columns) {
+  std::string line;
+  if (!std::getline(in, line) || line + "\n" != Header(columns)) {
+    return absl::FailedPreconditionError(
+        absl::StrCat(path, " does not have the columns of this case; cannot resume into it"));
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<TimeseriesWriter>> TimeseriesWriter::Create(
@@ -43,22 +56,15 @@ absl::Status TimeseriesWriter::CheckColumns(const std::string& path,
                                             const std::vector<std::string>& columns) {
   std::ifstream in(path);
   if (!in) return IoError("cannot read", path);
-  std::string line;
-  if (!std::getline(in, line) || line + "\n" != Header(columns)) {
-    return absl::FailedPreconditionError(
-        absl::StrCat(path, " does not have the columns of this case; cannot resume into it"));
-  }
-  return absl::OkStatus();
+  return ReadHeader(in, path, columns);
 }
 
 absl::StatusOr<std::unique_ptr<TimeseriesWriter>> TimeseriesWriter::Resume(
     const std::string& path, const std::vector<std::string>& columns, std::int64_t step) {
-  RETURN_IF_ERROR(CheckColumns(path, columns));
   std::ifstream in(path);
   if (!in) return IoError("cannot read", path);
-  std::string line;
-  std::getline(in, line);  // the header, checked
-  std::string kept = Header(columns);
+  RETURN_IF_ERROR(ReadHeader(in, path, columns));
+  std::string kept = Header(columns), line;
   while (std::getline(in, line)) {
     std::vector<absl::string_view> cells = absl::StrSplit(line, ',');
     double row_step = 0;
