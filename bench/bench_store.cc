@@ -40,7 +40,8 @@ double Seconds(Clock::time_point a, Clock::time_point b) {
 // the timed read returned what was written).
 bool SamePacking(const rvehub::dem::RveSnapshot& a, const rvehub::dem::RveSnapshot& b) {
   auto same = [](const std::vector<double>& x, const std::vector<double>& y) {
-    return x.size() == y.size() && std::memcmp(x.data(), y.data(), 8 * x.size()) == 0;
+    return x.size() == y.size() &&
+           (x.empty() || std::memcmp(x.data(), y.data(), 8 * x.size()) == 0);
   };
   if (!same(a.radius, b.radius) || !same(a.sx, b.sx) || !same(a.sy, b.sy) || !same(a.vx, b.vx) ||
       !same(a.vy, b.vy) || !same(a.omega, b.omega) || !same(a.theta, b.theta) ||

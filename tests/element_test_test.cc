@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -248,6 +249,28 @@ TEST(ElementTestTest, IsotropicCompressionStiffensAndDensifies) {
   EXPECT_LT(std::abs(last.sxx_comp - last.syy_comp), 0.05 * last.p_comp);
   // e = (1 + e0)(1 − εv) − 1 exactly for the cell's area change.
   EXPECT_NEAR(last.void_ratio, (1 + first.void_ratio) * (1 - last.vol_strain_comp) - 1, 1e-9);
+}
+
+// A field of another kind of test (a cyclic test's cycles and amplitude) is neither
+// validated nor used: any value, even one that overflows arithmetic (2 × INT_MAX), gives
+// the same rows. The RPC passes such fields through; the sanitizer build
+// (deploy/sanitize.sh) caught the overflow.
+TEST(ElementTestTest, AnotherTestsFieldsAreIgnored) {
+  ElementTestSpec plain;
+  plain.kind = ElementTestKind::kIsotropic;
+  plain.max_strain = 0.002;
+  plain.rows = 4;
+  ElementTestSpec odd = plain;
+  odd.cycles = std::numeric_limits<int>::max();
+  odd.amplitude = std::numeric_limits<double>::quiet_NaN();
+  const std::vector<ElementTestRow> a = RunOn("SET-dense", plain);
+  const std::vector<ElementTestRow> b = RunOn("SET-dense", odd);
+  ASSERT_GE(a.size(), 4u);
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    EXPECT_EQ(a[k].p_comp, b[k].p_comp) << "row " << k;
+    EXPECT_EQ(a[k].void_ratio, b[k].void_ratio) << "row " << k;
+  }
 }
 
 // Undrained (constant-volume) simple shear on the loose strain-controlled RVE

@@ -34,8 +34,10 @@ using ServerHarness = testing::Harness;
 
 bool SameBits(const google::protobuf::RepeatedField<double>& a,
               const google::protobuf::RepeatedField<double>& b) {
-  return a.size() == b.size() &&
-         std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<std::size_t>(a.size())) == 0;
+  if (a.size() != b.size()) return false;
+  // memcmp must not see the null data() of an empty field, even for 0 bytes.
+  const std::size_t bytes = sizeof(double) * static_cast<std::size_t>(a.size());
+  return bytes == 0 || std::memcmp(a.data(), b.data(), bytes) == 0;
 }
 
 // Same homogenised state, bit for bit (the serialised messages are equal).

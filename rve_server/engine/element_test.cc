@@ -166,7 +166,9 @@ absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
   std::int64_t step = 0;
   rows.push_back(MakeRow(start, strain_f(), spec.axis, step));
   int half_cycles = 0;  // reversals done (cyclic)
-  const int target_half_cycles = 2 * spec.cycles;
+  // Only a cyclic test's cycles are validated (and used); another test's field may hold
+  // anything, so it must not enter arithmetic (2 × 2e9 overflows an int).
+  const int target_half_cycles = cyclic ? 2 * spec.cycles : 0;
   double direction = 1.0;
   for (;;) {
     if (static_cast<std::int64_t>(rows.size()) > max_rows) {
