@@ -3,11 +3,14 @@
 # assertions into ${BUILD_DIR:-build-sanitize} and runs the tests there (any ctest
 # arguments pass through, e.g. -R Fuzz). A memory error, undefined behaviour (signed
 # overflow, a null pointer to memcmp, ...), a leak or an index past a container's size
-# fails the test that met it. Not part of CI: the build takes about
-# 20 min and the tests about 7 min on 2 cores. For a long fuzz run under the sanitizers:
+# fails the test that met it. Installs the packages first, as test.sh does. Not part of
+# CI: the build takes about 20 min and the tests about 7 min on 2 cores. For a long fuzz
+# run under the sanitizers:
 #   RVEHUB_FUZZ_ITERATIONS=100000 RVEHUB_FUZZ_SEED=$RANDOM build-sanitize/tests/fuzz_test
 set -euo pipefail
 cd "$(dirname "$0")/.."
+
+bash deploy/install_deps.sh
 
 BUILD_DIR="${BUILD_DIR:-build-sanitize}"
 # GCC leaves float-cast-overflow (a NaN or huge double converted to an integer, which
