@@ -6,10 +6,15 @@
 
 #include <unistd.h>
 
+#include <algorithm>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -18,6 +23,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "gtest/gtest.h"
+#include "mpm_client/solver.h"
 
 namespace rvehub::mpm {
 namespace {
@@ -754,6 +760,110 @@ TEST(ShippedCases, ParseAndRoundTrip) {
     ExpectSameSpec(*spec, *again);
   }
   EXPECT_GT(count, 0);
+}
+
+// Every JSON pointer in `j` (containers and leaves; "" is the root).
+void CollectPointers(const Json& j, const Json::json_pointer& at,
+                     std::vector<Json::json_pointer>* out) {
+  out->push_back(at);
+  if (j.is_object()) {
+    for (auto it = j.begin(); it != j.end(); ++it) CollectPointers(it.value(), at / it.key(), out);
+  } else if (j.is_array()) {
+    for (std::size_t k = 0; k < j.size(); ++k) CollectPointers(j[k], at / k, out);
+  }
+}
+
+// Hostile case files: the shipped cases with one to three fields replaced by
+// absurd values (huge, tiny, negative, beyond int64, wrong types, empty
+// containers), deleted, or joined by an unknown key. ParseCase must either
+// accept the result, whose ToJson then parses back to the same spec, or refuse
+// it with InvalidArgument naming a JSON pointer ("/..."), never crash; an
+// accepted case's regions are then filled with material points, or refused.
+// Seeded and sized from the environment like fuzz_test:
+//   RVEHUB_CASE_FUZZ_ITERATIONS=100000 RVEHUB_CASE_FUZZ_SEED=7 build/tests/case_test
+TEST(CaseFuzz, MutatedShippedCasesAreAcceptedOrRefusedByPointer) {
+  auto env = [](const char* name, std::int64_t fallback) {
+    const char* v = std::getenv(name);
+    return v == nullptr ? fallback : std::strtoll(v, nullptr, 10);
+  };
+  const std::int64_t iterations = env("RVEHUB_CASE_FUZZ_ITERATIONS", 3000);
+  const std::uint64_t seed = static_cast<std::uint64_t>(env("RVEHUB_CASE_FUZZ_SEED", 1));
+  const fs::path dir = fs::path(RVEHUB_SOURCE_DIR) / "cases";
+  std::vector<std::pair<std::string, Json>> cases;
+  for (const fs::directory_entry& entry : fs::directory_iterator(dir)) {
+    if (entry.path().extension() != ".json") continue;
+    std::ifstream in(entry.path());
+    cases.emplace_back(entry.path().filename().string(), Json::parse(in));
+  }
+  std::sort(cases.begin(), cases.end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
+  ASSERT_FALSE(cases.empty());
+  const std::vector<Json> absurd = {
+      0, -1, 1, 2147483648.0, -2147483649.0, 9.3e18, -9.3e18, 1e308, -1e308, 1e-308, -0.0,
+      std::numeric_limits<std::int64_t>::max(), std::numeric_limits<std::int64_t>::min(),
+      "", "x", "NaN", "inf", true, nullptr, Json::array(), Json::object(),
+      Json::array({1e308, -1e308}), Json::array({0, 0, 0}), Json::array({"a", "b"})};
+  std::mt19937_64 rng(seed);
+  auto pick = [&rng](std::size_t n) { return static_cast<std::size_t>(rng() % n); };
+  std::int64_t accepted = 0, filled = 0;
+  for (std::int64_t it = 0; it < iterations; ++it) {
+    const auto& [name, base] = cases[pick(cases.size())];
+    Json doc = base;
+    const int edits = 1 + static_cast<int>(pick(3));
+    std::string what;
+    for (int e = 0; e < edits; ++e) {
+      std::vector<Json::json_pointer> pointers;
+      CollectPointers(doc, Json::json_pointer(), &pointers);
+      const Json::json_pointer ptr = pointers[pick(pointers.size())];
+      const std::string at = ptr.to_string();
+      const int kind = static_cast<int>(pick(8));
+      if (kind == 0 && !at.empty()) {  // delete the field or element
+        Json& parent = doc[ptr.parent_pointer()];
+        if (parent.is_object()) parent.erase(ptr.back());
+        if (parent.is_array()) parent.erase(static_cast<std::size_t>(std::stoul(ptr.back())));
+        absl::StrAppend(&what, " delete ", at, ";");
+      } else if (kind == 1 && doc[ptr].is_object()) {  // an unknown key
+        doc[ptr]["unknown_key"] = 1;
+        absl::StrAppend(&what, " unknown key in ", at, ";");
+      } else if (kind == 2 && doc[ptr].is_number()) {  // a nearby or scaled number
+        const double x = doc[ptr].get<double>();
+        const double factors[] = {-1.0, 0.5, 2.0, 1e3, 1e-3, 1.0000001};
+        doc[ptr] = x * factors[pick(6)];
+        absl::StrAppend(&what, " ", at, " = ", doc[ptr].dump(), ";");
+      } else if (!at.empty()) {
+        doc[ptr] = absurd[pick(absurd.size())];
+        absl::StrAppend(&what, " ", at, " = ", doc[ptr].dump(), ";");
+      }
+    }
+    SCOPED_TRACE(absl::StrCat("iteration ", it, ", ", name, ":", what));
+    absl::StatusOr<CaseSpec> spec = ParseCase(doc.dump(), dir.string());
+    if (!spec.ok()) {
+      ASSERT_EQ(spec.status().code(), absl::StatusCode::kInvalidArgument) << spec.status();
+      ASSERT_TRUE(MessageStartsWith(spec.status(), "/")) << spec.status();
+      continue;
+    }
+    ++accepted;
+    absl::StatusOr<CaseSpec> again = ParseCase(ToJson(*spec), dir.string());
+    ASSERT_TRUE(again.ok()) << again.status();
+    ASSERT_EQ(ToJson(*again), ToJson(*spec));
+    // The accepted case's material points, as a run places them (no RVEs): filled or
+    // refused, never a crash. Cases past a million points are left out for memory.
+    if (EstimateSize(*spec).points <= 1000000) {
+      const absl::StatusOr<MaterialPoints> points =
+          FillRegions(*spec, std::vector<double>(spec->regions.size(), 2000.0));
+      if (points.ok()) {
+        ++filled;
+      } else {
+        ASSERT_EQ(points.status().code(), absl::StatusCode::kInvalidArgument) << points.status();
+      }
+    }
+  }
+  std::printf("case fuzz: %lld mutated cases, %lld accepted, %lld filled with points, seed %llu\n",
+              static_cast<long long>(iterations), static_cast<long long>(accepted),
+              static_cast<long long>(filled), static_cast<unsigned long long>(seed));
+  // Mutations of unused or equivalent fields are accepted; most are refused.
+  EXPECT_GT(accepted, 0);
+  EXPECT_LT(accepted, iterations);
 }
 
 // Bad hydraulic input in a saturated case (the shipped consolidation-1d-ci)
