@@ -1,0 +1,304 @@
+// The solver against plasticity's closed forms: a Mohr–Coulomb material
+// (mpm_client/mohr_coulomb.h) under the footing cases' geometry, contact,
+// surcharge and ultimate-load rule, against Prandtl's N_q.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include "mpm_client/case.h"
+#include "mpm_client/elastic.h"
+#include "mpm_client/mohr_coulomb.h"
+#include "mpm_client/solver.h"
+#include "mpm_client/summary.h"
+
+namespace rvehub::mpm {
+namespace {
+
+using Eigen::Matrix3d;
+
+double Radians(double deg) { return deg * std::numbers::pi / 180.0; }
+
+MohrCoulombParameters Material(double phi_deg, double psi_deg, double cohesion = 0.0) {
+  MohrCoulombParameters m;
+  m.youngs = 20e6;
+  m.poisson = 0.3;
+  m.friction = Radians(phi_deg);
+  m.dilatancy = Radians(psi_deg);
+  m.cohesion = cohesion;
+  return m;
+}
+
+// f = τ + s sin φ − c cos φ of a stress, Pa.
+double Yield(const Matrix3d& s, const MohrCoulombParameters& m) {
+  const double mean = 0.5 * (s(0, 0) + s(1, 1));
+  const double tau = std::hypot(0.5 * (s(0, 0) - s(1, 1)), s(0, 1));
+  return tau + mean * std::sin(m.friction) - m.cohesion * std::cos(m.friction);
+}
+
+Matrix3d Isotropic(double pressure) { return -pressure * Matrix3d::Identity(); }
+
+// ΔF of a pure shear: x stretched by (1 + e), y shortened by (1 − e): no
+// volume change in the small strain sym(ΔF − I) the update takes.
+Matrix3d PureShear(double e) {
+  Matrix3d f = Matrix3d::Identity();
+  f(0, 0) = 1.0 + e;
+  f(1, 1) = 1.0 - e;
+  return f;
+}
+
+TEST(MohrCoulombTest, InsideTheSurfaceItIsElastic) {
+  const MohrCoulombParameters m = Material(30.0, 0.0);
+  const Matrix3d s0 = Isotropic(100e3);
+  const Matrix3d f = PureShear(1e-5);
+  double kappa = 0.0;
+  const Matrix3d out = MohrCoulombStressUpdate(s0, f, m, kappa);
+  EXPECT_EQ(kappa, 0.0);
+  const double shear = m.youngs / (2.0 * (1.0 + m.poisson));
+  const double lambda = m.youngs * m.poisson / ((1.0 + m.poisson) * (1.0 - 2.0 * m.poisson));
+  EXPECT_TRUE(out == ElasticStressUpdate(s0, f, lambda, shear));
+  EXPECT_LT(Yield(out, m), 0.0);
+}
+
+// Sheared at constant volume from isotropic 100 kPa, a non-dilatant material
+// (ψ = 0) keeps its mean stress and stops at τ = p sin φ: Mohr's circle
+// touches the envelope.
+TEST(MohrCoulombTest, NonDilatantShearStopsOnTheEnvelopeAtConstantMeanStress) {
+  const MohrCoulombParameters m = Material(30.0, 0.0);
+  Matrix3d s = Isotropic(100e3);
+  double kappa = 0.0;
+  for (int i = 0; i < 200; ++i) s = MohrCoulombStressUpdate(s, PureShear(1e-4), m, kappa);
+  const double tau = 0.5 * (s(0, 0) - s(1, 1));  // x stretched: σxx the larger
+  EXPECT_NEAR(0.5 * (s(0, 0) + s(1, 1)), -100e3, 1e-6);
+  EXPECT_NEAR(tau, 100e3 * std::sin(m.friction), 1e-6);
+  EXPECT_NEAR(Yield(s, m), 0.0, 1e-6);
+  // σzz keeps the elastic part of a volume change that is nil: unchanged.
+  EXPECT_NEAR(s(2, 2), -100e3, 1e-6);
+  // 200 steps of 2e-4 shear strain γ = εxx − εyy, of which 2τ/G went elastic:
+  // the rest is the plastic multiplier.
+  const double shear = m.youngs / (2.0 * (1.0 + m.poisson));
+  EXPECT_NEAR(kappa, 200 * 2e-4 - 2.0 * tau / (2.0 * shear), 1e-9);
+}
+
+// Associated flow (ψ = φ) at constant volume: the plastic dilation must be
+// taken back elastically, so the mean stress grows as the material is
+// sheared on the envelope. One step returns exactly onto it, with the
+// plastic multiplier of the closed form.
+TEST(MohrCoulombTest, AssociatedFlowReturnsOntoTheSurfaceWithTheClosedFormMultiplier) {
+  const MohrCoulombParameters m = Material(30.0, 30.0);
+  const double shear = m.youngs / (2.0 * (1.0 + m.poisson));
+  const double lambda = m.youngs * m.poisson / ((1.0 + m.poisson) * (1.0 - 2.0 * m.poisson));
+  const Matrix3d s0 = Isotropic(100e3);
+  const Matrix3d f = PureShear(0.01);
+  const Matrix3d trial = ElasticStressUpdate(s0, f, lambda, shear);
+  double kappa = 0.0;
+  const Matrix3d out = MohrCoulombStressUpdate(s0, f, m, kappa);
+  EXPECT_NEAR(Yield(out, m), 0.0, 1e-6);
+  const double multiplier =
+      Yield(trial, m) / (shear + (lambda + shear) * std::pow(std::sin(m.friction), 2));
+  const double mean_trial = 0.5 * (trial(0, 0) + trial(1, 1));
+  EXPECT_NEAR(0.5 * (out(0, 0) + out(1, 1)),
+              mean_trial - (lambda + shear) * multiplier * std::sin(m.dilatancy), 1e-6);
+  EXPECT_NEAR(kappa, multiplier, 1e-15);
+  EXPECT_LT(0.5 * (out(0, 0) + out(1, 1)), -100e3);  // compressed harder
+  // The principal directions stay the trial's: x stretched, σxx the larger.
+  EXPECT_EQ(out(0, 1), 0.0);
+  EXPECT_GT(out(0, 0), out(1, 1));
+}
+
+// A cohesionless material pulled apart has nothing to give: the in-plane
+// stress returns to the apex, zero.
+TEST(MohrCoulombTest, TensionReturnsToTheApex) {
+  const MohrCoulombParameters m = Material(30.0, 10.0);
+  Matrix3d f = Matrix3d::Identity();
+  f(0, 0) = f(1, 1) = 1.01;
+  double kappa = 0.0;
+  const Matrix3d out = MohrCoulombStressUpdate(Isotropic(10e3), f, m, kappa);
+  EXPECT_TRUE((out.topLeftCorner<2, 2>().isZero(0.0))) << out;
+}
+
+// Sheared on at constant mean stress (ψ = 0), a softening material's
+// strength follows φ(κ): the peak's, then falling linearly to the residual
+// one at κ_r and staying there.
+TEST(MohrCoulombTest, SofteningFollowsThePlasticStrainToTheResidualAngle) {
+  MohrCoulombParameters m = Material(32.0, 0.0);
+  m.residual_friction = Radians(20.0);
+  m.softening_strain = 0.05;
+  EXPECT_EQ(FrictionAt(m, 0.0), m.friction);
+  EXPECT_NEAR(FrictionAt(m, 0.025), Radians(26.0), 1e-15);
+  EXPECT_EQ(FrictionAt(m, 0.2), m.residual_friction);
+  Matrix3d s = Isotropic(100e3);
+  double kappa = 0.0, highest = 0.0;
+  for (int i = 0; i < 1000; ++i) {
+    const double before = kappa;
+    s = MohrCoulombStressUpdate(s, PureShear(1e-4), m, kappa);
+    const double ratio = 0.5 * (s(0, 0) - s(1, 1)) / 100e3;  // sin φ mobilised
+    highest = std::max(highest, ratio);
+    // A plastic step returns onto the surface of the step's start.
+    if (kappa > before) {
+      EXPECT_NEAR(ratio, std::sin(FrictionAt(m, before)), 1e-12) << i;
+    }
+  }
+  EXPECT_NEAR(highest, std::sin(m.friction), 1e-3);
+  EXPECT_GT(kappa, m.softening_strain);
+  EXPECT_NEAR(0.5 * (s(0, 0) - s(1, 1)), 100e3 * std::sin(m.residual_friction), 1e-6);
+}
+
+TEST(MohrCoulombTest, BadParametersAreAClearError) {
+  std::vector<PointResponse> out(1);
+  std::vector<Matrix3d> f(1, Matrix3d::Identity());
+  for (const MohrCoulombParameters& m :
+       {Material(30.0, 31.0), Material(-1.0, 0.0), Material(90.0, 0.0), Material(30, 0, -1),
+        [] {  // residual above the peak
+          MohrCoulombParameters m = Material(30.0, 10.0);
+          m.residual_friction = Radians(31.0);
+          m.softening_strain = 0.1;
+          return m;
+        }()}) {
+    MohrCoulombModel model(m);
+    const absl::Status s = model.Update(1, f, out);
+    EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument) << s;
+    EXPECT_NE(s.message().find("Mohr-Coulomb model"), std::string::npos) << s;
+  }
+}
+
+struct FootingResult {
+  double n_q = 0.0;
+  double settlement = 0.0;  // m, at the ultimate load
+  bool peak = false;
+};
+
+// The footing case `file` (under cases/, or an absolute path) with the
+// Mohr–Coulomb material instead of its RVEs (the RVEs' density, the case's
+// isotropic start at its surcharge, the time step from the elastic modulus
+// at the case's CFL number), with `overrides` applied; N_q by
+// mpm_client/summary.cc's rule. With `csv`, writes settlement (m) and q/q_s.
+FootingResult RunFooting(const std::string& file, const MohrCoulombParameters& material,
+                         const std::vector<CaseOverride>& overrides, const char* csv = nullptr) {
+  // footing-dense's RVEs: ρ_s/(1 + e) = 2650/1.189 kg/m³ (only the step and
+  // the inertia depend on it: the soil is weightless).
+  const double density = 2228.8;
+  const std::string path =
+      file.starts_with("/") ? file : std::string(RVEHUB_SOURCE_DIR) + "/cases/" + file;
+  absl::StatusOr<CaseSpec> spec = LoadCase(path, overrides);
+  EXPECT_TRUE(spec.ok()) << spec.status();
+  if (!spec.ok()) return {};
+  spec->solver.wave_modulus = PWaveModulus(material.youngs, material.poisson);
+  absl::StatusOr<MaterialPoints> points =
+      FillRegions(*spec, [&](int) -> absl::StatusOr<double> { return density; });
+  EXPECT_TRUE(points.ok()) << points.status();
+  if (!points.ok()) return {};
+  MohrCoulombModel model(material);
+  const double surcharge = spec->regions[0].surcharge;
+  model.SetStress(std::vector<Matrix3d>(points->size(), Isotropic(surcharge)));
+  absl::StatusOr<std::unique_ptr<Solver>> solver =
+      Solver::Create(*spec, *std::move(points), &model);
+  EXPECT_TRUE(solver.ok()) << solver.status();
+  if (!solver.ok()) return {};
+  const int body = static_cast<int>(spec->walls.size());  // Reactions(): walls, then bodies
+  std::vector<double> settlement, load;
+  const double area = spec->output.plot_width * spec->solver.thickness;  // m²
+  while ((*solver)->time() < spec->solver.end_time) {
+    const absl::Status s = (*solver)->Step();
+    EXPECT_TRUE(s.ok()) << s;
+    if (!s.ok()) return {};
+    if ((*solver)->step() % spec->output.timeseries_every == 0) {
+      settlement.push_back(-(*solver)->BodyDisplacement(0).y());
+      load.push_back((*solver)->Reactions()[body].y() / area);
+    }
+  }
+  if (FILE* f = csv ? std::fopen(csv, "w") : nullptr) {
+    for (std::size_t i = 0; i < load.size(); ++i) {
+      std::fprintf(f, "%.6g,%.6g\n", settlement[i], load[i] / surcharge);
+    }
+    std::fclose(f);
+  }
+  const double span = std::min(spec->grid.cell_size, 0.2 * (settlement.back() - settlement[0]));
+  absl::StatusOr<UltimateLoad> ultimate = FindUltimateLoad(settlement, load, span);
+  EXPECT_TRUE(ultimate.ok()) << ultimate.status();
+  if (!ultimate.ok()) return {};
+  return {ultimate->load / surcharge, ultimate->settlement, ultimate->peak};
+}
+
+// footing-dense (the paper's domain and mesh) pushed to d = 0.125 m, as the
+// seed and mesh studies of cases/README.md run it.
+const std::vector<CaseOverride> kToEighthOfAMetre = {{"/solver/end_time", "1.3"}};
+
+// footing-dense's RVE (seed 1): peak φ' 31.67° (friction_angle.py), dilatancy
+// about 15° at the peak, critical state about 20° (cases/README.md, "The
+// packing's seed").
+MohrCoulombParameters FootingDensePeak() { return Material(31.67, 15.0); }
+
+// A soil that keeps its peak strength: the footing's set-up (mesh, edge,
+// rough contact, surcharge, ultimate-load rule) gives Prandtl's N_q for its
+// φ' within the goal of issue 11 (measured: 22.45, +0.7 %; an associated
+// material, ψ = φ, gives more, ψ = 0 less).
+TEST(PrandtlTest, FootingOnAPerfectlyPlasticSoilReachesPrandtl) {
+  const MohrCoulombParameters m = FootingDensePeak();
+  const FootingResult r = RunFooting("footing-dense.json", m, kToEighthOfAMetre);
+  const double prandtl = PrandtlNq(m.friction);
+  std::printf(
+      "perfectly plastic, phi 31.67, psi 15: N_q %.3f at d = %.4f m, Prandtl %.3f (%+.1f %%)\n",
+      r.n_q, r.settlement, prandtl, 100.0 * (r.n_q / prandtl - 1.0));
+  EXPECT_NEAR(r.n_q / prandtl, 1.0, 0.10);
+}
+
+// The same soil softening after its peak, to the critical state (φ 20°, ψ 0)
+// over a plastic shear strain of 0.15, as the element test goes from its
+// peak (γ ≈ 0.08) to the critical state (γ ≈ 0.23): the footing fails
+// progressively and carries less than Prandtl's N_q for the peak φ', more
+// than for the critical state's (measured: 16.13, 0.72 of Prandtl's; the RVE
+// footing gives 14.94, 0.67).
+TEST(PrandtlTest, SofteningToCriticalStateHoldsTheFootingBelowPrandtl) {
+  MohrCoulombParameters m = FootingDensePeak();
+  m.residual_friction = Radians(20.0);
+  m.residual_dilatancy = 0.0;
+  m.softening_strain = 0.15;
+  const FootingResult r = RunFooting("footing-dense.json", m, kToEighthOfAMetre);
+  const double prandtl = PrandtlNq(m.friction);
+  std::printf(
+      "softening to phi 20, psi 0 over kappa 0.15: N_q %.3f at d = %.4f m, %.3f of Prandtl\n",
+      r.n_q, r.settlement, r.n_q / prandtl);
+  EXPECT_LT(r.n_q / prandtl, 0.8);  // short of issue 11's goal by twice its 10 %
+  EXPECT_GT(r.n_q, PrandtlNq(m.residual_friction));
+}
+
+double EnvDouble(const char* name, double fallback) {
+  const char* v = std::getenv(name);
+  return v ? std::atof(v) : fallback;
+}
+
+// A measuring tool, not a check (run with --gtest_also_run_disabled_tests):
+// any footing case with any Mohr–Coulomb soil, from the environment.
+// RVEHUB_PRANDTL_CASE (default footing-dense.json), _PHI, _PSI, _PHI_R,
+// _PSI_R, _KAPPA_R (deg, deg, deg, deg, [-]), _E (Pa), _END (s), _CFL, _FBAR
+// (none or nodal), _CSV (a file for the load-settlement curve).
+TEST(PrandtlTest, DISABLED_MeasureFooting) {
+  const char* file = std::getenv("RVEHUB_PRANDTL_CASE");
+  const double phi = EnvDouble("RVEHUB_PRANDTL_PHI", 31.67);
+  const double psi = EnvDouble("RVEHUB_PRANDTL_PSI", 15.0);
+  MohrCoulombParameters m = Material(phi, psi);
+  m.youngs = EnvDouble("RVEHUB_PRANDTL_E", m.youngs);
+  m.residual_friction = Radians(EnvDouble("RVEHUB_PRANDTL_PHI_R", phi));
+  m.residual_dilatancy = Radians(EnvDouble("RVEHUB_PRANDTL_PSI_R", 0.0));
+  m.softening_strain = EnvDouble("RVEHUB_PRANDTL_KAPPA_R", 0.0);
+  std::vector<CaseOverride> overrides = {
+      {"/solver/end_time", std::to_string(EnvDouble("RVEHUB_PRANDTL_END", 1.3))}};
+  if (const char* cfl = std::getenv("RVEHUB_PRANDTL_CFL"))
+    overrides.push_back({"/solver/cfl", cfl});
+  if (const char* fbar = std::getenv("RVEHUB_PRANDTL_FBAR")) {
+    overrides.push_back({"/solver/f_bar", std::string("\"") + fbar + "\""});
+  }
+  const FootingResult r = RunFooting(file ? file : "footing-dense.json", m, overrides,
+                                     std::getenv("RVEHUB_PRANDTL_CSV"));
+  std::printf("phi %.2f psi %.2f: N_q %.3f at d = %.4f m (%s); Prandtl %.3f, ratio %.3f\n", phi,
+              psi, r.n_q, r.settlement, r.peak ? "peak" : "steady slope", PrandtlNq(Radians(phi)),
+              r.n_q / PrandtlNq(Radians(phi)));
+}
+
+}  // namespace
+}  // namespace rvehub::mpm
