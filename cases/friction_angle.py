@@ -21,12 +21,20 @@ average, correlation 0.4, with no direction stronger on the whole). --axis=both
 fits the circles of both directions at once: a footing, whose principal
 stresses turn from vertical under it to horizontal beside it, loads both.
 
+--compaction-pressure=P compacts each packing to the set's e0 at P instead of the
+set's p0 (rve_cli's --pressure), then loads or unloads it to each test's
+pressure; each test prints the void ratio it starts from. footing-dense
+compacted at 10 kPa to 1 MPa starts its tests at e 0.187 to 0.261 and gives
+phi' 32.5 to 22.4 deg: one curve of phi' against e, footing-medium's on it
+(cases/strength_void_ratio.py draws it).
+
 Each seed also gets its dilatancy angle psi at the peaks and Davis's (1968)
 friction angle of a non-associated material, tan phi* = sin phi' cos psi /
 (1 - sin phi' sin psi), with its N_q*: Prandtl's N_q assumes psi = phi'.
 
   python3 cases/friction_angle.py [--material=footing-dense] [--seed=1 | --seed=1-9]
-      [--particles=N] [--axis=y|x|both] [--rve-cli=build/rve_server/cli/rve_cli]
+      [--particles=N] [--axis=y|x|both] [--compaction-pressure=PA]
+      [--rve-cli=build/rve_server/cli/rve_cli]
       [--out=out/friction_angle]
 """
 import argparse
@@ -47,6 +55,12 @@ def read_rows(path, axis="y"):
             s1, s3 = (sxx, syy) if axis == "x" else (syy, sxx)
             rows.append((float(row["axial_strain"]), float(row["vol_strain"]), s1, s3))
     return rows
+
+
+def initial_void_ratio(path):
+    """The void ratio of a test's first row: the packing at the confining pressure."""
+    with open(path) as f:
+        return float(next(csv.DictReader(f))["void_ratio"])
 
 
 def peak_state(rows, within):
@@ -108,10 +122,8 @@ def parse_seeds(text):
 
 
 def measure(a, seed, pressures):
-    """Runs the biaxial tests of one seed; returns (phi', phi_cs, psi) in radians, psi the
-    mean dilatancy angle at the peaks."""
-    num = den = 0.0
-    cs, psis = [], []
+    """Runs the biaxial tests of one seed and fits them (fit())."""
+    tests = []
     # "both": the Mohr circles of the tests along y and along x in one fit.
     axes = ["y", "x"] if a.axis == "both" else [a.axis]
     for axis, p in ((axis, p) for axis in axes for p in pressures):
@@ -121,6 +133,8 @@ def measure(a, seed, pressures):
                                f"--material={a.material}", f"--seed={seed}", f"--confining={p}",
                                f"--strain={a.strain}", f"--inertial-number={a.inertial_number}",
                                *([f"--particles={a.particles}"] if a.particles else []),
+                               *([f"--pressure={a.compaction_pressure}"]
+                                 if a.compaction_pressure else []),
                                f"--axis={axis}",
                                # Rows every 0.02 % of strain, as the 8 % tests had: the peak
                                # is read off the rows.
@@ -131,19 +145,33 @@ def measure(a, seed, pressures):
             raise SystemExit(f"rve_cli element-test failed (exit {test.returncode}) for seed "
                              f"{seed} along {axis} at {p:g} Pa:\n"
                              f"{test.stderr.strip()[-2000:]}")
+        tests.append((path, axis, p))
+    return fit(tests, a.peak_within, a.cs_from, f"seed {seed}")
+
+
+def fit(tests, peak_within, cs_from, label=None):
+    """Fits the biaxial CSVs `tests`, (path, loading axis, confining pressure Pa) each: returns
+    (phi', phi_cs, psi, e), the angles in radians, psi the mean dilatancy angle at the peaks,
+    e the mean void ratio at the tests' start. With `label`, prints each test's figures."""
+    num = den = 0.0
+    cs, psis, voids = [], [], []
+    for path, axis, p in tests:
         rows = read_rows(path, axis)
-        s1, s3, at = peak_state(rows, a.peak_within)
+        voids.append(initial_void_ratio(path))
+        s1, s3, at = peak_state(rows, peak_within)
         radius, centre = (s1 - s3) / 2, (s1 + s3) / 2
         num += radius * centre
         den += centre * centre
-        cs.append(large_strain_ratio(rows, a.cs_from))
+        cs.append(large_strain_ratio(rows, cs_from))
         psis.append(dilatancy_angle(rows, at))
-        print(f"seed {seed}, along {axis}, sigma3 = {p / 1e3:5.1f} kPa: peak sigma1 = "
-              f"{s1 / 1e3:7.2f} kPa at {at:.2%}, phi = "
-              f"{math.degrees(math.asin(radius / centre)):5.2f} deg, psi = "
-              f"{math.degrees(psis[-1]):5.2f} deg; from {a.cs_from:.0%} strain on "
-              f"{math.degrees(math.asin(cs[-1])):5.2f} deg")
-    return math.asin(num / den), math.asin(sum(cs) / len(cs)), sum(psis) / len(psis)
+        if label:
+            print(f"{label}, along {axis}, sigma3 = {p / 1e3:5.1f} kPa (e = {voids[-1]:.4f}): "
+                  f"peak sigma1 = {s1 / 1e3:7.2f} kPa at {at:.2%}, phi = "
+                  f"{math.degrees(math.asin(radius / centre)):5.2f} deg, psi = "
+                  f"{math.degrees(psis[-1]):5.2f} deg; from {cs_from:.0%} strain on "
+                  f"{math.degrees(math.asin(cs[-1])):5.2f} deg")
+    return (math.asin(num / den), math.asin(sum(cs) / len(cs)), sum(psis) / len(psis),
+            statistics.mean(voids))
 
 
 def main():
@@ -160,6 +188,11 @@ def main():
                          "one fit over the tests along y and along x)")
     ap.add_argument("--particles", type=int, default=0,
                     help="discs per packing (default the set's, 400): a larger sample")
+    ap.add_argument("--compaction-pressure", type=float, default=0,
+                    help="Pa the packing is compacted at to the set's e0 (rve_cli's "
+                         "--pressure; default the set's p0), then loaded or unloaded to each "
+                         "test's confining pressure; give each its own --out (the CSVs are "
+                         "named by seed and confining pressure)")
     ap.add_argument("--inertial-number", type=float, default=1e-3,
                     help="shearing rate as rve_cli's I = rate d sqrt(rho/p)")
     # The medium and soft packings harden on without a clear peak: over 30 % the largest row
@@ -177,10 +210,11 @@ def main():
     pressures = [float(x) for x in a.pressures.split(",")]
     results = {}
     for seed in a.seed:
-        phi, phi_cs, psi = measure(a, seed, pressures)
-        results[seed] = (math.degrees(phi), math.degrees(phi_cs))
+        phi, phi_cs, psi, void = measure(a, seed, pressures)
+        results[seed] = (math.degrees(phi), math.degrees(phi_cs), void)
         davis = davis_angle(phi, psi)
-        print(f"{a.material}, seed {seed}: phi' = {results[seed][0]:.2f} deg (least squares "
+        print(f"{a.material}, seed {seed} (e = {void:.4f} at the tests' start): "
+              f"phi' = {results[seed][0]:.2f} deg (least squares "
               f"over the Mohr circles), Prandtl N_q = {prandtl_nq(phi):.2f}; phi_cs = "
               f"{results[seed][1]:.2f} deg (mean stress ratio from {a.cs_from:.0%} axial "
               f"strain on); psi = {math.degrees(psi):.2f} deg at the peaks, Davis's "
@@ -191,10 +225,12 @@ def main():
         # seeds, which moves Prandtl's N_q by a quarter.
         peaks = sorted(results.values())
         seeds = ",".join(map(str, a.seed))
-        for name, values in (("phi'", [r[0] for r in peaks]), ("phi_cs", [r[1] for r in peaks])):
-            print(f"{a.material}, seeds {seeds}: {name} mean {statistics.mean(values):.2f} "
-                  f"deg, standard deviation {statistics.stdev(values):.2f}, range "
-                  f"{min(values):.2f}-{max(values):.2f}")
+        for name, values, unit, digits in (("phi'", [r[0] for r in peaks], " deg", 2),
+                                           ("phi_cs", [r[1] for r in peaks], " deg", 2),
+                                           ("e at the start", [r[2] for r in peaks], "", 4)):
+            print(f"{a.material}, seeds {seeds}: {name} mean {statistics.mean(values):.{digits}f}"
+                  f"{unit}, standard deviation {statistics.stdev(values):.{digits}f}, range "
+                  f"{min(values):.{digits}f}-{max(values):.{digits}f}")
         mean = math.radians(statistics.mean(r[0] for r in peaks))
         print(f"{a.material}: Prandtl N_q {prandtl_nq(mean):.2f} for the mean phi', "
               f"{prandtl_nq(math.radians(peaks[0][0])):.2f}-"
