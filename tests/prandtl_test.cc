@@ -166,22 +166,21 @@ TEST(MohrCoulombTest, BadParametersAreAClearError) {
   }
 }
 
-struct FootingResult {
-  double n_q = 0.0;
-  double settlement = 0.0;  // m, at the ultimate load
-  bool peak = false;
+// The first body's displacement (m) and the force the soil puts on it (N,
+// over the case's thickness), against time (s).
+struct BodySeries {
+  std::vector<double> time, dx, dy, fx, fy;
 };
 
-// The footing case `file` (under cases/, or an absolute path) with the
-// Mohr–Coulomb material instead of its RVEs (the RVEs' density, the case's
-// isotropic start at its surcharge, the time step from the elastic modulus
-// at the case's CFL number), with `overrides` applied; N_q by
-// mpm_client/summary.cc's rule. With `csv`, writes settlement (m) and q/q_s.
-FootingResult RunFooting(const std::string& file, const MohrCoulombParameters& material,
-                         const std::vector<CaseOverride>& overrides, const char* csv = nullptr) {
-  // footing-dense's RVEs: ρ_s/(1 + e) = 2650/1.189 kg/m³ (only the step and
-  // the inertia depend on it: the soil is weightless).
-  const double density = 2228.8;
+// The case `file` (under cases/, or an absolute path) with the Mohr–Coulomb
+// material instead of its RVEs: the RVEs' density (footing-dense's,
+// ρ_s/(1 + e) = 2650/1.189 kg/m³), the first region's initial stress (its
+// kind, surface, surcharge and floor, as the RVEs are consolidated), the
+// time step from the elastic modulus at the case's CFL number, `overrides`
+// applied. Records the first body every timeseries_every steps.
+BodySeries RunWithMohrCoulomb(const std::string& file, const MohrCoulombParameters& material,
+                              const std::vector<CaseOverride>& overrides) {
+  const double density = 2228.8;  // kg/m³
   const std::string path =
       file.starts_with("/") ? file : std::string(RVEHUB_SOURCE_DIR) + "/cases/" + file;
   absl::StatusOr<CaseSpec> spec = LoadCase(path, overrides);
@@ -192,24 +191,68 @@ FootingResult RunFooting(const std::string& file, const MohrCoulombParameters& m
       FillRegions(*spec, [&](int) -> absl::StatusOr<double> { return density; });
   EXPECT_TRUE(points.ok()) << points.status();
   if (!points.ok()) return {};
+  const MaterialRegion& region = spec->regions[0];
+  const double g = spec->solver.gravity.norm();  // m/s²
+  std::vector<Matrix3d> stress(points->size(), Matrix3d::Zero());
+  for (std::size_t p = 0; p < points->size(); ++p) {
+    const double depth = std::max(0.0, region.surface_y - points->position[p].y());
+    const double sv = std::max(region.minimum_stress, density * g * depth + region.surcharge);
+    if (region.initial_stress == InitialStressKind::kK0) {
+      stress[p] = -region.k0 * sv * Matrix3d::Identity();
+      stress[p](1, 1) = -sv;
+    } else {
+      stress[p] = Isotropic(sv);
+    }
+  }
   MohrCoulombModel model(material);
-  const double surcharge = spec->regions[0].surcharge;
-  model.SetStress(std::vector<Matrix3d>(points->size(), Isotropic(surcharge)));
+  model.SetStress(std::move(stress));
   absl::StatusOr<std::unique_ptr<Solver>> solver =
       Solver::Create(*spec, *std::move(points), &model);
   EXPECT_TRUE(solver.ok()) << solver.status();
   if (!solver.ok()) return {};
   const int body = static_cast<int>(spec->walls.size());  // Reactions(): walls, then bodies
-  std::vector<double> settlement, load;
-  const double area = spec->output.plot_width * spec->solver.thickness;  // m²
+  BodySeries out;
   while ((*solver)->time() < spec->solver.end_time) {
     const absl::Status s = (*solver)->Step();
     EXPECT_TRUE(s.ok()) << s;
-    if (!s.ok()) return {};
+    if (!s.ok()) return out;
     if ((*solver)->step() % spec->output.timeseries_every == 0) {
-      settlement.push_back(-(*solver)->BodyDisplacement(0).y());
-      load.push_back((*solver)->Reactions()[body].y() / area);
+      const Eigen::Vector2d d = (*solver)->BodyDisplacement(0), f = (*solver)->Reactions()[body];
+      out.time.push_back((*solver)->time());
+      out.dx.push_back(d.x());
+      out.dy.push_back(d.y());
+      out.fx.push_back(f.x());
+      out.fy.push_back(f.y());
     }
+  }
+  return out;
+}
+
+struct FootingResult {
+  double n_q = 0.0;
+  double settlement = 0.0;  // m, at the ultimate load
+  bool peak = false;
+};
+
+// A footing case's N_q by mpm_client/summary.cc's rule, with the
+// Mohr–Coulomb soil (RunWithMohrCoulomb). With `csv`, writes settlement (m)
+// and q/q_s.
+FootingResult RunFooting(const std::string& file, const MohrCoulombParameters& material,
+                         const std::vector<CaseOverride>& overrides, const char* csv = nullptr) {
+  const BodySeries series = RunWithMohrCoulomb(file, material, overrides);
+  const std::string path =
+      file.starts_with("/") ? file : std::string(RVEHUB_SOURCE_DIR) + "/cases/" + file;
+  absl::StatusOr<CaseSpec> spec = LoadCase(path, overrides);
+  if (!spec.ok() || series.fy.size() < 3) {
+    ADD_FAILURE() << "no footing run";
+    return {};
+  }
+  const double area = spec->output.plot_width * spec->solver.thickness;  // m²
+  const double surcharge = spec->regions[0].surcharge;                   // Pa
+  std::vector<double> settlement, load;
+  for (std::size_t i = 0; i < series.fy.size(); ++i) {
+    settlement.push_back(-series.dy[i]);
+    load.push_back(series.fy[i] / area);
   }
   if (FILE* f = csv ? std::fopen(csv, "w") : nullptr) {
     for (std::size_t i = 0; i < load.size(); ++i) {
@@ -276,7 +319,9 @@ double EnvDouble(const char* name, double fallback) {
 // any footing case with any Mohr–Coulomb soil, from the environment.
 // RVEHUB_PRANDTL_CASE (default footing-dense.json), _PHI, _PSI, _PHI_R,
 // _PSI_R, _KAPPA_R (deg, deg, deg, deg, [-]), _E (Pa), _END (s), _CFL, _FBAR
-// (none or nodal), _CSV (a file for the load-settlement curve).
+// (none or nodal), _CSV (a file for the load-settlement curve); or
+// _BODY_CSV: any case with a body (a pipe), its first body's displacement
+// (m) and force (N) against time (s), no N_q.
 TEST(PrandtlTest, DISABLED_MeasureFooting) {
   const char* file = std::getenv("RVEHUB_PRANDTL_CASE");
   const double phi = EnvDouble("RVEHUB_PRANDTL_PHI", 31.67);
@@ -292,6 +337,18 @@ TEST(PrandtlTest, DISABLED_MeasureFooting) {
     overrides.push_back({"/solver/cfl", cfl});
   if (const char* fbar = std::getenv("RVEHUB_PRANDTL_FBAR")) {
     overrides.push_back({"/solver/f_bar", std::string("\"") + fbar + "\""});
+  }
+  if (const char* body_csv = std::getenv("RVEHUB_PRANDTL_BODY_CSV")) {
+    // Any case with a body (a pipe): its displacement and force, no N_q.
+    const BodySeries b = RunWithMohrCoulomb(file ? file : "footing-dense.json", m, overrides);
+    FILE* f = std::fopen(body_csv, "w");
+    ASSERT_NE(f, nullptr) << body_csv;
+    std::fprintf(f, "time,dx,dy,fx,fy\n");
+    for (std::size_t i = 0; i < b.time.size(); ++i) {
+      std::fprintf(f, "%.6g,%.6g,%.6g,%.6g,%.6g\n", b.time[i], b.dx[i], b.dy[i], b.fx[i], b.fy[i]);
+    }
+    std::fclose(f);
+    return;
   }
   const FootingResult r = RunFooting(file ? file : "footing-dense.json", m, overrides,
                                      std::getenv("RVEHUB_PRANDTL_CSV"));
