@@ -273,7 +273,7 @@ FootingResult RunFooting(const std::string& file, const MohrCoulombParameters& m
 // a node line, pushed to d = 0.2 m: N_c = (q_ult − q_s)/c. The grid spreads
 // the edge over about one cell (cases/README.md, "The footing's N_q"), so
 // N_c falls at first order in h; extrapolated to h = 0 it must come within
-// 10 % of 2 + π. Measured: 6.59 and 6.03, extrapolated 5.47 (+6.4 %); on
+// 10 % of 2 + π. Measured: 6.59 and 6.03, extrapolated 5.48 (+6.6 %); on
 // footing-dense's mesh (h = 1/9 m, the edge inside a cell) 6.99, so that
 // mesh reads a footing's load about 30 % high.
 TEST(PrandtlTest, TrescaFootingConvergesToTwoPlusPi) {
