@@ -1,6 +1,7 @@
-// An elastic–perfectly plastic Mohr–Coulomb material in plane strain, for
-// checks of the solver against plasticity's closed forms (Prandtl's bearing
-// capacity): no RVEs behind it.
+// An elastic–plastic Mohr–Coulomb material in plane strain, perfectly
+// plastic or softening, for checks of the solver against plasticity's closed
+// forms (Prandtl's N_c = 2 + π of a Tresca soil, φ = 0) and for soils that
+// stand in for an RVE's peak and critical state: no RVEs behind it.
 #ifndef RVEHUB_MPM_CLIENT_MOHR_COULOMB_H_
 #define RVEHUB_MPM_CLIENT_MOHR_COULOMB_H_
 
