@@ -167,9 +167,12 @@ TEST(MohrCoulombTest, BadParametersAreAClearError) {
 }
 
 // The first body's displacement (m) and the force the soil puts on it (N,
-// over the case's thickness), against time (s).
+// over the case's thickness), against time (s), if the case has a body; the
+// points' positions (m) and masses (kg) at the end.
 struct BodySeries {
   std::vector<double> time, dx, dy, fx, fy;
+  std::vector<Eigen::Vector2d> position;
+  std::vector<double> mass;
 };
 
 // The case `file` (under cases/, or an absolute path) with the Mohr–Coulomb
@@ -216,7 +219,7 @@ BodySeries RunWithMohrCoulomb(const std::string& file, const MohrCoulombParamete
     const absl::Status s = (*solver)->Step();
     EXPECT_TRUE(s.ok()) << s;
     if (!s.ok()) return out;
-    if ((*solver)->step() % spec->output.timeseries_every == 0) {
+    if (!spec->bodies.empty() && (*solver)->step() % spec->output.timeseries_every == 0) {
       const Eigen::Vector2d d = (*solver)->BodyDisplacement(0), f = (*solver)->Reactions()[body];
       out.time.push_back((*solver)->time());
       out.dx.push_back(d.x());
@@ -225,6 +228,8 @@ BodySeries RunWithMohrCoulomb(const std::string& file, const MohrCoulombParamete
       out.fy.push_back(f.y());
     }
   }
+  out.position = (*solver)->points().position;
+  out.mass = (*solver)->points().mass;
   return out;
 }
 
@@ -341,7 +346,8 @@ double EnvDouble(const char* name, double fallback) {
 // _PSI_R, _KAPPA_R (deg, deg, deg, deg, [-]), _E, _C (Pa), _END (s), _CFL, _FBAR
 // (none or nodal), _CSV (a file for the load-settlement curve); or
 // _BODY_CSV: any case with a body (a pipe), its first body's displacement
-// (m) and force (N) against time (s), no N_q.
+// (m) and force (N) against time (s), no N_q; or _POINTS_CSV: any case (a
+// collapse), the points' positions (m) and masses (kg) at the end.
 TEST(PrandtlTest, DISABLED_MeasureFooting) {
   const char* file = std::getenv("RVEHUB_PRANDTL_CASE");
   const double phi = EnvDouble("RVEHUB_PRANDTL_PHI", 31.67);
@@ -358,6 +364,18 @@ TEST(PrandtlTest, DISABLED_MeasureFooting) {
     overrides.push_back({"/solver/cfl", cfl});
   if (const char* fbar = std::getenv("RVEHUB_PRANDTL_FBAR")) {
     overrides.push_back({"/solver/f_bar", std::string("\"") + fbar + "\""});
+  }
+  if (const char* points_csv = std::getenv("RVEHUB_PRANDTL_POINTS_CSV")) {
+    // Any case (a collapse): the points where the run ends.
+    const BodySeries b = RunWithMohrCoulomb(file ? file : "footing-dense.json", m, overrides);
+    FILE* f = std::fopen(points_csv, "w");
+    ASSERT_NE(f, nullptr) << points_csv;
+    std::fprintf(f, "x,y,mass\n");
+    for (std::size_t i = 0; i < b.position.size(); ++i) {
+      std::fprintf(f, "%.6g,%.6g,%.6g\n", b.position[i].x(), b.position[i].y(), b.mass[i]);
+    }
+    std::fclose(f);
+    return;
   }
   if (const char* body_csv = std::getenv("RVEHUB_PRANDTL_BODY_CSV")) {
     // Any case with a body (a pipe): its displacement and force, no N_q.
