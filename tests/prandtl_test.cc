@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <initializer_list>
 #include <numbers>
 #include <string>
 #include <vector>
@@ -335,6 +336,24 @@ TEST(PrandtlTest, SofteningFootingLiesBetweenThePeakAndTheCriticalStateSoils) {
   EXPECT_GT(soft, critical);
 }
 
+// Writes `columns` (of equal lengths) under `header` to `path`, %.6g each.
+void WriteColumns(const char* path, const char* header,
+                  std::initializer_list<const std::vector<double>*> columns) {
+  FILE* f = std::fopen(path, "w");
+  ASSERT_NE(f, nullptr) << path;
+  std::fprintf(f, "%s\n", header);
+  const std::size_t rows = columns.size() > 0 ? (*columns.begin())->size() : 0;
+  for (std::size_t i = 0; i < rows; ++i) {
+    const char* separator = "";
+    for (const std::vector<double>* column : columns) {
+      std::fprintf(f, "%s%.6g", separator, (*column)[i]);
+      separator = ",";
+    }
+    std::fprintf(f, "\n");
+  }
+  std::fclose(f);
+}
+
 double EnvDouble(const char* name, double fallback) {
   const char* v = std::getenv(name);
   return v ? std::atof(v) : fallback;
@@ -365,28 +384,21 @@ TEST(PrandtlTest, DISABLED_MeasureFooting) {
   if (const char* fbar = std::getenv("RVEHUB_PRANDTL_FBAR")) {
     overrides.push_back({"/solver/f_bar", std::string("\"") + fbar + "\""});
   }
-  if (const char* points_csv = std::getenv("RVEHUB_PRANDTL_POINTS_CSV")) {
-    // Any case (a collapse): the points where the run ends.
+  const char* points_csv = std::getenv("RVEHUB_PRANDTL_POINTS_CSV");
+  const char* body_csv = std::getenv("RVEHUB_PRANDTL_BODY_CSV");
+  if (points_csv || body_csv) {
+    // Any case, no N_q: a collapse's points where the run ends, a pipe's
+    // displacement and force.
     const BodySeries b = RunWithMohrCoulomb(file ? file : "footing-dense.json", m, overrides);
-    FILE* f = std::fopen(points_csv, "w");
-    ASSERT_NE(f, nullptr) << points_csv;
-    std::fprintf(f, "x,y,mass\n");
-    for (std::size_t i = 0; i < b.position.size(); ++i) {
-      std::fprintf(f, "%.6g,%.6g,%.6g\n", b.position[i].x(), b.position[i].y(), b.mass[i]);
+    if (points_csv) {
+      std::vector<double> x, y;
+      for (const Eigen::Vector2d& p : b.position) {
+        x.push_back(p.x());
+        y.push_back(p.y());
+      }
+      WriteColumns(points_csv, "x,y,mass", {&x, &y, &b.mass});
     }
-    std::fclose(f);
-    return;
-  }
-  if (const char* body_csv = std::getenv("RVEHUB_PRANDTL_BODY_CSV")) {
-    // Any case with a body (a pipe): its displacement and force, no N_q.
-    const BodySeries b = RunWithMohrCoulomb(file ? file : "footing-dense.json", m, overrides);
-    FILE* f = std::fopen(body_csv, "w");
-    ASSERT_NE(f, nullptr) << body_csv;
-    std::fprintf(f, "time,dx,dy,fx,fy\n");
-    for (std::size_t i = 0; i < b.time.size(); ++i) {
-      std::fprintf(f, "%.6g,%.6g,%.6g,%.6g,%.6g\n", b.time[i], b.dx[i], b.dy[i], b.fx[i], b.fy[i]);
-    }
-    std::fclose(f);
+    if (body_csv) WriteColumns(body_csv, "time,dx,dy,fx,fy", {&b.time, &b.dx, &b.dy, &b.fx, &b.fy});
     return;
   }
   const FootingResult r = RunFooting(file ? file : "footing-dense.json", m, overrides,
