@@ -173,7 +173,7 @@ TEST(MohrCoulombTest, BadParametersAreAClearError) {
 struct BodySeries {
   std::vector<double> time, dx, dy, fx, fy;
   std::vector<Eigen::Vector2d> position;
-  std::vector<double> mass;
+  std::vector<double> mass, plastic_strain;
 };
 
 // The case `file` (under cases/, or an absolute path) with the Mohr–Coulomb
@@ -181,9 +181,12 @@ struct BodySeries {
 // ρ_s/(1 + e) = 2650/1.189 kg/m³), the first region's initial stress (its
 // kind, surface, surcharge and floor, as the RVEs are consolidated), the
 // time step from the elastic modulus at the case's CFL number, `overrides`
-// applied. Records the first body every timeseries_every steps.
+// applied; a region that starts at its template's state starts at the
+// isotropic `template_pressure` (Pa). Records the first body every
+// timeseries_every steps.
 BodySeries RunWithMohrCoulomb(const std::string& file, const MohrCoulombParameters& material,
-                              const std::vector<CaseOverride>& overrides) {
+                              const std::vector<CaseOverride>& overrides,
+                              double template_pressure = 0.0) {
   const double density = 2228.8;  // kg/m³
   const std::string path =
       file.starts_with("/") ? file : std::string(RVEHUB_SOURCE_DIR) + "/cases/" + file;
@@ -201,7 +204,9 @@ BodySeries RunWithMohrCoulomb(const std::string& file, const MohrCoulombParamete
   for (std::size_t p = 0; p < points->size(); ++p) {
     const double depth = std::max(0.0, region.surface_y - points->position[p].y());
     const double sv = std::max(region.minimum_stress, density * g * depth + region.surcharge);
-    if (region.initial_stress == InitialStressKind::kK0) {
+    if (region.initial_stress == InitialStressKind::kTemplate) {
+      stress[p] = Isotropic(template_pressure);
+    } else if (region.initial_stress == InitialStressKind::kK0) {
       stress[p] = -region.k0 * sv * Matrix3d::Identity();
       stress[p](1, 1) = -sv;
     } else {
@@ -231,6 +236,7 @@ BodySeries RunWithMohrCoulomb(const std::string& file, const MohrCoulombParamete
   }
   out.position = (*solver)->points().position;
   out.mass = (*solver)->points().mass;
+  out.plastic_strain = model.plastic_strain();
   return out;
 }
 
@@ -366,7 +372,9 @@ double EnvDouble(const char* name, double fallback) {
 // (none or nodal), _CSV (a file for the load-settlement curve); or
 // _BODY_CSV: any case with a body (a pipe), its first body's displacement
 // (m) and force (N) against time (s), no N_q; or _POINTS_CSV: any case (a
-// collapse), the points' positions (m) and masses (kg) at the end.
+// collapse), the points' positions (m), masses (kg) and plastic shear strains
+// at the end; _P0 (Pa) the isotropic start of a region that starts at its
+// template's state (a biaxial specimen).
 TEST(PrandtlTest, DISABLED_MeasureFooting) {
   const char* file = std::getenv("RVEHUB_PRANDTL_CASE");
   const double phi = EnvDouble("RVEHUB_PRANDTL_PHI", 31.67);
@@ -389,14 +397,15 @@ TEST(PrandtlTest, DISABLED_MeasureFooting) {
   if (points_csv || body_csv) {
     // Any case, no N_q: a collapse's points where the run ends, a pipe's
     // displacement and force.
-    const BodySeries b = RunWithMohrCoulomb(file ? file : "footing-dense.json", m, overrides);
+    const BodySeries b = RunWithMohrCoulomb(file ? file : "footing-dense.json", m, overrides,
+                                            EnvDouble("RVEHUB_PRANDTL_P0", 0.0));
     if (points_csv) {
       std::vector<double> x, y;
       for (const Eigen::Vector2d& p : b.position) {
         x.push_back(p.x());
         y.push_back(p.y());
       }
-      WriteColumns(points_csv, "x,y,mass", {&x, &y, &b.mass});
+      WriteColumns(points_csv, "x,y,mass,plastic_strain", {&x, &y, &b.mass, &b.plastic_strain});
     }
     if (body_csv) WriteColumns(body_csv, "time,dx,dy,fx,fy", {&b.time, &b.dx, &b.dy, &b.fx, &b.fy});
     return;
