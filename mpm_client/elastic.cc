@@ -20,6 +20,12 @@ double PWaveModulus(double youngs, double poisson) {
   return youngs * (1.0 - poisson) / ((1.0 + poisson) * (1.0 - 2.0 * poisson));
 }
 
+double LameLambda(double youngs, double poisson) {
+  return youngs * poisson / ((1.0 + poisson) * (1.0 - 2.0 * poisson));
+}
+
+double ShearModulus(double youngs, double poisson) { return youngs / (2.0 * (1.0 + poisson)); }
+
 Eigen::Matrix3d ElasticStressUpdate(const Eigen::Matrix3d& stress, const Eigen::Matrix3d& delta_f,
                                     double lambda, double shear) {
   Eigen::Matrix3d r = Eigen::Matrix3d::Identity();
@@ -45,8 +51,8 @@ absl::Status LinearElasticModel::Update(std::int64_t /*step*/,
     return absl::InvalidArgumentError(
         absl::StrCat("elastic model has ", stress_.size(), " points, update has ", delta_f.size()));
   }
-  const double shear = youngs_ / (2.0 * (1.0 + poisson_));
-  const double lambda = youngs_ * poisson_ / ((1.0 + poisson_) * (1.0 - 2.0 * poisson_));
+  const double shear = ShearModulus(youngs_, poisson_);
+  const double lambda = LameLambda(youngs_, poisson_);
   for (std::size_t p = 0; p < delta_f.size(); ++p) {
     stress_[p] = ElasticStressUpdate(stress_[p], delta_f[p], lambda, shear);
     out[p] = PointResponse();

@@ -11,12 +11,6 @@ namespace rvehub::mpm {
 
 namespace {
 
-// Lamé's λ and the shear modulus G, Pa.
-double Lambda(const MohrCoulombParameters& m) {
-  return m.youngs * m.poisson / ((1.0 + m.poisson) * (1.0 - 2.0 * m.poisson));
-}
-double Shear(const MohrCoulombParameters& m) { return m.youngs / (2.0 * (1.0 + m.poisson)); }
-
 // The share of the way from peak to residual at plastic strain κ, [0, 1].
 double Softened(const MohrCoulombParameters& m, double kappa) {
   return m.softening_strain > 0.0 ? std::min(1.0, kappa / m.softening_strain) : 0.0;
@@ -35,7 +29,8 @@ double DilatancyAt(const MohrCoulombParameters& m, double kappa) {
 Eigen::Matrix3d MohrCoulombStressUpdate(const Eigen::Matrix3d& stress,
                                         const Eigen::Matrix3d& delta_f,
                                         const MohrCoulombParameters& material, double& kappa) {
-  const double lambda = Lambda(material), shear = Shear(material);
+  const double lambda = LameLambda(material.youngs, material.poisson);
+  const double shear = ShearModulus(material.youngs, material.poisson);
   Eigen::Matrix3d trial = ElasticStressUpdate(stress, delta_f, lambda, shear);
   const double s = 0.5 * (trial(0, 0) + trial(1, 1));                // Pa, tension +
   const double half_difference = 0.5 * (trial(0, 0) - trial(1, 1));  // Pa

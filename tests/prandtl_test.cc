@@ -59,8 +59,8 @@ TEST(MohrCoulombTest, InsideTheSurfaceItIsElastic) {
   double kappa = 0.0;
   const Matrix3d out = MohrCoulombStressUpdate(s0, f, m, kappa);
   EXPECT_EQ(kappa, 0.0);
-  const double shear = m.youngs / (2.0 * (1.0 + m.poisson));
-  const double lambda = m.youngs * m.poisson / ((1.0 + m.poisson) * (1.0 - 2.0 * m.poisson));
+  const double shear = ShearModulus(m.youngs, m.poisson);
+  const double lambda = LameLambda(m.youngs, m.poisson);
   EXPECT_TRUE(out == ElasticStressUpdate(s0, f, lambda, shear));
   EXPECT_LT(Yield(out, m), 0.0);
 }
@@ -81,7 +81,7 @@ TEST(MohrCoulombTest, NonDilatantShearStopsOnTheEnvelopeAtConstantMeanStress) {
   EXPECT_NEAR(s(2, 2), -100e3, 1e-6);
   // 200 steps of 2e-4 shear strain γ = εxx − εyy, of which 2τ/G went elastic:
   // the rest is the plastic multiplier.
-  const double shear = m.youngs / (2.0 * (1.0 + m.poisson));
+  const double shear = ShearModulus(m.youngs, m.poisson);
   EXPECT_NEAR(kappa, 200 * 2e-4 - 2.0 * tau / (2.0 * shear), 1e-9);
 }
 
@@ -91,8 +91,8 @@ TEST(MohrCoulombTest, NonDilatantShearStopsOnTheEnvelopeAtConstantMeanStress) {
 // plastic multiplier of the closed form.
 TEST(MohrCoulombTest, AssociatedFlowReturnsOntoTheSurfaceWithTheClosedFormMultiplier) {
   const MohrCoulombParameters m = Material(30.0, 30.0);
-  const double shear = m.youngs / (2.0 * (1.0 + m.poisson));
-  const double lambda = m.youngs * m.poisson / ((1.0 + m.poisson) * (1.0 - 2.0 * m.poisson));
+  const double shear = ShearModulus(m.youngs, m.poisson);
+  const double lambda = LameLambda(m.youngs, m.poisson);
   const Matrix3d s0 = Isotropic(100e3);
   const Matrix3d f = PureShear(0.01);
   const Matrix3d trial = ElasticStressUpdate(s0, f, lambda, shear);
