@@ -78,12 +78,13 @@ absl::Status MohrCoulombModel::Update(std::int64_t /*step*/,
         ", psi = ", m.dilatancy, ", c = ", m.cohesion, ", phi_r = ", m.residual_friction,
         ", psi_r = ", m.residual_dilatancy, ", kappa_r = ", m.softening_strain, " are invalid"));
   }
-  if (stress_.empty()) stress_.assign(delta_f.size(), Eigen::Matrix3d::Zero());
-  if (kappa_.size() != stress_.size()) kappa_.assign(stress_.size(), 0.0);
-  if (stress_.size() != delta_f.size() || out.size() != delta_f.size()) {
+  // Refused before anything changes: a wrong count leaves stress and κ as they were.
+  if ((!stress_.empty() && stress_.size() != delta_f.size()) || out.size() != delta_f.size()) {
     return absl::InvalidArgumentError(absl::StrCat("Mohr-Coulomb model has ", stress_.size(),
                                                    " points, update has ", delta_f.size()));
   }
+  if (stress_.empty()) stress_.assign(delta_f.size(), Eigen::Matrix3d::Zero());
+  if (kappa_.size() != stress_.size()) kappa_.assign(stress_.size(), 0.0);
   for (std::size_t p = 0; p < delta_f.size(); ++p) {
     stress_[p] = MohrCoulombStressUpdate(stress_[p], delta_f[p], m, kappa_[p]);
     out[p] = PointResponse();

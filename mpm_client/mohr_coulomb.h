@@ -62,7 +62,8 @@ class MohrCoulombModel : public StressModel {
 
   // InvalidArgument for E ≤ 0, ν outside (−1, 0.5), φ outside [0, π/2), ψ
   // outside [0, φ], c < 0, residual angles outside their ranges, a negative
-  // softening strain, or a point count that differs from the stresses set.
+  // softening strain, or a point count that differs from the stresses set;
+  // the stresses and plastic strains are then left as they were.
   absl::Status Update(std::int64_t step, std::span<const Eigen::Matrix3d> delta_f,
                       std::span<PointResponse> out) override;
 

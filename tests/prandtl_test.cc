@@ -240,6 +240,36 @@ BodySeries RunWithMohrCoulomb(const std::string& file, const MohrCoulombParamete
   return out;
 }
 
+// A refused update changes nothing: after a good step, bad parameters or a
+// wrong point count leave every stress and plastic strain as they were.
+TEST(MohrCoulombTest, ARefusedUpdateLeavesTheStateAsItWas) {
+  MohrCoulombModel model(Material(30.0, 0.0));
+  model.SetStress({Isotropic(100e3), Isotropic(50e3)});
+  std::vector<PointResponse> out(2);
+  const std::vector<Matrix3d> two = {PureShear(0.01), PureShear(-0.01)};
+  ASSERT_TRUE(model.Update(1, two, out).ok());
+  const std::vector<Matrix3d> stress = model.stress();
+  const std::vector<double> kappa = model.plastic_strain();
+  ASSERT_GT(kappa[0], 0.0);  // the step was plastic: there is κ to keep
+  std::vector<PointResponse> three(3);
+  const std::vector<Matrix3d> three_increments(3, PureShear(0.01));
+  const absl::Status count = model.Update(2, three_increments, three);
+  EXPECT_EQ(count.code(), absl::StatusCode::kInvalidArgument) << count;
+  EXPECT_NE(count.message().find("has 2 points, update has 3"), std::string::npos) << count;
+  MohrCoulombModel fresh(Material(30.0, 0.0));  // stresses set, no step yet
+  fresh.SetStress(stress);
+  EXPECT_EQ(fresh.Update(1, three_increments, three).code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_TRUE(fresh.stress() == stress);
+  EXPECT_TRUE(fresh.plastic_strain().empty());
+  MohrCoulombModel bad(Material(30.0, 40.0));  // ψ > φ
+  bad.SetStress(stress);
+  EXPECT_EQ(bad.Update(2, two, out).code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_TRUE(bad.stress() == stress);
+  EXPECT_TRUE(bad.plastic_strain().empty());
+  EXPECT_TRUE(model.stress() == stress);
+  EXPECT_TRUE(model.plastic_strain() == kappa);
+}
+
 struct FootingResult {
   double n_q = 0.0;
   double settlement = 0.0;  // m, at the ultimate load
