@@ -20,7 +20,6 @@ python3-numpy, python3-matplotlib).
 import argparse
 import csv
 import glob
-import json
 import math
 import os
 import re
@@ -29,6 +28,7 @@ import statistics
 import matplotlib
 import numpy as np
 
+from footing_mesh import load_run
 from friction_angle import fit, prandtl_nq
 
 matplotlib.use("Agg")
@@ -38,6 +38,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 CSV_NAME = re.compile(r"^(?P<material>.+)-seed(?P<seed>\d+)-(?P<kpa>[0-9.e+-]+)kPa(?P<x>-x)?\.csv$")
 PAPER = {"footing-dense": (0.1874, 28.1), "footing-medium": (0.2314, 20.8)}
 PAPER_FOOTING = (28.1, 14.4)  # phi' (deg), N_q
+
+
+def spread(values):
+    """Sample standard deviation, 0 for a single value."""
+    return statistics.stdev(values) if len(values) > 1 else 0.0
 
 
 def packings(directory, peak_within, cs_from):
@@ -84,14 +89,13 @@ def main():
             phis, voids = [v[0] for v in values], [v[1] for v in values]
             colour = colours.get(material, "tab:grey")
             ax.plot(voids, phis, ".", color=colour, alpha=0.35)
-            sd = (lambda xs: statistics.stdev(xs) if len(xs) > 1 else 0.0)
-            ax.errorbar(statistics.mean(voids), statistics.mean(phis), xerr=sd(voids),
-                        yerr=sd(phis), fmt="o", color=colour, capsize=3)
+            ax.errorbar(statistics.mean(voids), statistics.mean(phis), xerr=spread(voids),
+                        yerr=spread(phis), fmt="o", color=colour, capsize=3)
             ax.annotate(os.path.basename(os.path.normpath(directory)),
                         (statistics.mean(voids), statistics.mean(phis)), fontsize=7,
                         xytext=(4, 4), textcoords="offset points")
             print(f"{directory} | {material} | {len(values)} | {statistics.mean(voids):.4f} ± "
-                  f"{sd(voids):.4f} | {statistics.mean(phis):.2f} ± {sd(phis):.2f}")
+                  f"{spread(voids):.4f} | {statistics.mean(phis):.2f} ± {spread(phis):.2f}")
     for material, (e0, phi) in PAPER.items():
         ax.plot(e0, phi, "*", ms=14, color=colours[material], mec="k",
                 label=f"paper, {material} (e0, phi')")
@@ -103,6 +107,8 @@ def main():
     ax.legend(fontsize=8)
 
     if a.footing:
+        # footing_mesh.load_run: summary.json, and q/q_s against d from timeseries.csv.
+        runs = [load_run(run) for run in a.footing]
         ax = axes[0][1]
         grid = np.linspace(20, 34, 200)
         prandtl = [prandtl_nq(math.radians(x)) for x in grid]
@@ -110,15 +116,14 @@ def main():
         ax.fill_between(grid, [0.9 * p for p in prandtl], [1.1 * p for p in prandtl],
                         color="k", alpha=0.08, label="Prandtl ± 10 %")
         print("footing run | phi' deg | N_q | Prandtl | N_q / Prandtl | settlement at ultimate m")
-        for run in a.footing:
-            with open(os.path.join(run, "summary.json")) as f:
-                s = json.load(f)
+        for run in runs:
+            s = run["summary"]
             ratio = s["N_q"] / s["N_q_prandtl"]
             ax.plot(s["phi_deg"], s["N_q"], "o", color="tab:blue")
-            ax.annotate(f"{os.path.basename(os.path.normpath(run))} ({ratio:.2f})",
+            ax.annotate(f"{os.path.basename(os.path.normpath(run['dir']))} ({ratio:.2f})",
                         (s["phi_deg"], s["N_q"]), fontsize=7, xytext=(4, -10),
                         textcoords="offset points")
-            print(f"{run} | {s['phi_deg']:.2f} | {s['N_q']:.2f} | {s['N_q_prandtl']:.2f} | "
+            print(f"{run['dir']} | {s['phi_deg']:.2f} | {s['N_q']:.2f} | {s['N_q_prandtl']:.2f} | "
                   f"{ratio:.3f} | {s['settlement_at_ultimate_m']:.3f}")
         ax.plot(*PAPER_FOOTING, "*", ms=14, color="tab:red", mec="k", label="paper's footing")
         ax.set_xlabel("phi' of the footing's packing (deg)")
@@ -128,17 +133,9 @@ def main():
         ax.legend(fontsize=8)
 
         ax = axes[0][2]
-        for run in a.footing:
-            with open(os.path.join(run, "run.json")) as f:
-                case = json.load(f)["case"]
-            body = case["output"]["plot_body"]
-            width = case["output"]["plot_width"] * case["solver"].get("thickness", 1.0)
-            surcharge = -case["tractions"][0]["traction"][1]  # Pa: run.json writes vectors
-            with open(os.path.join(run, "timeseries.csv")) as f:
-                rows = list(csv.DictReader(f))
-            d = [-float(r[f"{body}_dy"]) for r in rows]
-            q = [float(r[f"{body}_fy"]) / width / surcharge for r in rows]
-            ax.plot(d, q, lw=1.2, label=f"RVEs: {os.path.basename(os.path.normpath(run))}")
+        for run in runs:
+            ax.plot(run["d"], run["q"], lw=1.2,
+                    label=f"RVEs: {os.path.basename(os.path.normpath(run['dir']))}")
         for spec in a.curve:
             path, _, label = spec.partition(":")
             with open(path) as f:
