@@ -9,7 +9,6 @@
 #include <algorithm>
 #include <cstdint>
 #include <cstdio>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -24,6 +23,7 @@
 #include "absl/strings/string_view.h"
 #include "gtest/gtest.h"
 #include "mpm_client/solver.h"
+#include "tests/env_util.h"
 
 namespace rvehub::mpm {
 namespace {
@@ -782,12 +782,9 @@ void CollectPointers(const Json& j, const Json::json_pointer& at,
 // Seeded and sized from the environment like fuzz_test:
 //   RVEHUB_CASE_FUZZ_ITERATIONS=100000 RVEHUB_CASE_FUZZ_SEED=7 build/tests/case_test
 TEST(CaseFuzz, MutatedShippedCasesAreAcceptedOrRefusedByPointer) {
-  auto env = [](const char* name, std::int64_t fallback) {
-    const char* v = std::getenv(name);
-    return v == nullptr ? fallback : std::strtoll(v, nullptr, 10);
-  };
-  const std::int64_t iterations = env("RVEHUB_CASE_FUZZ_ITERATIONS", 3000);
-  const std::uint64_t seed = static_cast<std::uint64_t>(env("RVEHUB_CASE_FUZZ_SEED", 1));
+  const std::int64_t iterations = testing_env::EnvInt("RVEHUB_CASE_FUZZ_ITERATIONS", 3000);
+  const std::uint64_t seed =
+      static_cast<std::uint64_t>(testing_env::EnvInt("RVEHUB_CASE_FUZZ_SEED", 1));
   const fs::path dir = fs::path(RVEHUB_SOURCE_DIR) / "cases";
   std::vector<std::pair<std::string, Json>> cases;
   for (const fs::directory_entry& entry : fs::directory_iterator(dir)) {
@@ -798,11 +795,30 @@ TEST(CaseFuzz, MutatedShippedCasesAreAcceptedOrRefusedByPointer) {
   std::sort(cases.begin(), cases.end(),
             [](const auto& a, const auto& b) { return a.first < b.first; });
   ASSERT_FALSE(cases.empty());
-  const std::vector<Json> absurd = {
-      0, -1, 1, 2147483648.0, -2147483649.0, 9.3e18, -9.3e18, 1e308, -1e308, 1e-308, -0.0,
-      std::numeric_limits<std::int64_t>::max(), std::numeric_limits<std::int64_t>::min(),
-      "", "x", "NaN", "inf", true, nullptr, Json::array(), Json::object(),
-      Json::array({1e308, -1e308}), Json::array({0, 0, 0}), Json::array({"a", "b"})};
+  const std::vector<Json> absurd = {0,
+                                    -1,
+                                    1,
+                                    2147483648.0,
+                                    -2147483649.0,
+                                    9.3e18,
+                                    -9.3e18,
+                                    1e308,
+                                    -1e308,
+                                    1e-308,
+                                    -0.0,
+                                    std::numeric_limits<std::int64_t>::max(),
+                                    std::numeric_limits<std::int64_t>::min(),
+                                    "",
+                                    "x",
+                                    "NaN",
+                                    "inf",
+                                    true,
+                                    nullptr,
+                                    Json::array(),
+                                    Json::object(),
+                                    Json::array({1e308, -1e308}),
+                                    Json::array({0, 0, 0}),
+                                    Json::array({"a", "b"})};
   std::mt19937_64 rng(seed);
   auto pick = [&rng](std::size_t n) { return static_cast<std::size_t>(rng() % n); };
   std::int64_t accepted = 0, filled = 0;
@@ -1000,9 +1016,8 @@ TEST(CaseOverride, ParsesPointerAndDottedPaths) {
 }
 
 TEST_F(CaseTest, OverridesApplyBeforeValidation) {
-  const std::vector<CaseOverride> ok = {{"/solver/end_time", "2.5"},
-                                        {"/regions/0/points_per_cell_side", "3"},
-                                        {"/name", "sweep"}};
+  const std::vector<CaseOverride> ok = {
+      {"/solver/end_time", "2.5"}, {"/regions/0/points_per_cell_side", "3"}, {"/name", "sweep"}};
   absl::StatusOr<CaseSpec> spec = ParseCase(kMinimalCase, dir_.string(), ok);
   ASSERT_TRUE(spec.ok()) << spec.status();
   EXPECT_EQ(spec->solver.end_time, 2.5);

@@ -10,7 +10,6 @@
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
-#include <cstdlib>
 #include <functional>
 #include <limits>
 #include <map>
@@ -22,6 +21,7 @@
 #include "google/protobuf/message.h"
 #include "google/protobuf/reflection.h"
 #include "health_probe.grpc.pb.h"
+#include "tests/env_util.h"
 #include "tests/service_harness.h"
 
 namespace rvehub::service::testing {
@@ -30,10 +30,7 @@ namespace {
 using google::protobuf::FieldDescriptor;
 using google::protobuf::Message;
 
-std::int64_t EnvInt(const char* name, std::int64_t fallback) {
-  const char* v = std::getenv(name);
-  return v != nullptr && *v != '\0' ? std::strtoll(v, nullptr, 10) : fallback;
-}
+using rvehub::testing_env::EnvInt;
 
 class Fuzzer {
  public:

@@ -16,6 +16,7 @@
 #include "mpm_client/mohr_coulomb.h"
 #include "mpm_client/solver.h"
 #include "mpm_client/summary.h"
+#include "tests/env_util.h"
 
 namespace rvehub::mpm {
 namespace {
@@ -394,10 +395,7 @@ void WriteColumns(const char* path, const char* header,
   std::fclose(f);
 }
 
-double EnvDouble(const char* name, double fallback) {
-  const char* v = std::getenv(name);
-  return v ? std::atof(v) : fallback;
-}
+using testing_env::EnvDouble;
 
 // A measuring tool, not a check (run with --gtest_also_run_disabled_tests):
 // any footing case with any Mohr–Coulomb soil, from the environment.
