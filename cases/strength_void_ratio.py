@@ -45,6 +45,27 @@ def spread(values):
     return statistics.stdev(values) if len(values) > 1 else 0.0
 
 
+def read_curve(path):
+    """The rows (settlement m, q/q_s) of a --curve CSV; a missing or empty file, or a row
+    that is not two numbers, ends the script naming it."""
+    try:
+        with open(path) as f:
+            rows = [r for r in csv.reader(f) if r]
+    except OSError as e:
+        raise SystemExit(f"--curve {path}: {e.strerror}") from None
+    curve = []
+    for k, row in enumerate(rows, 1):
+        try:
+            d, q = (float(x) for x in row)
+        except ValueError:
+            raise SystemExit(f"--curve {path}: row {k} is not 'settlement m, q/q_s': "
+                             f"{','.join(row)}") from None
+        curve.append((d, q))
+    if not curve:
+        raise SystemExit(f"--curve {path}: no rows")
+    return curve
+
+
 def packings(directory, peak_within, cs_from):
     """{(material, seed): (phi' deg, e at the start)} of one friction_angle.py output
     directory."""
@@ -75,6 +96,12 @@ def main():
     ap.add_argument("--peak-within", type=float, default=0.08)
     ap.add_argument("--cs-from", type=float, default=0.15)
     a = ap.parse_args()
+    # Read first, so that a bad curve or run ends the script before the tests are refitted.
+    curves = []
+    for spec in a.curve:
+        path, _, label = spec.partition(":")
+        curves.append((read_curve(path), label or os.path.basename(path)))
+    runs = [load_run(run) for run in a.footing]  # footing_mesh.load_run: summary, q/q_s(d)
 
     panels = 3 if a.footing else 1
     fig, axes = plt.subplots(1, panels, figsize=(6.2 * panels, 5), squeeze=False)
@@ -107,8 +134,6 @@ def main():
     ax.legend(fontsize=8)
 
     if a.footing:
-        # footing_mesh.load_run: summary.json, and q/q_s against d from timeseries.csv.
-        runs = [load_run(run) for run in a.footing]
         ax = axes[0][1]
         grid = np.linspace(20, 34, 200)
         prandtl = [prandtl_nq(math.radians(x)) for x in grid]
@@ -136,12 +161,8 @@ def main():
         for run in runs:
             ax.plot(run["d"], run["q"], lw=1.2,
                     label=f"RVEs: {os.path.basename(os.path.normpath(run['dir']))}")
-        for spec in a.curve:
-            path, _, label = spec.partition(":")
-            with open(path) as f:
-                rows = [tuple(map(float, r)) for r in csv.reader(f) if r]
-            ax.plot([r[0] for r in rows], [r[1] for r in rows], "--", lw=1.0,
-                    label=label or os.path.basename(path))
+        for rows, label in curves:
+            ax.plot([r[0] for r in rows], [r[1] for r in rows], "--", lw=1.0, label=label)
         ax.set_xlabel("settlement d (m)")
         ax.set_ylabel("q / q_s")
         ax.set_title("load against settlement")
