@@ -13,7 +13,7 @@ beside the paper's (liang-zhao-mpm-dem Table 2 and §3.3.1: e0 0.1874 and 0.2314
 --footing RUN_DIR ... adds two panels: each footing run's N_q (summary.json) against the phi'
 it was compared with, beside Prandtl's N_q and the paper's footing (14.4 at 28.1 deg), and its
 q/q_s against the settlement (timeseries.csv), with --curve's other curves (CSV rows
-"settlement m, q/q_s", as tests/prandtl_test.cc's DISABLED_MeasureFooting writes them for a
+"settlement m, q/q_s", as tests/prandtl_test.cc's DISABLED_MeasureWithMohrCoulomb writes them for a
 Mohr-Coulomb soil). Prints a table of both. Needs numpy and matplotlib (Debian's
 python3-numpy, python3-matplotlib).
 """

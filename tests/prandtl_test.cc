@@ -3,6 +3,7 @@
 // surcharge and ultimate-load rule, against Prandtl's N_q.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -11,6 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
 #include "mpm_client/case.h"
 #include "mpm_client/elastic.h"
 #include "mpm_client/mohr_coulomb.h"
@@ -194,8 +197,19 @@ absl::StatusOr<CaseSpec> LoadTestCase(const std::string& file,
 // isotropic `template_pressure` (Pa). Records the first body every
 // timeseries_every steps.
 BodySeries RunWithMohrCoulomb(CaseSpec spec, const MohrCoulombParameters& material,
-                              double template_pressure = 0.0) {
-  const double density = 2228.8;  // kg/m³
+                              double template_pressure = 0.0, const char* energy_csv = nullptr,
+                              double dry_density = 2228.8) {
+  double density = dry_density;     // kg/m³
+  double stress_density = density;  // kg/m³, of the effective geostatic stress
+  if (spec.phases.saturated) {
+    // The case's porosity n0 (phases.porosity, which the RVE cases leave to
+    // their RVEs); the grains' 2650 kg/m³ and the buoyant density, as the
+    // driver consolidates saturated RVEs (simulation.cc).
+    const double n0 = spec.phases.porosity;
+    EXPECT_GT(n0, 0.0) << "a saturated case needs phases.porosity here";
+    density = 2650.0 * (1.0 - n0);
+    stress_density = density - (1.0 - n0) * spec.phases.fluid_density;
+  }
   spec.solver.wave_modulus = PWaveModulus(material.youngs, material.poisson);
   absl::StatusOr<MaterialPoints> points =
       FillRegions(spec, [&](int) -> absl::StatusOr<double> { return density; });
@@ -206,7 +220,9 @@ BodySeries RunWithMohrCoulomb(CaseSpec spec, const MohrCoulombParameters& materi
   std::vector<Matrix3d> stress(points->size(), Matrix3d::Zero());
   for (std::size_t p = 0; p < points->size(); ++p) {
     const double depth = std::max(0.0, region.surface_y - points->position[p].y());
-    const double sv = std::max(region.minimum_stress, density * g * depth + region.surcharge);
+    const double sv =
+        std::max(region.minimum_stress, stress_density * g * depth + region.surcharge);
+    if (spec.phases.saturated) points->vertical_stress0[p] = sv;
     if (region.initial_stress == InitialStressKind::kTemplate) {
       stress[p] = Isotropic(template_pressure);
     } else if (region.initial_stress == InitialStressKind::kK0) {
@@ -223,10 +239,29 @@ BodySeries RunWithMohrCoulomb(CaseSpec spec, const MohrCoulombParameters& materi
   if (!solver.ok()) return {};
   const int body = static_cast<int>(spec.walls.size());  // Reactions(): walls, then bodies
   BodySeries out;
+  FILE* energy = energy_csv ? std::fopen(energy_csv, "w") : nullptr;
+  if (energy) std::fprintf(energy, "time,kinetic,potential,front99,front_max,v_max,x_v_max,y_v_max\n");
   while ((*solver)->time() < spec.solver.end_time) {
     const absl::Status s = (*solver)->Step();
     EXPECT_TRUE(s.ok()) << s;
-    if (!s.ok()) return out;
+    if (!s.ok()) break;
+    if (energy && (*solver)->step() % spec.output.timeseries_every == 0) {
+      // J, J, m: the front where 99 % of the points lie behind, and the farthest.
+      // The fastest point (m/s, m) shows where a run that blows up starts to.
+      const MaterialPoints& mp = (*solver)->points();
+      std::vector<double> x;
+      std::size_t fastest = 0;
+      for (std::size_t q = 0; q < mp.size(); ++q) {
+        x.push_back(mp.position[q].x());
+        if (mp.velocity[q].norm() > mp.velocity[fastest].norm()) fastest = q;
+      }
+      std::sort(x.begin(), x.end());
+      std::fprintf(energy, "%.6g,%.8g,%.8g,%.6g,%.6g,%.4g,%.4g,%.4g\n", (*solver)->time(),
+                   (*solver)->KineticEnergy(), (*solver)->PotentialEnergy(),
+                   x[static_cast<std::size_t>(0.99 * static_cast<double>(x.size() - 1))],
+                   x.back(), mp.velocity[fastest].norm(), mp.position[fastest].x(),
+                   mp.position[fastest].y());
+    }
     if (!spec.bodies.empty() && (*solver)->step() % spec.output.timeseries_every == 0) {
       const Eigen::Vector2d d = (*solver)->BodyDisplacement(0), f = (*solver)->Reactions()[body];
       out.time.push_back((*solver)->time());
@@ -236,6 +271,7 @@ BodySeries RunWithMohrCoulomb(CaseSpec spec, const MohrCoulombParameters& materi
       out.fy.push_back(f.y());
     }
   }
+  if (energy) std::fclose(energy);
   out.position = (*solver)->points().position;
   out.mass = (*solver)->points().mass;
   out.plastic_strain = model.plastic_strain();
@@ -398,16 +434,23 @@ void WriteColumns(const char* path, const char* header,
 using testing_env::EnvDouble;
 
 // A measuring tool, not a check (run with --gtest_also_run_disabled_tests):
-// any footing case with any Mohr–Coulomb soil, from the environment.
+// any case (a footing by default) with any Mohr–Coulomb soil, dry or
+// saturated, from the environment.
 // RVEHUB_PRANDTL_CASE (default footing-dense.json), _PHI, _PSI, _PHI_R,
 // _PSI_R, _KAPPA_R (deg, deg, deg, deg, [-]), _E, _C (Pa), _END (s), _CFL, _FBAR
 // (none or nodal), _CSV (a file for the load-settlement curve); or
 // _BODY_CSV: any case with a body (a pipe), its first body's displacement
 // (m) and force (N) against time (s), no N_q; or _POINTS_CSV: any case (a
 // collapse), the points' positions (m), masses (kg) and plastic shear strains
-// at the end; _P0 (Pa) the isotropic start of a region that starts at its
-// template's state (a biaxial specimen).
-TEST(PrandtlTest, DISABLED_MeasureFooting) {
+// at the end; _ENERGY_CSV: any case, the kinetic and potential energies
+// (J), the fronts (m, 99 % of the points behind, the farthest) and the
+// fastest point's speed and position (m/s, m) against time (s); _P0 (Pa) the isotropic start of a region that starts at its
+// template's state (a biaxial specimen); _DENSITY (kg/m³) of a dry soil;
+// _POROSITY (phases.porosity, which a saturated case needs here, its solids
+// at 2650 kg/m³); _CELL "h,nx,ny,ppc": the grid's cell size (m) and cells,
+// the first region's points per cell side; _SET "path=value;..." any case
+// fields, as mpm_client's --set.
+TEST(PrandtlTest, DISABLED_MeasureWithMohrCoulomb) {
   const char* file = std::getenv("RVEHUB_PRANDTL_CASE");
   const double phi = EnvDouble("RVEHUB_PRANDTL_PHI", 31.67);
   const double psi = EnvDouble("RVEHUB_PRANDTL_PSI", 15.0);
@@ -424,15 +467,36 @@ TEST(PrandtlTest, DISABLED_MeasureFooting) {
   if (const char* fbar = std::getenv("RVEHUB_PRANDTL_FBAR")) {
     overrides.push_back({"/solver/f_bar", std::string("\"") + fbar + "\""});
   }
+  if (const char* porosity = std::getenv("RVEHUB_PRANDTL_POROSITY")) {
+    overrides.push_back({"/phases/porosity", porosity});
+  }
+  if (const char* cells = std::getenv("RVEHUB_PRANDTL_CELL")) {  // "h,nx,ny,ppc"
+    double h = 0;
+    int nx = 0, ny = 0, ppc = 0;
+    ASSERT_EQ(std::sscanf(cells, "%lf,%d,%d,%d", &h, &nx, &ny, &ppc), 4) << cells;
+    overrides.push_back({"/grid/cell_size", std::to_string(h)});
+    overrides.push_back({"/grid/cells", absl::StrCat("[", nx, ",", ny, "]")});
+    overrides.push_back({"/regions/0/points_per_cell_side", std::to_string(ppc)});
+  }
+  if (const char* set = std::getenv("RVEHUB_PRANDTL_SET")) {  // "path=value;path=value"
+    for (absl::string_view item : absl::StrSplit(set, ';', absl::SkipEmpty())) {
+      const absl::StatusOr<CaseOverride> o = ParseOverride(item);  // as mpm_client's --set
+      ASSERT_TRUE(o.ok()) << o.status();
+      overrides.push_back(*o);
+    }
+  }
   const char* points_csv = std::getenv("RVEHUB_PRANDTL_POINTS_CSV");
   const char* body_csv = std::getenv("RVEHUB_PRANDTL_BODY_CSV");
-  if (points_csv || body_csv) {
+  const char* energy_csv = std::getenv("RVEHUB_PRANDTL_ENERGY_CSV");
+  if (points_csv || body_csv || energy_csv) {
     // Any case, no N_q: a collapse's points where the run ends, a pipe's
     // displacement and force.
     const absl::StatusOr<CaseSpec> spec =
         LoadTestCase(file ? file : "footing-dense.json", overrides);
     ASSERT_TRUE(spec.ok()) << spec.status();
-    const BodySeries b = RunWithMohrCoulomb(*spec, m, EnvDouble("RVEHUB_PRANDTL_P0", 0.0));
+    const BodySeries b =
+        RunWithMohrCoulomb(*spec, m, EnvDouble("RVEHUB_PRANDTL_P0", 0.0), energy_csv,
+                           EnvDouble("RVEHUB_PRANDTL_DENSITY", 2228.8));
     if (points_csv) {
       std::vector<double> x, y;
       for (const Eigen::Vector2d& p : b.position) {
