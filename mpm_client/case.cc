@@ -1390,6 +1390,7 @@ Fields<PhasesSpec> PhasesFields() {
       NumberField("porosity", &PhasesSpec::porosity, Need::kOptional, kPorosity),
       OptionalFiniteField("water_table", &PhasesSpec::water_table, kAny),
       FlagField("drained_free_surface", &PhasesSpec::drained_free_surface),
+      FlagField("free_surface_beside_light_nodes", &PhasesSpec::free_surface_beside_light_nodes),
       EnumField("excess_pressure_from", &PhasesSpec::excess_from, Need::kOptional,
                 "excess pressure datum", kExcessData, &ExcessDatumName),
       // Read by ParsePhases (lists); written here.
@@ -1431,6 +1432,10 @@ absl::Status ParsePhases(const Json& j, const std::string& ptr, const GridLines&
         return Bad(Child(at, "position"), "no region reaches the line ", kAxisName[d->axis], " = ",
                    Num(d->position), " m: a drained boundary must touch the soil");
       }));
+  if (phases->free_surface_beside_light_nodes && !phases->drained_free_surface) {
+    return Bad(o.At("free_surface_beside_light_nodes"),
+               "needs drained_free_surface: it widens the free surface that one drains");
+  }
   if (phases->drained.empty() && !phases->drained_free_surface) {
     return Bad(o.At("drained"),
                "a saturated case needs at least one drained boundary (or drained_free_surface): "

@@ -382,6 +382,11 @@ struct PhasesSpec {
   // volume in soil: ½ on a flat face) hold p = 0 as well: a surface that
   // moves (a collapse).
   bool drained_free_surface = false;
+  // With drained_free_surface: a node beside one that has mass but less than
+  // 0.4 of its volume in soil (a face that has just moved into a new cell)
+  // holds p = 0 too. Fine cells need it (a moving face otherwise grows the
+  // pore pressure next to it with alternating sign: saturated.cc).
+  bool free_surface_beside_light_nodes = false;
   ExcessDatum excess_from = ExcessDatum::kWaterTable;
   std::vector<DrainedBoundary> drained;
   std::vector<PressureMonitor> monitors;

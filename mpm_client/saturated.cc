@@ -61,6 +61,21 @@ constexpr double kPressureTolerance = 1e-12;
 // RVE-backed collapse at 0.094 s. From 0.7 on both run stable; 0.8 and 0.9
 // give the same collapse (kinetic energy within 1.5 %).
 constexpr double kSurfaceFraction = 0.9;
+// PhasesSpec::free_surface_beside_light_nodes: a node beside one with mass
+// but less than this share (a face that has moved less than about 0.9 of a
+// cell past the node) is free surface too. Without it, on 0.025–0.05 m cells
+// a node of share 0.92 beside a drained one of 0.18 (the face 0.6 h past it)
+// grew its pressure ×(−1.2) per step: the §4.3 column with a Mohr–Coulomb
+// skeleton ended at 0.09 s on 0.025 m cells (either projection, Δt 2e-4 or
+// 1e-4 s), at 0.78 s on 0.04 m and at 1.26 s on 0.05 m, and with RVEs at
+// 0.15 s on 0.05 m. The likely cause: the weak form's pressure force pushes
+// the face out by the pressure interpolated there (0.4 of the node's), where
+// the water's is zero; a strong-form pressure force held the face too, but
+// lost the pore pressure's push on walls and platens. Off by default: on
+// coarse cells it drains a strip up to two cells wide (collapse-saturated-ci
+// on 0.25 m cells: kinetic-energy peak 959 J against 785 J, front at 0.6 s
+// 1.388 m against 1.205 m).
+constexpr double kLightNeighbourFraction = 0.4;
 // Nodes with less than this share hold their pressure (FindDrainedNodes).
 constexpr double kEmptyFraction = 1e-3;
 // Tikhonov weight of the nodal pressure fit, relative to the lumped diagonal.
@@ -165,6 +180,7 @@ void Solver::FindDrainedNodes() {
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     centers[b] = bodies_[b].center + DisplacementAt(bodies_[b].velocity, time_);
   }
+  std::vector<double> fraction(nx * ny, 0.0);  // [-], 0 where inactive
   for (int node = 0; node < nx * ny; ++node) {
     if (!(node_mass_[node] > min_node_mass_)) continue;
     double filled = node_volume_[node];  // m³
@@ -172,10 +188,41 @@ void Solver::FindDrainedNodes() {
       filled += full * BodyShareOfNode(bodies_[b], centers[b], NodePosition(grid_, node),
                                        grid_.cell_size, lower, upper);
     }
-    const double fraction = filled / (full * node_domain_[node]);
-    if (phases_.drained_free_surface && fraction < kSurfaceFraction) {
+    fraction[node] = filled / (full * node_domain_[node]);
+  }
+  // Whether one of the 8 nodes around `node` has mass but less than
+  // kLightNeighbourFraction of soil. Not across a standing wall, nor off a
+  // wall's line: beyond a wall lies no free surface, only the edge of a
+  // point's domain.
+  const auto beside_a_light_node = [&](int node) {
+    const int i = node % nx, j = node / nx;
+    for (int dj = -1; dj <= 1; ++dj) {
+      for (int di = -1; di <= 1; ++di) {
+        if ((di == 0 && dj == 0) || i + di < 0 || i + di >= nx || j + dj < 0 || j + dj >= ny) {
+          continue;
+        }
+        bool walled = false;
+        for (std::size_t w = 0; w < walls_.size() && !walled; ++w) {
+          if (walls_[w].remove_time <= time_) continue;
+          const int at = walls_[w].axis == 0 ? i : j, step = walls_[w].axis == 0 ? di : dj;
+          const int line = wall_lines_[w];
+          walled = step != 0 && (at == line || (at - line) * (at + step - line) < 0);
+        }
+        const int q = node + dj * nx + di;
+        if (!walled && node_mass_[q] > min_node_mass_ && fraction[q] < kLightNeighbourFraction) {
+          return true;
+        }
+      }
+    }
+    return false;
+  };
+  for (int node = 0; node < nx * ny; ++node) {
+    if (!(node_mass_[node] > min_node_mass_)) continue;
+    if (phases_.drained_free_surface &&
+        (fraction[node] < kSurfaceFraction ||
+         (phases_.free_surface_beside_light_nodes && beside_a_light_node(node)))) {
       pressure_fixed_[node] = 0.0;  // on the free surface (or outside it)
-    } else if (fraction < kEmptyFraction) {
+    } else if (fraction[node] < kEmptyFraction) {
       // A node that only the edge of a point's domain reaches (a face that
       // just moved into a new cell) barely takes part in the pressure
       // equation: its pressure is held, not solved for.

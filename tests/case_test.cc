@@ -884,7 +884,8 @@ TEST(CaseFuzz, MutatedShippedCasesAreAcceptedOrRefusedByPointer) {
 
 // Bad hydraulic input in a saturated case (the shipped consolidation-1d-ci)
 // names its pointer: k <= 0, porosity outside (0, 1), a drained line no soil
-// reaches, no drained boundary at all, a monitor outside the soil.
+// reaches, no drained boundary at all, a monitor outside the soil, a free
+// surface widened where none is drained.
 TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
   const fs::path path = fs::path(RVEHUB_SOURCE_DIR) / "cases" / "consolidation-1d-ci.json";
   std::ifstream in(path);
@@ -908,6 +909,7 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
       {"/rve/max_void_ratio", 0.3},
       {"/solver/time_step_update_every", 100},
       {"/solver/nonlocal_radius", 0.2},
+      {"/phases/free_surface_beside_light_nodes", true},
   };
   const std::vector<std::string> messages = {
       "/phases/permeability: must be in (0, 10], got 0",
@@ -927,6 +929,7 @@ TEST(SaturatedCase, BadHydraulicInputNamesItsPointer) {
       "/rve/max_void_ratio: a void-ratio cap is for dry cases only",
       "/solver/time_step_update_every: an updated time step is for dry cases only",
       "/solver/nonlocal_radius: a nonlocal strain is for dry cases only",
+      "/phases/free_surface_beside_light_nodes: needs drained_free_surface",
   };
   for (std::size_t i = 0; i < edits.size(); ++i) {
     SCOPED_TRACE(edits[i].first);
