@@ -52,6 +52,13 @@ constexpr double kFree = std::numeric_limits<double>::quiet_NaN();
 // Relative residual of the pressure solve: far below what the step's other
 // errors are, and reached in a few dozen iterations on the grids of the cases.
 constexpr double kPressureTolerance = 1e-12;
+// A solve that reaches its iteration limit short of kPressureTolerance is
+// still taken below this residual, where 1e-9 of the pressure is far below
+// the step's other errors: the nodal fit (FitNodalPressure) stalled at
+// 4.4e-12 after 1000 iterations at 3.09 s of the §4.3 column (a Mohr–Coulomb
+// skeleton with free_surface_beside_light_nodes, nearly at rest), a node
+// reached only by a point's corner making its matrix badly conditioned.
+constexpr double kStalledTolerance = 1e-9;
 // Free surface: nodes with less than this share of soil around them (a flat
 // face has ½, a corner ¼, a node just reached by a moving face ~0). A node
 // carries an unknown pressure only when nearly full: partly filled nodes
@@ -82,8 +89,9 @@ constexpr double kEmptyFraction = 1e-3;
 constexpr double kFitRegularisation = 1e-9;
 
 // Solves the symmetric positive-definite system a x = b by conjugate
-// gradients to kPressureTolerance; InternalError naming `what` if it does
-// not converge. `iterations` (optional) gets the count.
+// gradients to kPressureTolerance (kStalledTolerance where it stalls);
+// InternalError naming `what` if it does not converge. `iterations`
+// (optional) gets the count.
 absl::StatusOr<Eigen::VectorXd> SolveSpd(const Eigen::SparseMatrix<double>& a,
                                          const Eigen::VectorXd& b, absl::string_view what,
                                          int* iterations = nullptr) {
@@ -93,7 +101,8 @@ absl::StatusOr<Eigen::VectorXd> SolveSpd(const Eigen::SparseMatrix<double>& a,
   cg.compute(a);
   Eigen::VectorXd x = cg.solve(b);
   if (iterations != nullptr) *iterations = static_cast<int>(cg.iterations());
-  if (cg.info() != Eigen::Success || !x.allFinite()) {
+  const bool stalled = cg.info() == Eigen::NoConvergence && cg.error() <= kStalledTolerance;
+  if ((cg.info() != Eigen::Success && !stalled) || !x.allFinite()) {
     return absl::InternalError(absl::StrCat(what, " did not converge (", cg.iterations(),
                                             " iterations, error ", cg.error(), ")"));
   }
