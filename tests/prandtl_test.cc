@@ -240,14 +240,15 @@ BodySeries RunWithMohrCoulomb(CaseSpec spec, const MohrCoulombParameters& materi
   const int body = static_cast<int>(spec.walls.size());  // Reactions(): walls, then bodies
   BodySeries out;
   FILE* energy = energy_csv ? std::fopen(energy_csv, "w") : nullptr;
-  if (energy) std::fprintf(energy, "time,kinetic,potential,front99,front_max,v_max,x_v_max,y_v_max\n");
+  if (energy)
+    std::fprintf(energy, "time,kinetic,potential,front99,front_max,v_max,x_v_max,y_v_max\n");
   while ((*solver)->time() < spec.solver.end_time) {
     const absl::Status s = (*solver)->Step();
     EXPECT_TRUE(s.ok()) << s;
     if (!s.ok()) break;
     if (energy && (*solver)->step() % spec.output.timeseries_every == 0) {
-      // J, J, m: the front where 99 % of the points lie behind, and the farthest.
-      // The fastest point (m/s, m) shows where a run that blows up starts to.
+      // J, J, m: the front where 99 % of the points lie behind, and the
+      // farthest; the fastest point (m/s, m) shows where a blow-up starts.
       const MaterialPoints& mp = (*solver)->points();
       std::vector<double> x;
       std::size_t fastest = 0;
@@ -258,9 +259,8 @@ BodySeries RunWithMohrCoulomb(CaseSpec spec, const MohrCoulombParameters& materi
       std::sort(x.begin(), x.end());
       std::fprintf(energy, "%.6g,%.8g,%.8g,%.6g,%.6g,%.4g,%.4g,%.4g\n", (*solver)->time(),
                    (*solver)->KineticEnergy(), (*solver)->PotentialEnergy(),
-                   x[static_cast<std::size_t>(0.99 * static_cast<double>(x.size() - 1))],
-                   x.back(), mp.velocity[fastest].norm(), mp.position[fastest].x(),
-                   mp.position[fastest].y());
+                   x[static_cast<std::size_t>(0.99 * static_cast<double>(x.size() - 1))], x.back(),
+                   mp.velocity[fastest].norm(), mp.position[fastest].x(), mp.position[fastest].y());
     }
     if (!spec.bodies.empty() && (*solver)->step() % spec.output.timeseries_every == 0) {
       const Eigen::Vector2d d = (*solver)->BodyDisplacement(0), f = (*solver)->Reactions()[body];
@@ -444,11 +444,12 @@ using testing_env::EnvDouble;
 // collapse), the points' positions (m), masses (kg) and plastic shear strains
 // at the end; _ENERGY_CSV: any case, the kinetic and potential energies
 // (J), the fronts (m, 99 % of the points behind, the farthest) and the
-// fastest point's speed and position (m/s, m) against time (s); _P0 (Pa) the isotropic start of a region that starts at its
-// template's state (a biaxial specimen); _DENSITY (kg/m³) of a dry soil;
-// _POROSITY (phases.porosity, which a saturated case needs here, its solids
-// at 2650 kg/m³); _CELL "h,nx,ny,ppc": the grid's cell size (m) and cells,
-// the first region's points per cell side; _SET "path=value;..." any case
+// fastest point's speed and position (m/s, m) against time (s); _P0 (Pa)
+// the isotropic start of a region that starts at its template's state (a
+// biaxial specimen); _DENSITY (kg/m³) of a dry soil; _POROSITY
+// (phases.porosity, which a saturated case needs here, its solids at
+// 2650 kg/m³); _CELL "h,nx,ny,ppc": the grid's cell size (m) and cells, the
+// first region's points per cell side; _SET "path=value;..." any case
 // fields, as mpm_client's --set.
 TEST(PrandtlTest, DISABLED_MeasureWithMohrCoulomb) {
   const char* file = std::getenv("RVEHUB_PRANDTL_CASE");
