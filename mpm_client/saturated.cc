@@ -199,26 +199,28 @@ void Solver::FindDrainedNodes() {
     }
     fraction[node] = filled / (full * node_domain_[node]);
   }
-  // Whether one of the 8 nodes around `node` has mass but less than
-  // kLightNeighbourFraction of soil. Not across a standing wall, nor off a
-  // wall's line: beyond a wall lies no free surface, only the edge of a
+  // Whether the step (di, dj) from node (i, j) leaves a standing wall's line
+  // or crosses it: beyond a wall lies no free surface, only the edge of a
   // point's domain.
+  const auto walled = [&](int i, int j, int di, int dj) {
+    for (std::size_t w = 0; w < walls_.size(); ++w) {
+      if (walls_[w].remove_time <= time_) continue;
+      const int at = walls_[w].axis == 0 ? i : j, step = walls_[w].axis == 0 ? di : dj;
+      const int line = wall_lines_[w];
+      if (step != 0 && (at == line || (at - line) * (at + step - line) < 0)) return true;
+    }
+    return false;
+  };
+  // Whether one of the 8 nodes around `node`, not walled off, has mass but
+  // less than kLightNeighbourFraction of soil.
   const auto beside_a_light_node = [&](int node) {
     const int i = node % nx, j = node / nx;
     for (int dj = -1; dj <= 1; ++dj) {
       for (int di = -1; di <= 1; ++di) {
-        if ((di == 0 && dj == 0) || i + di < 0 || i + di >= nx || j + dj < 0 || j + dj >= ny) {
-          continue;
-        }
-        bool walled = false;
-        for (std::size_t w = 0; w < walls_.size() && !walled; ++w) {
-          if (walls_[w].remove_time <= time_) continue;
-          const int at = walls_[w].axis == 0 ? i : j, step = walls_[w].axis == 0 ? di : dj;
-          const int line = wall_lines_[w];
-          walled = step != 0 && (at == line || (at - line) * (at + step - line) < 0);
-        }
         const int q = node + dj * nx + di;
-        if (!walled && node_mass_[q] > min_node_mass_ && fraction[q] < kLightNeighbourFraction) {
+        if ((di != 0 || dj != 0) && i + di >= 0 && i + di < nx && j + dj >= 0 && j + dj < ny &&
+            node_mass_[q] > min_node_mass_ && fraction[q] < kLightNeighbourFraction &&
+            !walled(i, j, di, dj)) {
           return true;
         }
       }

@@ -173,11 +173,15 @@ TEST(MohrCoulombTest, BadParametersAreAClearError) {
 
 // The first body's displacement (m) and the force the soil puts on it (N,
 // over the case's thickness), against time (s), if the case has a body; the
-// points' positions (m) and masses (kg) at the end.
+// points' positions (m) and masses (kg) at the end. Where asked for, the
+// flow against time (s): kinetic and potential energy (J), the front where
+// 99 % of the points lie behind and the farthest point (m), the fastest
+// point's speed and position (m/s, m; where a blow-up starts).
 struct BodySeries {
   std::vector<double> time, dx, dy, fx, fy;
   std::vector<Eigen::Vector2d> position;
   std::vector<double> mass, plastic_strain;
+  std::vector<double> flow_time, kinetic, potential, front99, front_max, v_max, x_v_max, y_v_max;
 };
 
 // The case `file` (under cases/, or an absolute path) with `overrides`
@@ -194,10 +198,10 @@ absl::StatusOr<CaseSpec> LoadTestCase(const std::string& file,
 // region's initial stress (its kind, surface, surcharge and floor, as the RVEs
 // are consolidated), the time step from the elastic modulus at the case's CFL
 // number; a region that starts at its template's state starts at the
-// isotropic `template_pressure` (Pa). Records the first body every
-// timeseries_every steps.
+// isotropic `template_pressure` (Pa). Records the first body, and with
+// `record_flow` the flow, every timeseries_every steps.
 BodySeries RunWithMohrCoulomb(CaseSpec spec, const MohrCoulombParameters& material,
-                              double template_pressure = 0.0, const char* energy_csv = nullptr,
+                              double template_pressure = 0.0, bool record_flow = false,
                               double dry_density = 2228.8) {
   double density = dry_density;     // kg/m³
   double stress_density = density;  // kg/m³, of the effective geostatic stress
@@ -239,16 +243,11 @@ BodySeries RunWithMohrCoulomb(CaseSpec spec, const MohrCoulombParameters& materi
   if (!solver.ok()) return {};
   const int body = static_cast<int>(spec.walls.size());  // Reactions(): walls, then bodies
   BodySeries out;
-  FILE* energy = energy_csv ? std::fopen(energy_csv, "w") : nullptr;
-  if (energy)
-    std::fprintf(energy, "time,kinetic,potential,front99,front_max,v_max,x_v_max,y_v_max\n");
   while ((*solver)->time() < spec.solver.end_time) {
     const absl::Status s = (*solver)->Step();
     EXPECT_TRUE(s.ok()) << s;
     if (!s.ok()) break;
-    if (energy && (*solver)->step() % spec.output.timeseries_every == 0) {
-      // J, J, m: the front where 99 % of the points lie behind, and the
-      // farthest; the fastest point (m/s, m) shows where a blow-up starts.
+    if (record_flow && (*solver)->step() % spec.output.timeseries_every == 0) {
       const MaterialPoints& mp = (*solver)->points();
       std::vector<double> x;
       std::size_t fastest = 0;
@@ -257,10 +256,14 @@ BodySeries RunWithMohrCoulomb(CaseSpec spec, const MohrCoulombParameters& materi
         if (mp.velocity[q].norm() > mp.velocity[fastest].norm()) fastest = q;
       }
       std::sort(x.begin(), x.end());
-      std::fprintf(energy, "%.6g,%.8g,%.8g,%.6g,%.6g,%.4g,%.4g,%.4g\n", (*solver)->time(),
-                   (*solver)->KineticEnergy(), (*solver)->PotentialEnergy(),
-                   x[static_cast<std::size_t>(0.99 * static_cast<double>(x.size() - 1))], x.back(),
-                   mp.velocity[fastest].norm(), mp.position[fastest].x(), mp.position[fastest].y());
+      out.flow_time.push_back((*solver)->time());
+      out.kinetic.push_back((*solver)->KineticEnergy());
+      out.potential.push_back((*solver)->PotentialEnergy());
+      out.front99.push_back(x[static_cast<std::size_t>(0.99 * static_cast<double>(x.size() - 1))]);
+      out.front_max.push_back(x.back());
+      out.v_max.push_back(mp.velocity[fastest].norm());
+      out.x_v_max.push_back(mp.position[fastest].x());
+      out.y_v_max.push_back(mp.position[fastest].y());
     }
     if (!spec.bodies.empty() && (*solver)->step() % spec.output.timeseries_every == 0) {
       const Eigen::Vector2d d = (*solver)->BodyDisplacement(0), f = (*solver)->Reactions()[body];
@@ -271,7 +274,6 @@ BodySeries RunWithMohrCoulomb(CaseSpec spec, const MohrCoulombParameters& materi
       out.fy.push_back(f.y());
     }
   }
-  if (energy) std::fclose(energy);
   out.position = (*solver)->points().position;
   out.mass = (*solver)->points().mass;
   out.plastic_strain = model.plastic_strain();
@@ -496,7 +498,7 @@ TEST(PrandtlTest, DISABLED_MeasureWithMohrCoulomb) {
         LoadTestCase(file ? file : "footing-dense.json", overrides);
     ASSERT_TRUE(spec.ok()) << spec.status();
     const BodySeries b =
-        RunWithMohrCoulomb(*spec, m, EnvDouble("RVEHUB_PRANDTL_P0", 0.0), energy_csv,
+        RunWithMohrCoulomb(*spec, m, EnvDouble("RVEHUB_PRANDTL_P0", 0.0), energy_csv != nullptr,
                            EnvDouble("RVEHUB_PRANDTL_DENSITY", 2228.8));
     if (points_csv) {
       std::vector<double> x, y;
@@ -507,6 +509,11 @@ TEST(PrandtlTest, DISABLED_MeasureWithMohrCoulomb) {
       WriteColumns(points_csv, "x,y,mass,plastic_strain", {&x, &y, &b.mass, &b.plastic_strain});
     }
     if (body_csv) WriteColumns(body_csv, "time,dx,dy,fx,fy", {&b.time, &b.dx, &b.dy, &b.fx, &b.fy});
+    if (energy_csv) {
+      WriteColumns(energy_csv, "time,kinetic,potential,front99,front_max,v_max,x_v_max,y_v_max",
+                   {&b.flow_time, &b.kinetic, &b.potential, &b.front99, &b.front_max, &b.v_max,
+                    &b.x_v_max, &b.y_v_max});
+    }
     return;
   }
   const FootingResult r = RunFooting(file ? file : "footing-dense.json", m, overrides,
