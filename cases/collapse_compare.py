@@ -5,6 +5,7 @@ angle of the dead zone (the wedge of points that never moved).
 
   /usr/bin/python3 cases/collapse_compare.py RUN_DIR[=LABEL] ... [--out=collapse.png]
       [--dead=0.01]
+  /usr/bin/python3 cases/collapse_compare.py --points CSV ... [--dead=0.01]
 
 Beside d* from the farthest point it prints the front of the main deposit: the paper
 measures d_f "after removing the scatter points" not in contact with the main deposit. Two
@@ -29,6 +30,11 @@ in the dead zone when its displacement from its initial position never exceeded
 `--dead`·d0 in any frame; the dead zone's angle to the base is that of a straight line
 fitted to its upper edge (per row of points, the rightmost dead point). Needs numpy, h5py
 and matplotlib (Debian's python3-numpy, python3-h5py, python3-matplotlib).
+
+--points reads instead the points CSVs of a continuum on the same case
+(tests/prandtl_test.cc's DISABLED_MeasureWithMohrCoulomb with RVEHUB_PRANDTL_POINTS_CSV: the
+points' starts x0, y0, their ends x and the largest distance each has been from its start,
+over every step) and prints the same dead zone and where 98 and 99 % of the points lie.
 """
 import argparse
 import csv
@@ -63,6 +69,27 @@ def read_frames(run):
         pos = np.stack([f["frames"][s]["position"][:, :2] for s in steps])
         eps_q = f["frames"][steps[-1]]["eps_q"][:]
     return times, pos, eps_q
+
+
+def points_summary(path, dead):
+    """The dead zone and the 98 and 99 % fronts of a continuum's points CSV (--points), read
+    as a run's: d0 and the fronts with half the initial spacing added."""
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    col = lambda key: np.array([float(r[key]) for r in rows])  # noqa: E731
+    start = np.column_stack([col("x0"), col("y0")])
+    spacing = np.diff(np.unique(np.round(start[:, 0], 9))).min()
+    d0 = start[:, 0].max() + spacing / 2
+    # dead_zone takes the largest distance from the start over the frames: two "frames",
+    # the start and the start moved by that distance.
+    moved = start + np.column_stack([col("max_displacement"), np.zeros(len(rows))])
+    mask, angle = dead_zone(np.stack([start, moved]), d0, dead)
+    xs = np.sort(col("x"))
+    fronts = ", ".join(f"{q:g} % lie behind d* {(x - d0) / d0:.2f}" for q, x in
+                       ((q, xs[int(np.ceil(q / 100 * len(xs))) - 1] + spacing / 2)
+                        for q in (98, 99)))
+    angle_text = "n/a" if angle is None else f"{angle:.1f} deg"
+    print(f"{path}: dead zone {mask.sum()} points, angle {angle_text}; of the points {fronts}")
 
 
 def stop_time(t, front, tolerance):
@@ -133,7 +160,9 @@ def dead_zone(pos, d0, dead):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("runs", nargs="+", help="RUN_DIR or RUN_DIR=LABEL")
+    ap.add_argument("runs", nargs="*", help="RUN_DIR or RUN_DIR=LABEL")
+    ap.add_argument("--points", nargs="+", metavar="CSV",
+                    help="instead of runs: continuum points CSVs (see above)")
     ap.add_argument("--out", default="collapse.png")
     ap.add_argument("--dead", type=float, default=0.01,
                     help="dead-zone displacement threshold as a fraction of d0")
@@ -142,6 +171,12 @@ def main():
     a = ap.parse_args()
     if not a.link > 0:
         ap.error(f"--link must be > 0, got {a.link}")
+    if a.points:
+        for path in a.points:
+            points_summary(path, a.dead)
+        return
+    if not a.runs:
+        ap.error("give run directories or --points CSVs")
     runs = [(r.split("=", 1) + [os.path.basename(r.rstrip("/"))])[:2] for r in a.runs]
     panels = 3 + len(runs)
     fig, axes = plt.subplots(1, panels, figsize=(5 * panels, 4))

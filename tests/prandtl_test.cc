@@ -179,8 +179,10 @@ TEST(MohrCoulombTest, BadParametersAreAClearError) {
 // point's speed and position (m/s, m; where a blow-up starts).
 struct BodySeries {
   std::vector<double> time, dx, dy, fx, fy;
-  std::vector<Eigen::Vector2d> position;
-  std::vector<double> mass, plastic_strain;
+  std::vector<Eigen::Vector2d> position, position0;
+  // m: the largest distance each point has been from its start, over every
+  // step (a collapse's dead zone never moved).
+  std::vector<double> mass, plastic_strain, max_displacement;
   std::vector<double> flow_time, kinetic, potential, front99, front_max, v_max, x_v_max, y_v_max;
 };
 
@@ -243,10 +245,16 @@ BodySeries RunWithMohrCoulomb(CaseSpec spec, const MohrCoulombParameters& materi
   if (!solver.ok()) return {};
   const int body = static_cast<int>(spec.walls.size());  // Reactions(): walls, then bodies
   BodySeries out;
+  out.position0 = (*solver)->points().position;
+  out.max_displacement.assign(out.position0.size(), 0.0);
   while ((*solver)->time() < spec.solver.end_time) {
     const absl::Status s = (*solver)->Step();
     EXPECT_TRUE(s.ok()) << s;
     if (!s.ok()) break;
+    for (std::size_t q = 0; q < out.position0.size(); ++q) {
+      out.max_displacement[q] = std::max(
+          out.max_displacement[q], ((*solver)->points().position[q] - out.position0[q]).norm());
+    }
     if (record_flow && (*solver)->step() % spec.output.timeseries_every == 0) {
       const MaterialPoints& mp = (*solver)->points();
       std::vector<double> x;
@@ -444,7 +452,8 @@ using testing_env::EnvDouble;
 // _BODY_CSV: any case with a body (a pipe), its first body's displacement
 // (m) and force (N) against time (s), no N_q; or _POINTS_CSV: any case (a
 // collapse), the points' positions (m), masses (kg) and plastic shear strains
-// at the end; _ENERGY_CSV: any case, the kinetic and potential energies
+// at the end, with their starts (m) and the largest distance each has been
+// from it (m); _ENERGY_CSV: any case, the kinetic and potential energies
 // (J), the fronts (m, 99 % of the points behind, the farthest) and the
 // fastest point's speed and position (m/s, m) against time (s); _P0 (Pa)
 // the isotropic start of a region that starts at its template's state (a
@@ -501,12 +510,15 @@ TEST(PrandtlTest, DISABLED_MeasureWithMohrCoulomb) {
         RunWithMohrCoulomb(*spec, m, EnvDouble("RVEHUB_PRANDTL_P0", 0.0), energy_csv != nullptr,
                            EnvDouble("RVEHUB_PRANDTL_DENSITY", 2228.8));
     if (points_csv) {
-      std::vector<double> x, y;
-      for (const Eigen::Vector2d& p : b.position) {
-        x.push_back(p.x());
-        y.push_back(p.y());
+      std::vector<double> x, y, x0, y0;
+      for (std::size_t q = 0; q < b.position.size(); ++q) {
+        x.push_back(b.position[q].x());
+        y.push_back(b.position[q].y());
+        x0.push_back(b.position0[q].x());
+        y0.push_back(b.position0[q].y());
       }
-      WriteColumns(points_csv, "x,y,mass,plastic_strain", {&x, &y, &b.mass, &b.plastic_strain});
+      WriteColumns(points_csv, "x,y,mass,plastic_strain,x0,y0,max_displacement",
+                   {&x, &y, &b.mass, &b.plastic_strain, &x0, &y0, &b.max_displacement});
     }
     if (body_csv) WriteColumns(body_csv, "time,dx,dy,fx,fy", {&b.time, &b.dx, &b.dy, &b.fx, &b.fy});
     if (energy_csv) {
