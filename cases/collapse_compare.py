@@ -76,6 +76,10 @@ def points_summary(path, dead):
     as a run's: d0 and the fronts with half the initial spacing added."""
     with open(path) as f:
         rows = list(csv.DictReader(f))
+    missing = {"x", "x0", "y0", "max_displacement"} - set(rows[0] if rows else ())
+    if missing:
+        raise SystemExit(f"{path}: no points or no column {', '.join(sorted(missing))} (a points "
+                         "CSV from the measuring tool since session 40)")
     col = lambda key: np.array([float(r[key]) for r in rows])  # noqa: E731
     start = np.column_stack([col("x0"), col("y0")])
     spacing = np.diff(np.unique(np.round(start[:, 0], 9))).min()
