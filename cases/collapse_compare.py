@@ -71,6 +71,19 @@ def read_frames(run):
     return times, pos, eps_q
 
 
+def column_width(x0):
+    """The initial point spacing and the column's width d0 (m) from the points' initial x."""
+    spacing = np.diff(np.unique(np.round(x0, 9))).min()
+    return spacing, x0.max() + spacing / 2
+
+
+def share_fronts(x_end, spacing):
+    """(percent, x) for 98 and 99 %: where that share of the points lies behind, m, half a
+    spacing added to the point's centre (the points carry equal shares of the mass)."""
+    xs = np.sort(x_end)
+    return [(q, xs[int(np.ceil(q / 100 * len(xs))) - 1] + spacing / 2) for q in (98, 99)]
+
+
 def points_summary(path, dead):
     """The dead zone and the 98 and 99 % fronts of a continuum's points CSV (--points), read
     as a run's: d0 and the fronts with half the initial spacing added."""
@@ -82,16 +95,13 @@ def points_summary(path, dead):
                          "CSV from the measuring tool since session 40)")
     col = lambda key: np.array([float(r[key]) for r in rows])  # noqa: E731
     start = np.column_stack([col("x0"), col("y0")])
-    spacing = np.diff(np.unique(np.round(start[:, 0], 9))).min()
-    d0 = start[:, 0].max() + spacing / 2
+    spacing, d0 = column_width(start[:, 0])
     # dead_zone takes the largest distance from the start over the frames: two "frames",
     # the start and the start moved by that distance.
     moved = start + np.column_stack([col("max_displacement"), np.zeros(len(rows))])
     mask, angle = dead_zone(np.stack([start, moved]), d0, dead)
-    xs = np.sort(col("x"))
-    fronts = ", ".join(f"{q:g} % lie behind d* {(x - d0) / d0:.2f}" for q, x in
-                       ((q, xs[int(np.ceil(q / 100 * len(xs))) - 1] + spacing / 2)
-                        for q in (98, 99)))
+    fronts = ", ".join(f"{q:g} % lie behind d* {(x - d0) / d0:.2f}"
+                       for q, x in share_fronts(col("x"), spacing))
     angle_text = "n/a" if angle is None else f"{angle:.1f} deg"
     print(f"{path}: dead zone {mask.sum()} points, angle {angle_text}; of the points {fronts}")
 
@@ -188,8 +198,7 @@ def main():
         t, front, deposit, ke, pe = read_series(run)
         frame_t, pos, eps_q = read_frames(run)
         x0 = pos[0, :, 0]
-        spacing = np.diff(np.unique(np.round(x0, 9))).min()
-        d0 = x0.max() + spacing / 2
+        spacing, d0 = column_width(x0)
         d_f = pos[-1, :, 0].max() + spacing / 2
         runout = (d_f - d0) / d0
         mask, angle = dead_zone(pos, d0, a.dead)
@@ -204,10 +213,9 @@ def main():
         fronts = [(k, thick_front(pos[-1][main], spacing, k)) for k in (2, 3)]
         print(f"{label}: where the main deposit is at least " + ", ".join(
             f"{k} points thick: {x:.3f} m (d* {(x - d0) / d0:.2f})" for k, x in fronts))
-        xs = np.sort(pos[-1, :, 0])
         print(f"{label}: of all the points, " + ", ".join(
-            f"{q:g} % lie behind {x:.3f} m (d* {(x - d0) / d0:.2f})" for q, x in
-            ((q, xs[int(np.ceil(q / 100 * len(xs))) - 1] + spacing / 2) for q in (98, 99))))
+            f"{q:g} % lie behind {x:.3f} m (d* {(x - d0) / d0:.2f})"
+            for q, x in share_fronts(pos[-1, :, 0], spacing)))
         # The main deposit's front in time: the run's own column where it wrote one
         # (two spacings), else from every frame.
         if deposit is not None and a.link == 2.0:
