@@ -189,7 +189,8 @@ void Solver::FindDrainedNodes() {
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     centers[b] = bodies_[b].center + DisplacementAt(bodies_[b].velocity, time_);
   }
-  std::vector<double> fraction(nx * ny, 0.0);  // [-], 0 where inactive
+  std::vector<double>& fraction = node_soil_;
+  std::fill(fraction.begin(), fraction.end(), 0.0);
   for (int node = 0; node < nx * ny; ++node) {
     if (!(node_mass_[node] > min_node_mass_)) continue;
     double filled = node_volume_[node];  // m³

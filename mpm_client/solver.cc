@@ -527,7 +527,7 @@ void Solver::Prepare() {
       v->resize(nodes);
     }
     for (auto* v : {&node_fluid_mass_, &node_drag_, &node_pressure_, &pressure_fixed_, &node_base_,
-                    &node_delta_, &node_volume_, &node_domain_}) {
+                    &node_delta_, &node_volume_, &node_domain_, &node_soil_}) {
       v->resize(nodes);
     }
     node_pressure_last_.resize(nodes, std::numeric_limits<double>::quiet_NaN());

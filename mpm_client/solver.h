@@ -372,6 +372,7 @@ class Solver {
   std::vector<double> node_delta_;                        // δ = p^{n+1} − b, Pa
   std::vector<double> node_volume_;                       // Σ_p S_Ip V_p, m³
   std::vector<double> node_domain_;  // share of a node's volume inside walls and grid, [-]
+  std::vector<double> node_soil_;    // soil share of a node's domain, [-], 0 where inactive
   std::vector<std::uint8_t> fluid_fixed_;                 // per node: components walls hold
   // Per node: bit 0 / bit 1 set on a drained line x = c / y = c (a wall on
   // that line lets the water through there).
