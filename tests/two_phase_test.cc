@@ -770,7 +770,7 @@ TEST(TwoPhaseSolverTest, ShakenBoxCarriesTheMixturesInertiaWithoutPressureBursts
   spec.grid.cell_size = 0.1;
   spec.grid.nx = 20;
   spec.grid.ny = 12;
-  const double amplitude = 0.025 * M_PI, frequency = 2.5;  // m/s, Hz
+  const double amplitude = 0.025 * std::numbers::pi, frequency = 2.5;  // m/s, Hz
   spec.solver.shaking_amplitude = Vector2d(amplitude, 0.0);
   spec.solver.shaking_frequency = frequency;
   const double nu = 0.3;
@@ -786,7 +786,7 @@ TEST(TwoPhaseSolverTest, ShakenBoxCarriesTheMixturesInertiaWithoutPressureBursts
       centre = p;
     }
   }
-  const double omega = 2.0 * M_PI * frequency;
+  const double omega = 2.0 * std::numbers::pi * frequency;
   const double mass = solver->MixtureMass();  // kg
   double force_inertia = 0.0, inertia_inertia = 0.0, wiggle = 0.0;
   std::vector<double> p;
@@ -919,7 +919,7 @@ TEST(TwoPhaseSolverTest, ImpulseOnAHalfSpaceStaysBoundedForEveryPermeability) {
     load.normal_axis = 1;
     load.traction = Vector2d(0, -1e5);
     for (int i = 0; i <= 20; ++i) {
-      load.history.push_back({0.002 * i, std::sin(25 * M_PI * 0.002 * i)});
+      load.history.push_back({0.002 * i, std::sin(25 * std::numbers::pi * 0.002 * i)});
     }
     load.history.back().factor = 0.0;
     load.from = 10;
