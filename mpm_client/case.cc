@@ -1643,7 +1643,8 @@ absl::Status ApplyOverride(const CaseOverride& o, Json& doc) {
   } catch (const Json::exception& e) {
     return absl::InvalidArgumentError(absl::StrCat(what, ": not a JSON pointer (", e.what(), ")"));
   }
-  if (pointer.empty()) return absl::InvalidArgumentError(absl::StrCat(what, ": names the whole case"));
+  if (pointer.empty())
+    return absl::InvalidArgumentError(absl::StrCat(what, ": names the whole case"));
   const Json::json_pointer parent = pointer.parent_pointer();
   const std::string parent_text = parent.empty() ? "the case" : parent.to_string();
   if (!doc.contains(parent)) {
@@ -1653,8 +1654,8 @@ absl::Status ApplyOverride(const CaseOverride& o, Json& doc) {
   if (container.is_array()) {
     // Only existing elements: an override changes a case, it does not grow lists.
     if (!doc.contains(pointer)) {
-      return absl::InvalidArgumentError(absl::StrCat(what, ": ", parent_text, " has ",
-                                                     container.size(), " elements"));
+      return absl::InvalidArgumentError(
+          absl::StrCat(what, ": ", parent_text, " has ", container.size(), " elements"));
     }
   } else if (!container.is_object()) {
     return absl::InvalidArgumentError(
@@ -1804,12 +1805,12 @@ absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::strin
   }
   // Refused here rather than as std::bad_alloc an hour into setting up.
   if (const CaseSize size = EstimateSize(spec); size.bytes > kMaxCaseBytes) {
-    return Bad("/grid", absl::StrFormat(
-                            "the case needs about %.1f GiB (%d grid nodes, %d material points "
-                            "with their RVEs), more than the limit of %.0f GiB: use a coarser grid "
-                            "or smaller regions",
-                            size.bytes / (1 << 30), size.nodes, size.points,
-                            kMaxCaseBytes / (1 << 30)));
+    return Bad("/grid",
+               absl::StrFormat(
+                   "the case needs about %.1f GiB (%d grid nodes, %d material points "
+                   "with their RVEs), more than the limit of %.0f GiB: use a coarser grid "
+                   "or smaller regions",
+                   size.bytes / (1 << 30), size.nodes, size.points, kMaxCaseBytes / (1 << 30)));
   }
   return spec;
 }

@@ -261,7 +261,7 @@ struct SurfaceTraction {
 };
 
 struct OutputSpec {
-  std::int64_t frame_every = 100;      // MPM steps between results.h5 frames
+  std::int64_t frame_every = 100;  // MPM steps between results.h5 frames
   // Frames also at the steps nearest to these times (s, increasing): the
   // published instants of a validation (consolidation isochrones).
   std::vector<double> frame_times;

@@ -624,9 +624,10 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
             done > 0 ? absl::StrFormat("%.0f s", wall / static_cast<double>(done) *
                                                      static_cast<double>(total - done))
                      : std::string("?");
-        sim->Log(absl::StrFormat("consolidating RVEs: %d/%d initial stresses done  wall %.1f s  "
-                                 "ETA %s",
-                                 done, total, wall, eta));
+        sim->Log(
+            absl::StrFormat("consolidating RVEs: %d/%d initial stresses done  wall %.1f s  "
+                            "ETA %s",
+                            done, total, wall, eta));
       }
     });
   }
@@ -701,9 +702,8 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
   std::vector<CaseOverride> overrides;
   if (options.end_time > 0) {
     if (!(options.end_time > c.time)) {
-      return absl::InvalidArgumentError(
-          absl::StrFormat("--end-time %.6g s is not after the checkpoint's time %.6g s",
-                          options.end_time, c.time));
+      return absl::InvalidArgumentError(absl::StrFormat(
+          "--end-time %.6g s is not after the checkpoint's time %.6g s", options.end_time, c.time));
     }
     overrides.push_back({"/solver/end_time", absl::StrFormat("%.17g", options.end_time)});
   }
@@ -1090,7 +1090,8 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
     }
     if (stopping) {
       const std::string path = options_.out_dir + "/checkpoint.h5";
-      Log(absl::StrFormat("stopped at step %d (--stop-after=%d); checkpoint written to %s "
+      Log(
+          absl::StrFormat("stopped at step %d (--stop-after=%d); checkpoint written to %s "
                           "(continue with: mpm_client resume %s)",
                           step, options_.stop_after_steps, path, path));
     }

@@ -321,8 +321,8 @@ class Solver {
   std::vector<Wall> walls_;
   std::vector<RigidBody> bodies_;
   std::vector<std::vector<LoadFactorPoint>> load_histories_;  // per CaseSpec traction
-  std::vector<std::vector<std::int32_t>> wall_nodes_;  // nodes on each wall's line
-  std::vector<int> wall_lines_;                        // grid line index of each wall
+  std::vector<std::vector<std::int32_t>> wall_nodes_;         // nodes on each wall's line
+  std::vector<int> wall_lines_;                               // grid line index of each wall
   StressModel* model_ = nullptr;
 
   MaterialPoints points_;
@@ -356,24 +356,24 @@ class Solver {
 
   // Saturated cases (saturated.cc).
   PhasesSpec phases_;
-  std::vector<std::vector<std::int32_t>> drained_nodes_;  // per drained boundary
-  std::vector<double> node_fluid_mass_;                   // kg
-  std::vector<Eigen::Vector2d> node_fluid_velocity_;      // v_f^n, then v_f*, m/s
-  std::vector<Eigen::Vector2d> node_fluid_force_;         // N
-  std::vector<Eigen::Vector2d> node_fluid_velocity_new_;  // v_f^{n+1}
+  std::vector<std::vector<std::int32_t>> drained_nodes_;   // per drained boundary
+  std::vector<double> node_fluid_mass_;                    // kg
+  std::vector<Eigen::Vector2d> node_fluid_velocity_;       // v_f^n, then v_f*, m/s
+  std::vector<Eigen::Vector2d> node_fluid_force_;          // N
+  std::vector<Eigen::Vector2d> node_fluid_velocity_new_;   // v_f^{n+1}
   std::vector<Eigen::Vector2d> node_fluid_velocity_star_;  // v_f* before the correction
-  std::vector<double> node_drag_;                         // Δt·Σ S·drag·V, kg
-  std::vector<double> node_pressure_;                     // p^n, Pa
+  std::vector<double> node_drag_;                          // Δt·Σ S·drag·V, kg
+  std::vector<double> node_pressure_;                      // p^n, Pa
   // p^{n+1} of the last step per node, Pa; NaN where the node was inactive.
   // Part of the state: the next step's p^n where the node is still active.
   std::vector<double> node_pressure_last_;
-  std::vector<double> pressure_fixed_;                    // prescribed p, Pa, or NaN
-  std::vector<double> node_base_;                         // b: p^n or p_r (saturated.cc), Pa
-  std::vector<double> node_delta_;                        // δ = p^{n+1} − b, Pa
-  std::vector<double> node_volume_;                       // Σ_p S_Ip V_p, m³
-  std::vector<double> node_domain_;  // share of a node's volume inside walls and grid, [-]
-  std::vector<double> node_soil_;    // soil share of a node's domain, [-], 0 where inactive
-  std::vector<std::uint8_t> fluid_fixed_;                 // per node: components walls hold
+  std::vector<double> pressure_fixed_;     // prescribed p, Pa, or NaN
+  std::vector<double> node_base_;          // b: p^n or p_r (saturated.cc), Pa
+  std::vector<double> node_delta_;         // δ = p^{n+1} − b, Pa
+  std::vector<double> node_volume_;        // Σ_p S_Ip V_p, m³
+  std::vector<double> node_domain_;        // share of a node's volume inside walls and grid, [-]
+  std::vector<double> node_soil_;          // soil share of a node's domain, [-], 0 where inactive
+  std::vector<std::uint8_t> fluid_fixed_;  // per node: components walls hold
   // Per node: bit 0 / bit 1 set on a drained line x = c / y = c (a wall on
   // that line lets the water through there).
   std::vector<std::uint8_t> node_porous_;

@@ -55,11 +55,10 @@ std::string TempPath(const std::string& name) {
   return absl::StrCat(testing::TempDir(), "/cli_test_", getpid(), "_", name);
 }
 
-const char* const kCommands[] = {"element-test", "prepare",    "materials", "info",
-                                 "get",          "upload-template", "checkpoint", "restore",
-                                 "list-runs",    "drop"};
-const char* const kServerCommands[] = {"info",    "get",       "upload-template", "checkpoint",
-                                       "restore", "list-runs", "drop"};
+const char* const kCommands[] = {"element-test",    "prepare",    "materials", "info",      "get",
+                                 "upload-template", "checkpoint", "restore",   "list-runs", "drop"};
+const char* const kServerCommands[] = {
+    "info", "get", "upload-template", "checkpoint", "restore", "list-runs", "drop"};
 
 TEST(CliTest, HelpPrintsTheUsageAndExitsZero) {
   const Result r = RunCli("--help");
@@ -132,8 +131,8 @@ TEST(CliTest, UnknownMaterialFailsWithTheKnownNames) {
 // rve_server and mpm_client answer --help like rve_cli: usage on stdout,
 // exit 0, no build paths (absl's own --help exits 1 and prints them).
 TEST(CliTest, EveryBinaryHelpExitsZeroWithoutBuildPaths) {
-  for (const std::string& binary : {std::string(RVE_SERVER_PATH), std::string(MPM_CLIENT_PATH),
-                                    std::string(RVE_CLI_PATH)}) {
+  for (const std::string& binary :
+       {std::string(RVE_SERVER_PATH), std::string(MPM_CLIENT_PATH), std::string(RVE_CLI_PATH)}) {
     for (const char* flag : {"--help", "-h"}) {
       const testing_util::CommandResult r =
           testing_util::RunCommand(absl::StrCat("'", binary, "' ", flag, " 2>&1"));
@@ -156,9 +155,8 @@ TEST(CliTest, EveryBinaryHelpExitsZeroWithoutBuildPaths) {
 TEST(CliTest, FailedWriteExitsOneWithoutCrashing) {
   const std::string file = TempPath("too_big.h5");
   // SIGXFSZ ignored: writes past 40 blocks of 512 bytes fail with EFBIG.
-  const testing_util::CommandResult r = testing_util::RunCommand(
-      absl::StrCat("trap '' XFSZ; ulimit -f 40; '", RVE_CLI_PATH, "' prepare --out='", file,
-                   "' 2>&1"));
+  const testing_util::CommandResult r = testing_util::RunCommand(absl::StrCat(
+      "trap '' XFSZ; ulimit -f 40; '", RVE_CLI_PATH, "' prepare --out='", file, "' 2>&1"));
   EXPECT_EQ(r.exit_code, 1) << r.out;
   EXPECT_TRUE(absl::StrContains(r.out, absl::StrCat("writing ", file))) << r.out;
   EXPECT_FALSE(std::ifstream(file).good());
@@ -180,8 +178,8 @@ TEST(CliTest, ServerWithAFailedCheckpointExitsOne) {
   // A template (66 KB) to checkpoint: upload one prepared here.
   const std::string file = TempPath("limited_template.h5");
   ASSERT_EQ(RunCli(absl::StrCat("prepare --out='", file, "'")).exit_code, 0);
-  const Result upload = RunCli(absl::StrCat("upload-template --server=", server.address(),
-                                            " --file='", file, "'"));
+  const Result upload =
+      RunCli(absl::StrCat("upload-template --server=", server.address(), " --file='", file, "'"));
   ASSERT_EQ(upload.exit_code, 0) << upload.output;
   EXPECT_EQ(server.Stop(), 1) << server.Log();
   EXPECT_TRUE(absl::StrContains(server.Log(), "templates.h5")) << server.Log();
@@ -205,8 +203,8 @@ TEST(CliTest, MaterialsListsTheParameterSets) {
   // prepared at the footing's 20 kPa.
   std::vector<std::string> dense = absl::StrSplit(lines[1], ' ', absl::SkipEmpty());
   EXPECT_EQ(dense, (std::vector<std::string>{"SET-dense", "linear", "2650", "600", "0.8", "0.25",
-                                             "0.5452", "0", "0", "0", "0.1", "0.1", "400", "3",
-                                             "7", "100", "0.177", "0.001"}))
+                                             "0.5452", "0", "0", "0", "0.1", "0.1", "400", "3", "7",
+                                             "100", "0.177", "0.001"}))
       << lines[1];
   std::string soft;
   for (const std::string& line : lines) {
@@ -597,7 +595,8 @@ TEST(CliServerTest, ListRunsAndDrop) {
   ASSERT_EQ(before.exit_code, 0) << before.output;
   EXPECT_EQ(before.output, "RUN\tRVES\tMIN_STEP\tMAX_STEP\ngone\t2\t0\t1\nkeep\t1\t0\t0\n");
 
-  const Result one = RunCli(absl::StrCat("drop ", server.server_flag(), " --run=gone --id=5"), true);
+  const Result one =
+      RunCli(absl::StrCat("drop ", server.server_flag(), " --run=gone --id=5"), true);
   ASSERT_EQ(one.exit_code, 0) << one.output;
   EXPECT_EQ(one.output, absl::StrCat("dropped 1 RVEs of run gone on ", server.address(), "\n"));
   EXPECT_EQ(RunCli(list, true).output,
@@ -620,18 +619,20 @@ TEST(CliServerTest, ListRunsAndDrop) {
 // checkpoint is resumed, not restored; a template file is uploaded.
 TEST(CliTest, RestoreOfAnotherKindOfFileSaysWhatToDo) {
   const std::string dir = TempPath("mpm_run");
-  testing_util::CommandResult run = testing_util::RunCommand(absl::StrCat(
-      "'", MPM_CLIENT_PATH, "' run '", RVEHUB_SOURCE_DIR,
-      "/cases/single-element-biaxial.json' --out='", dir, "' --template-cache='",
-      TempPath("templates"), "' --stop-after=1 --quiet --threads=1 2>&1"));
+  testing_util::CommandResult run = testing_util::RunCommand(
+      absl::StrCat("'", MPM_CLIENT_PATH, "' run '", RVEHUB_SOURCE_DIR,
+                   "/cases/single-element-biaxial.json' --out='", dir, "' --template-cache='",
+                   TempPath("templates"), "' --stop-after=1 --quiet --threads=1 2>&1"));
   ASSERT_EQ(run.exit_code, 0) << run.out;
   const std::string checkpoint = dir + "/checkpoint.h5";
-  const Result restore = RunCli(absl::StrCat("restore --server=127.0.0.1:1 --file='", checkpoint, "'"));
+  const Result restore =
+      RunCli(absl::StrCat("restore --server=127.0.0.1:1 --file='", checkpoint, "'"));
   EXPECT_EQ(restore.exit_code, 1) << restore.output;
-  EXPECT_TRUE(absl::StrContains(restore.output,
-                                absl::StrCat(checkpoint, " is an mpm_client checkpoint")))
+  EXPECT_TRUE(
+      absl::StrContains(restore.output, absl::StrCat(checkpoint, " is an mpm_client checkpoint")))
       << restore.output;
-  EXPECT_TRUE(absl::StrContains(restore.output, absl::StrCat("`mpm_client resume ", checkpoint, "`")))
+  EXPECT_TRUE(
+      absl::StrContains(restore.output, absl::StrCat("`mpm_client resume ", checkpoint, "`")))
       << restore.output;
   EXPECT_FALSE(absl::StrContains(restore.output, "ReadSimCheckpoint")) << restore.output;
   const Result upload =
@@ -850,8 +851,8 @@ TEST(CliServerTest, ServerClientNamesTheCallAndServerInErrors) {
   const std::int64_t ids[] = {1};
   const absl::StatusOr<std::int64_t> dropped = c.Drop("none", ids);
   EXPECT_TRUE(absl::IsNotFound(dropped.status())) << dropped.status();
-  EXPECT_TRUE(absl::EndsWith(dropped.status().message(),
-                             absl::StrCat(" (Drop on ", server.address(), ")")))
+  EXPECT_TRUE(
+      absl::EndsWith(dropped.status().message(), absl::StrCat(" (Drop on ", server.address(), ")")))
       << dropped.status();
   EXPECT_EQ(server.Stop(), 0) << server.Log();
 }

@@ -518,8 +518,7 @@ TEST(HardeningStop, DrainEndsWhenTheGraceDoesDespiteALongCall) {
   // The call fails, or its reply says the RVE was stopped (the drain's
   // cancellation reached the engine before the transport closed).
   EXPECT_TRUE(!long_call.ok() || (resp.failed() == 1 && resp.results(0).code() != 0))
-      << long_call.error_code() << " " << long_call.error_message() << " failed "
-      << resp.failed();
+      << long_call.error_code() << " " << long_call.error_message() << " failed " << resp.failed();
 }
 
 }  // namespace

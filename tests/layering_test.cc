@@ -66,9 +66,8 @@ const std::vector<Layer>& Layers() {
       // and the wire conversions, never on the server's gRPC service.
       {"rve_server/client",
        {"rve_server/client/", "rve_server/service/registry.h", "rve_server/service/rve_batch.h",
-        "rve_server/service/convert.h",
-        "rve_server/service/worker_pool.h", "rve_server/engine/", "rve_server/common/", "store/",
-        "rvehub/v1/", "absl/"},
+        "rve_server/service/convert.h", "rve_server/service/worker_pool.h", "rve_server/engine/",
+        "rve_server/common/", "store/", "rvehub/v1/", "absl/"},
        {"grpcpp/", "grpc/", "Eigen/", "google/protobuf/"}},
       {"mpm_client",
        {"mpm_client/", "rve_server/client/", "rve_server/engine/", "rve_server/common/", "store/",

@@ -518,10 +518,11 @@ TEST(MpmCliTest, StopAndResumeMatchesTheUninterruptedRun) {
 // and a bad value gets the file's message for its JSON pointer.
 TEST(MpmCliTest, SetOverridesCaseFieldsValidatedLikeTheFile) {
   const std::string path = Quote(WriteCase("set", SmallCase()));
-  const Result r = RunClient(absl::StrCat("check ", path,
-                                          " --set=/solver/end_time=0.05 --set=solver.shape=linear"
-                                          " --set=name=sweep-1 --set=regions.0.points_per_cell_side=1"
-                                          " --set=/solver/gravity=[0,-9.81]"));
+  const Result r =
+      RunClient(absl::StrCat("check ", path,
+                             " --set=/solver/end_time=0.05 --set=solver.shape=linear"
+                             " --set=name=sweep-1 --set=regions.0.points_per_cell_side=1"
+                             " --set=/solver/gravity=[0,-9.81]"));
   ASSERT_EQ(r.exit_code, 0) << r;
   const Json c = Json::parse(r.out, nullptr, /*allow_exceptions=*/false);
   ASSERT_FALSE(c.is_discarded()) << r.out;
@@ -579,7 +580,8 @@ TEST(MpmCliTest, StopAfterWritesACheckpointEvenWithCheckpointsOff) {
   EXPECT_EQ(first["outcome"], "stopped");
   EXPECT_EQ(first["final_step"], 10);
 
-  const Result resumed = RunClient(absl::StrCat("resume ", Quote(checkpoint), " --quiet --threads=2"));
+  const Result resumed =
+      RunClient(absl::StrCat("resume ", Quote(checkpoint), " --quiet --threads=2"));
   ASSERT_EQ(resumed.exit_code, 0) << resumed;
   EXPECT_TRUE(absl::StrContains(resumed.err, "mpm_client: finished at step 35")) << resumed.err;
   EXPECT_EQ(WithoutWallTime(ReadFile(dir + "/timeseries.csv")),
@@ -628,7 +630,10 @@ TEST(MpmCliTest, OutOfRangeCaseValuesFailCleanly) {
   for (const Case& c : std::vector<Case>{
            {"end_time", [](Json& j) { j["solver"]["end_time"] = 1e308; },
             "/solver/end_time: must be in (0, 1000000], got 1e+308"},
-           {"min_steps", [](Json& j) { j["rve"] = {{"min_steps", 1e15}}; },
+           {"min_steps",
+            [](Json& j) {
+              j["rve"] = {{"min_steps", 1e15}};
+            },
             "/rve/min_steps: must be an integer in 0..100000, got 1e+15"},
            {"memory",
             [](Json& j) {
@@ -657,9 +662,9 @@ TEST(MpmCliTest, OutOfRangeCaseValuesFailCleanly) {
   Json j = SmallCase();
   j["solver"]["time_step"] = 1e-9;
   j["solver"]["end_time"] = 1e3;  // 1e12 steps
-  const Result steps = RunClient(absl::StrCat("run ", Quote(WriteCase("bound_steps", j)),
-                                              " --quiet --out=", Quote(TempPath("bound_steps_out")),
-                                              CommonFlags()));
+  const Result steps =
+      RunClient(absl::StrCat("run ", Quote(WriteCase("bound_steps", j)),
+                             " --quiet --out=", Quote(TempPath("bound_steps_out")), CommonFlags()));
   EXPECT_EQ(steps.exit_code, 1) << steps;
   EXPECT_TRUE(absl::StrContains(steps.err, "MPM steps, more than the limit of 1000000000"))
       << steps.err;
@@ -675,10 +680,10 @@ TEST(MpmCliTest, FailedCheckpointWriteExitsOneWithoutCrashing) {
   WriteCase("full_disk", c);
   // 150 blocks of 512 bytes hold frame 0 and 10 but not the checkpoint;
   // SIGXFSZ ignored: writes past the limit fail with EFBIG, as with ENOSPC.
-  testing_util::CommandResult run = testing_util::RunCommand(absl::StrCat(
-      "trap '' XFSZ; ulimit -f 150; ", Quote(MPM_CLIENT_PATH), " run ",
-      Quote(TempPath("full_disk.json")), " --out=", Quote(dir), " --quiet", CommonFlags(),
-      " 2>&1"));
+  testing_util::CommandResult run = testing_util::RunCommand(
+      absl::StrCat("trap '' XFSZ; ulimit -f 150; ", Quote(MPM_CLIENT_PATH), " run ",
+                   Quote(TempPath("full_disk.json")), " --out=", Quote(dir), " --quiet",
+                   CommonFlags(), " 2>&1"));
   EXPECT_EQ(run.exit_code, 1) << run.out;
   EXPECT_TRUE(absl::StrContains(run.out, absl::StrCat("writing ", dir, "/checkpoint.h5")))
       << run.out;

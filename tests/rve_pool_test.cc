@@ -121,14 +121,16 @@ class Servers {
   std::vector<std::unique_ptr<service::RveServer>> servers_;
 };
 
-std::unique_ptr<client::RveEndpoint> Remote(const std::string& address, const client::RemoteOptions& remote = {}) {
-  absl::StatusOr<std::unique_ptr<client::RveEndpoint>> e = client::MakeRemoteEndpoint(address, {}, remote);
+std::unique_ptr<client::RveEndpoint> Remote(const std::string& address,
+                                            const client::RemoteOptions& remote = {}) {
+  absl::StatusOr<std::unique_ptr<client::RveEndpoint>> e =
+      client::MakeRemoteEndpoint(address, {}, remote);
   EXPECT_TRUE(e.ok()) << e.status();
   return e.ok() ? *std::move(e) : nullptr;
 }
 
-std::vector<std::unique_ptr<client::RveEndpoint>> RemoteEndpoints(const Servers& servers,
-                                                          const client::RemoteOptions& remote = {}) {
+std::vector<std::unique_ptr<client::RveEndpoint>> RemoteEndpoints(
+    const Servers& servers, const client::RemoteOptions& remote = {}) {
   std::vector<std::unique_ptr<client::RveEndpoint>> e;
   for (int k = 0; k < servers.size(); ++k) e.push_back(Remote(servers.address(k), remote));
   return e;
@@ -260,8 +262,8 @@ class FaultyEndpoint final : public client::RveEndpoint {
     return Done(absl::InternalError("unreachable"));
   }
   absl::StatusOr<std::vector<client::RveOutcome>> Get(absl::string_view run,
-                                                       std::span<const std::int64_t> ids,
-                                                       bool want_tangent) override {
+                                                      std::span<const std::int64_t> ids,
+                                                      bool want_tangent) override {
     return inner_->Get(run, ids, want_tangent);
   }
   absl::Status Export(absl::string_view run, std::span<const std::int64_t> ids,
@@ -740,7 +742,8 @@ TEST(RvePoolTest, UnreachableServerIsUnavailableNamingTheAddress) {
   const std::string address = absl::StrCat("127.0.0.1:", ClosedPort());
   client::RemoteOptions remote;
   remote.connect_timeout = absl::Seconds(2);
-  absl::StatusOr<std::unique_ptr<client::RveEndpoint>> e = client::MakeRemoteEndpoint(address, {}, remote);
+  absl::StatusOr<std::unique_ptr<client::RveEndpoint>> e =
+      client::MakeRemoteEndpoint(address, {}, remote);
   ASSERT_FALSE(e.ok());
   EXPECT_TRUE(absl::IsUnavailable(e.status())) << e.status();
   ExpectContains(e.status().message(), absl::StrCat("RVE server ", address, " is unreachable"));

@@ -562,8 +562,7 @@ TEST(ServiceAuth, HealthWithoutTokenOpensHealthOnly) {
   }
   grpc::ClientContext ctx;
   v1::ServerInfo info;
-  ExpectError(h.stub().GetServerInfo(&ctx, {}, &info), grpc::StatusCode::UNAUTHENTICATED,
-              "Bearer");
+  ExpectError(h.stub().GetServerInfo(&ctx, {}, &info), grpc::StatusCode::UNAUTHENTICATED, "Bearer");
 }
 
 TEST(ServiceAuth, OpenWithoutToken) {

@@ -620,8 +620,8 @@ absl::Status PrepareCommand(const Flags& flags) {
 // packings are prepared (the units are in the header).
 absl::Status MaterialsCommand(const Flags&) {
   std::printf("%-20s %-13s %7s %9s %6s %5s %6s %5s %5s %7s %5s %5s %5s %7s %7s %8s %6s %7s\n",
-              "NAME", "CONTACT", "RHO", "E_MPA", "KT/KN", "NU", "MU", "BETA", "ETA",
-              "C_KPA", "DAMP", "T_M", "N", "RMIN_MM", "RMAX_MM", "P0_KPA", "E0", "K0_M/S");
+              "NAME", "CONTACT", "RHO", "E_MPA", "KT/KN", "NU", "MU", "BETA", "ETA", "C_KPA",
+              "DAMP", "T_M", "N", "RMIN_MM", "RMAX_MM", "P0_KPA", "E0", "K0_M/S");
   for (const std::string& name : dem::ParameterSetNames()) {
     ASSIGN_OR_RETURN(dem::ParameterSet set, dem::FindParameterSet(name));
     const dem::Material& m = set.material;
@@ -629,11 +629,11 @@ absl::Status MaterialsCommand(const Flags&) {
     std::printf(
         "%-20s %-13s %7.0f %9.4g %6.3g %5.3g %6.4g %5.3g %5.3g %7.4g %5.3g %5.3g %5d %7.3g %7.3g "
         "%8.4g %6.4g %7.3g\n",
-        name.c_str(), m.model == dem::ContactModel::kLinear ? "linear" : "hertz-mindlin",
-        m.density, m.young_modulus * 1e-6, m.stiffness_ratio, m.poisson_ratio, m.friction,
-        m.rolling_beta, m.rolling_eta, m.bond_cohesion * 1e-3, m.damping, m.thickness,
-        p.num_particles, p.radius_min * 1e3, p.radius_max * 1e3, p.pressure * 1e-3,
-        p.target_void_ratio, p.initial_permeability);
+        name.c_str(), m.model == dem::ContactModel::kLinear ? "linear" : "hertz-mindlin", m.density,
+        m.young_modulus * 1e-6, m.stiffness_ratio, m.poisson_ratio, m.friction, m.rolling_beta,
+        m.rolling_eta, m.bond_cohesion * 1e-3, m.damping, m.thickness, p.num_particles,
+        p.radius_min * 1e3, p.radius_max * 1e3, p.pressure * 1e-3, p.target_void_ratio,
+        p.initial_permeability);
   }
   return absl::OkStatus();
 }
@@ -645,10 +645,11 @@ absl::Status ExplainFileKind(const absl::Status& s, const std::string& file) {
   if (!absl::IsInvalidArgument(s)) return s;
   const absl::string_view m = s.message();
   if (absl::StrContains(m, "holds 'simulation'")) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        file, " is an mpm_client checkpoint (a whole MPM simulation), not RVEs of a server: "
-              "continue it with `mpm_client resume ",
-        file, "`"));
+    return absl::InvalidArgumentError(
+        absl::StrCat(file,
+                     " is an mpm_client checkpoint (a whole MPM simulation), not RVEs of a server: "
+                     "continue it with `mpm_client resume ",
+                     file, "`"));
   }
   if (absl::StrContains(m, "holds 'templates'")) {
     return absl::InvalidArgumentError(absl::StrCat(

@@ -14,10 +14,9 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 
-#define RETURN_IF_ERROR(expr)                                         \
-  do {                                                                \
-    if (::absl::Status rvehub_status_ = (expr); !rvehub_status_.ok()) \
-      return rvehub_status_;                                          \
+#define RETURN_IF_ERROR(expr)                                                                \
+  do {                                                                                       \
+    if (::absl::Status rvehub_status_ = (expr); !rvehub_status_.ok()) return rvehub_status_; \
   } while (false)
 
 #define RVEHUB_STATUS_CONCAT_INNER_(a, b) a##b

@@ -85,7 +85,8 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
   double steps_needed = std::ceil(stretch / (rate * dt_));
   // Never slower than real time, where the caller says how long the
   // increment lasts (the quasi-static bound is then kept where it can be).
-  if (options.duration > 0) steps_needed = std::min(steps_needed, std::ceil(options.duration / dt_));
+  if (options.duration > 0)
+    steps_needed = std::min(steps_needed, std::ceil(options.duration / dt_));
   // Sized before anything changes (the cast below needs it in range, too).
   if (!(steps_needed <= static_cast<double>(kMaxStepsPerApply))) {
     return absl::InvalidArgumentError(absl::StrCat("the increment would take ", steps_needed,

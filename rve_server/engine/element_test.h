@@ -48,9 +48,9 @@ struct ElementTestRow {
   // (_comp): the engine's stress is tension-positive (σ_comp = −σ).
   // 1 − F_aa along the test's axis a (F_yy by default), 1 − det F, [-]
   double axial_strain_comp = 0, vol_strain_comp = 0;
-  double sxx_comp = 0, syy_comp = 0, sxy_comp = 0;    // Pa
-  double p_comp = 0;                                  // Pa, −tr σ/2
-  double q = 0;                                       // Pa, sqrt(½ s:s), sign-free
+  double sxx_comp = 0, syy_comp = 0, sxy_comp = 0;  // Pa
+  double p_comp = 0;                                // Pa, −tr σ/2
+  double q = 0;                                     // Pa, sqrt(½ s:s), sign-free
   double void_ratio = 0, coordination = 0;
   double fabric_xx = 0, fabric_yy = 0, fabric_xy = 0, fabric_anisotropy = 0;
   double permeability = 0;  // m/s

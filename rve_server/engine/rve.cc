@@ -246,9 +246,8 @@ absl::Status Validate(const ApplyOptions& o) {
         kMinInertialNumber, ", ", kMaxInertialNumber, "]"));
   }
   if (!(o.duration >= 0 && o.duration <= kMaxDuration)) {
-    return absl::InvalidArgumentError(absl::StrCat("duration = ", o.duration,
-                                                   " s is invalid: must lie in [0, ", kMaxDuration,
-                                                   "] s"));
+    return absl::InvalidArgumentError(absl::StrCat(
+        "duration = ", o.duration, " s is invalid: must lie in [0, ", kMaxDuration, "] s"));
   }
   return absl::OkStatus();
 }

@@ -45,9 +45,9 @@ struct RveState {
   std::int64_t num_contacts = 0;
   double volume = 0.0;  // V = A·t, m³
   // Of the call that produced this state:
-  std::int64_t steps = 0;   // DEM steps used
-  double time_step = 0.0;   // s
-  double mass_scale = 1.0;  // density scaling used
+  std::int64_t steps = 0;         // DEM steps used
+  double time_step = 0.0;         // s
+  double mass_scale = 1.0;        // density scaling used
   double MeanPressure() const;    // p of `stress`, see InPlaneMeanPressure
   double DeviatorStress() const;  // q of `stress`, see InPlaneDeviatorStress
   // Elastic tangent from contacts, D_ijkl = (1/V)Σ(kn n_i d_j n_k d_l + kt t_i d_j t_k d_l),

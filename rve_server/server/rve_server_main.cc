@@ -2,10 +2,10 @@
 //   rve_server --listen=0.0.0.0:50051 --threads=16 --checkpoint_dir=/var/lib/rvehub
 // SIGTERM or SIGINT drains calls in flight and, with --checkpoint_dir, saves
 // every RVE to HDF5 (reloaded on the next start).
+#include <algorithm>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
-#include <algorithm>
 #include <string>
 #include <thread>
 #include <vector>
@@ -61,8 +61,7 @@ void PrintUsage() {
   for (const auto& [name, flag] : absl::GetAllFlags()) {
     if (absl::EndsWith(flag->Filename(), "rve_server_main.cc")) flags.push_back(flag);
   }
-  std::sort(flags.begin(), flags.end(),
-            [](auto* a, auto* b) { return a->Name() < b->Name(); });
+  std::sort(flags.begin(), flags.end(), [](auto* a, auto* b) { return a->Name() < b->Name(); });
   for (const absl::CommandLineFlag* f : flags) {
     const std::string value = f->DefaultValue();
     std::printf("  --%s=%s\n      %s\n", std::string(f->Name()).c_str(),

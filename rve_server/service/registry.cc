@@ -194,8 +194,8 @@ absl::Status Registry::CheckRoom(absl::string_view run_id, std::span<const std::
     for (std::int64_t id : ids)
       if (run->second.contains(id)) taken.push_back(id);
     if (!taken.empty()) {
-      return absl::AlreadyExistsError(
-          absl::StrCat("run ", QuotedName(run_id), " already has material points ", ListIds(taken)));
+      return absl::AlreadyExistsError(absl::StrCat(
+          "run ", QuotedName(run_id), " already has material points ", ListIds(taken)));
     }
   }
   return CheckCapacity(static_cast<std::int64_t>(ids.size()), bytes);

@@ -161,7 +161,7 @@ class Registry {
     // Result of the last COMMIT, returned again for a retry of that step.
     std::optional<dem::RveState> last_result ABSL_GUARDED_BY(mu);
     bool last_stress_only ABSL_GUARDED_BY(mu) = false;  // last_result has the stress alone
-    std::int64_t memory_bytes = 0;  // fixed at creation
+    std::int64_t memory_bytes = 0;                      // fixed at creation
     // Work of the last increment, (DEM steps + 1) × particles: the guess for
     // the next one, by which Apply hands out the longest first. Read without
     // the lock; it orders the work only, never a result.

@@ -29,7 +29,7 @@ struct ServerConfig {
   // SERVING or NOT_SERVING), for orchestrators' probes (Kubernetes' gRPC
   // probes carry no metadata). Everything else still needs the token.
   bool health_without_token = false;
-  std::string tls_cert_pem;                   // both set: TLS; else plaintext
+  std::string tls_cert_pem;  // both set: TLS; else plaintext
   std::string tls_key_pem;
   std::string checkpoint_dir;  // set: load on start, save on Stop
 };
