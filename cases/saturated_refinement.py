@@ -14,8 +14,12 @@ or rve_dry_none_h0.1/:
 For each kind, F-bar and cell size with both columns it prints the kinetic-energy peaks (J,
 up to --until s, before any late blow-up), their ratio saturated/dry (the paper's Fig. 13:
 "much smaller" in the saturated columns) and where 99 % of the points lie behind at 0.5 s
-(its Fig. 11: the saturated fronts lag). It draws the ratio against the cell size and the
-kinetic energies on the paper's cells (0.1 m) and the finest. Needs numpy and matplotlib.
+(its Fig. 11: the saturated fronts lag). It draws the ratio against the cell size, the
+continuum's kinetic energies on its coarsest and finest cells and the RVE columns' on their
+finest. --peaks=CSV adds the ratios of runs no longer at hand (columns kind, fbar, h_m,
+sat_peak_J, dry_peak_J as printed here; a run in DIR takes precedence), e.g. the measured
+peaks kept in cases/figures/issue12-saturated-refinement-peaks.csv. Needs numpy and
+matplotlib.
 """
 import argparse
 import csv
@@ -49,6 +53,7 @@ def main():
     ap.add_argument("dir")
     ap.add_argument("--out", default="saturated-refinement.png")
     ap.add_argument("--until", type=float, default=0.6, help="s: the peak is sought before")
+    ap.add_argument("--peaks", help="CSV of recorded peaks of runs not in DIR")
     a = ap.parse_args()
     runs = {}
     for name in sorted(os.listdir(a.dir)):
@@ -59,7 +64,13 @@ def main():
     if not runs:
         raise SystemExit(f"{a.dir}: no file or run named like mc_sat_nodal_h0.1.csv")
 
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.5))
+    mc_cells = sorted({h for (kind, _, _, h) in runs if kind == "mc"})
+    rve_cells = sorted({h for (kind, _, _, h) in runs if kind == "rve"})
+    panels = [("mc", h) for h in sorted({max(mc_cells, default=0), min(mc_cells, default=0)})
+              if h > 0][::-1] + [("rve", h) for h in rve_cells[:1]]
+    fig, axes = plt.subplots(1, 1 + len(panels), figsize=(5 * (1 + len(panels)), 4.5),
+                             squeeze=False)
+    axes = axes[0]
     print(f"{'':4s}{'F-bar':6s}{'h m':>6s}  {'sat peak J':>10s} {'dry peak J':>10s} "
           f"{'ratio':>6s}  {'front 0.5 s sat / dry m':>24s}")
     ratios = {}
@@ -71,8 +82,18 @@ def main():
         ratios.setdefault((kind, fbar), []).append((h, ps / pd))
         print(f"{kind:4s}{fbar:6s}{h:6.3f}  {ps:10.0f} {pd:10.0f} {ps / pd:6.2f}  "
               f"{np.interp(0.5, t, f):11.2f} / {np.interp(0.5, td, fd):.2f}")
+    if a.peaks:
+        with open(a.peaks) as fh:
+            for r in csv.DictReader(fh):
+                kind, fbar, h = r["kind"], r["fbar"], float(r["h_m"])
+                if (kind, "sat", fbar, h) in runs and (kind, "dry", fbar, h) in runs:
+                    continue
+                ps, pd = float(r["sat_peak_J"]), float(r["dry_peak_J"])
+                ratios.setdefault((kind, fbar), []).append((h, ps / pd))
+                print(f"{kind:4s}{fbar:6s}{h:6.3f}  {ps:10.0f} {pd:10.0f} {ps / pd:6.2f}  "
+                      f"{'(recorded)':>24s}")
     for (kind, fbar), pts in sorted(ratios.items()):
-        h, r = np.array(pts).T
+        h, r = np.array(sorted(pts)).T
         axes[0].plot(h, r, "o-" if kind == "mc" else "s--",
                      label=f"{'Mohr–Coulomb' if kind == 'mc' else 'RVEs'}, F-bar {fbar}")
     axes[0].set_xlabel("cell size h (m), 5 × 5 points per cell")
@@ -81,16 +102,16 @@ def main():
     axes[0].axvline(0.1, color="grey", lw=0.5)
     axes[0].legend(fontsize=8)
     axes[0].set_title("saturated/dry peak against cell size")
-    mc_cells = sorted({h for (kind, _, _, h) in runs if kind == "mc"})
-    for ax, h in zip(axes[1:], [max(mc_cells, default=0.1), min(mc_cells, default=0.1)]):
+    for ax, (panel_kind, h) in zip(axes[1:], panels):
         for (kind, phase, fbar, hh), (t, k, _) in sorted(runs.items()):
-            if kind == "mc" and hh == h:
+            if kind == panel_kind and hh == h:
                 ax.plot(t, k, ("-" if phase == "sat" else ":"),
                         color="C0" if fbar == "nodal" else "C1", label=f"{phase}, F-bar {fbar}")
         ax.set_xlim(0, 1.0)
         ax.set_xlabel("time (s)")
         ax.set_ylabel("kinetic energy of the solids (J)")
-        ax.set_title(f"Mohr–Coulomb column, h = {h} m")
+        what = "Mohr–Coulomb column" if panel_kind == "mc" else "RVE columns (saturated-medium)"
+        ax.set_title(f"{what}, h = {h} m")
         ax.legend(fontsize=8)
     fig.suptitle("liang-zhao-wu-soga-2023 §4.3 columns (collapse-saturated-medium, "
                  "collapse-dry-medium) on finer cells")
