@@ -66,8 +66,9 @@ def main():
 
     mc_cells = sorted({h for (kind, _, _, h) in runs if kind == "mc"})
     rve_cells = sorted({h for (kind, _, _, h) in runs if kind == "rve"})
-    panels = [("mc", h) for h in sorted({max(mc_cells, default=0), min(mc_cells, default=0)})
-              if h > 0][::-1] + [("rve", h) for h in rve_cells[:1]]
+    # The continuum's coarsest and finest cells, then the RVE columns' finest.
+    panels = [("mc", h) for h in dict.fromkeys(mc_cells[-1:] + mc_cells[:1])]
+    panels += [("rve", h) for h in rve_cells[:1]]
     fig, axes = plt.subplots(1, 1 + len(panels), figsize=(5 * (1 + len(panels)), 4.5),
                              squeeze=False)
     axes = axes[0]
@@ -84,7 +85,11 @@ def main():
               f"{np.interp(0.5, t, f):11.2f} / {np.interp(0.5, td, fd):.2f}")
     if a.peaks:
         with open(a.peaks) as fh:
-            for r in csv.DictReader(fh):
+            reader = csv.DictReader(fh)
+            need = {"kind", "fbar", "h_m", "sat_peak_J", "dry_peak_J"}
+            if not need <= set(reader.fieldnames or ()):
+                raise SystemExit(f"{a.peaks}: needs the columns {', '.join(sorted(need))}")
+            for r in reader:
                 kind, fbar, h = r["kind"], r["fbar"], float(r["h_m"])
                 if (kind, "sat", fbar, h) in runs and (kind, "dry", fbar, h) in runs:
                     continue
