@@ -90,10 +90,15 @@ def main():
             if not need <= set(reader.fieldnames or ()):
                 raise SystemExit(f"{a.peaks}: needs the columns {', '.join(sorted(need))}")
             for r in reader:
-                kind, fbar, h = r["kind"], r["fbar"], float(r["h_m"])
+                try:
+                    kind, fbar, h = r["kind"], r["fbar"], float(r["h_m"])
+                    ps, pd = float(r["sat_peak_J"]), float(r["dry_peak_J"])
+                except ValueError as e:
+                    raise SystemExit(f"{a.peaks}:{reader.line_num}: not a number ({e})")
+                if not (h > 0 and ps > 0 and pd > 0):
+                    raise SystemExit(f"{a.peaks}:{reader.line_num}: h_m and the peaks must be > 0")
                 if (kind, "sat", fbar, h) in runs and (kind, "dry", fbar, h) in runs:
                     continue
-                ps, pd = float(r["sat_peak_J"]), float(r["dry_peak_J"])
                 ratios.setdefault((kind, fbar), []).append((h, ps / pd))
                 print(f"{kind:4s}{fbar:6s}{h:6.3f}  {ps:10.0f} {pd:10.0f} {ps / pd:6.2f}  "
                       f"{'(recorded)':>24s}")
