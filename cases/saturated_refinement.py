@@ -72,6 +72,9 @@ def main():
     fig, axes = plt.subplots(1, 1 + len(panels), figsize=(5 * (1 + len(panels)), 4.5),
                              squeeze=False)
     axes = axes[0]
+    def row(kind, fbar, h, ps, pd, fronts):
+        print(f"{kind:4s}{fbar:6s}{h:6.3f}  {ps:10.0f} {pd:10.0f} {ps / pd:6.2f}  {fronts:>24s}")
+
     print(f"{'':4s}{'F-bar':6s}{'h m':>6s}  {'sat peak J':>10s} {'dry peak J':>10s} "
           f"{'ratio':>6s}  {'front 0.5 s sat / dry m':>24s}")
     ratios = {}
@@ -81,8 +84,7 @@ def main():
         td, kd, fd = runs[(kind, "dry", fbar, h)]
         ps, pd = k[t <= a.until].max(), kd[td <= a.until].max()
         ratios.setdefault((kind, fbar), []).append((h, ps / pd))
-        print(f"{kind:4s}{fbar:6s}{h:6.3f}  {ps:10.0f} {pd:10.0f} {ps / pd:6.2f}  "
-              f"{np.interp(0.5, t, f):11.2f} / {np.interp(0.5, td, fd):.2f}")
+        row(kind, fbar, h, ps, pd, f"{np.interp(0.5, t, f):.2f} / {np.interp(0.5, td, fd):.2f}")
     if a.peaks:
         with open(a.peaks) as fh:
             reader = csv.DictReader(fh)
@@ -100,8 +102,7 @@ def main():
                 if (kind, "sat", fbar, h) in runs and (kind, "dry", fbar, h) in runs:
                     continue
                 ratios.setdefault((kind, fbar), []).append((h, ps / pd))
-                print(f"{kind:4s}{fbar:6s}{h:6.3f}  {ps:10.0f} {pd:10.0f} {ps / pd:6.2f}  "
-                      f"{'(recorded)':>24s}")
+                row(kind, fbar, h, ps, pd, "(recorded)")
     for (kind, fbar), pts in sorted(ratios.items()):
         h, r = np.array(sorted(pts)).T
         axes[0].plot(h, r, "o-" if kind == "mc" else "s--",
