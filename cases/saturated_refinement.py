@@ -32,7 +32,8 @@ import numpy as np
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-NAME = re.compile(r"^(mc|rve)_(sat|dry)_(nodal|none)_h([0-9.]+?)(\.csv)?$")
+KINDS, FBARS = ("mc", "rve"), ("nodal", "none")
+NAME = re.compile(rf"^({'|'.join(KINDS)})_(sat|dry)_({'|'.join(FBARS)})_h([0-9.]+?)(\.csv)?$")
 
 
 def read(path):
@@ -72,19 +73,21 @@ def main():
     fig, axes = plt.subplots(1, 1 + len(panels), figsize=(5 * (1 + len(panels)), 4.5),
                              squeeze=False)
     axes = axes[0]
-    def row(kind, fbar, h, ps, pd, fronts):
+    ratios = {}
+
+    def add(kind, fbar, h, ps, pd, fronts):
+        """One saturated/dry pair: its ratio for the plot and its row in the table."""
+        ratios.setdefault((kind, fbar), []).append((h, ps / pd))
         print(f"{kind:4s}{fbar:6s}{h:6.3f}  {ps:10.0f} {pd:10.0f} {ps / pd:6.2f}  {fronts:>24s}")
 
     print(f"{'':4s}{'F-bar':6s}{'h m':>6s}  {'sat peak J':>10s} {'dry peak J':>10s} "
           f"{'ratio':>6s}  {'front 0.5 s sat / dry m':>24s}")
-    ratios = {}
     for (kind, phase, fbar, h), (t, k, f) in sorted(runs.items()):
         if phase != "sat" or (kind, "dry", fbar, h) not in runs:
             continue
         td, kd, fd = runs[(kind, "dry", fbar, h)]
         ps, pd = k[t <= a.until].max(), kd[td <= a.until].max()
-        ratios.setdefault((kind, fbar), []).append((h, ps / pd))
-        row(kind, fbar, h, ps, pd, f"{np.interp(0.5, t, f):.2f} / {np.interp(0.5, td, fd):.2f}")
+        add(kind, fbar, h, ps, pd, f"{np.interp(0.5, t, f):.2f} / {np.interp(0.5, td, fd):.2f}")
     if a.peaks:
         with open(a.peaks) as fh:
             reader = csv.DictReader(fh)
@@ -99,10 +102,12 @@ def main():
                     raise SystemExit(f"{a.peaks}:{reader.line_num}: not a number ({e})")
                 if not (h > 0 and ps > 0 and pd > 0):
                     raise SystemExit(f"{a.peaks}:{reader.line_num}: h_m and the peaks must be > 0")
+                if kind not in KINDS or fbar not in FBARS:
+                    raise SystemExit(f"{a.peaks}:{reader.line_num}: kind must be one of "
+                                     f"{', '.join(KINDS)} and fbar one of {', '.join(FBARS)}")
                 if (kind, "sat", fbar, h) in runs and (kind, "dry", fbar, h) in runs:
                     continue
-                ratios.setdefault((kind, fbar), []).append((h, ps / pd))
-                row(kind, fbar, h, ps, pd, "(recorded)")
+                add(kind, fbar, h, ps, pd, "(recorded)")
     for (kind, fbar), pts in sorted(ratios.items()):
         h, r = np.array(sorted(pts)).T
         axes[0].plot(h, r, "o-" if kind == "mc" else "s--",
