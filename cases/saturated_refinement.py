@@ -7,8 +7,10 @@ DIR holds one file or run per column, named KIND_PHASE_FBAR_hCELL, e.g. mc_sat_n
 or rve_dry_none_h0.1/:
 - KIND `mc`: a Mohr–Coulomb continuum, the CSV that tests/prandtl_test.cc's
   DISABLED_MeasureWithMohrCoulomb writes with RVEHUB_PRANDTL_ENERGY_CSV (time, kinetic,
-  front99); `rve`: an mpm_client run directory (its timeseries.csv: time, kinetic_energy,
-  mass_front_99_x);
+  front99); `rve`, `rve-dense`, `rve-loose`: an mpm_client run directory (its
+  timeseries.csv: time, kinetic_energy, mass_front_99_x) of the medium, dense or loose
+  packing. Every saturated RVE column is compared with the dry medium one, `rve_dry_*`, as
+  in the paper;
 - PHASE `sat` or `dry`, FBAR `nodal` or `none` (solver.f_bar), CELL the cell size in m.
 
 For each kind, F-bar and cell size with both columns it prints the kinetic-energy peaks (J,
@@ -32,8 +34,16 @@ import numpy as np
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-KINDS, FBARS = ("mc", "rve"), ("nodal", "none")
+KINDS, FBARS = ("mc", "rve", "rve-dense", "rve-loose"), ("nodal", "none")
+LABELS = {"mc": "Mohr–Coulomb", "rve": "RVEs, medium", "rve-dense": "RVEs, dense",
+          "rve-loose": "RVEs, loose"}
 NAME = re.compile(rf"^({'|'.join(KINDS)})_(sat|dry)_({'|'.join(FBARS)})_h([0-9.]+?)(\.csv)?$")
+
+
+def dry_of(kind):
+    """The kind whose dry column a saturated one is compared with: the paper's dry column is
+    the medium packing's."""
+    return "mc" if kind == "mc" else "rve"
 
 
 def read(path):
@@ -66,26 +76,27 @@ def main():
         raise SystemExit(f"{a.dir}: no file or run named like mc_sat_nodal_h0.1.csv")
 
     mc_cells = sorted({h for (kind, _, _, h) in runs if kind == "mc"})
-    rve_cells = sorted({h for (kind, _, _, h) in runs if kind == "rve"})
-    # The continuum's coarsest and finest cells, then the RVE columns' finest.
+    rve_cells = sorted({h for (kind, _, _, h) in runs if kind != "mc"})
+    # The continuum's coarsest and finest cells, then the RVE columns' finest (every packing).
     panels = [("mc", h) for h in dict.fromkeys(mc_cells[-1:] + mc_cells[:1])]
     panels += [("rve", h) for h in rve_cells[:1]]
     fig, axes = plt.subplots(1, 1 + len(panels), figsize=(5 * (1 + len(panels)), 4.5),
                              squeeze=False)
     axes = axes[0]
     ratios = {}
+    recorded_dry = {}  # (fbar, h): a dry RVE peak (J) from --peaks
 
     def add(kind, fbar, h, ps, pd, fronts):
         """One saturated/dry pair: its ratio for the plot and its row in the table."""
         ratios.setdefault((kind, fbar), []).append((h, ps / pd))
-        print(f"{kind:4s}{fbar:6s}{h:6.3f}  {ps:10.0f} {pd:10.0f} {ps / pd:6.2f}  {fronts:>24s}")
+        print(f"{kind:10s}{fbar:6s}{h:6.3f}  {ps:10.0f} {pd:10.0f} {ps / pd:6.2f}  {fronts:>24s}")
 
-    print(f"{'':4s}{'F-bar':6s}{'h m':>6s}  {'sat peak J':>10s} {'dry peak J':>10s} "
+    print(f"{'kind':10s}{'F-bar':6s}{'h m':>6s}  {'sat peak J':>10s} {'dry peak J':>10s} "
           f"{'ratio':>6s}  {'front 0.5 s sat / dry m':>24s}")
     for (kind, phase, fbar, h), (t, k, f) in sorted(runs.items()):
-        if phase != "sat" or (kind, "dry", fbar, h) not in runs:
+        if phase != "sat" or (dry_of(kind), "dry", fbar, h) not in runs:
             continue
-        td, kd, fd = runs[(kind, "dry", fbar, h)]
+        td, kd, fd = runs[(dry_of(kind), "dry", fbar, h)]
         ps, pd = k[t <= a.until].max(), kd[td <= a.until].max()
         add(kind, fbar, h, ps, pd, f"{np.interp(0.5, t, f):.2f} / {np.interp(0.5, td, fd):.2f}")
     if a.peaks:
@@ -105,32 +116,54 @@ def main():
                 if kind not in KINDS or fbar not in FBARS:
                     raise SystemExit(f"{a.peaks}:{reader.line_num}: kind must be one of "
                                      f"{', '.join(KINDS)} and fbar one of {', '.join(FBARS)}")
-                if (kind, "sat", fbar, h) in runs and (kind, "dry", fbar, h) in runs:
+                if kind != "mc":
+                    recorded_dry[(fbar, h)] = pd
+                if (kind, "sat", fbar, h) in runs and (dry_of(kind), "dry", fbar, h) in runs:
                     continue
                 add(kind, fbar, h, ps, pd, "(recorded)")
+    # One colour per kind (the RVE panel's), F-bar filled and solid, without it open and dashed.
+    marker = {"mc": "o", "rve": "s", "rve-dense": "^", "rve-loose": "v"}
     for (kind, fbar), pts in sorted(ratios.items()):
         h, r = np.array(sorted(pts)).T
-        axes[0].plot(h, r, "o-" if kind == "mc" else "s--",
-                     label=f"{'Mohr–Coulomb' if kind == 'mc' else 'RVEs'}, F-bar {fbar}")
+        color = "k" if kind == "mc" else f"C{KINDS.index(kind) - 1}"
+        axes[0].plot(h, r, marker[kind] + ("-" if fbar == "nodal" else "--"), color=color,
+                     mfc=color if fbar == "nodal" else "none",
+                     label=f"{LABELS[kind]}, F-bar {fbar}")
     axes[0].set_xlabel("cell size h (m), 5 × 5 points per cell")
     axes[0].set_ylabel("kinetic-energy peak, saturated / dry")
     axes[0].set_xlim(0, 0.11)
+    axes[0].set_ylim(0.3, 1.1)
     axes[0].axvline(0.1, color="grey", lw=0.5)
-    axes[0].legend(fontsize=8)
+    axes[0].axhline(1.0, color="grey", lw=0.5)
+    axes[0].legend(fontsize=7, ncol=2, loc="lower center")
     axes[0].set_title("saturated/dry peak against cell size")
+    style = {("sat", "nodal"): "-", ("sat", "none"): "--", ("dry", "nodal"): ":",
+             ("dry", "none"): "-."}
     for ax, (panel_kind, h) in zip(axes[1:], panels):
+        drawn = set()
         for (kind, phase, fbar, hh), (t, k, _) in sorted(runs.items()):
-            if kind == panel_kind and hh == h:
-                ax.plot(t, k, ("-" if phase == "sat" else ":"),
-                        color="C0" if fbar == "nodal" else "C1", label=f"{phase}, F-bar {fbar}")
+            if (kind == "mc") == (panel_kind == "mc") and hh == h:
+                color = f"C{KINDS.index(kind) - 1}" if kind != "mc" else (
+                    "C0" if fbar == "nodal" else "C1")
+                who = "" if kind == "mc" else f"{LABELS[kind][6:]}, "
+                ax.plot(t, k, style[(phase, fbar)], color=color,
+                        label=f"{who}{phase}, F-bar {fbar}")
+                drawn.add((phase, fbar))
+        if panel_kind != "mc":
+            # A dry column whose run is no longer at hand: its recorded peak.
+            for fbar in FBARS:
+                if ("sat", fbar) in drawn and ("dry", fbar) not in drawn and \
+                        (fbar, h) in recorded_dry:
+                    ax.axhline(recorded_dry[(fbar, h)], color="grey", ls=style[("dry", fbar)],
+                               label=f"dry medium peak, F-bar {fbar} (recorded)")
         ax.set_xlim(0, 1.0)
         ax.set_xlabel("time (s)")
         ax.set_ylabel("kinetic energy of the solids (J)")
-        what = "Mohr–Coulomb column" if panel_kind == "mc" else "RVE columns (saturated-medium)"
+        what = "Mohr–Coulomb column" if panel_kind == "mc" else "RVE columns"
         ax.set_title(f"{what}, h = {h} m")
         ax.legend(fontsize=8)
-    fig.suptitle("liang-zhao-wu-soga-2023 §4.3 columns (collapse-saturated-medium, "
-                 "collapse-dry-medium) on finer cells")
+    fig.suptitle("liang-zhao-wu-soga-2023 §4.3 columns (collapse-saturated-dense, -medium, "
+                 "-loose, collapse-dry-medium) on finer cells")
     fig.tight_layout()
     fig.savefig(a.out, dpi=110)
     print(f"wrote {a.out}")
