@@ -20,8 +20,11 @@ up to --until s, before any late blow-up), their ratio saturated/dry (the paper'
 continuum's kinetic energies on its coarsest and finest cells and the RVE columns' on their
 finest. --peaks=CSV adds the ratios of runs no longer at hand (columns kind, fbar, h_m,
 sat_peak_J, dry_peak_J as printed here; a run in DIR takes precedence), e.g. the measured
-peaks kept in cases/figures/issue12-saturated-refinement-peaks.csv. Needs numpy and
-matplotlib.
+peaks kept in cases/figures/issue12-saturated-refinement-peaks.csv. --histories=CSV adds
+the curves of RVE runs no longer at hand (columns kind, phase, fbar, h_m, time_s,
+kinetic_energy_J, front99_m; a run in DIR takes precedence), as
+--write-histories=CSV writes them from the RVE runs in DIR, e.g.
+cases/figures/issue12-saturated-refinement-histories.csv. Needs numpy and matplotlib.
 """
 import argparse
 import csv
@@ -59,12 +62,39 @@ def read(path):
     return col(t), col(k), col(f)
 
 
+HISTORY_COLUMNS = ("kind", "phase", "fbar", "h_m", "time_s", "kinetic_energy_J", "front99_m")
+
+
+def read_histories(path):
+    """{(kind, phase, fbar, h): (time, kinetic energy, front)} from a --histories CSV."""
+    curves = {}
+    with open(path) as fh:
+        reader = csv.DictReader(fh)
+        if not set(HISTORY_COLUMNS) <= set(reader.fieldnames or ()):
+            raise SystemExit(f"{path}: needs the columns {', '.join(HISTORY_COLUMNS)}")
+        for r in reader:
+            if r["kind"] not in KINDS[1:] or r["phase"] not in ("sat", "dry") or \
+                    r["fbar"] not in FBARS:
+                raise SystemExit(f"{path}:{reader.line_num}: kind must be one of "
+                                 f"{', '.join(KINDS[1:])}, phase sat or dry, fbar one of "
+                                 f"{', '.join(FBARS)}")
+            try:
+                key = (r["kind"], r["phase"], r["fbar"], float(r["h_m"]))
+                row = [float(r[c]) for c in HISTORY_COLUMNS[4:]]
+            except ValueError as e:
+                raise SystemExit(f"{path}:{reader.line_num}: not a number ({e})")
+            curves.setdefault(key, []).append(row)
+    return {key: tuple(np.array(rows).T) for key, rows in curves.items()}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("dir")
     ap.add_argument("--out", default="saturated-refinement.png")
     ap.add_argument("--until", type=float, default=0.6, help="s: the peak is sought before")
     ap.add_argument("--peaks", help="CSV of recorded peaks of runs not in DIR")
+    ap.add_argument("--histories", help="CSV of recorded curves of RVE runs not in DIR")
+    ap.add_argument("--write-histories", help="write the RVE runs' curves in DIR to this CSV")
     a = ap.parse_args()
     runs = {}
     for name in sorted(os.listdir(a.dir)):
@@ -72,6 +102,18 @@ def main():
         if m and os.path.exists(os.path.join(a.dir, name)):
             kind, phase, fbar, h = m.group(1), m.group(2), m.group(3), float(m.group(4))
             runs[(kind, phase, fbar, h)] = read(os.path.join(a.dir, name))
+    if a.write_histories:
+        with open(a.write_histories, "w", newline="") as fh:
+            out = csv.writer(fh)
+            out.writerow(HISTORY_COLUMNS)
+            for (kind, phase, fbar, h), curve in sorted(runs.items()):
+                if kind != "mc":
+                    for t, k, f in zip(*curve):
+                        out.writerow([kind, phase, fbar, h, f"{t:.4f}", f"{k:.2f}", f"{f:.4f}"])
+        print(f"wrote {a.write_histories}")
+    if a.histories:
+        for key, curve in read_histories(a.histories).items():
+            runs.setdefault(key, curve)
     if not runs:
         raise SystemExit(f"{a.dir}: no file or run named like mc_sat_nodal_h0.1.csv")
 
