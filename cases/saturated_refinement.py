@@ -62,28 +62,38 @@ def read(path):
     return col(t), col(k), col(f)
 
 
+def csv_rows(path, columns, numbers):
+    """(line, row) of a CSV with the named columns, those in `numbers` as floats. A missing
+    column, a short row or a field that is not a number ends the script with file and line."""
+    with open(path) as fh:
+        reader = csv.DictReader(fh)
+        if not set(columns) <= set(reader.fieldnames or ()):
+            raise SystemExit(f"{path}: needs the columns {', '.join(columns)}")
+        for r in reader:
+            if any(r[c] is None for c in columns):
+                raise SystemExit(f"{path}:{reader.line_num}: fewer fields than the header")
+            try:
+                yield reader.line_num, {c: float(r[c]) if c in numbers else r[c] for c in columns}
+            except ValueError as e:
+                raise SystemExit(f"{path}:{reader.line_num}: not a number ({e})")
+
+
+PEAK_COLUMNS = ("kind", "fbar", "h_m", "sat_peak_J", "dry_peak_J")
 HISTORY_COLUMNS = ("kind", "phase", "fbar", "h_m", "time_s", "kinetic_energy_J", "front99_m")
 
 
 def read_histories(path):
     """{(kind, phase, fbar, h): (time, kinetic energy, front)} from a --histories CSV."""
     curves = {}
-    with open(path) as fh:
-        reader = csv.DictReader(fh)
-        if not set(HISTORY_COLUMNS) <= set(reader.fieldnames or ()):
-            raise SystemExit(f"{path}: needs the columns {', '.join(HISTORY_COLUMNS)}")
-        for r in reader:
-            if r["kind"] not in KINDS[1:] or r["phase"] not in ("sat", "dry") or \
-                    r["fbar"] not in FBARS:
-                raise SystemExit(f"{path}:{reader.line_num}: kind must be one of "
-                                 f"{', '.join(KINDS[1:])}, phase sat or dry, fbar one of "
-                                 f"{', '.join(FBARS)}")
-            try:
-                key = (r["kind"], r["phase"], r["fbar"], float(r["h_m"]))
-                row = [float(r[c]) for c in HISTORY_COLUMNS[4:]]
-            except ValueError as e:
-                raise SystemExit(f"{path}:{reader.line_num}: not a number ({e})")
-            curves.setdefault(key, []).append(row)
+    for line, r in csv_rows(path, HISTORY_COLUMNS, HISTORY_COLUMNS[3:]):
+        if r["kind"] not in KINDS[1:] or r["phase"] not in ("sat", "dry") or \
+                r["fbar"] not in FBARS:
+            raise SystemExit(f"{path}:{line}: kind must be one of {', '.join(KINDS[1:])}, "
+                             f"phase sat or dry, fbar one of {', '.join(FBARS)}")
+        if not r["h_m"] > 0:
+            raise SystemExit(f"{path}:{line}: h_m must be > 0")
+        curves.setdefault((r["kind"], r["phase"], r["fbar"], r["h_m"]), []).append(
+            [r[c] for c in HISTORY_COLUMNS[4:]])
     return {key: tuple(np.array(rows).T) for key, rows in curves.items()}
 
 
@@ -142,27 +152,18 @@ def main():
         ps, pd = k[t <= a.until].max(), kd[td <= a.until].max()
         add(kind, fbar, h, ps, pd, f"{np.interp(0.5, t, f):.2f} / {np.interp(0.5, td, fd):.2f}")
     if a.peaks:
-        with open(a.peaks) as fh:
-            reader = csv.DictReader(fh)
-            need = {"kind", "fbar", "h_m", "sat_peak_J", "dry_peak_J"}
-            if not need <= set(reader.fieldnames or ()):
-                raise SystemExit(f"{a.peaks}: needs the columns {', '.join(sorted(need))}")
-            for r in reader:
-                try:
-                    kind, fbar, h = r["kind"], r["fbar"], float(r["h_m"])
-                    ps, pd = float(r["sat_peak_J"]), float(r["dry_peak_J"])
-                except ValueError as e:
-                    raise SystemExit(f"{a.peaks}:{reader.line_num}: not a number ({e})")
-                if not (h > 0 and ps > 0 and pd > 0):
-                    raise SystemExit(f"{a.peaks}:{reader.line_num}: h_m and the peaks must be > 0")
-                if kind not in KINDS or fbar not in FBARS:
-                    raise SystemExit(f"{a.peaks}:{reader.line_num}: kind must be one of "
-                                     f"{', '.join(KINDS)} and fbar one of {', '.join(FBARS)}")
-                if kind != "mc":
-                    recorded_dry[(fbar, h)] = pd
-                if (kind, "sat", fbar, h) in runs and (dry_of(kind), "dry", fbar, h) in runs:
-                    continue
-                add(kind, fbar, h, ps, pd, "(recorded)")
+        for line, r in csv_rows(a.peaks, PEAK_COLUMNS, PEAK_COLUMNS[2:]):
+            kind, fbar, h, ps, pd = (r[c] for c in PEAK_COLUMNS)
+            if not (h > 0 and ps > 0 and pd > 0):
+                raise SystemExit(f"{a.peaks}:{line}: h_m and the peaks must be > 0")
+            if kind not in KINDS or fbar not in FBARS:
+                raise SystemExit(f"{a.peaks}:{line}: kind must be one of {', '.join(KINDS)} "
+                                 f"and fbar one of {', '.join(FBARS)}")
+            if kind != "mc":
+                recorded_dry[(fbar, h)] = pd
+            if (kind, "sat", fbar, h) in runs and (dry_of(kind), "dry", fbar, h) in runs:
+                continue
+            add(kind, fbar, h, ps, pd, "(recorded)")
     # One colour per kind (the RVE panel's), F-bar filled and solid, without it open and dashed.
     marker = {"mc": "o", "rve": "s", "rve-dense": "^", "rve-loose": "v"}
     for (kind, fbar), pts in sorted(ratios.items()):
