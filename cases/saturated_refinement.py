@@ -38,9 +38,17 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 KINDS, FBARS = ("mc", "rve", "rve-dense", "rve-loose"), ("nodal", "none")
-LABELS = {"mc": "Mohr–Coulomb", "rve": "RVEs, medium", "rve-dense": "RVEs, dense",
-          "rve-loose": "RVEs, loose"}
+PACKINGS = {"rve": "medium", "rve-dense": "dense", "rve-loose": "loose"}
 NAME = re.compile(rf"^({'|'.join(KINDS)})_(sat|dry)_({'|'.join(FBARS)})_h([0-9.]+?)(\.csv)?$")
+
+
+def label(kind):
+    return "Mohr–Coulomb" if kind == "mc" else f"RVEs, {PACKINGS[kind]}"
+
+
+def colour(kind):
+    """One colour per RVE packing, the same in every panel."""
+    return f"C{KINDS.index(kind) - 1}"
 
 
 def dry_of(kind):
@@ -168,10 +176,10 @@ def main():
     marker = {"mc": "o", "rve": "s", "rve-dense": "^", "rve-loose": "v"}
     for (kind, fbar), pts in sorted(ratios.items()):
         h, r = np.array(sorted(pts)).T
-        color = "k" if kind == "mc" else f"C{KINDS.index(kind) - 1}"
+        color = "k" if kind == "mc" else colour(kind)
         axes[0].plot(h, r, marker[kind] + ("-" if fbar == "nodal" else "--"), color=color,
                      mfc=color if fbar == "nodal" else "none",
-                     label=f"{LABELS[kind]}, F-bar {fbar}")
+                     label=f"{label(kind)}, F-bar {fbar}")
     axes[0].set_xlabel("cell size h (m), 5 × 5 points per cell")
     axes[0].set_ylabel("kinetic-energy peak, saturated / dry")
     axes[0].set_xlim(0, 0.11)
@@ -186,9 +194,8 @@ def main():
         drawn = set()
         for (kind, phase, fbar, hh), (t, k, _) in sorted(runs.items()):
             if (kind == "mc") == (panel_kind == "mc") and hh == h:
-                color = f"C{KINDS.index(kind) - 1}" if kind != "mc" else (
-                    "C0" if fbar == "nodal" else "C1")
-                who = "" if kind == "mc" else f"{LABELS[kind][6:]}, "
+                color = colour(kind) if kind != "mc" else ("C0" if fbar == "nodal" else "C1")
+                who = "" if kind == "mc" else f"{PACKINGS[kind]}, "
                 ax.plot(t, k, style[(phase, fbar)], color=color,
                         label=f"{who}{phase}, F-bar {fbar}")
                 drawn.add((phase, fbar))
