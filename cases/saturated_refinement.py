@@ -37,8 +37,8 @@ import numpy as np
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-KINDS, FBARS = ("mc", "rve", "rve-dense", "rve-loose"), ("nodal", "none")
-PACKINGS = {"rve": "medium", "rve-dense": "dense", "rve-loose": "loose"}
+PACKINGS = {"rve": "medium", "rve-dense": "dense", "rve-loose": "loose"}  # RVE kinds
+KINDS, FBARS = ("mc", *PACKINGS), ("nodal", "none")
 NAME = re.compile(rf"^({'|'.join(KINDS)})_(sat|dry)_({'|'.join(FBARS)})_h([0-9.]+?)(\.csv)?$")
 
 
@@ -48,7 +48,7 @@ def label(kind):
 
 def colour(kind):
     """One colour per RVE packing, the same in every panel."""
-    return f"C{KINDS.index(kind) - 1}"
+    return f"C{list(PACKINGS).index(kind)}"
 
 
 def dry_of(kind):
@@ -94,9 +94,9 @@ def read_histories(path):
     """{(kind, phase, fbar, h): (time, kinetic energy, front)} from a --histories CSV."""
     curves = {}
     for line, r in csv_rows(path, HISTORY_COLUMNS, HISTORY_COLUMNS[3:]):
-        if r["kind"] not in KINDS[1:] or r["phase"] not in ("sat", "dry") or \
+        if r["kind"] not in PACKINGS or r["phase"] not in ("sat", "dry") or \
                 r["fbar"] not in FBARS:
-            raise SystemExit(f"{path}:{line}: kind must be one of {', '.join(KINDS[1:])}, "
+            raise SystemExit(f"{path}:{line}: kind must be one of {', '.join(PACKINGS)}, "
                              f"phase sat or dry, fbar one of {', '.join(FBARS)}")
         if not r["h_m"] > 0:
             raise SystemExit(f"{path}:{line}: h_m must be > 0")
