@@ -14,8 +14,10 @@ settlement and N_q (the case's ultimate-load rule) against h/(B/2), with Prandtl
 prints a table. With --seeds, `cases` writes each mesh once per packing seed, and --phi-deg
 gives each seed's phi' (friction_angle.py --seed=...) to its summary; `plot` then adds N_q
 against each run's phi' beside Prandtl's curve. --particles prepares the templates with that
-many discs (a larger sample of the material; give its phi' with --phi-deg). For each set of
-runs that differ in h only (edge on a node line) `plot` fits N_q = N_0 + a h and prints N_0,
+many discs (a larger sample of the material; give its phi' with --phi-deg). Runs whose packings
+were compacted at other pressures (`--set=templates.0.pressure=P` on the printed commands) are
+labelled by it, with one colour family per pressure (up to three). For each set of runs
+that differ in h only (edge on a node line) `plot` fits N_q = N_0 + a h and prints N_0,
 the value for h -> 0; runs with a nonlocal strain (solver.nonlocal_radius l and
 nonlocal_fraction m, `--set` on the printed commands) are marked "l/m". A run is marked by
 where the footing's edge falls: on a node line; inside a cell, between two points' boxes (more
@@ -133,6 +135,9 @@ def load_run(run_dir):
     return dict(dir=run_dir, name=case["name"], summary=summary, d=d, q=q, h=h, ppc=ppc,
                 seed=case["templates"][0].get("seed", 1), cfl=case["solver"]["cfl"],
                 discs=case["templates"][0].get("particles", 0),
+                # Pa the packing was compacted to e0 at (`--set=templates.0.pressure=P`); 0: the
+                # parameter set's p0.
+                pressure=case["templates"][0].get("pressure", 0.0),
                 edge=where, domain=f"{soil['upper'][0]:g} x {soil['upper'][1]:g} m",
                 half_width=spec["half_size"][0] * 2,
                 averaging=nonlocal_label(case["solver"]))
@@ -169,13 +174,15 @@ def plot(a):
     phis = sorted({r["summary"]["phi_deg"] for r in runs})
     cfls = {r["cfl"] for r in runs}
     discs = {r["discs"] for r in runs}
+    pressures = {r["pressure"] for r in runs}
     print(f"{'run':<34} {'domain':>10} {'B/2 (m)':>8} {'h (m)':>7} {'ppc':>4} {'seed':>4} "
-          f"{'discs':>5} {'l/m':>8} {'edge':>15} {'N_q':>6} {'d_ult (m)':>9} {'phi':>6} "
-          f"{'/Prandtl':>9}")
+          f"{'discs':>5} {'p0 (kPa)':>8} {'l/m':>8} {'edge':>15} {'N_q':>6} {'d_ult (m)':>9} "
+          f"{'phi':>6} {'/Prandtl':>9}")
     for r in runs:
         s = r["summary"]
         print(f"{r['name']:<34} {r['domain']:>10} {r['half_width']:8.3f} {r['h']:7.4f} "
               f"{r['ppc']:4d} {r['seed']:4d} {r['discs'] or '-':>5} "
+              f"{r['pressure'] / 1e3 if r['pressure'] else '-':>8} "
               f"{r['averaging'] or '-':>8} {r['edge']:>15} "
               f"{s['N_q']:6.2f} "
               f"{s['settlement_at_ultimate_m']:9.4f} {s['phi_deg']:6.2f} "
@@ -195,6 +202,14 @@ def plot(a):
                              figsize=(13, 5.2) if len(phis) == 1 else (19, 5.2))
     ax1, ax2 = axes[0], axes[1]
     colours = plt.cm.tab20(np.linspace(0, 1, 20))
+    if 1 < len(pressures) <= 3:
+        # One colour family per preparation, so its seeds read as a group.
+        families = dict(zip(sorted(pressures), (plt.cm.Blues, plt.cm.Oranges, plt.cm.Greens)))
+        shade = {}
+        for p in pressures:
+            group = [i for i, r in enumerate(runs) if r["pressure"] == p]
+            for k, i in enumerate(group):
+                shade[i] = families[p](0.45 + 0.5 * k / len(group))
     style = {"node line": "o", "between points": "s", "through points": "x"}
     for i, r in enumerate(runs):
         s = r["summary"]
@@ -203,9 +218,12 @@ def plot(a):
                  + (f", seed {r['seed']} (phi' {s['phi_deg']:g})" if len(phis) > 1 else "")
                  + (f", CFL {r['cfl']:g}" if len(cfls) > 1 else "")
                  + (f", {r['discs'] or 'default'} discs" if len(discs) > 1 else "")
+                 + ((f", compacted at {r['pressure'] / 1e3:g} kPa" if r["pressure"]
+                     else ", compacted at the set's p0") if len(pressures) > 1 else "")
                  + (f", nonlocal l/m {r['averaging']}" if r["averaging"] else ""))
         line, = ax1.plot(r["d"], r["q"], lw=0.8, ls="--" if r["edge"] == "through points" else "-",
-                         color=colours[i % 20], label=label)
+                         color=shade[i] if 1 < len(pressures) <= 3 else colours[i % 20],
+                         label=label)
         ax1.plot(s["settlement_at_ultimate_m"], s["N_q"], "o", color=line.get_color())
         ax2.plot(r["h"] / r["half_width"], s["N_q"], style[r["edge"]], color=line.get_color(), ms=8,
                  mfc="none" if r["ppc"] > 1 else line.get_color())
