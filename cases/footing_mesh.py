@@ -201,15 +201,14 @@ def plot(a):
     fig, axes = plt.subplots(1, 2 if len(phis) == 1 else 3,
                              figsize=(13, 5.2) if len(phis) == 1 else (19, 5.2))
     ax1, ax2 = axes[0], axes[1]
-    colours = plt.cm.tab20(np.linspace(0, 1, 20))
+    colours = [plt.cm.tab20(i % 20 / 19) for i in range(len(runs))]
     if 1 < len(pressures) <= 3:
         # One colour family per preparation, so its seeds read as a group.
         families = dict(zip(sorted(pressures), (plt.cm.Blues, plt.cm.Oranges, plt.cm.Greens)))
-        shade = {}
         for p in pressures:
             group = [i for i, r in enumerate(runs) if r["pressure"] == p]
             for k, i in enumerate(group):
-                shade[i] = families[p](0.45 + 0.5 * k / len(group))
+                colours[i] = families[p](0.45 + 0.5 * k / len(group))
     style = {"node line": "o", "between points": "s", "through points": "x"}
     for i, r in enumerate(runs):
         s = r["summary"]
@@ -222,8 +221,7 @@ def plot(a):
                      else ", compacted at the set's p0") if len(pressures) > 1 else "")
                  + (f", nonlocal l/m {r['averaging']}" if r["averaging"] else ""))
         line, = ax1.plot(r["d"], r["q"], lw=0.8, ls="--" if r["edge"] == "through points" else "-",
-                         color=shade[i] if 1 < len(pressures) <= 3 else colours[i % 20],
-                         label=label)
+                         color=colours[i], label=label)
         ax1.plot(s["settlement_at_ultimate_m"], s["N_q"], "o", color=line.get_color())
         ax2.plot(r["h"] / r["half_width"], s["N_q"], style[r["edge"]], color=line.get_color(), ms=8,
                  mfc="none" if r["ppc"] > 1 else line.get_color())
