@@ -16,7 +16,8 @@ gives each seed's phi' (friction_angle.py --seed=...) to its summary; `plot` the
 against each run's phi' beside Prandtl's curve. --particles prepares the templates with that
 many discs (a larger sample of the material; give its phi' with --phi-deg). Runs whose packings
 were compacted at other pressures (`--set=templates.0.pressure=P` on the printed commands) are
-labelled by it, with one colour family per pressure (up to three). For each set of runs
+labelled by it, and likewise runs whose packings have another rolling-resistance eta
+(`--set=templates.0.rolling_eta=H`), with one colour family per preparation (up to three). For each set of runs
 that differ in h only (edge on a node line) `plot` fits N_q = N_0 + a h and prints N_0,
 the value for h -> 0; runs with a nonlocal strain (solver.nonlocal_radius l and
 nonlocal_fraction m, `--set` on the printed commands) are marked "l/m". A run is marked by
@@ -138,6 +139,9 @@ def load_run(run_dir):
                 # Pa the packing was compacted to e0 at (`--set=templates.0.pressure=P`); 0: the
                 # parameter set's p0.
                 pressure=case["templates"][0].get("pressure", 0.0),
+                # The rolling-resistance eta replacing the set's (`--set=templates.0.rolling_eta=H`);
+                # None: the set's.
+                eta=case["templates"][0].get("rolling_eta"),
                 edge=where, domain=f"{soil['upper'][0]:g} x {soil['upper'][1]:g} m",
                 half_width=spec["half_size"][0] * 2,
                 averaging=nonlocal_label(case["solver"]))
@@ -175,14 +179,19 @@ def plot(a):
     cfls = {r["cfl"] for r in runs}
     discs = {r["discs"] for r in runs}
     pressures = {r["pressure"] for r in runs}
+    etas = {r["eta"] for r in runs}
+    # A preparation: where the packing was compacted and its rolling eta (None: the set's).
+    preparations = sorted({(r["pressure"], r["eta"]) for r in runs},
+                          key=lambda k: (k[0], -1 if k[1] is None else k[1]))
     print(f"{'run':<34} {'domain':>10} {'B/2 (m)':>8} {'h (m)':>7} {'ppc':>4} {'seed':>4} "
-          f"{'discs':>5} {'p0 (kPa)':>8} {'l/m':>8} {'edge':>15} {'N_q':>6} {'d_ult (m)':>9} "
-          f"{'phi':>6} {'/Prandtl':>9}")
+          f"{'discs':>5} {'p0 (kPa)':>8} {'eta':>5} {'l/m':>8} {'edge':>15} {'N_q':>6} "
+          f"{'d_ult (m)':>9} {'phi':>6} {'/Prandtl':>9}")
     for r in runs:
         s = r["summary"]
         print(f"{r['name']:<34} {r['domain']:>10} {r['half_width']:8.3f} {r['h']:7.4f} "
               f"{r['ppc']:4d} {r['seed']:4d} {r['discs'] or '-':>5} "
               f"{r['pressure'] / 1e3 if r['pressure'] else '-':>8} "
+              f"{'-' if r['eta'] is None else format(r['eta'], 'g'):>5} "
               f"{r['averaging'] or '-':>8} {r['edge']:>15} "
               f"{s['N_q']:6.2f} "
               f"{s['settlement_at_ultimate_m']:9.4f} {s['phi_deg']:6.2f} "
@@ -202,13 +211,13 @@ def plot(a):
                              figsize=(13, 5.2) if len(phis) == 1 else (19, 5.2))
     ax1, ax2 = axes[0], axes[1]
     colours = [plt.cm.tab20(i % 20 / 19) for i in range(len(runs))]
-    if 1 < len(pressures) <= 3:
+    if 1 < len(preparations) <= 3:
         # One colour family per preparation, so its seeds read as a group.
-        families = dict(zip(sorted(pressures), (plt.cm.Blues, plt.cm.Oranges, plt.cm.Greens)))
-        for p in pressures:
-            group = [i for i, r in enumerate(runs) if r["pressure"] == p]
+        families = dict(zip(preparations, (plt.cm.Blues, plt.cm.Oranges, plt.cm.Greens)))
+        for prep in preparations:
+            group = [i for i, r in enumerate(runs) if (r["pressure"], r["eta"]) == prep]
             for k, i in enumerate(group):
-                colours[i] = families[p](0.45 + 0.5 * k / len(group))
+                colours[i] = families[prep](0.45 + 0.5 * k / len(group))
     style = {"node line": "o", "between points": "s", "through points": "x"}
     for i, r in enumerate(runs):
         s = r["summary"]
@@ -219,6 +228,8 @@ def plot(a):
                  + (f", {r['discs'] or 'default'} discs" if len(discs) > 1 else "")
                  + ((f", compacted at {r['pressure'] / 1e3:g} kPa" if r["pressure"]
                      else ", compacted at the set's p0") if len(pressures) > 1 else "")
+                 + ((f", rolling eta {r['eta']:g}" if r["eta"] is not None
+                     else ", the set's rolling eta") if len(etas) > 1 else "")
                  + (f", nonlocal l/m {r['averaging']}" if r["averaging"] else ""))
         line, = ax1.plot(r["d"], r["q"], lw=0.8, ls="--" if r["edge"] == "through points" else "-",
                          color=colours[i], label=label)

@@ -735,6 +735,25 @@ Fields<TemplateSpec> TemplateFields(const std::string& base_dir) {
        [](const TemplateSpec& t, OrderedJson& j) {
          if (FromSet(t) && t.particles > 0) j["particles"] = t.particles;
        }},
+      {"rolling_eta",
+       [](const Object& o, TemplateSpec* t) -> absl::Status {
+         RETURN_IF_ERROR(OnlyFromParameterSet(o, "rolling_eta"));
+         if (!o.Has("rolling_eta")) return absl::OkStatus();
+         double eta = 0;
+         RETURN_IF_ERROR(GetNumber(o, "rolling_eta", Need::kRequired,
+                                   Range{0.0, dem::kMaxRollingEta, false, false}, &eta));
+         // The set is known here: "parameter_set" is read first.
+         const absl::StatusOr<dem::ParameterSet> set = dem::FindParameterSet(t->parameter_set);
+         if (set.ok() && !(set->material.rolling_beta > 0)) {
+           return Bad(o.At("rolling_eta"), "parameter set ", Quote(t->parameter_set),
+                      " has no rolling resistance (β = 0)");
+         }
+         t->rolling_eta = eta;
+         return absl::OkStatus();
+       },
+       [](const TemplateSpec& t, OrderedJson& j) {
+         if (FromSet(t) && t.rolling_eta.has_value()) j["rolling_eta"] = *t.rolling_eta;
+       }},
       {"file",
        [base_dir](const Object& o, TemplateSpec* t) -> absl::Status {
          return o.Has("file") ? GetFile(o, "file", base_dir, &t->file) : absl::OkStatus();

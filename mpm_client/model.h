@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -172,6 +173,9 @@ struct TemplateSpec {
   // Discs in the packing (0: the set's count): a larger sample of the same
   // material, whose peak strength carries less sampling noise.
   int particles = 0;
+  // η of the rolling-resistance limit instead of the set's, [-] (unset: the
+  // set's): another material, for sets with rolling resistance.
+  std::optional<double> rolling_eta = std::nullopt;
 };
 
 // Piecewise-linear velocity history: v(t) interpolated between the points,

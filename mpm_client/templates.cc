@@ -40,8 +40,11 @@ absl::StatusOr<store::TemplateRecord> FromFile(const TemplateSpec& spec) {
 absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
                                                const std::string& cache_dir,
                                                const std::function<void(const std::string&)>& log) {
-  const std::string stem = dem::TemplateName(spec.parameter_set, spec.seed, spec.pressure,
-                                             spec.void_ratio, spec.particles);
+  const dem::TemplateVariant variant{.pressure = spec.pressure,
+                                     .void_ratio = spec.void_ratio,
+                                     .num_particles = spec.particles,
+                                     .rolling_eta = spec.rolling_eta};
+  const std::string stem = dem::TemplateName(spec.parameter_set, spec.seed, variant);
   const std::string path = (std::filesystem::path(cache_dir) / (stem + ".h5")).string();
   if (std::filesystem::exists(path)) {
     absl::StatusOr<std::vector<store::TemplateRecord>> cached = store::ReadTemplates(path);
@@ -53,12 +56,11 @@ absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
   dem::PreparationReport report;
   // The first progress line ("N discs, seed S") is the one worth a log line.
   bool announced = false;
-  absl::StatusOr<dem::RveSnapshot> packing =
-      dem::PrepareTemplate(spec.parameter_set, spec.seed, spec.pressure, spec.void_ratio,
-                           spec.particles, &report, [&](const std::string& line) {
-                             if (log && !announced) log(absl::StrCat("  ", line));
-                             announced = true;
-                           });
+  absl::StatusOr<dem::RveSnapshot> packing = dem::PrepareTemplate(
+      spec.parameter_set, spec.seed, variant, &report, [&](const std::string& line) {
+        if (log && !announced) log(absl::StrCat("  ", line));
+        announced = true;
+      });
   if (!packing.ok()) {
     return absl::Status(packing.status().code(), absl::StrCat("preparing template '", spec.name,
                                                               "': ", packing.status().message()));
@@ -66,8 +68,8 @@ absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
   if (log) log(absl::StrFormat("  e0 = %.4f at p0 = %.0f Pa", report.void_ratio, report.pressure));
   store::TemplateRecord record;
   record.name = stem;
-  record.description =
-      dem::TemplateDescription(spec.parameter_set, spec.seed, packing->radius.size(), report);
+  record.description = dem::TemplateDescription(spec.parameter_set, spec.seed,
+                                                packing->radius.size(), report, variant);
   record.packing = *std::move(packing);
   std::error_code ec;
   std::filesystem::create_directories(cache_dir, ec);

@@ -318,6 +318,39 @@ TEST_F(CaseTest, TimeStepUpdateIsAStepCountWrittenOnlyWhenOn) {
   }
 }
 
+// templates[].rolling_eta: another η for a set with rolling resistance,
+// written to the canonical form only when given; refused, naming the field,
+// outside [0, 1] or for a set without rolling resistance.
+TEST_F(CaseTest, RollingEtaIsReadWrittenAndOnlyForSetsWithRollingResistance) {
+  Json doc = Json::parse(kMinimalCase);
+  doc["templates"][0]["parameter_set"] = "footing-dense";
+  absl::StatusOr<CaseSpec> plain = Parse(doc.dump());
+  ASSERT_TRUE(plain.ok()) << plain.status();
+  EXPECT_FALSE(plain->templates[0].rolling_eta.has_value());
+  EXPECT_FALSE(absl::StrContains(ToJson(*plain), "rolling_eta"));
+  doc["templates"][0]["rolling_eta"] = 0.02;
+  absl::StatusOr<CaseSpec> spec = Parse(doc.dump());
+  ASSERT_TRUE(spec.ok()) << spec.status();
+  EXPECT_EQ(spec->templates[0].rolling_eta, 0.02);
+  absl::StatusOr<CaseSpec> again = Parse(ToJson(*spec));
+  ASSERT_TRUE(again.ok()) << again.status();
+  EXPECT_EQ(again->templates[0].rolling_eta, 0.02);
+  doc["templates"][0]["rolling_eta"] = 0;  // no rolling resistance: a valid material
+  spec = Parse(doc.dump());
+  ASSERT_TRUE(spec.ok()) << spec.status();
+  EXPECT_EQ(spec->templates[0].rolling_eta, 0.0);
+  for (const Json& bad : {Json(-0.01), Json(1.5), Json("0.02")}) {
+    doc["templates"][0]["rolling_eta"] = bad;
+    EXPECT_TRUE(MessageStartsWith(Parse(doc.dump()).status(), "/templates/0/rolling_eta: must be"))
+        << bad;
+  }
+  doc["templates"][0]["parameter_set"] = "SET-dense";
+  doc["templates"][0]["rolling_eta"] = 0.02;
+  EXPECT_TRUE(MessageStartsWith(
+      Parse(doc.dump()).status(),
+      "/templates/0/rolling_eta: parameter set \"SET-dense\" has no rolling resistance (β = 0)"));
+}
+
 TEST_F(CaseTest, NonlocalRadiusAndFractionAreReadWrittenAndTheRadiusBoundedByTheCell) {
   Json doc = Json::parse(kMinimalCase);  // cells of 0.5 m
   doc["solver"]["nonlocal_radius"] = 1.25;
@@ -626,6 +659,7 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
       {"/templates/0/void_ratio", 0, "/templates/0/void_ratio: must be in (0, 1), got 0"},
       {"/templates/0/void_ratio", 1.2, "/templates/0/void_ratio: must be in (0, 1), got 1.2"},
       {"/templates/1/particles", 1600, "/templates/1/particles: only for templates prepared"},
+      {"/templates/1/rolling_eta", 0.02, "/templates/1/rolling_eta: only for templates prepared"},
       {"/templates/0/particles", 1,
        "/templates/0/particles: must be an integer in 2..1000000, got 1"},
       {"/templates/0/particles", 1000001,

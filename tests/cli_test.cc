@@ -301,18 +301,24 @@ TEST(CliTest, ServerCommandsWithoutServerAreUsageErrors) {
            {"element-test --template=t", "--template needs --server"},
            {"element-test --server=127.0.0.1:1", "--template=NAME is required with --server"},
            {"element-test --server=127.0.0.1:1 --template=t --material=SET-dense",
-            "--material/--seed/--pressure/--void-ratio/--particles do not apply with --server"},
+            "--material does not apply with --server (the template fixes the packing)"},
            {"element-test --server=127.0.0.1:1 --template=t --pressure=5000",
-            "--material/--seed/--pressure/--void-ratio/--particles do not apply with --server"},
+            "--pressure does not apply with --server (the template fixes the packing)"},
            {"element-test --server=127.0.0.1:1 --template=t --void-ratio=0.25",
-            "--material/--seed/--pressure/--void-ratio/--particles do not apply with --server"},
+            "--void-ratio does not apply with --server (the template fixes the packing)"},
            {"prepare --pressure=0", "--pressure must be a pressure in (0, 1e9] Pa"},
            {"element-test --pressure=2e9", "--pressure must be a pressure in"},
            {"prepare --void-ratio=0", "--void-ratio must lie in (0, 1)"},
            {"element-test --void-ratio=1.5", "--void-ratio must lie in (0, 1)"},
            {"element-test --server=127.0.0.1:1 --template=t --particles=1600",
-            "--material/--seed/--pressure/--void-ratio/--particles do not apply with --server"},
+            "--particles does not apply with --server (the template fixes the packing)"},
            {"prepare --particles=1", "--particles must lie in [2, 1000000]"},
+           {"element-test --server=127.0.0.1:1 --template=t --rolling-eta=0.02",
+            "--rolling-eta does not apply with --server"},
+           {"prepare --material=footing-dense --rolling-eta=-0.01",
+            "--rolling-eta must lie in [0, 1]"},
+           {"element-test --material=footing-dense --rolling-eta=1.5",
+            "--rolling-eta must lie in [0, 1]"},
            {"element-test --particles=2000000", "--particles must lie in [2, 1000000]"},
            {"element-test --axis=z", "--axis must be x or y"},
            {"element-test --test=isotropic --axis=x",
@@ -414,6 +420,23 @@ TEST(CliTest, PrepareAtAnotherPressureAndVoidRatioNamesThem) {
   EXPECT_TRUE(absl::StrContains(r.output, "template SET-dense-seed2-p20000Pa-e0.25-100discs\n"))
       << r.output;
   std::filesystem::remove(file);
+}
+
+// And another rolling-resistance η: another material, named as such. A set
+// without rolling resistance refuses it (η would change nothing there).
+TEST(CliTest, PrepareWithAnotherRollingEtaNamesIt) {
+  const std::string file = TempPath("template-eta.h5");
+  const Result r = RunCli(absl::StrCat(
+      "prepare --material=footing-dense --seed=2 --particles=100 --rolling-eta=0.02 --out='", file,
+      "'"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(absl::StrContains(r.output, "template footing-dense-seed2-100discs-eta0.02\n"))
+      << r.output;
+  std::filesystem::remove(file);
+  const Result refused = RunCli("prepare --material=SET-dense --particles=100 --rolling-eta=0.02");
+  EXPECT_EQ(refused.exit_code, 1) << refused.output;
+  EXPECT_TRUE(absl::StrContains(refused.output, "SET-dense, which has no rolling resistance"))
+      << refused.output;
 }
 
 // rve_cli prepare --out (SET-dense, ~0.5 s) and upload-template; the name.

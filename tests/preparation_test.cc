@@ -169,7 +169,7 @@ TEST(PreparationTest, ConsolidationSetReachesItsPorosity) {
 TEST(PreparationTest, TemplatePackedToAnotherVoidRatio) {
   PreparationReport report;
   absl::StatusOr<RveSnapshot> loose =
-      PrepareTemplate("saturated-medium", 1, 20e3, 0.25, 0, &report);
+      PrepareTemplate("saturated-medium", 1, {.pressure = 20e3, .void_ratio = 0.25}, &report);
   ASSERT_TRUE(loose.ok()) << loose.status();
   const RveState s = ObserveOf(*loose);
   std::printf("saturated-medium packed to e0 = 0.25 at 20 kPa: e0 = %.4f, Z = %.2f\n", s.void_ratio,
@@ -178,8 +178,9 @@ TEST(PreparationTest, TemplatePackedToAnotherVoidRatio) {
   EXPECT_NEAR(Pressure(s), 20e3, 0.01 * 20e3);
   EXPECT_EQ(loose->initial_void_ratio, s.void_ratio);
   for (double e : {-0.1, 1.0, std::numeric_limits<double>::quiet_NaN()}) {
-    EXPECT_EQ(PrepareTemplate("saturated-medium", 1, 20e3, e).status().code(),
-              absl::StatusCode::kInvalidArgument)
+    EXPECT_EQ(
+        PrepareTemplate("saturated-medium", 1, {.pressure = 20e3, .void_ratio = e}).status().code(),
+        absl::StatusCode::kInvalidArgument)
         << e;
   }
 }
@@ -190,12 +191,13 @@ TEST(PreparationTest, TemplatePackedToAnotherVoidRatio) {
 // work.
 TEST(PreparationTest, TemplateWithAnotherParticleCount) {
   PreparationReport report;
-  absl::StatusOr<RveSnapshot> small = PrepareTemplate("SET-dense", 1, 0, 0, 100, &report);
+  absl::StatusOr<RveSnapshot> small =
+      PrepareTemplate("SET-dense", 1, {.num_particles = 100}, &report);
   ASSERT_TRUE(small.ok()) << small.status();
   EXPECT_EQ(small->radius.size(), 100u);
   EXPECT_NEAR(Pressure(ObserveOf(*small)), 100e3, 0.01 * 100e3);
   for (int n : {-5, 1, static_cast<int>(kMaxParticles) + 1}) {
-    EXPECT_EQ(PrepareTemplate("SET-dense", 1, 0, 0, n).status().code(),
+    EXPECT_EQ(PrepareTemplate("SET-dense", 1, {.num_particles = n}).status().code(),
               absl::StatusCode::kInvalidArgument)
         << n;
   }
@@ -204,17 +206,59 @@ TEST(PreparationTest, TemplateWithAnotherParticleCount) {
 // The default name of a prepared packing says what was asked for, in a
 // template name's alphabet ([A-Za-z0-9._-]) at any pressure.
 TEST(PreparationTest, TemplateNameCarriesWhatWasAskedForInTheNameAlphabet) {
-  EXPECT_EQ(TemplateName("SET-dense", 1, 0, 0, 0), "SET-dense-seed1");
-  EXPECT_EQ(TemplateName("SET-dense", 2, 20e3, 0.25, 100),
-            "SET-dense-seed2-p20000Pa-e0.25-100discs");
-  EXPECT_EQ(TemplateName("SET-dense", 1, 2e6, 1e-5, 0), "SET-dense-seed1-p2e06Pa-e1e-05");
+  EXPECT_EQ(TemplateName("SET-dense", 1, {}), "SET-dense-seed1");
+  EXPECT_EQ(
+      TemplateName("SET-dense", 2, {.pressure = 20e3, .void_ratio = 0.25, .num_particles = 100}),
+      "SET-dense-seed2-p20000Pa-e0.25-100discs");
+  EXPECT_EQ(TemplateName("SET-dense", 1, {.pressure = 2e6, .void_ratio = 1e-5}),
+            "SET-dense-seed1-p2e06Pa-e1e-05");
+  EXPECT_EQ(TemplateName("footing-dense", 3, {.rolling_eta = 0.02}), "footing-dense-seed3-eta0.02");
+  EXPECT_EQ(TemplateName("footing-dense", 3, {.rolling_eta = 0.0}), "footing-dense-seed3-eta0");
+}
+
+// PrepareTemplate's rolling-resistance η: another material from a set with
+// rolling resistance. The packing carries the new η (and the set's β), and
+// is another packing than the set's (the compaction sees the moments). An η
+// outside [0, kMaxRollingEta], or any η for a set without rolling resistance
+// (β = 0, where it would change nothing), is refused before any work.
+TEST(PreparationTest, TemplateWithAnotherRollingResistance) {
+  PreparationReport report;
+  const TemplateVariant small{.num_particles = 100};
+  TemplateVariant weaker = small;
+  weaker.rolling_eta = 0.02;
+  absl::StatusOr<RveSnapshot> set_eta = PrepareTemplate("footing-dense", 1, small);
+  absl::StatusOr<RveSnapshot> eta = PrepareTemplate("footing-dense", 1, weaker, &report);
+  ASSERT_TRUE(set_eta.ok()) << set_eta.status();
+  ASSERT_TRUE(eta.ok()) << eta.status();
+  EXPECT_EQ(set_eta->material.rolling_eta, 0.05);
+  EXPECT_EQ(eta->material.rolling_eta, 0.02);
+  EXPECT_EQ(eta->material.rolling_beta, set_eta->material.rolling_beta);
+  EXPECT_EQ(eta->material.friction, set_eta->material.friction);
+  EXPECT_NE(eta->sx, set_eta->sx);
+  EXPECT_NEAR(Pressure(ObserveOf(*eta)), 100e3, 0.01 * 100e3);
+  EXPECT_EQ(report.void_ratio, ObserveOf(*eta).void_ratio);
+
+  for (double bad : {-0.01, kMaxRollingEta * 1.01, std::numeric_limits<double>::infinity(),
+                     std::numeric_limits<double>::quiet_NaN()}) {
+    TemplateVariant v = small;
+    v.rolling_eta = bad;
+    const absl::Status s = PrepareTemplate("footing-dense", 1, v).status();
+    EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument) << bad;
+    EXPECT_TRUE(absl::StrContains(s.message(), "rolling-resistance η")) << s;
+  }
+  TemplateVariant no_rolling = small;
+  no_rolling.rolling_eta = 0.02;
+  const absl::Status s = PrepareTemplate("SET-dense", 1, no_rolling).status();
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_TRUE(absl::StrContains(s.message(), "SET-dense, which has no rolling resistance")) << s;
 }
 
 // A stress the servo cannot reach is a clear refusal, not a deadline a
 // client would take for a hung server: 40 loose discs compacted straight to
 // 100 Pa jam past it and unjam into a gas (measured: σ = 0, 0.8 s).
 TEST(PreparationTest, AConsolidationThatCannotConvergeIsAFailedPrecondition) {
-  const absl::StatusOr<RveSnapshot> packing = PrepareTemplate("SET-dense", 1, 100, 0, 40);
+  const absl::StatusOr<RveSnapshot> packing =
+      PrepareTemplate("SET-dense", 1, {.pressure = 100, .num_particles = 40});
   ASSERT_FALSE(packing.ok());
   EXPECT_EQ(packing.status().code(), absl::StatusCode::kFailedPrecondition) << packing.status();
   EXPECT_TRUE(absl::StrContains(packing.status().message(),
@@ -229,7 +273,8 @@ TEST(PreparationTest, AConsolidationThatCannotConvergeIsAFailedPrecondition) {
 // preparation's 1 %, e0 within the steering's 0.01 (as SET-dense).
 TEST(PreparationTest, TemplateCompactedAtAGivenPressureKeepsItsVoidRatioThere) {
   PreparationReport report;
-  absl::StatusOr<RveSnapshot> low = PrepareTemplate("saturated-medium", 1, 20e3, 0, 0, &report);
+  absl::StatusOr<RveSnapshot> low =
+      PrepareTemplate("saturated-medium", 1, {.pressure = 20e3}, &report);
   ASSERT_TRUE(low.ok()) << low.status();
   const RveState s = ObserveOf(*low);
   std::printf("saturated-medium at 20 kPa: e0 = %.4f, p = %.0f Pa, Z = %.2f\n", s.void_ratio,
@@ -248,7 +293,7 @@ TEST(PreparationTest, TemplateCompactedAtAGivenPressureKeepsItsVoidRatioThere) {
               at_20->void_ratio, at_20->coordination);
   EXPECT_GT(at_20->void_ratio, s.void_ratio + 0.005);
 
-  EXPECT_EQ(PrepareTemplate("saturated-medium", 1, -5.0).status().code(),
+  EXPECT_EQ(PrepareTemplate("saturated-medium", 1, {.pressure = -5.0}).status().code(),
             absl::StatusCode::kInvalidArgument);
 
   // Unloaded to 2 kPa (a collapse column's top), with the servo stopped once

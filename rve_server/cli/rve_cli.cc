@@ -64,6 +64,7 @@ ABSL_FLAG(uint64_t, seed, 1, "packing seed");
 ABSL_FLAG(double, pressure, 0, "preparation pressure, Pa");
 ABSL_FLAG(double, void_ratio, 0, "target void ratio of the preparation");
 ABSL_FLAG(int, particles, 0, "particle count of the preparation");
+ABSL_FLAG(double, rolling_eta, 0, "rolling-resistance eta of the preparation");
 ABSL_FLAG(double, confining, 0, "confining stress, Pa");
 ABSL_FLAG(double, strain, 0, "strain to stop at");
 ABSL_FLAG(std::string, out, "", "output file");
@@ -136,7 +137,7 @@ Server options:
 constexpr char kElementTestHelp[] = R"(rve_cli element-test — run an element test on one RVE
 
   rve_cli element-test --test=NAME [--material=NAME --seed=N --pressure=PA --void-ratio=E
-                       --particles=N] --out=FILE.csv [options]
+                       --particles=N --rolling-eta=H] --out=FILE.csv [options]
   rve_cli element-test --server=HOST:PORT --template=NAME --test=NAME --out=FILE.csv [options]
 
 Locally, prepares the packing of --material/--seed and runs the test in this
@@ -156,6 +157,8 @@ Options:
                      default the set's e0)
   --particles=N      discs in the packing, in [2, 1e6] (local only; default the set's, e.g.
                      400): a larger sample of the same material
+  --rolling-eta=H    η of the rolling-resistance limit |M| ≤ η·r_min·fn, in [0, 1], instead
+                     of the set's (local only; sets with rolling resistance): another material
   --template=NAME    the server's template to test (with --server)
   --axis=x|y         loading axis of drained-biaxial and oedometer (default y; x holds σyy
                      in the biaxial test): a packing's strength along another direction
@@ -177,7 +180,7 @@ constexpr char kPrepareHelp[] =
     R"(rve_cli prepare — prepare an RVE packing and print its initial state
 
   rve_cli prepare [--material=NAME] [--seed=N] [--pressure=PA] [--void-ratio=E]
-                  [--particles=N] [--out=FILE.h5 [--name=NAME]]
+                  [--particles=N] [--rolling-eta=H] [--out=FILE.h5 [--name=NAME]]
 
 Options:
   --material=NAME    parameter set (default SET-dense; see `rve_cli materials`)
@@ -188,11 +191,13 @@ Options:
                      packed denser or looser; the compaction friction, between 0 and the
                      material's, bounds what can be reached: the e0 reached is printed)
   --particles=N      discs in the packing, in [2, 1e6] (default the set's count)
+  --rolling-eta=H    η of the rolling-resistance limit |M| ≤ η·r_min·fn, in [0, 1], instead
+                     of the set's (sets with rolling resistance, β > 0): another material
   --out=FILE.h5      also write the packing as a template file (for upload-template)
   --name=NAME        template name, [A-Za-z0-9._-]{1,128} (default MATERIAL-seedN, with
-                     -pPPa, -eE and -Mdiscs added for --pressure, --void-ratio and
-                     --particles, e.g. SET-dense-seed2-p20000Pa-e0.25-100discs: each
-                     makes another packing)
+                     -pPPa, -eE, -Mdiscs and -etaH added for --pressure, --void-ratio,
+                     --particles and --rolling-eta, e.g.
+                     SET-dense-seed2-p20000Pa-e0.25-100discs: each makes another packing)
 )";
 
 constexpr char kMaterialsHelp[] = R"(rve_cli materials — the parameter sets and their parameters
@@ -448,43 +453,56 @@ void PrintMatrix(absl::string_view key, const Matrix& m) {
 // ---------------------------------------------------------------------------
 // Local commands.
 
-// `name`: the packing's default template name (dem::TemplateName).
-absl::StatusOr<dem::RveSnapshot> PreparePacking(const Flags& flags, std::string* material,
-                                                std::uint64_t* seed, std::string* name,
-                                                dem::PreparationReport* report) {
-  *material = "SET-dense";
-  *seed = 1;
-  double pressure = 0;  // Pa; 0: the set's p0
-  RETURN_IF_ERROR(Get(flags, "material", material));
-  RETURN_IF_ERROR(Get(flags, "seed", seed));
-  RETURN_IF_ERROR(Get(flags, "pressure", &pressure));
-  if (flags.contains("pressure") && !(pressure > 0 && pressure <= dem::kMaxPressure)) {
+// A packing prepared here from --material, --seed and the variant options.
+struct LocalPacking {
+  std::string material;
+  std::uint64_t seed = 1;
+  dem::TemplateVariant variant;
+  std::string name;  // its default template name (dem::TemplateName)
+  dem::PreparationReport report;
+  dem::RveSnapshot packing;
+};
+
+absl::StatusOr<LocalPacking> PreparePacking(const Flags& flags) {
+  LocalPacking out;
+  out.material = "SET-dense";
+  dem::TemplateVariant& v = out.variant;
+  RETURN_IF_ERROR(Get(flags, "material", &out.material));
+  RETURN_IF_ERROR(Get(flags, "seed", &out.seed));
+  RETURN_IF_ERROR(Get(flags, "pressure", &v.pressure));
+  if (flags.contains("pressure") && !(v.pressure > 0 && v.pressure <= dem::kMaxPressure)) {
     return UsageError("--pressure must be a pressure in (0, 1e9] Pa");
   }
-  double void_ratio = 0;  // 0: the set's e0
-  RETURN_IF_ERROR(Get(flags, "void-ratio", &void_ratio));
-  if (flags.contains("void-ratio") && !(void_ratio > 0 && void_ratio < 1)) {
+  RETURN_IF_ERROR(Get(flags, "void-ratio", &v.void_ratio));
+  if (flags.contains("void-ratio") && !(v.void_ratio > 0 && v.void_ratio < 1)) {
     return UsageError("--void-ratio must lie in (0, 1)");
   }
-  int particles = 0;  // 0: the set's count
-  RETURN_IF_ERROR(Get(flags, "particles", &particles));
+  RETURN_IF_ERROR(Get(flags, "particles", &v.num_particles));
   if (flags.contains("particles") &&
-      !(particles >= 2 && static_cast<std::size_t>(particles) <= dem::kMaxParticles)) {
+      !(v.num_particles >= 2 && static_cast<std::size_t>(v.num_particles) <= dem::kMaxParticles)) {
     return UsageError(absl::StrCat("--particles must lie in [2, ", dem::kMaxParticles, "]"));
   }
-  *name = dem::TemplateName(*material, *seed, pressure, void_ratio, particles);
-  std::fprintf(stderr, "preparing %s...\n", material->c_str());
+  if (flags.contains("rolling-eta")) {
+    double eta = 0;
+    RETURN_IF_ERROR(Get(flags, "rolling-eta", &eta));
+    if (!(eta >= 0 && eta <= dem::kMaxRollingEta)) {
+      return UsageError(absl::StrCat("--rolling-eta must lie in [0, ", dem::kMaxRollingEta, "]"));
+    }
+    v.rolling_eta = eta;
+  }
+  out.name = dem::TemplateName(out.material, out.seed, v);
+  std::fprintf(stderr, "preparing %s...\n", out.material.c_str());
   // Its first line is "N discs, seed S".
-  ASSIGN_OR_RETURN(dem::RveSnapshot packing,
-                   dem::PrepareTemplate(*material, *seed, pressure, void_ratio, particles, report,
-                                        [](const std::string& line) {
-                                          std::fprintf(stderr, "  %s\n", line.c_str());
-                                        }));
+  ASSIGN_OR_RETURN(out.packing, dem::PrepareTemplate(out.material, out.seed, v, &out.report,
+                                                     [](const std::string& line) {
+                                                       std::fprintf(stderr, "  %s\n", line.c_str());
+                                                     }));
+  const dem::PreparationReport& r = out.report;
   std::fprintf(
       stderr, "prepared: e0 = %.4f, p0 = %.1f Pa, Z = %.2f, compaction friction %.4f, %lld steps\n",
-      report->void_ratio, report->pressure, report->coordination, report->compaction_friction,
-      static_cast<long long>(report->steps));
-  return packing;
+      r.void_ratio, r.pressure, r.coordination, r.compaction_friction,
+      static_cast<long long>(r.steps));
+  return out;
 }
 
 // RunElementTest on the server: progress on stderr, the rows at the end.
@@ -539,11 +557,12 @@ absl::Status ElementTestCommand(const Flags& flags) {
   if (on_server) {
     // The template fixes the packing: a material or seed here would be
     // silently ignored, which is worse than refusing it.
-    if (flags.contains("material") || flags.contains("seed") || flags.contains("pressure") ||
-        flags.contains("void-ratio") || flags.contains("particles")) {
-      return UsageError(
-          "--material/--seed/--pressure/--void-ratio/--particles do not apply with --server (the "
-          "template fixes the packing)");
+    for (const char* key :
+         {"material", "seed", "pressure", "void-ratio", "particles", "rolling-eta"}) {
+      if (flags.contains(key)) {
+        return UsageError(absl::StrCat(
+            "--", key, " does not apply with --server (the template fixes the packing)"));
+      }
     }
     if (template_name.empty()) return UsageError("--template=NAME is required with --server");
     title = absl::StrCat(test, " on ", template_name);
@@ -552,14 +571,9 @@ absl::Status ElementTestCommand(const Flags& flags) {
     for (const std::string& key : WithServerFlags({"template"})) {
       if (flags.contains(key)) return UsageError(absl::StrCat("--", key, " needs --server"));
     }
-    std::string material;
-    std::uint64_t seed;
-    dem::PreparationReport report;
-    std::string default_name;
-    ASSIGN_OR_RETURN(dem::RveSnapshot packing,
-                     PreparePacking(flags, &material, &seed, &default_name, &report));
-    ASSIGN_OR_RETURN(dem::Rve rve, dem::Rve::Create(std::move(packing)));
-    title = absl::StrCat(test, " on ", default_name);
+    ASSIGN_OR_RETURN(LocalPacking local, PreparePacking(flags));
+    ASSIGN_OR_RETURN(dem::Rve rve, dem::Rve::Create(std::move(local.packing)));
+    title = absl::StrCat(test, " on ", local.name);
     ProgressLine progress(title);
     rows = dem::RunElementTest(rve, spec, [&](double fraction) { progress.Update(fraction); });
     progress.Done();
@@ -585,15 +599,10 @@ absl::Status PrepareCommand(const Flags& flags) {
       return UsageError(s.message());
     }
   }
-  std::string material;
-  std::uint64_t seed;
-  dem::PreparationReport report;
-  std::string default_name;
-  ASSIGN_OR_RETURN(dem::RveSnapshot packing,
-                   PreparePacking(flags, &material, &seed, &default_name, &report));
-  ASSIGN_OR_RETURN(dem::Rve rve, dem::Rve::Create(packing));
+  ASSIGN_OR_RETURN(LocalPacking local, PreparePacking(flags));
+  ASSIGN_OR_RETURN(dem::Rve rve, dem::Rve::Create(local.packing));
   const dem::RveState s = rve.Observe(/*want_tangent=*/true);
-  std::printf("material %s\nparticles %d\nvoid_ratio %.6f\nporosity %.6f\n", material.c_str(),
+  std::printf("material %s\nparticles %d\nvoid_ratio %.6f\nporosity %.6f\n", local.material.c_str(),
               rve.num_particles(), s.void_ratio, s.porosity);
   std::printf("p_Pa %.3f\nsxx_Pa %.3f\nsyy_Pa %.3f\nsxy_Pa %.3f\n", s.MeanPressure(),
               -s.stress(0, 0), -s.stress(1, 1), -s.stress(0, 1));
@@ -605,9 +614,10 @@ absl::Status PrepareCommand(const Flags& flags) {
   if (out.empty()) return absl::OkStatus();
 
   store::TemplateRecord record;
-  record.name = name.empty() ? default_name : name;
-  record.description = dem::TemplateDescription(material, seed, rve.num_particles(), report);
-  record.packing = std::move(packing);
+  record.name = name.empty() ? local.name : name;
+  record.description = dem::TemplateDescription(local.material, local.seed, rve.num_particles(),
+                                                local.report, local.variant);
+  record.packing = std::move(local.packing);
   store::FileInfo info;
   info.created_by = CreatedBy();
   RETURN_IF_ERROR(
@@ -932,14 +942,14 @@ const std::vector<Command>& Commands() {
       {"element-test",
        kElementTestHelp,
        true,
-       {"test", "material", "seed", "pressure", "void-ratio", "particles", "confining", "strain",
-        "out", "plot", "rows", "inertial-number", "cyclic-control", "amplitude", "cycles",
-        "template", "axis"},
+       {"test", "material", "seed", "pressure", "void-ratio", "particles", "rolling-eta",
+        "confining", "strain", "out", "plot", "rows", "inertial-number", "cyclic-control",
+        "amplitude", "cycles", "template", "axis"},
        &ElementTestCommand},
       {"prepare",
        kPrepareHelp,
        false,
-       {"material", "seed", "pressure", "void-ratio", "particles", "out", "name"},
+       {"material", "seed", "pressure", "void-ratio", "particles", "rolling-eta", "out", "name"},
        &PrepareCommand},
       {"materials", kMaterialsHelp, false, {}, &MaterialsCommand},
       {"info", kInfoHelp, true, {}, &InfoCommand},

@@ -33,6 +33,11 @@ struct Material {
   ContactModel model = ContactModel::kLinear;
 };
 
+// Largest rolling-resistance η a template variant takes (PrepareTemplate): a
+// moment limit of the smaller radius times fn is already a lever arm as long
+// as the disc's radius.
+inline constexpr double kMaxRollingEta = 1.0;
+
 // How an RVE of a material is generated and prepared.
 struct PreparationSpec {
   int num_particles = 400;

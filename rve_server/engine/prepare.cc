@@ -216,32 +216,45 @@ absl::StatusOr<RveSnapshot> PreparePacking(
 }
 
 absl::StatusOr<RveSnapshot> PrepareTemplate(
-    absl::string_view parameter_set, std::uint64_t seed, double pressure, double void_ratio,
-    int num_particles, PreparationReport* report,
-    const std::function<void(const std::string&)>& progress) {
+    absl::string_view parameter_set, std::uint64_t seed, const TemplateVariant& variant,
+    PreparationReport* report, const std::function<void(const std::string&)>& progress) {
   ASSIGN_OR_RETURN(ParameterSet set, FindParameterSet(parameter_set));
   set.preparation.seed = seed;
-  if (pressure != 0) {
-    if (!(pressure > 0 && pressure <= kMaxPressure)) {
-      return absl::InvalidArgumentError(absl::StrCat("preparation pressure ", pressure,
+  if (const double p = variant.pressure; p != 0) {
+    if (!(p > 0 && p <= kMaxPressure)) {
+      return absl::InvalidArgumentError(absl::StrCat("preparation pressure ", p,
                                                      " Pa must lie in (0, ", kMaxPressure,
                                                      "] Pa (compression +)"));
     }
-    set.preparation.pressure = pressure;
+    set.preparation.pressure = p;
   }
-  if (void_ratio != 0) {
-    if (!(void_ratio > 0 && void_ratio < 1)) {
+  if (const double e = variant.void_ratio; e != 0) {
+    if (!(e > 0 && e < 1)) {
       return absl::InvalidArgumentError(
-          absl::StrCat("target void ratio ", void_ratio, " must lie in (0, 1)"));
+          absl::StrCat("target void ratio ", e, " must lie in (0, 1)"));
     }
-    set.preparation.target_void_ratio = void_ratio;
+    set.preparation.target_void_ratio = e;
   }
-  if (num_particles != 0) {
-    if (!(num_particles >= 2 && static_cast<std::size_t>(num_particles) <= kMaxParticles)) {
+  if (const int n = variant.num_particles; n != 0) {
+    if (!(n >= 2 && static_cast<std::size_t>(n) <= kMaxParticles)) {
       return absl::InvalidArgumentError(
-          absl::StrCat("particle count ", num_particles, " must lie in [2, ", kMaxParticles, "]"));
+          absl::StrCat("particle count ", n, " must lie in [2, ", kMaxParticles, "]"));
     }
-    set.preparation.num_particles = num_particles;
+    set.preparation.num_particles = n;
+  }
+  if (variant.rolling_eta.has_value()) {
+    const double eta = *variant.rolling_eta;
+    if (!(eta >= 0 && eta <= kMaxRollingEta)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("rolling-resistance η ", eta, " must lie in [0, ", kMaxRollingEta, "]"));
+    }
+    // Without a rolling stiffness the limit would change nothing.
+    if (!(set.material.rolling_beta > 0)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("rolling-resistance η given for parameter set ", parameter_set,
+                       ", which has no rolling resistance (β = 0)"));
+    }
+    set.material.rolling_eta = eta;
   }
   if (progress) {
     progress(absl::StrFormat("%d discs, seed %d", set.preparation.num_particles, seed));
@@ -249,21 +262,30 @@ absl::StatusOr<RveSnapshot> PrepareTemplate(
   return PreparePacking(set, {}, report, progress);
 }
 
-std::string TemplateName(absl::string_view parameter_set, std::uint64_t seed, double pressure,
-                         double void_ratio, int num_particles) {
+std::string TemplateName(absl::string_view parameter_set, std::uint64_t seed,
+                         const TemplateVariant& variant) {
   std::string name = absl::StrCat(parameter_set, "-seed", seed);
-  if (pressure > 0) absl::StrAppendFormat(&name, "-p%.6gPa", pressure);
-  if (void_ratio > 0) absl::StrAppendFormat(&name, "-e%.6g", void_ratio);
-  if (num_particles > 0) absl::StrAppend(&name, "-", num_particles, "discs");
+  if (variant.pressure > 0) absl::StrAppendFormat(&name, "-p%.6gPa", variant.pressure);
+  if (variant.void_ratio > 0) absl::StrAppendFormat(&name, "-e%.6g", variant.void_ratio);
+  if (variant.num_particles > 0) absl::StrAppend(&name, "-", variant.num_particles, "discs");
+  if (variant.rolling_eta.has_value()) {
+    absl::StrAppendFormat(&name, "-eta%.6g", *variant.rolling_eta);
+  }
   // %g writes 2e+06 from 1e6 Pa up; '+' is not in a template name's alphabet.
   name.erase(std::remove(name.begin(), name.end(), '+'), name.end());
   return name;
 }
 
 std::string TemplateDescription(absl::string_view parameter_set, std::uint64_t seed,
-                                std::size_t num_particles, const PreparationReport& report) {
-  return absl::StrFormat("material %s, seed %d, %d discs, e0 = %.4f, p0 = %.1f Pa", parameter_set,
-                         seed, num_particles, report.void_ratio, report.pressure);
+                                std::size_t num_particles, const PreparationReport& report,
+                                const TemplateVariant& variant) {
+  std::string s =
+      absl::StrFormat("material %s, seed %d, %d discs, e0 = %.4f, p0 = %.1f Pa", parameter_set,
+                      seed, num_particles, report.void_ratio, report.pressure);
+  if (variant.rolling_eta.has_value()) {
+    absl::StrAppendFormat(&s, ", rolling eta %g", *variant.rolling_eta);
+  }
+  return s;
 }
 
 }  // namespace rvehub::dem

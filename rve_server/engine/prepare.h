@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 
 #include "absl/status/statusor.h"
@@ -69,40 +70,58 @@ absl::StatusOr<RveSnapshot> PreparePacking(
     const ParameterSet& set, const Controls& controls = {}, PreparationReport* report = nullptr,
     const std::function<void(const std::string&)>& progress = {});
 
+// How a template departs from its parameter set's packing; each field left
+// at its default keeps the set's.
+struct TemplateVariant {
+  // Pa, compression +: compact at this pressure instead of the set's p0 (0:
+  // the set's). A packing compacted at the stress it will be used at reaches
+  // the set's e0 there, where one compacted at 100 kPa and unloaded swells
+  // and loses contacts.
+  double pressure = 0;
+  // Target e0 instead of the set's (0: the set's): the same material packed
+  // denser or looser. The compaction friction, between 0 and the material's,
+  // bounds what can be reached; the report gives the e0 reached.
+  double void_ratio = 0;
+  // Discs instead of the set's count (0: the set's): a larger (or smaller)
+  // sample of the same material, e.g. to see how much of an element test's
+  // result is the sample's size.
+  int num_particles = 0;
+  // η of the rolling-resistance limit |M_r| ≤ η·r_min·fn instead of the
+  // set's, [-] (unset: the set's): another material, for sets with rolling
+  // resistance (β > 0). footing-dense's peak φ' rises from about 24° at
+  // η = 0 to 31° at the set's 0.05.
+  std::optional<double> rolling_eta = std::nullopt;
+};
+
 // The one way to make a template from a named parameter set and a seed
 // (rve_cli prepare, mpm_client's case templates): the set's preparation with
-// its seed replaced and, where `pressure` > 0 (Pa, compression +), its p0:
-// a packing compacted at the stress it will be used at reaches the set's e0
-// there, where one compacted at 100 kPa and unloaded swells and loses
-// contacts. Where `void_ratio` > 0 it replaces the set's target e0: the
-// same material packed denser or looser (the compaction friction between 0
-// and the material's bounds what can be reached; the report gives the e0
-// reached). Where `num_particles` > 0 it replaces the set's count: a larger
-// (or smaller) sample of the same material, e.g. to see how much of an
-// element test's result is the sample's size. NotFound naming the known sets
-// for an unknown name, InvalidArgument for a pressure outside
-// (0, kMaxPressure], a void ratio outside (0, 1) or a count outside
-// [2, kMaxParticles]. `progress`, when set, first receives "N discs, seed S",
-// then PreparePacking's lines.
+// its seed replaced and `variant` applied. NotFound naming the known sets
+// for an unknown name; InvalidArgument for a pressure outside
+// (0, kMaxPressure], a void ratio outside (0, 1), a count outside
+// [2, kMaxParticles], an η outside [0, kMaxRollingEta] or an η for a set
+// without rolling resistance. `progress`, when set, first receives
+// "N discs, seed S", then PreparePacking's lines.
 absl::StatusOr<RveSnapshot> PrepareTemplate(
-    absl::string_view parameter_set, std::uint64_t seed, double pressure = 0, double void_ratio = 0,
-    int num_particles = 0, PreparationReport* report = nullptr,
+    absl::string_view parameter_set, std::uint64_t seed, const TemplateVariant& variant = {},
+    PreparationReport* report = nullptr,
     const std::function<void(const std::string&)>& progress = {});
 
 // The name of a packing prepared by PrepareTemplate when nobody names it
 // (rve_cli prepare --out, mpm_client's template cache files):
-// "<set>-seed<S>", then "-p<P>Pa", "-e<E>" and "-<N>discs" for whichever of
-// pressure, void_ratio and num_particles is asked for (0: the set's, left
-// out), since each makes another packing. Values as %.6g without '+'
-// (2e06 for 2 MPa), so the name is a valid template name.
-std::string TemplateName(absl::string_view parameter_set, std::uint64_t seed, double pressure,
-                         double void_ratio, int num_particles);
+// "<set>-seed<S>", then "-p<P>Pa", "-e<E>", "-<N>discs" and "-eta<η>" for
+// whichever field of `variant` is set, since each makes another packing.
+// Values as %.6g without '+' (2e06 for 2 MPa), so the name is a valid
+// template name.
+std::string TemplateName(absl::string_view parameter_set, std::uint64_t seed,
+                         const TemplateVariant& variant);
 
 // The description a template prepared by PrepareTemplate carries in its file
 // (rve_cli prepare --out, mpm_client's template cache): "material M, seed S,
-// N discs, e0 = E, p0 = P Pa", from the report of its preparation.
+// N discs, e0 = E, p0 = P Pa", from the report of its preparation, with
+// ", rolling eta H" where `variant` replaces the set's η.
 std::string TemplateDescription(absl::string_view parameter_set, std::uint64_t seed,
-                                std::size_t num_particles, const PreparationReport& report);
+                                std::size_t num_particles, const PreparationReport& report,
+                                const TemplateVariant& variant = {});
 
 }  // namespace rvehub::dem
 
