@@ -12,9 +12,10 @@ beside the paper's (liang-zhao-mpm-dem Table 2 and §3.3.1: e0 0.1874 and 0.2314
 20.8 deg). footing-dense and footing-medium differ only in e0, so both lie on one curve.
 --footing RUN_DIR ... adds two panels: each footing run's N_q (summary.json) against the phi'
 it was compared with, beside Prandtl's N_q and the paper's footing (14.4 at 28.1 deg), and its
-q/q_s against the settlement (timeseries.csv), with --curve's other curves (CSV rows
-"settlement m, q/q_s", as tests/prandtl_test.cc's DISABLED_MeasureWithMohrCoulomb writes them for a
-Mohr-Coulomb soil). Prints a table of both. Needs numpy and matplotlib (Debian's
+q/q_s against the settlement (timeseries.csv), coloured by the packing's preparation (its
+compaction pressure and rolling-resistance eta) where the runs' differ, with --curve's other
+curves (CSV rows "settlement m, q/q_s", as tests/prandtl_test.cc's
+DISABLED_MeasureWithMohrCoulomb writes them for a Mohr-Coulomb soil). Prints a table of both. Needs numpy and matplotlib (Debian's
 python3-numpy, python3-matplotlib).
 """
 import argparse
@@ -134,6 +135,17 @@ def main():
     ax.legend(fontsize=8)
 
     if a.footing:
+        # One colour per preparation of the footing's packing: where it was compacted and its
+        # rolling-resistance eta (footing_mesh.load_run; None: the set's).
+        preparations = sorted({(r["pressure"], r["eta"]) for r in runs},
+                              key=lambda k: (k[0], -1 if k[1] is None else k[1]))
+        colour_of = {k: plt.cm.tab10(i % 10) for i, k in enumerate(preparations)}
+
+        def preparation(run):
+            p, eta = run["pressure"], run["eta"]
+            return (f"compacted at {p / 1e3:g} kPa" if p else "the set's p0") + (
+                f", eta {eta:g}" if eta is not None else ", the set's eta")
+
         ax = axes[0][1]
         grid = np.linspace(20, 34, 200)
         prandtl = [prandtl_nq(math.radians(x)) for x in grid]
@@ -144,12 +156,16 @@ def main():
         for run in runs:
             s = run["summary"]
             ratio = s["N_q"] / s["N_q_prandtl"]
-            ax.plot(s["phi_deg"], s["N_q"], "o", color="tab:blue")
+            ax.plot(s["phi_deg"], s["N_q"], "o", color=colour_of[(run["pressure"], run["eta"])])
             ax.annotate(f"{os.path.basename(os.path.normpath(run['dir']))} ({ratio:.2f})",
                         (s["phi_deg"], s["N_q"]), fontsize=7, xytext=(4, -10),
                         textcoords="offset points")
             print(f"{run['dir']} | {s['phi_deg']:.2f} | {s['N_q']:.2f} | {s['N_q_prandtl']:.2f} | "
                   f"{ratio:.3f} | {s['settlement_at_ultimate_m']:.3f}")
+        if len(preparations) > 1:
+            for k in preparations:
+                ax.plot([], [], "o", color=colour_of[k],
+                        label=preparation({"pressure": k[0], "eta": k[1]}))
         ax.plot(*PAPER_FOOTING, "*", ms=14, color="tab:red", mec="k", label="paper's footing")
         ax.set_xlabel("phi' of the footing's packing (deg)")
         ax.set_ylabel("N_q = q_ult / q_s")
@@ -160,6 +176,8 @@ def main():
         ax = axes[0][2]
         for run in runs:
             ax.plot(run["d"], run["q"], lw=1.2,
+                    color=(colour_of[(run["pressure"], run["eta"])] if len(preparations) > 1
+                           else None),
                     label=f"RVEs: {os.path.basename(os.path.normpath(run['dir']))}")
         for rows, label in curves:
             ax.plot([r[0] for r in rows], [r[1] for r in rows], "--", lw=1.0, label=label)
