@@ -17,9 +17,9 @@ against each run's phi' beside Prandtl's curve. --particles prepares the templat
 many discs (a larger sample of the material; give its phi' with --phi-deg). Runs whose packings
 were compacted at other pressures (`--set=templates.0.pressure=P` on the printed commands) are
 labelled by it, and likewise runs whose packings have another rolling-resistance eta
-(`--set=templates.0.rolling_eta=H`), with one colour family per preparation (up to three). For each set of runs
-that differ in h only (edge on a node line) `plot` fits N_q = N_0 + a h and prints N_0,
-the value for h -> 0; runs with a nonlocal strain (solver.nonlocal_radius l and
+(`--set=templates.0.rolling_eta=H`), with one colour family per preparation (up to three). For
+each set of runs that differ in h only (edge on a node line) `plot` fits N_q = N_0 + a h and
+prints N_0, the value for h -> 0; runs with a nonlocal strain (solver.nonlocal_radius l and
 nonlocal_fraction m, `--set` on the printed commands) are marked "l/m". A run is marked by
 where the footing's edge falls: on a node line; inside a cell, between two points' boxes (more
 than 1 point per cell); or through a column of points. Inside a cell the contact pushes that
@@ -139,8 +139,8 @@ def load_run(run_dir):
                 # Pa the packing was compacted to e0 at (`--set=templates.0.pressure=P`); 0: the
                 # parameter set's p0.
                 pressure=case["templates"][0].get("pressure", 0.0),
-                # The rolling-resistance eta replacing the set's (`--set=templates.0.rolling_eta=H`);
-                # None: the set's.
+                # The rolling-resistance eta replacing the set's
+                # (`--set=templates.0.rolling_eta=H`); None: the set's.
                 eta=case["templates"][0].get("rolling_eta"),
                 edge=where, domain=f"{soil['upper'][0]:g} x {soil['upper'][1]:g} m",
                 half_width=spec["half_size"][0] * 2,

@@ -29,8 +29,8 @@ phi' 32.5 to 22.4 deg: one curve of phi' against e, footing-medium's on it
 (cases/strength_void_ratio.py draws it).
 
 --rolling-eta=H replaces the set's rolling-resistance eta (|M_r| <= eta r_min fn):
-another material. footing-dense (eta 0.05, 30.7 deg over nine seeds) gives about
-24 deg without rolling resistance and 27.5 deg at eta 0.02.
+another material. footing-dense (eta 0.05, 30.7 deg over nine seeds) gives 24.5 deg
+without rolling resistance and 27.5 deg at eta 0.02.
 
 Each seed also gets its dilatancy angle psi at the peaks and Davis's (1968)
 friction angle of a non-associated material, tan phi* = sin phi' cos psi /

@@ -15,8 +15,8 @@ it was compared with, beside Prandtl's N_q and the paper's footing (14.4 at 28.1
 q/q_s against the settlement (timeseries.csv), coloured by the packing's preparation (its
 compaction pressure and rolling-resistance eta) where the runs' differ, with --curve's other
 curves (CSV rows "settlement m, q/q_s", as tests/prandtl_test.cc's
-DISABLED_MeasureWithMohrCoulomb writes them for a Mohr-Coulomb soil). Prints a table of both. Needs numpy and matplotlib (Debian's
-python3-numpy, python3-matplotlib).
+DISABLED_MeasureWithMohrCoulomb writes them for a Mohr-Coulomb soil). Prints a table of both.
+Needs numpy and matplotlib (Debian's python3-numpy, python3-matplotlib).
 """
 import argparse
 import csv
@@ -141,9 +141,8 @@ def main():
                               key=lambda k: (k[0], -1 if k[1] is None else k[1]))
         colour_of = {k: plt.cm.tab10(i % 10) for i, k in enumerate(preparations)}
 
-        def preparation(run):
-            p, eta = run["pressure"], run["eta"]
-            return (f"compacted at {p / 1e3:g} kPa" if p else "the set's p0") + (
+        def preparation(pressure, eta):
+            return (f"compacted at {pressure / 1e3:g} kPa" if pressure else "the set's p0") + (
                 f", eta {eta:g}" if eta is not None else ", the set's eta")
 
         ax = axes[0][1]
@@ -164,8 +163,7 @@ def main():
                   f"{ratio:.3f} | {s['settlement_at_ultimate_m']:.3f}")
         if len(preparations) > 1:
             for k in preparations:
-                ax.plot([], [], "o", color=colour_of[k],
-                        label=preparation({"pressure": k[0], "eta": k[1]}))
+                ax.plot([], [], "o", color=colour_of[k], label=preparation(*k))
         ax.plot(*PAPER_FOOTING, "*", ms=14, color="tab:red", mec="k", label="paper's footing")
         ax.set_xlabel("phi' of the footing's packing (deg)")
         ax.set_ylabel("N_q = q_ult / q_s")
