@@ -147,6 +147,17 @@ def load_run(run_dir):
                 averaging=nonlocal_label(case["solver"]))
 
 
+def preparation(run):
+    """A load_run run's preparation: (compaction pressure Pa, rolling eta or None)."""
+    return run["pressure"], run["eta"]
+
+
+def preparations(runs):
+    """The distinct preparations of `runs`, by pressure, then eta (the set's first)."""
+    return sorted({preparation(r) for r in runs},
+                  key=lambda k: (k[0], -1 if k[1] is None else k[1]))
+
+
 def nonlocal_label(solver):
     """'l/m' of a run with a nonlocal strain (solver.nonlocal_radius, m; nonlocal_fraction), or
     '' without. run.json has the fraction since it exists; the runs before it averaged fully."""
@@ -180,9 +191,7 @@ def plot(a):
     discs = {r["discs"] for r in runs}
     pressures = {r["pressure"] for r in runs}
     etas = {r["eta"] for r in runs}
-    # A preparation: where the packing was compacted and its rolling eta (None: the set's).
-    preparations = sorted({(r["pressure"], r["eta"]) for r in runs},
-                          key=lambda k: (k[0], -1 if k[1] is None else k[1]))
+    preps = preparations(runs)
     print(f"{'run':<34} {'domain':>10} {'B/2 (m)':>8} {'h (m)':>7} {'ppc':>4} {'seed':>4} "
           f"{'discs':>5} {'p0 (kPa)':>8} {'eta':>5} {'l/m':>8} {'edge':>15} {'N_q':>6} "
           f"{'d_ult (m)':>9} {'phi':>6} {'/Prandtl':>9}")
@@ -211,11 +220,11 @@ def plot(a):
                              figsize=(13, 5.2) if len(phis) == 1 else (19, 5.2))
     ax1, ax2 = axes[0], axes[1]
     colours = [plt.cm.tab20(i % 20 / 19) for i in range(len(runs))]
-    if 1 < len(preparations) <= 3:
+    if 1 < len(preps) <= 3:
         # One colour family per preparation, so its seeds read as a group.
-        families = dict(zip(preparations, (plt.cm.Blues, plt.cm.Oranges, plt.cm.Greens)))
-        for prep in preparations:
-            group = [i for i, r in enumerate(runs) if (r["pressure"], r["eta"]) == prep]
+        families = dict(zip(preps, (plt.cm.Blues, plt.cm.Oranges, plt.cm.Greens)))
+        for prep in preps:
+            group = [i for i, r in enumerate(runs) if preparation(r) == prep]
             for k, i in enumerate(group):
                 colours[i] = families[prep](0.45 + 0.5 * k / len(group))
     style = {"node line": "o", "between points": "s", "through points": "x"}

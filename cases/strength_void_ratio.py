@@ -29,7 +29,7 @@ import statistics
 import matplotlib
 import numpy as np
 
-from footing_mesh import load_run
+from footing_mesh import load_run, preparation, preparations
 from friction_angle import fit, prandtl_nq
 
 matplotlib.use("Agg")
@@ -136,12 +136,11 @@ def main():
 
     if a.footing:
         # One colour per preparation of the footing's packing: where it was compacted and its
-        # rolling-resistance eta (footing_mesh.load_run; None: the set's).
-        preparations = sorted({(r["pressure"], r["eta"]) for r in runs},
-                              key=lambda k: (k[0], -1 if k[1] is None else k[1]))
-        colour_of = {k: plt.cm.tab10(i % 10) for i, k in enumerate(preparations)}
+        # rolling-resistance eta (footing_mesh.preparation; None: the set's).
+        preps = preparations(runs)
+        colour_of = {k: plt.cm.tab10(i % 10) for i, k in enumerate(preps)}
 
-        def preparation(pressure, eta):
+        def legend_text(pressure, eta):
             return (f"compacted at {pressure / 1e3:g} kPa" if pressure else "the set's p0") + (
                 f", eta {eta:g}" if eta is not None else ", the set's eta")
 
@@ -155,15 +154,15 @@ def main():
         for run in runs:
             s = run["summary"]
             ratio = s["N_q"] / s["N_q_prandtl"]
-            ax.plot(s["phi_deg"], s["N_q"], "o", color=colour_of[(run["pressure"], run["eta"])])
+            ax.plot(s["phi_deg"], s["N_q"], "o", color=colour_of[preparation(run)])
             ax.annotate(f"{os.path.basename(os.path.normpath(run['dir']))} ({ratio:.2f})",
                         (s["phi_deg"], s["N_q"]), fontsize=7, xytext=(4, -10),
                         textcoords="offset points")
             print(f"{run['dir']} | {s['phi_deg']:.2f} | {s['N_q']:.2f} | {s['N_q_prandtl']:.2f} | "
                   f"{ratio:.3f} | {s['settlement_at_ultimate_m']:.3f}")
-        if len(preparations) > 1:
-            for k in preparations:
-                ax.plot([], [], "o", color=colour_of[k], label=preparation(*k))
+        if len(preps) > 1:
+            for k in preps:
+                ax.plot([], [], "o", color=colour_of[k], label=legend_text(*k))
         ax.plot(*PAPER_FOOTING, "*", ms=14, color="tab:red", mec="k", label="paper's footing")
         ax.set_xlabel("phi' of the footing's packing (deg)")
         ax.set_ylabel("N_q = q_ult / q_s")
@@ -174,8 +173,7 @@ def main():
         ax = axes[0][2]
         for run in runs:
             ax.plot(run["d"], run["q"], lw=1.2,
-                    color=(colour_of[(run["pressure"], run["eta"])] if len(preparations) > 1
-                           else None),
+                    color=colour_of[preparation(run)] if len(preps) > 1 else None,
                     label=f"RVEs: {os.path.basename(os.path.normpath(run['dir']))}")
         for rows, label in curves:
             ax.plot([r[0] for r in rows], [r[1] for r in rows], "--", lw=1.0, label=label)

@@ -424,6 +424,9 @@ void ExpectSameSpec(const CaseSpec& a, const CaseSpec& b) {
     EXPECT_EQ(a.templates[i].parameter_set, b.templates[i].parameter_set);
     EXPECT_EQ(a.templates[i].seed, b.templates[i].seed);
     EXPECT_EQ(a.templates[i].pressure, b.templates[i].pressure);
+    EXPECT_EQ(a.templates[i].void_ratio, b.templates[i].void_ratio);
+    EXPECT_EQ(a.templates[i].particles, b.templates[i].particles);
+    EXPECT_EQ(a.templates[i].rolling_eta, b.templates[i].rolling_eta);
   }
   ASSERT_EQ(a.regions.size(), b.regions.size());
   for (size_t i = 0; i < a.regions.size(); ++i) {
