@@ -744,7 +744,7 @@ Fields<TemplateSpec> TemplateFields(const std::string& base_dir) {
                                    Range{0.0, dem::kMaxRollingEta, false, false}, &eta));
          // The set is known here: "parameter_set" is read first.
          const absl::StatusOr<dem::ParameterSet> set = dem::FindParameterSet(t->parameter_set);
-         if (set.ok() && !(set->material.rolling_beta > 0)) {
+         if (set.ok() && !dem::HasRollingResistance(set->material)) {
            return Bad(o.At("rolling_eta"), "parameter set ", Quote(t->parameter_set),
                       " has no rolling resistance (β = 0)");
          }

@@ -33,6 +33,10 @@ struct Material {
   ContactModel model = ContactModel::kLinear;
 };
 
+// Whether contacts of `m` carry rolling moments: without a rolling stiffness
+// (β = 0) there are none, and η changes nothing.
+inline bool HasRollingResistance(const Material& m) { return m.rolling_beta > 0; }
+
 // Largest rolling-resistance η a template variant takes (PrepareTemplate): a
 // moment limit of the smaller radius times fn is already a lever arm as long
 // as the disc's radius.

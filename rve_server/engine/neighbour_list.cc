@@ -126,7 +126,7 @@ void Rve::Rebuild(const std::vector<ContactHistory>& history) {
     if (c.bond_strength > 0) add(c.i, c.j);
   }
 
-  const bool rolling = p_.material.rolling_beta > 0;
+  const bool rolling = HasRollingResistance(p_.material);
   const bool bonds = p_.material.bond_cohesion > 0 ||
                      std::any_of(history.begin(), history.end(),
                                  [](const ContactHistory& c) { return c.bond_strength > 0; });

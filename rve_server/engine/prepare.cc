@@ -248,8 +248,7 @@ absl::StatusOr<RveSnapshot> PrepareTemplate(
       return absl::InvalidArgumentError(
           absl::StrCat("rolling-resistance η ", eta, " must lie in [0, ", kMaxRollingEta, "]"));
     }
-    // Without a rolling stiffness the limit would change nothing.
-    if (!(set.material.rolling_beta > 0)) {
+    if (!HasRollingResistance(set.material)) {
       return absl::InvalidArgumentError(
           absl::StrCat("rolling-resistance η given for parameter set ", parameter_set,
                        ", which has no rolling resistance (β = 0)"));
