@@ -47,6 +47,7 @@ using ::rvehub::dem::testing_util::ExpectIdenticalPackings;
 using ::rvehub::dem::testing_util::Prepared;
 using ::rvehub::dem::testing_util::SameBits;
 using ::rvehub::dem::testing_util::SquareLattice;
+using testing_util::AwkwardValues;
 using testing_util::ChunkLocation;
 using testing_util::FilesStartingWith;
 using testing_util::FlipByte;
@@ -58,20 +59,6 @@ using testing_util::SetIntAttribute;
 using testing_util::TestDirTest;
 using testing_util::WriteBytes;
 
-// Values a lossy path (text, conversion, arithmetic) would alter.
-const std::vector<double>& AwkwardValues() {
-  static const auto* values = new std::vector<double>{
-      -0.0,
-      std::numeric_limits<double>::denorm_min(),
-      std::numeric_limits<double>::max(),
-      0.1,
-      1.0 / 3.0,
-      FromBits(0x7ff8000000000123ull),  // quiet NaN with a payload
-      FromBits(0xfff4000000000001ull),  // signalling NaN, sign bit set
-      -std::numeric_limits<double>::infinity(),
-  };
-  return *values;
-}
 
 bool SameBits(const std::vector<double>& a, const std::vector<double>& b) {
   // memcmp must not see the null data() of an empty vector, even for 0 bytes.

@@ -39,10 +39,10 @@ using ::rvehub::dem::testing_util::ExpectIdenticalStates;
 using ::rvehub::dem::testing_util::Prepared;
 using ::rvehub::dem::testing_util::SameBits;
 using ::rvehub::dem::testing_util::SquareLattice;
+using testing_util::AwkwardValues;
 using testing_util::ChunkLocation;
 using testing_util::FilesStartingWith;
 using testing_util::FlipByte;
-using testing_util::FromBits;
 using testing_util::MessageHas;
 using testing_util::ReadBytes;
 using testing_util::ReplaceInt64Dataset;
@@ -50,24 +50,6 @@ using testing_util::SetIntAttribute;
 using testing_util::TestDirTest;
 using testing_util::WriteBytes;
 
-// Values that a lossy path (text, float conversion, arithmetic) would alter.
-const std::vector<double>& AwkwardValues() {
-  static const auto* values = new std::vector<double>{
-      -0.0,
-      std::numeric_limits<double>::denorm_min(),
-      -std::numeric_limits<double>::denorm_min(),
-      std::numeric_limits<double>::min(),
-      std::numeric_limits<double>::max(),
-      std::numeric_limits<double>::lowest(),
-      std::numeric_limits<double>::epsilon(),
-      0.1,
-      1.0 / 3.0,
-      std::nextafter(1.0, 2.0),
-      FromBits(0x7ff8000000000123ull),  // quiet NaN with a payload
-      -std::numeric_limits<double>::infinity(),
-  };
-  return *values;
-}
 
 // A packing built by hand with `side`² discs, `contacts_per_disc` contacts
 // per disc with tangential force, rolling moment and bond history, and

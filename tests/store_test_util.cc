@@ -2,9 +2,11 @@
 
 #include <unistd.h>
 
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <system_error>
 
 #include "absl/strings/match.h"
@@ -23,6 +25,25 @@ double FromBits(std::uint64_t bits) {
   double d;
   std::memcpy(&d, &bits, sizeof d);
   return d;
+}
+
+const std::vector<double>& AwkwardValues() {
+  static const auto* values = new std::vector<double>{
+      -0.0,
+      std::numeric_limits<double>::denorm_min(),
+      -std::numeric_limits<double>::denorm_min(),
+      std::numeric_limits<double>::min(),
+      std::numeric_limits<double>::max(),
+      std::numeric_limits<double>::lowest(),
+      std::numeric_limits<double>::epsilon(),
+      0.1,
+      1.0 / 3.0,
+      std::nextafter(1.0, 2.0),
+      FromBits(0x7ff8000000000123ull),  // quiet NaN with a payload
+      FromBits(0xfff4000000000001ull),  // signalling NaN, sign bit set
+      -std::numeric_limits<double>::infinity(),
+  };
+  return *values;
 }
 
 void TestDirTest::SetUp() {

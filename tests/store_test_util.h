@@ -1,5 +1,5 @@
 // Helpers shared by the store tests (store_test, results_test): status
-// message checks, doubles from bit patterns, a fresh directory per test,
+// message checks, doubles from bit patterns and awkward doubles, a fresh directory per test,
 // byte-level corruption of written files, and HDF5 C API edits that forge
 // malformed files or find the bytes to corrupt.
 #ifndef RVEHUB_TESTS_STORE_TEST_UTIL_H_
@@ -24,6 +24,11 @@ namespace rvehub::store::testing_util {
 
 // A double with a chosen bit pattern (NaN payloads and the like).
 double FromBits(std::uint64_t bits);
+
+// Doubles a lossy path (text, float conversion, arithmetic) would alter:
+// signed zero, subnormals, extremes, inexact decimals, NaNs with payloads
+// and sign bits, infinity. Written and read back, each must keep its bits.
+const std::vector<double>& AwkwardValues();
 
 // A fresh directory per test, <tmp>/<prefix><pid>_<test name>, removed
 // after the test.
