@@ -99,6 +99,13 @@ def penetration(down, left, fy, cell):
     return pen, smooth, int(np.argmax(smooth))
 
 
+def lateral_medians(fx, fy, left, lateral):
+    """The vertical and horizontal forces' medians over the second half of the sideways travel
+    (summary.json's rule), kN/m."""
+    late = lateral & (left >= 0.5 * left.max())
+    return float(np.median(fy[late])), float(np.median(np.abs(fx[late])))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("run")
@@ -141,11 +148,10 @@ def main():
             print(f"    at {d:.1f} m down: vertical {np.mean(fy[near]):.1f} kN/m "
                   f"(mean over one cell){scale}")
     if lateral.any():
-        # As summary.json: medians over the second half of the sideways travel.
-        late = lateral & (left >= 0.5 * left.max())
+        vertical, horizontal = lateral_medians(fx, fy, left, lateral)
         print(f"  lateral (from {0.5 * left.max():.3f} m on): vertical force median "
-              f"{np.median(fy[late]):.1f} kN/m (paper {PAPER_LATERAL_VERTICAL_KN:.0f}), horizontal "
-              f"median {np.median(np.abs(fx[late])):.1f} kN/m (paper {PAPER_LATERAL_HORIZONTAL_KN:.0f}), "
+              f"{vertical:.1f} kN/m (paper {PAPER_LATERAL_VERTICAL_KN:.0f}), horizontal "
+              f"median {horizontal:.1f} kN/m (paper {PAPER_LATERAL_HORIZONTAL_KN:.0f}), "
               f"to {left.max():.3f} m")
     else:
         print("  lateral stage not reached")
@@ -169,8 +175,12 @@ def main():
         ax_d.plot(odown[opn], ofy[opn], lw=0.7, color=f"C{k + 2}",
                   label=f"{oname} (cells of {ocell:g} m)")
         if olat.any():
-            ax_l.plot(oleft[olat], ofy[olat], lw=0.6, ls="--", color="C0", label=f"vertical, {oname}")
-            ax_l.plot(oleft[olat], ofx[olat], lw=0.6, ls="--", color="C1",
+            vertical, horizontal = lateral_medians(ofx, ofy, oleft, olat)
+            print(f"  {oname}: lateral medians vertical {vertical:.1f}, horizontal "
+                  f"{horizontal:.1f} kN/m, to {oleft.max():.3f} m")
+            ls = ("--", ":", "-.")[k % 3]
+            ax_l.plot(oleft[olat], ofy[olat], lw=0.6, ls=ls, color="C0", label=f"vertical, {oname}")
+            ax_l.plot(oleft[olat], ofx[olat], lw=0.6, ls=ls, color="C1",
                       label=f"horizontal F_x, {oname}")
     ax_d.plot([0.8], [PAPER_PEAK_VERTICAL_KN], "k*", ms=10, label="paper: 250 kN near 0.8 m")
     if gamma:
