@@ -59,7 +59,6 @@ using testing_util::SetIntAttribute;
 using testing_util::TestDirTest;
 using testing_util::WriteBytes;
 
-
 bool SameBits(const std::vector<double>& a, const std::vector<double>& b) {
   // memcmp must not see the null data() of an empty vector, even for 0 bytes.
   return a.size() == b.size() &&

@@ -50,7 +50,6 @@ using testing_util::SetIntAttribute;
 using testing_util::TestDirTest;
 using testing_util::WriteBytes;
 
-
 // A packing built by hand with `side`² discs, `contacts_per_disc` contacts
 // per disc with tangential force, rolling moment and bond history, and
 // awkward values in every particle array.

@@ -1,7 +1,7 @@
 // Helpers shared by the store tests (store_test, results_test): status
-// message checks, doubles from bit patterns and awkward doubles, a fresh directory per test,
-// byte-level corruption of written files, and HDF5 C API edits that forge
-// malformed files or find the bytes to corrupt.
+// message checks, doubles from bit patterns, awkward doubles, a fresh
+// directory per test, byte-level corruption of written files, and HDF5 C API
+// edits that forge malformed files or find the bytes to corrupt.
 #ifndef RVEHUB_TESTS_STORE_TEST_UTIL_H_
 #define RVEHUB_TESTS_STORE_TEST_UTIL_H_
 
