@@ -470,6 +470,8 @@ absl::StatusOr<LocalPacking> PreparePacking(const Flags& flags) {
   RETURN_IF_ERROR(Get(flags, "material", &out.material));
   RETURN_IF_ERROR(Get(flags, "seed", &out.seed));
   RETURN_IF_ERROR(Get(flags, "pressure", &v.pressure));
+  // The message spells the bound as people write it; StrCat would print 1e+09.
+  static_assert(dem::kMaxPressure == 1e9, "--pressure's usage message states the bound");
   if (flags.contains("pressure") && !(v.pressure > 0 && v.pressure <= dem::kMaxPressure)) {
     return UsageError("--pressure must be a pressure in (0, 1e9] Pa");
   }
