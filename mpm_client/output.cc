@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <istream>
@@ -125,6 +126,12 @@ absl::StatusOr<std::map<std::string, std::vector<double>>> ReadCsvColumns(const 
       if (!absl::SimpleAtod(cells[i], &v)) {
         return absl::DataLossError(
             absl::StrCat(path, " row ", row, " column ", names[i], ": not a number"));
+      }
+      // SimpleAtod reads "nan", which no run writes; taken in, it would flip
+      // the summary's comparisons quietly.
+      if (std::isnan(v)) {
+        return absl::DataLossError(
+            absl::StrCat(path, " row ", row, " column ", names[i], ": NaN, which no run writes"));
       }
       columns[names[i]].push_back(v);
     }

@@ -51,6 +51,8 @@ class TimeseriesWriter {
 };
 
 // The columns of a CSV file written by TimeseriesWriter, by header name.
+// DataLossError for a ragged row, a cell that is not a number, or NaN;
+// ±inf are read (a front of no material is −inf).
 absl::StatusOr<std::map<std::string, std::vector<double>>> ReadCsvColumns(const std::string& path);
 
 // What a finished run (or `mpm_client summarise`) writes from

@@ -1,15 +1,20 @@
-// The headline figures of summary.json from hand-made timeseries columns.
+// The headline figures of summary.json from hand-made timeseries columns,
+// and the timeseries reader that `summarise` feeds them from.
 #include "mpm_client/summary.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdint>
+#include <fstream>
 #include <limits>
 #include <map>
 #include <numbers>
 #include <string>
 #include <vector>
+
+#include "absl/strings/match.h"
+#include "mpm_client/output.h"
 
 namespace rvehub::mpm {
 namespace {
@@ -394,6 +399,35 @@ TEST(SummaryTest, PipeStagesSmoothedPeakAndLateralMedians) {
   // Columns of different lengths are refused.
   c["pipe_dx"].pop_back();
   EXPECT_FALSE(Summarise(pipe, c).ok());
+}
+
+// summarise reads DIR/timeseries.csv back: a damaged file is refused with
+// the row and column, never summarised from made-up values. A NaN pasted
+// into a footing's load column used to pass and flip ultimate_is_peak.
+TEST(TimeseriesReaderTest, DamagedRowsAreDataLossNamingRowAndColumn) {
+  const std::string path = ::testing::TempDir() + "/summary_test_timeseries.csv";
+  auto read = [&](const std::string& text) {
+    std::ofstream(path, std::ios::trunc) << text;
+    return ReadCsvColumns(path);
+  };
+  const auto good = read("time,load,front_x\n0,1.5,-inf\n0.1,2.5,3\n");
+  ASSERT_TRUE(good.ok()) << good.status();
+  EXPECT_EQ(good->at("load"), (std::vector<double>{1.5, 2.5}));
+  EXPECT_EQ(good->at("front_x")[0], -std::numeric_limits<double>::infinity());  // no material
+
+  const std::vector<std::pair<std::string, std::string>> damaged = {
+      {"", " is empty"},
+      {"time,load,front_x\n0,1.5\n", " row 2 has 2 values for 3 columns"},
+      {"time,load,front_x\n0,1.5,2\n0.1,2x5,3\n", " row 3 column load: not a number"},
+      {"time,load,front_x\n0,nan,2\n", " row 2 column load: NaN, which no run writes"},
+      {"time,load,front_x\n0,1,-NaN\n", " row 2 column front_x: NaN, which no run writes"},
+  };
+  for (const auto& [text, message] : damaged) {
+    const auto r = read(text);
+    ASSERT_FALSE(r.ok()) << text;
+    EXPECT_EQ(r.status().code(), absl::StatusCode::kDataLoss) << r.status();
+    EXPECT_TRUE(absl::EndsWith(r.status().message(), message)) << r.status();
+  }
 }
 
 }  // namespace
