@@ -10,9 +10,11 @@
 #include <map>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "absl/status/statusor.h"
 #include "absl/strings/match.h"
+#include "absl/strings/str_cat.h"
 #include "gtest/gtest.h"
 #include "rve_server/engine/material.h"
 #include "rve_server/engine/prepare.h"
@@ -182,6 +184,23 @@ TEST(PreparationTest, TemplatePackedToAnotherVoidRatio) {
         PrepareTemplate("saturated-medium", 1, {.pressure = 20e3, .void_ratio = e}).status().code(),
         absl::StatusCode::kInvalidArgument)
         << e;
+  }
+}
+
+// A target the preparation cannot pack to is refused, naming the bound it
+// met, instead of giving (and naming for the target) another packing: below
+// the frictionless compaction's e, or above the one at the material's
+// friction. 100 discs keep it short.
+TEST(PreparationTest, TemplateVoidRatioOutOfReachIsRefusedNamingTheBound) {
+  for (const auto& [e, bound] :
+       std::vector<std::pair<double, std::string>>{{0.05, "the densest"}, {0.9, "the loosest"}}) {
+    const absl::Status s =
+        PrepareTemplate("SET-dense", 1, {.void_ratio = e, .num_particles = 100}).status();
+    EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument) << s;
+    EXPECT_TRUE(absl::StrContains(
+        s.message(), absl::StrCat("target void ratio ", e, " is out of reach: ", bound,
+                                  " SET-dense packs at 100000 Pa (seed 1, 100 discs), compacted ")))
+        << s;
   }
 }
 

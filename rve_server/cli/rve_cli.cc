@@ -154,7 +154,8 @@ Options:
   --pressure=PA      pressure the packing is compacted at, Pa (local only; default the set's
                      p0); --confining then loads or unloads it from there
   --void-ratio=E     target void ratio of the packing at --pressure, in (0, 1) (local only;
-                     default the set's e0)
+                     default the set's e0; refused when out of the preparation's reach,
+                     as for prepare)
   --particles=N      discs in the packing, in [2, 1e6] (local only; default the set's, e.g.
                      400): a larger sample of the same material
   --rolling-eta=H    η of the rolling-resistance limit |M| ≤ η·r_min·fn, in [0, 1], instead
@@ -189,7 +190,8 @@ Options:
                      set's e0 is then sought at this pressure
   --void-ratio=E     target void ratio in (0, 1) instead of the set's e0 (the same material
                      packed denser or looser; the compaction friction, between 0 and the
-                     material's, bounds what can be reached: the e0 reached is printed)
+                     material's, bounds what can be reached: a target beyond that by more
+                     than 0.002 is refused, naming the bound; the e0 reached is printed)
   --particles=N      discs in the packing, in [2, 1e6] (default the set's count)
   --rolling-eta=H    η of the rolling-resistance limit |M| ≤ η·r_min·fn, in [0, 1], instead
                      of the set's (sets with rolling resistance, β > 0): another material

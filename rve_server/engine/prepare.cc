@@ -181,8 +181,10 @@ absl::StatusOr<RveSnapshot> PreparePacking(
   // between μ = 0 (densest) and the material friction (loosest).
   ASSIGN_OR_RETURN(Trial lo, compact(0.0));
   Trial best = lo;
+  double loosest = 0.0;
   if (target > 0 && lo.void_ratio < target - kVoidRatioTolerance) {
     ASSIGN_OR_RETURN(Trial hi, compact(set.material.friction));
+    loosest = hi.void_ratio;
     if (std::abs(hi.void_ratio - target) < std::abs(best.void_ratio - target)) best = hi;
     Trial a = lo, b = hi;
     while (b.void_ratio > target + kVoidRatioTolerance && trials < kMaxTrials &&
@@ -209,8 +211,14 @@ absl::StatusOr<RveSnapshot> PreparePacking(
   out.total_steps = 0;
   out.reference_cell = out.cell;  // strains count from the prepared state
   if (report != nullptr) {
-    *report = {best.friction, trials, e0, final_state.MeanPressure(), final_state.coordination,
-               steps};
+    *report = {.compaction_friction = best.friction,
+               .trials = trials,
+               .void_ratio = e0,
+               .pressure = final_state.MeanPressure(),
+               .coordination = final_state.coordination,
+               .steps = steps,
+               .densest_void_ratio = lo.void_ratio,
+               .loosest_void_ratio = loosest};
   }
   return out;
 }
@@ -258,7 +266,29 @@ absl::StatusOr<RveSnapshot> PrepareTemplate(
   if (progress) {
     progress(absl::StrFormat("%d discs, seed %d", set.preparation.num_particles, seed));
   }
-  return PreparePacking(set, {}, report, progress);
+  PreparationReport r;
+  ASSIGN_OR_RETURN(RveSnapshot packing, PreparePacking(set, {}, &r, progress));
+  // A target out of the steering's reach would give a packing that is not
+  // the one asked for (and named for): refused, with the bound it met.
+  if (const double e = variant.void_ratio; e != 0) {
+    const std::string at =
+        absl::StrFormat("%s packs at %.6g Pa (seed %d, %d discs)", parameter_set,
+                        set.preparation.pressure, seed, set.preparation.num_particles);
+    if (e < r.densest_void_ratio - kVoidRatioTolerance) {
+      return absl::InvalidArgumentError(absl::StrFormat(
+          "target void ratio %g is out of reach: the densest %s, compacted without friction, "
+          "is e = %.4f",
+          e, at, r.densest_void_ratio));
+    }
+    if (r.loosest_void_ratio > 0 && e > r.loosest_void_ratio + kVoidRatioTolerance) {
+      return absl::InvalidArgumentError(absl::StrFormat(
+          "target void ratio %g is out of reach: the loosest %s, compacted at its material "
+          "friction %g, is e = %.4f",
+          e, at, set.material.friction, r.loosest_void_ratio));
+    }
+  }
+  if (report != nullptr) *report = r;
+  return packing;
 }
 
 std::string TemplateName(absl::string_view parameter_set, std::uint64_t seed,

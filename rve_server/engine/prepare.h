@@ -23,6 +23,11 @@ struct PreparationReport {
   double pressure = 0.0;             // p0 reached, Pa (compression +)
   double coordination = 0.0;         // [-]
   std::int64_t steps = 0;            // DEM steps over all trials
+  // The steering's reach at p0, [-]: e of the frictionless compaction (the
+  // densest it packs) and of the one at the material's friction (the
+  // loosest; 0 when not run, the target lying at or below the densest).
+  double densest_void_ratio = 0.0;
+  double loosest_void_ratio = 0.0;
 };
 
 // Consolidates isotropically to p (Pa, compression +) by a cell servo, then
@@ -80,7 +85,8 @@ struct TemplateVariant {
   double pressure = 0;
   // Target e0 instead of the set's (0: the set's): the same material packed
   // denser or looser. The compaction friction, between 0 and the material's,
-  // bounds what can be reached; the report gives the e0 reached.
+  // bounds what can be reached: a target beyond it is refused (below); the
+  // report gives the e0 reached.
   double void_ratio = 0;
   // Discs instead of the set's count (0: the set's): a larger (or smaller)
   // sample of the same material, e.g. to see how much of an element test's
@@ -99,8 +105,13 @@ struct TemplateVariant {
 // for an unknown name; InvalidArgument for a pressure outside
 // (0, kMaxPressure], a void ratio outside (0, 1), a count outside
 // [2, kMaxParticles], an η outside [0, kMaxRollingEta] or an η for a set
-// without rolling resistance. `progress`, when set, first receives
-// "N discs, seed S", then PreparePacking's lines.
+// without rolling resistance. InvalidArgument, after the compactions that
+// find it, for a void ratio the set does not pack to at that pressure and
+// seed: denser than its frictionless compaction or looser than the one at
+// its material friction, by more than the steering's tolerance (0.002); the
+// message gives that bound. (A set's own e0 is steered toward the same way
+// but never refused: it is the set's, not the caller's.) `progress`, when
+// set, first receives "N discs, seed S", then PreparePacking's lines.
 absl::StatusOr<RveSnapshot> PrepareTemplate(
     absl::string_view parameter_set, std::uint64_t seed, const TemplateVariant& variant = {},
     PreparationReport* report = nullptr,
