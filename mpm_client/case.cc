@@ -147,6 +147,10 @@ enum class Need { kOptional, kRequired };
 // physical range have tighter bounds): products of a few case values, such as
 // ρ·|g|·depth, then stay far from overflow.
 constexpr double kMaxMagnitude = 1e12;
+// And a number that must be > 0 is at least 1e-12: a thickness, density or
+// permeability of 1e-308 passed as positive, then its quotients overflowed
+// to NaN mid-run (points "at (nan, nan)", a pressure solve "not converged").
+constexpr double kMinPositive = 1e-12;
 
 // An allowed interval of a real number, open or closed at either end.
 struct Range {
@@ -155,14 +159,20 @@ struct Range {
   bool lo_open = false;
   bool hi_open = false;
 
+  bool MustBePositive() const { return lo == 0.0 && lo_open; }
   bool Contains(double x) const {
+    if (MustBePositive() && x < kMinPositive) return false;
     return (lo_open ? x > lo : x >= lo) && (hi_open ? x < hi : x <= hi);
   }
-  // What is wrong with x; the generic magnitude bound is only named when x
-  // breaks it.
+  // What is wrong with x; the generic bounds on magnitude are only named
+  // when x breaks them.
   std::string Rule(double x) const {
     if (std::isfinite(x) && ((hi == kMaxMagnitude && x > hi) || (lo == -kMaxMagnitude && x < lo))) {
       return absl::StrCat("must be at most ", Num(kMaxMagnitude), " in magnitude");
+    }
+    if (MustBePositive() && x > 0.0 && x < kMinPositive) {
+      return absl::StrCat("must be at least ", Num(kMinPositive),
+                          " (the smallest positive value a case takes)");
     }
     const double low = lo == -kMaxMagnitude ? -kInf : lo;
     const double high = hi == kMaxMagnitude ? kInf : hi;

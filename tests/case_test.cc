@@ -594,6 +594,11 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
       {"/grid/cell_size", 1e13, "/grid/cell_size: must be at most 1e+12 in magnitude, got 1e+13"},
       {"/solver/time_step", -1e-3, "/solver/time_step: must be in [0, 1000000], got -0.001"},
       {"/solver/thickness", 0, "/solver/thickness: must be > 0, got 0"},
+      // Positive numbers have a floor too (1e-308 overflowed mid-run to NaN).
+      {"/solver/thickness", 1e-308,
+       "/solver/thickness: must be at least 1e-12 (the smallest positive value a case takes), "
+       "got 1e-308"},
+      {"/solver/cfl", 1e-13, "/solver/cfl: must be at least 1e-12"},
       {"/grid/cell_size", -0.5, "/grid/cell_size: must be > 0, got -0.5"},
       {"/regions/0/points_per_cell_side", 0,
        "/regions/0/points_per_cell_side: must be an integer in 1..8, got 0"},
