@@ -263,7 +263,12 @@ absl::Status WriteCasePlot(const CaseSpec& spec,
 absl::StatusOr<Summary> WriteRunOutputs(const CaseSpec& spec, const std::string& dir) {
   const std::string csv = dir + "/timeseries.csv";
   ASSIGN_OR_RETURN(const auto columns, ReadCsvColumns(csv));
-  ASSIGN_OR_RETURN(Summary summary, Summarise(spec, columns));
+  absl::StatusOr<Summary> summarised = Summarise(spec, columns);
+  if (!summarised.ok()) {  // e.g. a run too short for its curve: say which step failed
+    return absl::Status(summarised.status().code(),
+                        absl::StrCat("no summary from ", csv, ": ", summarised.status().message()));
+  }
+  Summary summary = *std::move(summarised);
   if (!summary.empty()) RETURN_IF_ERROR(WriteSummary(dir + "/summary.json", spec.name, summary));
   RETURN_IF_ERROR(WriteCasePlot(spec, columns, summary, csv, dir + "/plot.png"));
   return summary;

@@ -457,6 +457,22 @@ TEST(MpmCliTest, SummariseRewritesTheRunsSummary) {
   EXPECT_EQ(r.exit_code, 0) << r;
   EXPECT_TRUE(absl::StrContains(r.out, "summary: final_strain = ")) << r.out;
   EXPECT_EQ(ReadFile(run.dir + "/summary.json"), written);
+
+  // A damaged timeseries (a NaN pasted into its last row) is refused with
+  // its row and column, and no summary is written from it.
+  const std::string damaged = TempPath("damaged-timeseries");
+  fs::create_directories(damaged);
+  std::string csv = ReadFile(run.dir + "/timeseries.csv");
+  ASSERT_TRUE(csv.ends_with("\n"));
+  const std::size_t last_row = csv.rfind('\n', csv.size() - 2) + 1;
+  csv.replace(last_row, csv.find(',', last_row) - last_row, "nan");  // its time
+  std::ofstream(damaged + "/timeseries.csv") << csv;
+  const Result bad =
+      RunClient(absl::StrCat("summarise ", Quote(case_path), " --out=", Quote(damaged)));
+  EXPECT_EQ(bad.exit_code, 1) << bad;
+  EXPECT_TRUE(absl::StrContains(bad.err, " column time: NaN, which no run writes")) << bad;
+  EXPECT_FALSE(fs::exists(damaged + "/summary.json"));
+
   EXPECT_EQ(RunClient(absl::StrCat("summarise ", Quote(case_path))).exit_code, 2);
   EXPECT_EQ(RunClient(absl::StrCat("summarise ", Quote(case_path), " --out=", Quote(run.dir),
                                    " --threads=2"))
