@@ -285,6 +285,30 @@ TEST(PreparationTest, AConsolidationThatCannotConvergeIsAFailedPrecondition) {
       << packing.status();
 }
 
+// A stress the soft contacts cannot carry as a packing is refused, not
+// prepared: at 10 MPa SET-dense's discs overlap past its voids (e < 0; the
+// permeability coefficient, computed from e, was the first thing to fail).
+// 100 discs at 100 kPa, then 10 MPa on that packing as the registry
+// consolidates a point to its stress. Measured: e −0.22 at 10 MPa.
+TEST(PreparationTest, AStressThatSqueezesThePackingPastEZeroIsRefused) {
+  const absl::StatusOr<RveSnapshot> packing =
+      PrepareTemplate("SET-dense", 1, {.num_particles = 100});
+  ASSERT_TRUE(packing.ok()) << packing.status();
+  absl::StatusOr<Rve> rve = Rve::Create(*packing);
+  ASSERT_TRUE(rve.ok()) << rve.status();
+  const absl::StatusOr<RveState> s = ConsolidateIsotropic(*rve, 10e6);
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument) << s.status();
+  EXPECT_TRUE(absl::StrContains(s.status().message(),
+                                "consolidation to σxx = 1e+07 Pa, σyy = 1e+07 Pa squeezes the "
+                                "discs into each other past any packing (e = -"))
+      << s.status();
+  const absl::Status prepared =
+      PrepareTemplate("SET-dense", 1, {.pressure = 10e6, .num_particles = 100}).status();
+  EXPECT_EQ(prepared.code(), absl::StatusCode::kInvalidArgument) << prepared;
+  EXPECT_TRUE(absl::StrContains(prepared.message(), "past any packing")) << prepared;
+}
+
 // PrepareTemplate's pressure: the set's e0 sought at that pressure. A
 // template compacted at 100 kPa and unloaded to 20 kPa swells instead
 // (saturated-medium seed 1: e 0.2329 → 0.2432, coordination 3.22 → 2.66),

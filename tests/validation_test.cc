@@ -225,6 +225,26 @@ TEST(ApplyTest, CellThinnerThanTheCutoffEvenDoubledIsAFailedPrecondition) {
   ExpectIdenticalPackings(rve.ToSnapshot(), before);
 }
 
+// ΔF whose volume change would leave e ≤ 0 (the cell's area below the
+// discs' own) is refused before anything moves: e after ΔF is geometry
+// alone. Just above that it runs.
+TEST(ApplyTest, SqueezingTheCellBelowTheDiscsAreaIsRefused) {
+  RveSnapshot p = Loaded();
+  p.controls.max_stretch = 2.0;  // let the stretch limit pass
+  Rve rve = CreateOrDie(p);
+  const RveSnapshot before = rve.ToSnapshot();
+  const double e = rve.Observe().void_ratio;
+  ASSERT_GT(e, 0.0);
+  const double to_zero = 1.0 / (1.0 + e);  // det ΔF that makes e = 0
+  const absl::StatusOr<RveState> s = rve.Apply(Diag(to_zero * 0.999, 1.0));
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument) << s.status();
+  EXPECT_TRUE(HasSubstr(s.status().message(), "would squeeze the cell below the discs' own area"))
+      << s.status();
+  ExpectIdenticalPackings(rve.ToSnapshot(), before);
+  EXPECT_TRUE(rve.Apply(Diag(1.0 - 0.5 * (1.0 - to_zero), 1.0)).ok());
+}
+
 // --- Create. ---
 
 struct CreateCase {

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "rve_server/common/status_macros.h"
 #include "rve_server/engine/rve.h"
 #include "rve_server/engine/rve_internal.h"
@@ -74,6 +75,15 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
         "ΔF would make the periodic cell too large for its particles (neighbour-grid limit)");
   }
 
+  // e after ΔF is geometry alone, (det ΔF·A − A_s)/A_s: one at or below 0
+  // has the discs' overlaps exceeding the voids, no packing at all.
+  if (const double e = (f.determinant() * p_.cell.determinant() - solid_area_) / solid_area_;
+      !(e > 0)) {
+    return absl::InvalidArgumentError(absl::StrFormat(
+        "ΔF (det %.6g) would squeeze the cell below the discs' own area: e = %.4g ≤ 0 is no "
+        "packing",
+        f.determinant(), e));
+  }
   // p before the rotation (which leaves it unchanged): after an increment
   // it is known from that increment's last step.
   const double pressure = MeanPressure();

@@ -59,6 +59,14 @@ absl::StatusOr<RveState> ConsolidateToStress(Rve& rve, double sxx, double syy, d
     return s.num_contacts > 0 && std::abs(s.MeanPressure() - p) < kPressureTolerance * p &&
            deviator_error < kPressureTolerance * p;
   };
+  // e ≤ 0 is no packing: the stress is beyond what the soft contacts model.
+  auto squeezed = [&](const RveState& s) {
+    return absl::InvalidArgumentError(absl::StrFormat(
+        "consolidation to σxx = %.4g Pa, σyy = %.4g Pa squeezes the discs into each other past "
+        "any packing (e = %.4g ≤ 0: their overlaps exceed the voids): the stress is beyond what "
+        "this material's contacts (E = %.4g MPa) model",
+        sxx, syy, s.void_ratio, rve.material().young_modulus * 1e-6));
+  };
   std::int64_t done = 0;
   for (int round = 0; round < kMaxRounds; ++round) {
     RveState s = rve.Observe();
@@ -86,11 +94,13 @@ absl::StatusOr<RveState> ConsolidateToStress(Rve& rve, double sxx, double syy, d
     done += s.steps;
     if (close(s) && s.unbalanced_force_ratio < balance) {
       if (steps != nullptr) *steps += done;
+      if (!(s.void_ratio > 0)) return squeezed(s);
       return s;
     }
   }
   if (steps != nullptr) *steps += done;
   const RveState s = rve.Observe();
+  if (!(s.void_ratio > 0)) return squeezed(s);
   // Not DeadlineExceeded: no deadline passed, and a client would take that
   // for a hung server and retry what fails the same way every time.
   return absl::FailedPreconditionError(absl::StrFormat(

@@ -175,7 +175,8 @@ class Rve {
   // minimum image needs it) first doubles the cell along the thin direction
   // (DoubleCell); FailedPrecondition, with the RVE untouched, only where that
   // would pass kMaxParticles. InvalidArgument too, before anything changes, when
-  // the increment would take more than kMaxStepsPerApply DEM steps or the
+  // the increment would take more than kMaxStepsPerApply DEM steps, would
+  // leave e ≤ 0 (the cell's area below the discs' own: no packing), or the
   // options are out of range. `interrupt` (optional) is asked between steps;
   // when it stops the increment, the RVE is restored to its state before
   // the call and that status is returned.
