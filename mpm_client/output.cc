@@ -264,7 +264,7 @@ absl::StatusOr<Summary> WriteRunOutputs(const CaseSpec& spec, const std::string&
   const std::string csv = dir + "/timeseries.csv";
   ASSIGN_OR_RETURN(const auto columns, ReadCsvColumns(csv));
   absl::StatusOr<Summary> summarised = Summarise(spec, columns);
-  if (!summarised.ok()) {  // e.g. a run too short for its curve: say which step failed
+  if (!summarised.ok()) {  // e.g. a run too short for its curve: the run itself ended
     return absl::Status(summarised.status().code(),
                         absl::StrCat("no summary from ", csv, ": ", summarised.status().message()));
   }
