@@ -1814,6 +1814,22 @@ absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::strin
       return Bad(root.At("solver") + "/time_step_update_every",
                  "an updated time step is for dry cases only");
     }
+    // A drained free surface holds p = 0, so water at rest fills the soil to
+    // its top. A table above it (free water over the soil, not modelled)
+    // started a pressure shock: 10 m over cyclic-shaking-medium-ci's 1 m
+    // box gave 1.8 J of kinetic energy in the first step against 0.04 J.
+    if (const double table = spec.phases.water_table; spec.phases.drained_free_surface &&
+                                                      spec.solver.gravity.norm() > 0.0 &&
+                                                      std::isfinite(table)) {
+      double top = -kInf;  // m
+      for (const MaterialRegion& r : spec.regions) top = std::max(top, r.upper.y());
+      if (table > top + 1e-9 * std::max(1.0, std::abs(top))) {
+        return Bad(root.At("phases") + "/water_table", "y = ", Num(table),
+                   " m lies above the soil's top, y = ", Num(top),
+                   " m: free water over the soil is not modelled (the drained free surface "
+                   "holds p = 0); put the table at the top");
+      }
+    }
   }
   if (const double radius = spec.solver.nonlocal_radius; radius > 0.0) {
     const std::string at = root.At("solver") + "/nonlocal_radius";

@@ -924,6 +924,26 @@ TEST(CaseFuzz, MutatedShippedCasesAreAcceptedOrRefusedByPointer) {
   EXPECT_LT(accepted, iterations);
 }
 
+// A water table above the soil's top is refused where the free surface
+// drains (it holds p = 0: free water over the soil is not modelled); at the
+// top, as the shipped cases set it, or below it, it is read.
+TEST(SaturatedCase, AWaterTableAboveTheSoilIsRefused) {
+  const fs::path path = fs::path(RVEHUB_SOURCE_DIR) / "cases" / "cyclic-shaking-medium-ci.json";
+  std::ifstream in(path);
+  Json doc = Json::parse(in);
+  for (const double table : {1.0, 0.5}) {
+    doc["phases"]["water_table"] = table;
+    EXPECT_TRUE(ParseCase(doc.dump(), path.parent_path().string()).ok()) << table;
+  }
+  doc["phases"]["water_table"] = 11.0;
+  const absl::StatusOr<CaseSpec> above = ParseCase(doc.dump(), path.parent_path().string());
+  ASSERT_FALSE(above.ok());
+  EXPECT_EQ(above.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_TRUE(absl::StrContains(above.status().message(),
+                                "/phases/water_table: y = 11 m lies above the soil's top, y = 1 m"))
+      << above.status();
+}
+
 // Bad hydraulic input in a saturated case (the shipped consolidation-1d-ci)
 // names its pointer: k <= 0, porosity outside (0, 1), a drained line no soil
 // reaches, no drained boundary at all, a monitor outside the soil, a free
