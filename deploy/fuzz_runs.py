@@ -100,8 +100,11 @@ def main():
             path = os.path.join(args.work, "case.json")
             with open(path, "w") as f:
                 json.dump(doc, f)
-            check = subprocess.run([args.binary, "check", path], capture_output=True, text=True,
-                                   env=env, timeout=args.timeout)
+            try:
+                check = subprocess.run([args.binary, "check", path], capture_output=True,
+                                       text=True, env=env, timeout=args.timeout)
+            except subprocess.TimeoutExpired:  # reading a case must not hang either
+                check = subprocess.CompletedProcess([], None, "", "")
             if check.returncode == 0:
                 out = os.path.join(args.work, "out")
                 shutil.rmtree(out, ignore_errors=True)
@@ -118,7 +121,7 @@ def main():
                 seconds = time.time() - start
             else:
                 rc, err, seconds = check.returncode, check.stderr, 0.0
-                if rc > 0:  # refused when read: not run
+                if rc is not None and rc > 0:  # refused when read: not run
                     counts["not read"] = counts.get("not read", 0) + 1
                     continue
             if rc is None:
