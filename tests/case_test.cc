@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <string>
@@ -22,6 +23,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "gtest/gtest.h"
+#include "mpm_client/elastic.h"
 #include "mpm_client/solver.h"
 #include "tests/env_util.h"
 
@@ -815,6 +817,64 @@ void CollectPointers(const Json& j, const Json::json_pointer& at,
   }
 }
 
+// One to three random edits of a case (CaseFuzz): delete a field or element,
+// add an unknown key, scale a number, or put an absurd value anywhere.
+// Returns what was done, for the failure message.
+std::string MutateCase(Json& doc, std::mt19937_64& rng) {
+  static const std::vector<Json> absurd = {0,
+                                           -1,
+                                           1,
+                                           2147483648.0,
+                                           -2147483649.0,
+                                           9.3e18,
+                                           -9.3e18,
+                                           1e308,
+                                           -1e308,
+                                           1e-308,
+                                           -0.0,
+                                           std::numeric_limits<std::int64_t>::max(),
+                                           std::numeric_limits<std::int64_t>::min(),
+                                           "",
+                                           "x",
+                                           "NaN",
+                                           "inf",
+                                           true,
+                                           nullptr,
+                                           Json::array(),
+                                           Json::object(),
+                                           Json::array({1e308, -1e308}),
+                                           Json::array({0, 0, 0}),
+                                           Json::array({"a", "b"})};
+  auto pick = [&rng](std::size_t n) { return static_cast<std::size_t>(rng() % n); };
+  const int edits = 1 + static_cast<int>(pick(3));
+  std::string what;
+  for (int e = 0; e < edits; ++e) {
+    std::vector<Json::json_pointer> pointers;
+    CollectPointers(doc, Json::json_pointer(), &pointers);
+    const Json::json_pointer ptr = pointers[pick(pointers.size())];
+    const std::string at = ptr.to_string();
+    const int kind = static_cast<int>(pick(8));
+    if (kind == 0 && !at.empty()) {  // delete the field or element
+      Json& parent = doc[ptr.parent_pointer()];
+      if (parent.is_object()) parent.erase(ptr.back());
+      if (parent.is_array()) parent.erase(static_cast<std::size_t>(std::stoul(ptr.back())));
+      absl::StrAppend(&what, " delete ", at, ";");
+    } else if (kind == 1 && doc[ptr].is_object()) {  // an unknown key
+      doc[ptr]["unknown_key"] = 1;
+      absl::StrAppend(&what, " unknown key in ", at, ";");
+    } else if (kind == 2 && doc[ptr].is_number()) {  // a nearby or scaled number
+      const double x = doc[ptr].get<double>();
+      const double factors[] = {-1.0, 0.5, 2.0, 1e3, 1e-3, 1.0000001};
+      doc[ptr] = x * factors[pick(6)];
+      absl::StrAppend(&what, " ", at, " = ", doc[ptr].dump(), ";");
+    } else if (!at.empty()) {
+      doc[ptr] = absurd[pick(absurd.size())];
+      absl::StrAppend(&what, " ", at, " = ", doc[ptr].dump(), ";");
+    }
+  }
+  return what;
+}
+
 // Hostile case files: the shipped cases with one to three fields replaced by
 // absurd values (huge, tiny, negative, beyond int64, wrong types, empty
 // containers), deleted, or joined by an unknown key. ParseCase must either
@@ -837,62 +897,13 @@ TEST(CaseFuzz, MutatedShippedCasesAreAcceptedOrRefusedByPointer) {
   std::sort(cases.begin(), cases.end(),
             [](const auto& a, const auto& b) { return a.first < b.first; });
   ASSERT_FALSE(cases.empty());
-  const std::vector<Json> absurd = {0,
-                                    -1,
-                                    1,
-                                    2147483648.0,
-                                    -2147483649.0,
-                                    9.3e18,
-                                    -9.3e18,
-                                    1e308,
-                                    -1e308,
-                                    1e-308,
-                                    -0.0,
-                                    std::numeric_limits<std::int64_t>::max(),
-                                    std::numeric_limits<std::int64_t>::min(),
-                                    "",
-                                    "x",
-                                    "NaN",
-                                    "inf",
-                                    true,
-                                    nullptr,
-                                    Json::array(),
-                                    Json::object(),
-                                    Json::array({1e308, -1e308}),
-                                    Json::array({0, 0, 0}),
-                                    Json::array({"a", "b"})};
   std::mt19937_64 rng(seed);
   auto pick = [&rng](std::size_t n) { return static_cast<std::size_t>(rng() % n); };
   std::int64_t accepted = 0, filled = 0;
   for (std::int64_t it = 0; it < iterations; ++it) {
     const auto& [name, base] = cases[pick(cases.size())];
     Json doc = base;
-    const int edits = 1 + static_cast<int>(pick(3));
-    std::string what;
-    for (int e = 0; e < edits; ++e) {
-      std::vector<Json::json_pointer> pointers;
-      CollectPointers(doc, Json::json_pointer(), &pointers);
-      const Json::json_pointer ptr = pointers[pick(pointers.size())];
-      const std::string at = ptr.to_string();
-      const int kind = static_cast<int>(pick(8));
-      if (kind == 0 && !at.empty()) {  // delete the field or element
-        Json& parent = doc[ptr.parent_pointer()];
-        if (parent.is_object()) parent.erase(ptr.back());
-        if (parent.is_array()) parent.erase(static_cast<std::size_t>(std::stoul(ptr.back())));
-        absl::StrAppend(&what, " delete ", at, ";");
-      } else if (kind == 1 && doc[ptr].is_object()) {  // an unknown key
-        doc[ptr]["unknown_key"] = 1;
-        absl::StrAppend(&what, " unknown key in ", at, ";");
-      } else if (kind == 2 && doc[ptr].is_number()) {  // a nearby or scaled number
-        const double x = doc[ptr].get<double>();
-        const double factors[] = {-1.0, 0.5, 2.0, 1e3, 1e-3, 1.0000001};
-        doc[ptr] = x * factors[pick(6)];
-        absl::StrAppend(&what, " ", at, " = ", doc[ptr].dump(), ";");
-      } else if (!at.empty()) {
-        doc[ptr] = absurd[pick(absurd.size())];
-        absl::StrAppend(&what, " ", at, " = ", doc[ptr].dump(), ";");
-      }
-    }
+    const std::string what = MutateCase(doc, rng);
     SCOPED_TRACE(absl::StrCat("iteration ", it, ", ", name, ":", what));
     absl::StatusOr<CaseSpec> spec = ParseCase(doc.dump(), dir.string());
     if (!spec.ok()) {
@@ -942,6 +953,75 @@ TEST(SaturatedCase, AWaterTableAboveTheSoilIsRefused) {
   EXPECT_TRUE(absl::StrContains(above.status().message(),
                                 "/phases/water_table: y = 11 m lies above the soil's top, y = 1 m"))
       << above.status();
+}
+
+// The run stage of CaseFuzz: mutated reduced cases (cases/*-ci.json) that
+// are read and hold at most 5000 points run up to 20 steps with a linear
+// elastic stand-in for their RVEs (E = 20 MPa, ν = 0.3, the time step from its
+// P-wave modulus at the case's CFL; saturated points' n0 0.2 where the case
+// leaves it to the RVEs). Each step ends OK or with an error, never a crash
+// (deploy/sanitize.sh runs it under ASan and UBSan); after an OK step every
+// point's position and stress are finite. deploy/fuzz_runs.py does the same
+// with RVEs, out of CI. Seeded like CaseFuzz:
+//   RVEHUB_RUN_FUZZ_ITERATIONS=20000 RVEHUB_RUN_FUZZ_SEED=7 build/tests/case_test
+TEST(CaseFuzz, AcceptedMutatedCasesRunOrStopWithAnError) {
+  const std::int64_t iterations = testing_env::EnvInt("RVEHUB_RUN_FUZZ_ITERATIONS", 3000);
+  const std::uint64_t seed =
+      static_cast<std::uint64_t>(testing_env::EnvInt("RVEHUB_RUN_FUZZ_SEED", 1));
+  const fs::path dir = fs::path(RVEHUB_SOURCE_DIR) / "cases";
+  std::vector<std::pair<std::string, Json>> cases;
+  for (const fs::directory_entry& entry : fs::directory_iterator(dir)) {
+    if (!entry.path().filename().string().ends_with("-ci.json")) continue;
+    std::ifstream in(entry.path());
+    cases.emplace_back(entry.path().filename().string(), Json::parse(in));
+  }
+  std::sort(cases.begin(), cases.end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
+  ASSERT_FALSE(cases.empty());
+  constexpr double kYoungs = 20e6, kPoisson = 0.3;  // Pa, [-]
+  std::mt19937_64 rng(seed);
+  std::int64_t run = 0, stopped = 0, steps = 0;
+  for (std::int64_t it = 0; it < iterations; ++it) {
+    const auto& [name, base] = cases[rng() % cases.size()];
+    Json doc = base;
+    const std::string what = MutateCase(doc, rng);
+    SCOPED_TRACE(absl::StrCat("iteration ", it, ", ", name, ":", what));
+    absl::StatusOr<CaseSpec> spec = ParseCase(doc.dump(), dir.string());
+    if (!spec.ok() || EstimateSize(*spec).points > 5000) continue;
+    spec->solver.wave_modulus = PWaveModulus(kYoungs, kPoisson);
+    absl::StatusOr<MaterialPoints> points =
+        FillRegions(*spec, std::vector<double>(spec->regions.size(), 2000.0));
+    if (!points.ok()) continue;
+    for (double& n0 : points->porosity0) {
+      if (!(n0 > 0.0 && n0 < 1.0)) n0 = 0.2;
+    }
+    const std::size_t n = points->size();
+    LinearElasticModel model(kYoungs, kPoisson);
+    model.SetStress(std::vector<Eigen::Matrix3d>(n, Eigen::Matrix3d::Zero()));
+    absl::StatusOr<std::unique_ptr<Solver>> solver =
+        Solver::Create(*spec, *std::move(points), &model);
+    if (!solver.ok() || !((*solver)->dt() > 0.0)) continue;
+    ++run;
+    for (int k = 0; k < 20 && (*solver)->time() < spec->solver.end_time; ++k) {
+      if (!(*solver)->Step().ok()) {
+        ++stopped;
+        break;
+      }
+      ++steps;
+      const MaterialPoints& mp = (*solver)->points();
+      for (std::size_t p = 0; p < mp.size(); ++p) {
+        ASSERT_TRUE(mp.position[p].allFinite() && mp.stress[p].allFinite())
+            << "point " << p << " after step " << (*solver)->step();
+      }
+    }
+  }
+  std::printf(
+      "run fuzz: %lld mutated cases, %lld run, %lld stopped with an error, %lld steps, "
+      "seed %llu\n",
+      static_cast<long long>(iterations), static_cast<long long>(run),
+      static_cast<long long>(stopped), static_cast<long long>(steps),
+      static_cast<unsigned long long>(seed));
+  EXPECT_GT(run, 0);
 }
 
 // Bad hydraulic input in a saturated case (the shipped consolidation-1d-ci)
