@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """Release check: mutated reduced cases that `mpm_client check` accepts are run.
 
-case_test's CaseFuzz stops once a mutated case is read and its points placed;
-this goes on and runs each accepted one for a few steps with the embedded
-server (no network), the way a user's typo would run. Every run must end by
+case_test's CaseFuzz reads mutated cases and runs the accepted ones 20 steps
+with an elastic stand-in for their RVEs; this runs each accepted one for a few
+steps with its RVEs on the embedded server (no network), the way a user's typo
+would run. Every run must end by
 itself: done, or refused with a message. A signal, a sanitizer report or a run
 past --timeout is a finding; the script prints each with its mutation and
 exits 1 if there was any.
