@@ -817,6 +817,20 @@ void CollectPointers(const Json& j, const Json::json_pointer& at,
   }
 }
 
+// The shipped case files in `dir` whose names end with `suffix`, by name.
+std::vector<std::pair<std::string, Json>> ShippedCases(const fs::path& dir,
+                                                       const std::string& suffix) {
+  std::vector<std::pair<std::string, Json>> cases;
+  for (const fs::directory_entry& entry : fs::directory_iterator(dir)) {
+    if (!entry.path().filename().string().ends_with(suffix)) continue;
+    std::ifstream in(entry.path());
+    cases.emplace_back(entry.path().filename().string(), Json::parse(in));
+  }
+  std::sort(cases.begin(), cases.end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
+  return cases;
+}
+
 // One to three random edits of a case (CaseFuzz): delete a field or element,
 // add an unknown key, scale a number, or put an absurd value anywhere.
 // Returns what was done, for the failure message.
@@ -888,14 +902,7 @@ TEST(CaseFuzz, MutatedShippedCasesAreAcceptedOrRefusedByPointer) {
   const std::uint64_t seed =
       static_cast<std::uint64_t>(testing_env::EnvInt("RVEHUB_CASE_FUZZ_SEED", 1));
   const fs::path dir = fs::path(RVEHUB_SOURCE_DIR) / "cases";
-  std::vector<std::pair<std::string, Json>> cases;
-  for (const fs::directory_entry& entry : fs::directory_iterator(dir)) {
-    if (entry.path().extension() != ".json") continue;
-    std::ifstream in(entry.path());
-    cases.emplace_back(entry.path().filename().string(), Json::parse(in));
-  }
-  std::sort(cases.begin(), cases.end(),
-            [](const auto& a, const auto& b) { return a.first < b.first; });
+  const std::vector<std::pair<std::string, Json>> cases = ShippedCases(dir, ".json");
   ASSERT_FALSE(cases.empty());
   std::mt19937_64 rng(seed);
   auto pick = [&rng](std::size_t n) { return static_cast<std::size_t>(rng() % n); };
@@ -969,14 +976,7 @@ TEST(CaseFuzz, AcceptedMutatedCasesRunOrStopWithAnError) {
   const std::uint64_t seed =
       static_cast<std::uint64_t>(testing_env::EnvInt("RVEHUB_RUN_FUZZ_SEED", 1));
   const fs::path dir = fs::path(RVEHUB_SOURCE_DIR) / "cases";
-  std::vector<std::pair<std::string, Json>> cases;
-  for (const fs::directory_entry& entry : fs::directory_iterator(dir)) {
-    if (!entry.path().filename().string().ends_with("-ci.json")) continue;
-    std::ifstream in(entry.path());
-    cases.emplace_back(entry.path().filename().string(), Json::parse(in));
-  }
-  std::sort(cases.begin(), cases.end(),
-            [](const auto& a, const auto& b) { return a.first < b.first; });
+  const std::vector<std::pair<std::string, Json>> cases = ShippedCases(dir, "-ci.json");
   ASSERT_FALSE(cases.empty());
   constexpr double kYoungs = 20e6, kPoisson = 0.3;  // Pa, [-]
   std::mt19937_64 rng(seed);
