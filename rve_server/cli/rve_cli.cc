@@ -174,7 +174,7 @@ Options:
   --inertial-number=I  shearing rate via I = rate·d·sqrt(rho/p) (default 1e-3)
   --cyclic-control=strain|stress  amplitude kind for cyclic-simple-shear (default strain)
   --amplitude=X      shear-strain amplitude, or shear-stress amplitude in Pa (default 0.005)
-  --cycles=N         number of cycles (default 5)
+  --cycles=N         number of cycles (default 5); these three cyclic-simple-shear only
 )";
 
 constexpr char kPrepareHelp[] =
@@ -546,6 +546,15 @@ absl::Status ElementTestCommand(const Flags& flags) {
   spec.kind = *kind;
   if (spec.axis != 1 && !dem::HasLoadingAxis(spec.kind)) {
     return UsageError("--axis applies to drained-biaxial and oedometer only");
+  }
+  // Ignored, they would hide a typo in --test (an --amplitude=-1e308 on a
+  // biaxial test ran).
+  if (spec.kind != dem::ElementTestKind::kCyclicSimpleShear) {
+    for (const char* key : {"amplitude", "cycles", "cyclic-control"}) {
+      if (flags.contains(key)) {
+        return UsageError(absl::StrCat("--", key, " applies to cyclic-simple-shear only"));
+      }
+    }
   }
   if (cyclic == "strain") {
     spec.cyclic_control = dem::CyclicControl::kStrain;
