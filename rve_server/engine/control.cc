@@ -75,10 +75,9 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
         "ΔF would make the periodic cell too large for its particles (neighbour-grid limit)");
   }
 
-  // e after ΔF is geometry alone, (det ΔF·A − A_s)/A_s: one at or below 0
-  // has the discs' overlaps exceeding the voids, no packing at all.
-  if (const double e = (f.determinant() * p_.cell.determinant() - solid_area_) / solid_area_;
-      !(e > 0)) {
+  // e after ΔF is geometry alone (the area det ΔF·A): at or below 0 the
+  // discs' overlaps exceed the voids, no packing at all.
+  if (const double e = VoidRatioOfArea(f.determinant() * p_.cell.determinant()); !(e > 0)) {
     return absl::InvalidArgumentError(absl::StrFormat(
         "ΔF (det %.6g) would squeeze the cell below the discs' own area: e = %.4g ≤ 0 is no "
         "packing",

@@ -91,7 +91,7 @@ RveState Rve::ObserveCommon(bool want_tangent) const {
   s.volume = area * mat.thickness;
   const Eigen::Matrix2d sym = 0.5 * (sums_.stress + sums_.stress.transpose()) / s.volume;
   s.stress.topLeftCorner<2, 2>() = sym;
-  s.void_ratio = (area - solid_area_) / solid_area_;
+  s.void_ratio = VoidRatioOfArea(area);
   s.porosity = s.void_ratio / (1.0 + s.void_ratio);
   const double e = std::max(s.void_ratio, 0.0);
   s.permeability = p_.permeability_coefficient * e * e * e / (1.0 + e);

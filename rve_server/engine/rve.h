@@ -291,6 +291,9 @@ class Rve {
   // The state's stress, volume, void ratio, porosity, permeability, Δt,
   // mass scale and (want_tangent) tangent, from the known stress sums.
   RveState ObserveCommon(bool want_tangent) const;
+  // e of a cell of area A (m²): (A − A_s)/A_s with A_s the discs' own area
+  // (overlaps not taken out), so at or below 0 once they exceed the voids.
+  double VoidRatioOfArea(double area) const { return (area - solid_area_) / solid_area_; }
   void MaybeRebuild();
   void Rebuild(const std::vector<ContactHistory>& history);
   void MaybeFlip();
