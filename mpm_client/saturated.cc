@@ -90,21 +90,36 @@ constexpr double kFitRegularisation = 1e-9;
 
 // Solves the symmetric positive-definite system a x = b by conjugate
 // gradients to kPressureTolerance (kStalledTolerance where it stalls);
-// InternalError naming `what` if it does not converge. `iterations`
-// (optional) gets the count.
+// InternalError naming `what` if it does not converge (with `hint`, the
+// likely cause, when given), or if a value that is not finite comes in (a, b)
+// or out (the error, x) of it: the step that built the system was unstable,
+// and the hint would mislead. `iterations` (optional) gets the count.
 absl::StatusOr<Eigen::VectorXd> SolveSpd(const Eigen::SparseMatrix<double>& a,
                                          const Eigen::VectorXd& b, absl::string_view what,
-                                         int* iterations = nullptr) {
+                                         absl::string_view hint = "", int* iterations = nullptr) {
+  const auto unstable = [&](absl::string_view where) {
+    return absl::InternalError(absl::StrCat(what, " met a value that is not finite ", where,
+                                            ": the solution became unstable (time step too "
+                                            "large?)"));
+  };
+  if (!b.allFinite() || !std::all_of(a.valuePtr(), a.valuePtr() + a.nonZeros(),
+                                     [](double x) { return std::isfinite(x); })) {
+    return unstable("in its matrix or right-hand side");
+  }
   Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper> cg;
   cg.setTolerance(kPressureTolerance);
   cg.setMaxIterations(std::max<Eigen::Index>(1000, 4 * a.rows()));
   cg.compute(a);
   Eigen::VectorXd x = cg.solve(b);
   if (iterations != nullptr) *iterations = static_cast<int>(cg.iterations());
+  if (!x.allFinite() || !std::isfinite(cg.error())) {
+    return unstable(absl::StrCat("in its iterations (", cg.iterations(), ")"));
+  }
   const bool stalled = cg.info() == Eigen::NoConvergence && cg.error() <= kStalledTolerance;
-  if ((cg.info() != Eigen::Success && !stalled) || !x.allFinite()) {
+  if (cg.info() != Eigen::Success && !stalled) {
     return absl::InternalError(absl::StrCat(what, " did not converge (", cg.iterations(),
-                                            " iterations, error ", cg.error(), ")"));
+                                            " iterations, error ", cg.error(), ")",
+                                            hint.empty() ? "" : ": ", hint));
   }
   return x;
 }
@@ -477,9 +492,8 @@ absl::Status Solver::StepSaturated() {
     Eigen::SparseMatrix<double> laplacian(count, count);
     laplacian.setFromTriplets(entries.begin(), entries.end());
     ASSIGN_OR_RETURN(const Eigen::VectorXd solved,
-                     SolveSpd(laplacian, rhs,
-                              "the pore-pressure solve (is every part of the soil connected to a "
-                              "drained boundary?)",
+                     SolveSpd(laplacian, rhs, "the pore-pressure solve",
+                              "is every part of the soil connected to a drained boundary?",
                               &pressure_iterations_));
     for (int i = 0; i < nodes; ++i) {
       if (unknown[i] >= 0) node_delta_[i] = solved[unknown[i]];
@@ -552,6 +566,7 @@ absl::Status Solver::StepSaturated() {
     mp.fluid_velocity[p] = alpha * vf + (1.0 - alpha) * (mp.fluid_velocity[p] + dvf);
     mp.pore_pressure[p] = weight > 0.0 ? pressure / weight : mp.pore_pressure[p];
   }
+  RETURN_IF_ERROR(CheckPointsFinite());
   for (std::size_t k = 0; k < reactions_.size(); ++k) reactions_[k] = impulse_[k] / -dt_;
   time_ += dt_;
   ++step_;

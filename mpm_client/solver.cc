@@ -300,6 +300,42 @@ absl::StatusOr<MaterialPoints> FillRegions(const CaseSpec& spec,
 
 namespace {
 
+// The first field of point p that is not finite, as "velocity (nan, 0) m/s",
+// or "" when every one is. A state with a NaN or an infinity in it cannot be
+// stepped: a NaN position even reads as off the grid, which kDrop would park
+// without a word.
+std::string NonFiniteField(const MaterialPoints& mp, std::size_t p) {
+  // Checked every step: the message is built only for a field that fails.
+  const auto vector = [](const char* name, const Vector2d& v, const char* unit) {
+    return absl::StrCat(name, " ", Format(v), " ", unit);
+  };
+  const auto scalar = [](const char* name, double x, const char* unit) {
+    return absl::StrCat(name, " ", x, unit[0] == '\0' ? "" : " ", unit);
+  };
+  const PointResponse& r = mp.response[p];
+  if (!mp.position[p].allFinite()) return vector("position", mp.position[p], "m");
+  if (!mp.velocity[p].allFinite()) return vector("velocity", mp.velocity[p], "m/s");
+  if (!std::isfinite(mp.mass[p])) return scalar("mass", mp.mass[p], "kg");
+  if (!std::isfinite(mp.volume[p])) return scalar("volume", mp.volume[p], "m³");
+  if (!std::isfinite(mp.volume0[p])) return scalar("initial volume", mp.volume0[p], "m³");
+  if (!mp.half_size0[p].allFinite()) return vector("GIMP half size", mp.half_size0[p], "m");
+  if (!mp.F[p].allFinite()) return "deformation gradient";
+  if (!mp.stress[p].allFinite()) return "stress";
+  if (!r.stress.allFinite()) return "RVE stress";
+  if (!std::isfinite(r.void_ratio)) return scalar("void ratio", r.void_ratio, "");
+  if (!std::isfinite(r.permeability)) return scalar("permeability", r.permeability, "m/s");
+  if (!mp.fluid_velocity[p].allFinite()) {
+    return vector("fluid velocity", mp.fluid_velocity[p], "m/s");
+  }
+  if (!std::isfinite(mp.pore_pressure[p]))
+    return scalar("pore pressure", mp.pore_pressure[p], "Pa");
+  if (!mp.position0[p].allFinite()) return vector("initial position", mp.position0[p], "m");
+  if (!std::isfinite(mp.vertical_stress0[p])) {
+    return scalar("initial vertical stress", mp.vertical_stress0[p], "Pa");
+  }
+  return "";
+}
+
 // num_sources: the case's tractions, which a load's source indexes.
 absl::Status ValidatePoints(const MaterialPoints& points, ShapeKind shape,
                             std::size_t num_sources) {
@@ -312,6 +348,9 @@ absl::Status ValidatePoints(const MaterialPoints& points, ShapeKind shape,
     if (size != n) return Invalid("material points", "arrays differ in length");
   }
   for (std::size_t p = 0; p < n; ++p) {
+    if (const std::string field = NonFiniteField(points, p); !field.empty()) {
+      return Invalid(absl::StrCat("material point ", p), absl::StrCat(field, " is not finite"));
+    }
     if (!(points.mass[p] > 0.0) || !(points.volume[p] > 0.0) || !(points.volume0[p] > 0.0)) {
       return Invalid(absl::StrCat("material point ", p), "mass and volumes must be > 0");
     }
@@ -740,6 +779,14 @@ absl::Status Solver::UpdateStress() {
   model_->SetStressOnly(stress_only_);
   RETURN_IF_ERROR(model_->Update(step_ + 1, rve_delta_f_, response_));
   for (std::size_t p = 0; p < n; ++p) {
+    const PointResponse& r = response_[p];
+    if (!r.stress.allFinite() || !std::isfinite(r.void_ratio) || !std::isfinite(r.permeability)) {
+      return absl::InternalError(absl::StrCat(
+          "the stress model answered material point ", p, " at ", Format(mp.position[p]),
+          " m with a stress, void ratio or permeability that is not finite"));
+    }
+  }
+  for (std::size_t p = 0; p < n; ++p) {
     Matrix2d& f = mp.F[p];
     f = (delta_f_[p].topLeftCorner<2, 2>() * f).eval();
     mp.volume[p] = mp.volume0[p] * f.determinant();
@@ -893,9 +940,21 @@ absl::Status Solver::Step() {
     mp.position[p] = KeepOffWalls(mp.position[p], mp.position[p] + dt_ * v_pic);
     mp.velocity[p] = alpha * v_pic + (1.0 - alpha) * (mp.velocity[p] + dv);
   }
+  RETURN_IF_ERROR(CheckPointsFinite());
   for (std::size_t k = 0; k < reactions_.size(); ++k) reactions_[k] = impulse_[k] / -dt_;
   time_ += dt_;
   ++step_;
+  return absl::OkStatus();
+}
+
+absl::Status Solver::CheckPointsFinite() const {
+  for (std::size_t p = 0; p < points_.size(); ++p) {
+    if (const std::string field = NonFiniteField(points_, p); !field.empty()) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("after the step, material point ", p, "'s ", field,
+                       " is not finite: the solution became unstable (time step too large?)"));
+    }
+  }
   return absl::OkStatus();
 }
 
@@ -1178,6 +1237,12 @@ absl::Status Solver::ImportState(const std::map<std::string, std::vector<double>
     }
   }
   RETURN_IF_ERROR(ValidatePoints(mp, solver_.shape, load_histories_.size()));
+  const double time = (*d["time"])[0], dt = (*d["dt"])[0];
+  const std::int64_t step = (*i["step"])[0];
+  if (!(time >= 0.0 && std::isfinite(time)) || !(dt >= 0.0 && std::isfinite(dt)) || step < 0) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "state time ", time, " s, dt ", dt, " s and step ", step, " must be finite and >= 0"));
+  }
   std::vector<double> node_pressure;
   if (phases_.saturated) {
     ASSIGN_OR_RETURN(const std::vector<double>* f,
@@ -1186,9 +1251,9 @@ absl::Status Solver::ImportState(const std::map<std::string, std::vector<double>
   }
   points_ = std::move(mp);
   for (std::size_t k = 0; k < reactions_.size(); ++k) reactions_[k] = vec2(*d["reactions"], k);
-  time_ = (*d["time"])[0];
-  dt_ = (*d["dt"])[0];
-  step_ = (*i["step"])[0];
+  time_ = time;
+  dt_ = dt;
+  step_ = step;
   Prepare();
   if (phases_.saturated) node_pressure_last_ = std::move(node_pressure);
   return absl::OkStatus();

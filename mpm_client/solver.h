@@ -182,9 +182,13 @@ class Solver {
       const std::map<std::string, std::vector<std::int64_t>>& ints, StressModel* model);
 
   // One explicit USF step of size dt (a saturated case: the semi-implicit
-  // two-phase step, StepSaturated). On error (a point outside the grid, an
-  // inverted point, the model's error) the points are unchanged, but the
-  // model may have advanced.
+  // two-phase step, StepSaturated). On an error up to the stress update (a
+  // point outside the grid, an inverted point, the model's error or a
+  // non-finite response from it) the points are unchanged, but the model may
+  // have advanced; on a later one (a load without nodes, a pressure solve
+  // that fails, a step that leaves a point's state not finite) they are not,
+  // and the run cannot go on from them. Time and step count advance only
+  // with a step that succeeds.
   absl::Status Step();
 
   // Saturated cases: each point's porosity n = 1 − (1 − n0)/J (grains
@@ -289,6 +293,10 @@ class Solver {
   absl::Status AddLoadForces();
   // The two-phase step (saturated.cc).
   absl::Status StepSaturated();
+  // FailedPrecondition naming the first point the step has left with a
+  // field that is not finite (the step was unstable); each step checks this
+  // before it advances the time.
+  absl::Status CheckPointsFinite() const;
   // Impermeable walls and bodies, the water's counterpart of Constrain: the
   // fluid's velocity normal to each wall's line is the wall's at wall_time
   // (0 unless shaken; fluid_fixed_ records the components held), except on

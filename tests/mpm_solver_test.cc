@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <map>
 #include <numbers>
 #include <random>
@@ -1782,6 +1783,47 @@ TEST(SolverErrorsTest, InvalidSpecsAndPointsLeavingTheGrid) {
   EXPECT_NE(s.message().find("material point"), std::string::npos) << s;
 }
 
+// A model whose answer for one point is not finite is named before anything
+// changes; a step that blows up (here a time step 1e200 s long: the free
+// block's edge nodes reach an infinite velocity) stops with the point it
+// left not finite, where before it returned OK, and under kDrop would have
+// parked that point as off the grid without a word.
+TEST(SolverErrorsTest, ANonFiniteAnswerOrStepIsAnErrorNamingThePoint) {
+  const CaseSpec spec = BlockCase(0.1, 6, 6, Vector2d(0.2, 0.2), Vector2d(0.4, 0.4), 1);
+  absl::StatusOr<MaterialPoints> mp = FillRegions(spec);
+  ASSERT_TRUE(mp.ok());
+  const std::size_t n = mp->size();
+  std::vector<Matrix3d> stress(n, -1e5 * Matrix3d::Identity());
+  stress[2](0, 1) = stress[2](1, 0) = std::numeric_limits<double>::quiet_NaN();
+  FixedStressModel nan_model(stress);
+  std::unique_ptr<Solver> solver = *Solver::Create(spec, *mp, &nan_model);
+  solver->set_dt(1e-4);
+  const absl::Status answer = solver->Step();
+  EXPECT_EQ(answer.code(), absl::StatusCode::kInternal);
+  EXPECT_NE(answer.message().find("material point 2 at (0.25, 0.35) m with a stress"),
+            std::string::npos)
+      << answer;
+  EXPECT_EQ(solver->step(), 0);
+  EXPECT_EQ(solver->points().stress, mp->stress);
+  EXPECT_EQ(solver->points().F, mp->F);
+
+  for (LostPointPolicy policy : {LostPointPolicy::kStop, LostPointPolicy::kDrop}) {
+    CaseSpec unstable = spec;
+    unstable.solver.lost_points = policy;
+    FixedStressModel model(std::vector<Matrix3d>(n, -1e5 * Matrix3d::Identity()));
+    solver = *Solver::Create(unstable, *mp, &model);
+    solver->set_dt(1e200);
+    const absl::Status s = solver->Step();
+    EXPECT_EQ(s.code(), absl::StatusCode::kFailedPrecondition);
+    EXPECT_NE(s.message().find("material point 0's position (-inf, -inf) m is not finite"),
+              std::string::npos)
+        << s;
+    EXPECT_NE(s.message().find("became unstable"), std::string::npos) << s;
+    EXPECT_EQ(solver->step(), 0);
+    EXPECT_EQ(solver->time(), 0.0);
+  }
+}
+
 // --- checkpoints
 
 void ExpectBitIdentical(const Solver& a, const Solver& b) {
@@ -1910,7 +1952,25 @@ TEST(CheckpointTest, ExportImportContinuesBitIdentically) {
   const absl::Status named = (*b)->ImportState(doubles, bad_source);
   EXPECT_EQ(named.code(), absl::StatusCode::kInvalidArgument);
   EXPECT_NE(named.message().find("names traction 2"), std::string::npos) << named;
+  // Values that are not finite, or a time before the start.
+  broken = doubles;
+  broken["velocity"][3] = std::numeric_limits<double>::infinity();
+  absl::Status refused = (*b)->ImportState(broken, ints);
+  EXPECT_EQ(refused.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(refused.message().find("material point 1: velocity ("), std::string::npos) << refused;
+  EXPECT_NE(refused.message().find(", inf) m/s is not finite"), std::string::npos) << refused;
+  broken = doubles;
+  broken["response_stress"][9 * 4 + 8] = std::numeric_limits<double>::quiet_NaN();
+  refused = (*b)->ImportState(broken, ints);
+  EXPECT_NE(refused.message().find("material point 4: RVE stress is not finite"), std::string::npos)
+      << refused;
+  broken = doubles;
+  broken["time"][0] = -1.0;
+  refused = (*b)->ImportState(broken, ints);
+  EXPECT_EQ(refused.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(refused.message().find("state time -1 s"), std::string::npos) << refused;
   EXPECT_EQ((*b)->step(), 30);
+  ExpectBitIdentical(*a, **b);
 
   // A history whose times do not increase is refused when the solver is made.
   CaseSpec unordered = spec;

@@ -586,6 +586,41 @@ TEST(TwoPhaseSolverTest, OneTimeStepForEveryPermeability) {
   EXPECT_GT(previous, 0.99 * 10e3);  // k = 1e-6: undrained after 500 steps
 }
 
+// A step that blows up is an error naming what it left not finite, and
+// advances nothing: with a time step 1e200 s long under the surcharge (the
+// drag keeps the intermediate velocities finite) the points' new positions;
+// with one point's water moving at 1e308 m/s, the pressure solve's
+// iterations (its right-hand side is finite, but so large that CG overflows),
+// which is named as unstable rather than blamed on the drainage.
+TEST(TwoPhaseSolverTest, AnUnstableStepIsNamedAndNotBlamedOnTheDrainage) {
+  Column column(1e-3, 0.0);
+  column.Surcharge(10e3);
+  for (bool fast_point : {false, true}) {
+    SCOPED_TRACE(fast_point ? "water at 1e308 m/s" : "dt = 1e200 s");
+    LinearElasticModel model(Column::kYoungs, Column::kPoisson);
+    std::unique_ptr<Solver> solver = MakeSolver(column.spec, &model);
+    ASSERT_NE(solver, nullptr);
+    if (fast_point) {
+      solver->mutable_points().fluid_velocity[0] = Vector2d(0.0, -1e308);
+    } else {
+      solver->set_dt(1e200);
+    }
+    const absl::Status s = solver->Step();
+    EXPECT_EQ(s.code(),
+              fast_point ? absl::StatusCode::kInternal : absl::StatusCode::kFailedPrecondition);
+    EXPECT_NE(s.message().find(fast_point ? "the pore-pressure solve met a value that is not "
+                                            "finite in its iterations"
+                                          : "material point 0's position (0.005, inf) m is not "
+                                            "finite"),
+              std::string::npos)
+        << s;
+    EXPECT_NE(s.message().find("the solution became unstable"), std::string::npos) << s;
+    EXPECT_EQ(s.message().find("drained boundary"), std::string::npos) << s;
+    EXPECT_EQ(solver->step(), 0);
+    EXPECT_EQ(solver->time(), 0.0);
+  }
+}
+
 // Saturated soil of porosity 0.2 from x = 0 to `width` and y = 0 to 1 m on
 // 0.25 m cells (8 × 5), 2 × 2 points per cell, gravity, hydrostatic water to
 // its top, free surface drained; a rough base and a smooth wall at x = 0,
