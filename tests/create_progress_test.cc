@@ -3,7 +3,6 @@
 // reported after each call, and the RVEs are bit for bit those of one call.
 #include <gtest/gtest.h>
 
-#include <cstring>
 #include <memory>
 #include <optional>
 #include <string>
@@ -17,9 +16,7 @@
 namespace rvehub::mpm {
 namespace {
 
-bool SameBits(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
-  return std::memcmp(a.data(), b.data(), sizeof(double) * 9) == 0;
-}
+using dem::testing_util::SameBits;
 
 TEST(CreateProgressTest, ReportsEachCallAndMatchesOneCall) {
   dem::RveSnapshot packing = dem::testing_util::Prepared("SET-dense");

@@ -6,7 +6,6 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <map>
 #include <numbers>
@@ -21,10 +20,12 @@
 #include "mpm_client/nonlocal.h"
 #include "mpm_client/shape.h"
 #include "mpm_client/solver.h"
+#include "tests/test_util.h"
 
 namespace rvehub::mpm {
 namespace {
 
+using dem::testing_util::ExpectSameBits;
 using Eigen::Matrix2d;
 using Eigen::Matrix3d;
 using Eigen::Vector2d;
@@ -1833,12 +1834,7 @@ void ExpectBitIdentical(const Solver& a, const Solver& b) {
   b.ExportState(db, ib);
   ASSERT_EQ(da.size(), db.size());
   for (const auto& [key, values] : da) {
-    const std::vector<double>& other = db.at(key);
-    ASSERT_EQ(values.size(), other.size()) << key;
-    // memcmp must not see the null data() of an empty vector, even for 0 bytes.
-    EXPECT_TRUE(values.empty() ||
-                std::memcmp(values.data(), other.data(), values.size() * sizeof(double)) == 0)
-        << key;
+    ExpectSameBits(values, db.at(key), key.c_str());
   }
   EXPECT_EQ(ia, ib);
 }

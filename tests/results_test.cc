@@ -16,7 +16,6 @@
 #include <csignal>
 #include <cstdint>
 #include <cstdlib>
-#include <cstring>
 #include <filesystem>
 #include <limits>
 #include <map>
@@ -58,12 +57,6 @@ using testing_util::ReplaceInt64Dataset;
 using testing_util::SetIntAttribute;
 using testing_util::TestDirTest;
 using testing_util::WriteBytes;
-
-bool SameBits(const std::vector<double>& a, const std::vector<double>& b) {
-  // memcmp must not see the null data() of an empty vector, even for 0 bytes.
-  return a.size() == b.size() &&
-         (a.empty() || std::memcmp(a.data(), b.data(), sizeof(double) * a.size()) == 0);
-}
 
 void DeleteObject(const std::string& path, const char* name) {
   const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);

@@ -53,6 +53,12 @@ RveSnapshot SquareLattice(int side, double spacing, const std::function<double(i
 
 bool SameBits(double a, double b) { return std::memcmp(&a, &b, sizeof(double)) == 0; }
 
+bool SameBits(const std::vector<double>& a, const std::vector<double>& b) {
+  // memcmp must not see the null data() of an empty vector, even for 0 bytes.
+  return a.size() == b.size() &&
+         (a.empty() || std::memcmp(a.data(), b.data(), sizeof(double) * a.size()) == 0);
+}
+
 void ExpectSameBits(const std::vector<double>& a, const std::vector<double>& b, const char* what) {
   ASSERT_EQ(a.size(), b.size()) << what;
   for (std::size_t k = 0; k < a.size(); ++k) {

@@ -30,8 +30,10 @@ Rve CreateOrDie(RveSnapshot packing);
 // column x and row y. Material, controls and reference cell are the defaults.
 RveSnapshot SquareLattice(int side, double spacing, const std::function<double(int, int)>& radius);
 
-// Bitwise equality of doubles and of fixed-size Eigen matrices of doubles.
+// Bitwise equality of doubles, of vectors of doubles and of fixed-size Eigen
+// matrices of doubles.
 bool SameBits(double a, double b);
+bool SameBits(const std::vector<double>& a, const std::vector<double>& b);
 
 template <typename Derived>
 bool SameBits(const Eigen::PlainObjectBase<Derived>& a, const Eigen::PlainObjectBase<Derived>& b) {

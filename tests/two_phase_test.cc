@@ -10,7 +10,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <limits>
 #include <map>
 #include <memory>
@@ -24,10 +23,12 @@
 #include "mpm_client/model.h"
 #include "mpm_client/mohr_coulomb.h"
 #include "mpm_client/solver.h"
+#include "tests/test_util.h"
 
 namespace rvehub::mpm {
 namespace {
 
+using dem::testing_util::ExpectSameBits;
 using Eigen::Matrix3d;
 using Eigen::Vector2d;
 
@@ -900,13 +901,7 @@ TEST(TwoPhaseSolverTest, ExportImportContinuesBitIdentically) {
   std::map<std::string, std::vector<std::int64_t>> ia, ib;
   a->ExportState(da, ia);
   (*b)->ExportState(db, ib);
-  for (const auto& [key, values] : da) {
-    ASSERT_EQ(values.size(), db.at(key).size()) << key;
-    // memcmp must not see the null data() of an empty vector, even for 0 bytes.
-    EXPECT_TRUE(values.empty() ||
-                std::memcmp(values.data(), db.at(key).data(), values.size() * sizeof(double)) == 0)
-        << key;
-  }
+  for (const auto& [key, values] : da) ExpectSameBits(values, db.at(key), key.c_str());
   // A saturated state without its pore pressures is refused.
   doubles.erase("pore_pressure");
   EXPECT_EQ((*b)->ImportState(doubles, ints).code(), absl::StatusCode::kInvalidArgument);
