@@ -1862,10 +1862,6 @@ absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::strin
 
 absl::StatusOr<CaseSpec> LoadCase(const std::string& path,
                                   std::span<const CaseOverride> overrides) {
-  std::error_code error;
-  if (std::filesystem::is_directory(path, error)) {
-    return absl::InvalidArgumentError(absl::StrCat("case file '", path, "' is a directory"));
-  }
   ASSIGN_OR_RETURN(std::string text, ReadTextFile(path, "case file"));
   const std::filesystem::path file(path);
   const std::string dir = file.has_parent_path() ? file.parent_path().string() : ".";

@@ -26,6 +26,7 @@
 #include "mpm_client/two_phase.h"
 #include "rve_server/client/endpoint.h"
 #include "rve_server/common/status_macros.h"
+#include "rve_server/common/text_file.h"
 #include "store/results.h"
 
 namespace rvehub::mpm {
@@ -295,18 +296,19 @@ absl::Status Simulation::OpenOutputs(bool resume) {
   const std::string csv = dir + "/timeseries.csv";
   // A timeseries this run cannot continue is refused before the results
   // file is touched.
-  if (resume && std::filesystem::exists(csv)) {
-    RETURN_IF_ERROR(TimeseriesWriter::CheckColumns(csv, Columns()));
+  bool csv_exists = false, h5_exists = false;
+  if (resume) {
+    ASSIGN_OR_RETURN(csv_exists, PathExists(csv));
+    ASSIGN_OR_RETURN(h5_exists, PathExists(h5));
   }
+  if (csv_exists) RETURN_IF_ERROR(TimeseriesWriter::CheckColumns(csv, Columns()));
   ASSIGN_OR_RETURN(std::unique_ptr<store::ResultsWriter> results,
-                   resume && std::filesystem::exists(h5)
-                       ? store::ResultsWriter::Open(h5, xdmf, "mpm_client", solver_->step())
-                       : store::ResultsWriter::Create(h5, xdmf, "mpm_client"));
+                   h5_exists ? store::ResultsWriter::Open(h5, xdmf, "mpm_client", solver_->step())
+                             : store::ResultsWriter::Create(h5, xdmf, "mpm_client"));
   out_->results = std::move(results);
   ASSIGN_OR_RETURN(std::unique_ptr<TimeseriesWriter> ts,
-                   resume && std::filesystem::exists(csv)
-                       ? TimeseriesWriter::Resume(csv, Columns(), solver_->step())
-                       : TimeseriesWriter::Create(csv, Columns()));
+                   csv_exists ? TimeseriesWriter::Resume(csv, Columns(), solver_->step())
+                              : TimeseriesWriter::Create(csv, Columns()));
   out_->timeseries = std::move(ts);
   if (resume) {
     out_->last_frame_step = out_->last_row_step = solver_->step();

@@ -7,6 +7,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "rve_server/common/status_macros.h"
+#include "rve_server/common/text_file.h"
 #include "rve_server/engine/material.h"
 #include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
@@ -46,10 +47,13 @@ absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
                                      .rolling_eta = spec.rolling_eta};
   const std::string stem = dem::TemplateName(spec.parameter_set, spec.seed, variant);
   const std::string path = (std::filesystem::path(cache_dir) / (stem + ".h5")).string();
-  if (std::filesystem::exists(path)) {
+  // The cache only saves time: one that cannot be looked into or read is
+  // prepared again (and overwritten where it can be) below.
+  if (absl::StatusOr<bool> cached_file = PathExists(path); !cached_file.ok()) {
+    if (log) log(absl::StrCat("template cache unusable (", cached_file.status().message(), ")"));
+  } else if (*cached_file) {
     absl::StatusOr<std::vector<store::TemplateRecord>> cached = store::ReadTemplates(path);
     if (cached.ok() && cached->size() == 1) return std::move(cached->front());
-    // A damaged cache entry is prepared again (and overwritten) below.
     if (log) log(absl::StrCat("template cache ", path, " unusable, preparing again"));
   }
   if (log) log(absl::StrFormat("preparing template %s (%s)...", spec.name, spec.parameter_set));

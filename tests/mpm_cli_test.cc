@@ -833,6 +833,11 @@ TEST(MpmCliTest, TokenFileIsSentToTheServers) {
   const Result no_file = RunClient(absl::StrCat(run, " --token-file=", Quote(missing)));
   EXPECT_EQ(no_file.exit_code, 1) << no_file;
   EXPECT_TRUE(absl::StrContains(no_file.err, missing)) << no_file.err;
+  // A directory given as the token file had aborted the client (an uncaught
+  // read error).
+  const Result directory = RunClient(absl::StrCat(run, " --token-file=", Quote(ScratchDir())));
+  EXPECT_EQ(directory.exit_code, 1) << directory;
+  EXPECT_TRUE(absl::StrContains(directory.err, "is a directory")) << directory.err;
   EXPECT_EQ(server.Stop(), 0) << server.Log();
 }
 

@@ -13,6 +13,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/synchronization/notification.h"
 #include "rve_server/common/status_macros.h"
+#include "rve_server/common/text_file.h"
 #include "rve_server/service/log.h"
 #include "store/checkpoint.h"
 
@@ -325,14 +326,16 @@ absl::Status RveServer::LoadCheckpoint(const std::string& dir) {
   store::RemoveStaleTemporaries(templates_path, /*own_too=*/true);
   store::RemoveStaleTemporaries(rves_path, /*own_too=*/true);
   std::int64_t num_templates = 0, num_rves = 0;
-  if (std::filesystem::exists(templates_path)) {
+  ASSIGN_OR_RETURN(const bool templates_exist, PathExists(templates_path));
+  ASSIGN_OR_RETURN(const bool rves_exist, PathExists(rves_path));
+  if (templates_exist) {
     ASSIGN_OR_RETURN(std::vector<store::TemplateRecord> t, store::ReadTemplates(templates_path));
     for (store::TemplateRecord& r : t) {
       ASSIGN_OR_RETURN(TemplateSummary put, registry_->PutTemplate(std::move(r), true));
       ++num_templates;
     }
   }
-  if (std::filesystem::exists(rves_path)) {
+  if (rves_exist) {
     ASSIGN_OR_RETURN(std::vector<store::RveRecord> r, store::ReadRves(rves_path));
     if (!r.empty()) {
       absl::StatusOr<std::int64_t> n = registry_->Import(std::move(r));
