@@ -327,8 +327,9 @@ std::string NonFiniteField(const MaterialPoints& mp, std::size_t p) {
   if (!mp.fluid_velocity[p].allFinite()) {
     return vector("fluid velocity", mp.fluid_velocity[p], "m/s");
   }
-  if (!std::isfinite(mp.pore_pressure[p]))
+  if (!std::isfinite(mp.pore_pressure[p])) {
     return scalar("pore pressure", mp.pore_pressure[p], "Pa");
+  }
   if (!mp.position0[p].allFinite()) return vector("initial position", mp.position0[p], "m");
   if (!std::isfinite(mp.vertical_stress0[p])) {
     return scalar("initial vertical stress", mp.vertical_stress0[p], "Pa");
