@@ -30,6 +30,7 @@
 #include "mpm_client/summary.h"
 #include "nlohmann/json.hpp"
 #include "rve_server/client/channel.h"
+#include "rve_server/common/address.h"
 #include "rve_server/common/flags.h"
 #include "rve_server/common/process.h"
 #include "rve_server/common/status_macros.h"
@@ -255,6 +256,7 @@ absl::StatusOr<SimulationOptions> Options(const Args& a) {
   if (a.contains("servers")) {
     for (absl::string_view s :
          absl::StrSplit(absl::GetFlag(FLAGS_servers), ',', absl::SkipWhitespace())) {
+      RETURN_IF_ERROR(ValidateAddress("--servers", s, PortZero::kRefused));
       o.servers.emplace_back(s);
     }
     if (o.servers.empty()) return absl::InvalidArgumentError("--servers lists no server");

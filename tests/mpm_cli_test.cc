@@ -269,6 +269,11 @@ TEST(MpmCliTest, UsageErrorsExitTwoWithAMessage) {
            {absl::StrCat("run ", case_path, out, " --timeout=-1"), "--timeout must be"},
            {absl::StrCat("run ", case_path, out, " --stop-after=0"), "--stop-after must be"},
            {absl::StrCat("run ", case_path, out, " --servers=,"), "--servers lists no server"},
+           // gRPC dialled port 70000 − 65536 = 4464.
+           {absl::StrCat("run ", case_path, out, " --servers=127.0.0.1:70000"),
+            "--servers: \"127.0.0.1:70000\" is not HOST:PORT with a port in 1..65535"},
+           {absl::StrCat("run ", case_path, out, " --servers=127.0.0.1:1,127.0.0.1:"),
+            "--servers: \"127.0.0.1:\" is not HOST:PORT"},
            {absl::StrCat("run ", case_path, out, " --quiet=no"), "--quiet takes no value"},
            {absl::StrCat("resume x.h5 --stop-after=-3"), "--stop-after must be"},
            {absl::StrCat("check ", case_path, out), "check takes no options (got --out)"},

@@ -351,6 +351,39 @@ TEST(ServerProcess, BadFlagsFailToStart) {
   waitpid(pid, &status, 0);
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 1);
+
+  // Values that had started a server on another port (gRPC reads a port
+  // modulo 65536), with a truncated message limit (4096 MiB cast to int: 0),
+  // or aborted it (100000 threads), each refused with its reason. `timeout`
+  // ends a server that starts after all.
+  struct Case {
+    const char* flags;
+    const char* message;
+  };
+  for (const Case& c : {
+           Case{"--listen=127.0.0.1:70000",
+                "listen address: \\\"127.0.0.1:70000\\\" is not HOST:PORT with a port in 0..65535"},
+           Case{"--listen=127.0.0.1:", "is not HOST:PORT"},
+           Case{"--listen=127.0.0.1:0 --threads=100000", "--threads=100000 must lie in 0..1024"},
+           Case{"--listen=127.0.0.1:0 --max_message_mb=4096",
+                "--max_message_mb=4096 must lie in 1..2047"},
+           Case{"--listen=127.0.0.1:0 --max_memory_mb=9223372036854775807",
+                "--max_memory_mb=9223372036854775807 must lie in 1.."},
+           Case{"--listen=127.0.0.1:0 --drain_seconds=-1", "--drain_seconds=-1 must be >= 0"},
+       }) {
+    std::FILE* pipe = popen(
+        (std::string("timeout 20 " RVE_SERVER_PATH " ") + c.flags + " 2>&1 >/dev/null").c_str(),
+        "r");
+    ASSERT_NE(pipe, nullptr);
+    std::string err;
+    char buffer[4096];
+    for (std::size_t n; (n = std::fread(buffer, 1, sizeof(buffer), pipe)) > 0;)
+      err.append(buffer, n);
+    const int code = pclose(pipe);
+    EXPECT_TRUE(WIFEXITED(code) && WEXITSTATUS(code) == 1) << c.flags << ": " << code << " " << err;
+    EXPECT_NE(err.find("msg=\"cannot start\""), std::string::npos) << c.flags << ": " << err;
+    EXPECT_NE(err.find(c.message), std::string::npos) << c.flags << ": " << err;
+  }
 }
 
 }  // namespace

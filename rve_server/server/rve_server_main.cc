@@ -4,6 +4,7 @@
 // every RVE to HDF5 (reloaded on the next start).
 #include <algorithm>
 #include <csignal>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -92,7 +93,25 @@ int main(int argc, char** argv) {
   using rvehub::service::ServerConfig;
   ServerConfig config;
   config.listen = absl::GetFlag(FLAGS_listen);
+  // The flags' own ranges, before any arithmetic on them (a shift by 20 of
+  // a huge --max_memory_mb overflows); RveServer::Start checks the rest.
   const int threads = absl::GetFlag(FLAGS_threads);
+  if (threads < 0 || threads > rvehub::service::kMaxThreads) {
+    return Fail(
+        absl::InvalidArgumentError(absl::StrCat("--threads=", threads, " must lie in 0..",
+                                                rvehub::service::kMaxThreads, " (0: all cores)")));
+  }
+  if (const std::int64_t mb = absl::GetFlag(FLAGS_max_memory_mb); mb < 1 || mb > (1LL << 40)) {
+    return Fail(absl::InvalidArgumentError(
+        absl::StrCat("--max_memory_mb=", mb, " must lie in 1..", 1LL << 40)));
+  }
+  if (const std::int64_t mb = absl::GetFlag(FLAGS_max_message_mb); mb < 1 || mb > 2047) {
+    return Fail(absl::InvalidArgumentError(
+        absl::StrCat("--max_message_mb=", mb, " must lie in 1..2047 (gRPC's limit is 2 GiB)")));
+  }
+  if (const int s = absl::GetFlag(FLAGS_drain_seconds); s < 0) {
+    return Fail(absl::InvalidArgumentError(absl::StrCat("--drain_seconds=", s, " must be >= 0")));
+  }
   config.registry.threads =
       threads > 0 ? threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   config.registry.max_rves = absl::GetFlag(FLAGS_max_rves);

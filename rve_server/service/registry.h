@@ -30,8 +30,13 @@
 
 namespace rvehub::service {
 
+// Workers one registry may run: beyond a machine's cores they add nothing,
+// and a thread count in the tens of thousands fails to start (it aborted
+// rve_server --threads=100000).
+inline constexpr int kMaxThreads = 1024;
+
 struct RegistryOptions {
-  int threads = 1;                             // workers evaluating a batch
+  int threads = 1;                             // workers evaluating a batch, 1..kMaxThreads
   std::int64_t max_rves = 1'000'000;           // hosted RVEs at most
   std::int64_t max_memory_bytes = 16LL << 30;  // resident estimate of all RVEs at most
   std::int64_t max_batch = 100'000;            // RVEs per call at most

@@ -7,11 +7,13 @@
 #include <grpcpp/support/server_interceptor.h>
 
 #include <filesystem>
+#include <limits>
 #include <string_view>
 #include <thread>
 
 #include "absl/strings/str_cat.h"
 #include "absl/synchronization/notification.h"
+#include "rve_server/common/address.h"
 #include "rve_server/common/status_macros.h"
 #include "rve_server/common/text_file.h"
 #include "rve_server/service/log.h"
@@ -165,12 +167,17 @@ std::string NowUtc() {
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<RveServer>> RveServer::Start(const ServerConfig& config) {
-  if (config.registry.threads < 1 || config.registry.max_rves < 1 ||
-      config.registry.max_memory_bytes < 1 || config.registry.max_batch < 1 ||
-      config.max_message_bytes < (1 << 20)) {
+  RETURN_IF_ERROR(ValidateAddress("listen address", config.listen, PortZero::kAllowed));
+  if (config.registry.threads < 1 || config.registry.threads > kMaxThreads) {
     return absl::InvalidArgumentError(
-        "threads, max RVEs, max memory and max batch must be >= 1 and the max message size "
-        ">= 1 MiB");
+        absl::StrCat("threads = ", config.registry.threads, " must lie in 1..", kMaxThreads));
+  }
+  if (config.registry.max_rves < 1 || config.registry.max_memory_bytes < 1 ||
+      config.registry.max_batch < 1 || config.max_message_bytes < (1 << 20) ||
+      config.max_message_bytes > std::numeric_limits<int>::max()) {
+    return absl::InvalidArgumentError(
+        "max RVEs, max memory and max batch must be >= 1 and the max message size between "
+        "1 MiB and 2 GiB - 1 byte (gRPC's limit)");
   }
   if (config.tls_cert_pem.empty() != config.tls_key_pem.empty()) {
     return absl::InvalidArgumentError("TLS needs both a certificate and a key");

@@ -23,7 +23,7 @@ inline constexpr const char* kServerVersion = kVersion;
 struct ServerConfig {
   std::string listen = "127.0.0.1:50051";  // HOST:PORT; port 0 picks a free one
   RegistryOptions registry;
-  std::int64_t max_message_bytes = 64 << 20;  // per message, both ways
+  std::int64_t max_message_bytes = 64 << 20;  // per message, both ways, 1 MiB..2 GiB − 1
   std::string auth_token;                     // empty: no authentication
   // With a token: grpc.health.v1.Health answers without it (it tells only
   // SERVING or NOT_SERVING), for orchestrators' probes (Kubernetes' gRPC
@@ -37,6 +37,10 @@ struct ServerConfig {
 class RveServer {
  public:
   // Loads the checkpoint directory's files when present, then listens.
+  // InvalidArgument for a listen address that is not HOST:PORT with a port in
+  // 0..65535 (ValidateAddress), threads outside 1..kMaxThreads, a max RVEs,
+  // memory or batch below 1, a message size outside its range, or one of the
+  // TLS certificate and key without the other.
   static absl::StatusOr<std::unique_ptr<RveServer>> Start(const ServerConfig& config);
   ~RveServer();
 
