@@ -338,6 +338,9 @@ TEST(CliTest, ServerCommandsWithoutServerAreUsageErrors) {
            {"prepare --name=x", "--name needs --out"},
            {"prepare --out=x.h5 --name=bad/name", "--name"},
            {"info --server=127.0.0.1:1 --run=a", "unknown option --run"},
+           // gRPC would dial port 70000 − 65536 = 4464.
+           {"info --server=127.0.0.1:70000",
+            "--server: \"127.0.0.1:70000\" is not HOST:PORT with a port in 1..65535"},
        }) {
     const std::string args =
         c.args.starts_with("element-test") ? absl::StrCat(c.args, " --out='", csv, "'") : c.args;

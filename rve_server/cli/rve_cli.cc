@@ -46,6 +46,7 @@
 #include "rve_server/client/channel.h"
 #include "rve_server/client/server_client.h"
 #include "rve_server/client/types.h"
+#include "rve_server/common/address.h"
 #include "rve_server/common/flags.h"
 #include "rve_server/common/status_macros.h"
 #include "rve_server/common/version.h"
@@ -376,6 +377,9 @@ using Remote = client::ServerClient;
 absl::StatusOr<Remote> Connect(const Flags& flags) {
   std::string target;
   RETURN_IF_ERROR(Require(flags, "server", "HOST:PORT", &target));
+  if (absl::Status s = ValidateAddress("--server", target, PortZero::kRefused); !s.ok()) {
+    return UsageError(s.message());
+  }
   double timeout = 600;
   RETURN_IF_ERROR(Get(flags, "timeout", &timeout));
   if (timeout < 0 || timeout > 1e9) return UsageError("--timeout must lie in [0, 1e9] seconds");
