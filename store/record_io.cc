@@ -579,6 +579,15 @@ absl::Status WriteAtomically(const std::string& path, const char* kind,
   if (HasNul(info.created_by) || HasNul(info.created_at)) {
     return absl::InvalidArgumentError("FileInfo strings must not contain NUL bytes");
   }
+  // The rename below replaces whatever has the name: run as root it had
+  // made /dev/full (rve_cli checkpoint --out=/dev/full) a regular file. Only
+  // a regular file is replaced; a link is not followed or replaced either.
+  if (struct stat st{}; ::lstat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("cannot write ", path,
+                     ": it exists and is not a regular file (a directory, device or "
+                     "link); nothing was written"));
+  }
   RemoveStaleTemporaries(path);
   const std::string temp = absl::StrCat(path, ".tmp-", ::getpid());
   // Create the temporary file ourselves first: errno tells precisely why a

@@ -63,8 +63,9 @@ absl::StatusOr<std::vector<TemplateRecord>> ReadTemplateRecords(const h5::File& 
 // attributes format_version, kind, created_by, created_at, the integer
 // attributes `counts` (e.g. {"num_records", n}) and engine, then whatever
 // `body` writes; renames it over `path` only when complete (see FORMAT.md,
-// "Atomic write"); first removes stale temporaries of `path`. The caller
-// holds StoreMutex().
+// "Atomic write"); first removes stale temporaries of `path`. A `path` that
+// exists and is not a regular file (a directory, a device, a symbolic link)
+// is InvalidArgument, and nothing is created. The caller holds StoreMutex().
 absl::Status WriteAtomically(const std::string& path, const char* kind,
                              std::span<const std::pair<const char*, std::int64_t>> counts,
                              const FileInfo& info,

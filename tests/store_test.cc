@@ -5,6 +5,7 @@
 // The test opens the written files with the HDF5 C API to find the bytes to
 // corrupt (chunk and object-header addresses) and to forge malformed files.
 #include <hdf5.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -527,15 +528,26 @@ TEST_F(StoreTest, FailedWriteLeavesNoTemporaryAndTheOldFileUntouched) {
   EXPECT_TRUE(ReadBytes(path) == before) << "the existing file changed";
   fs::remove(temp);
 
-  // The final rename fails (the target is a non-empty directory): the whole
-  // file was written, and the temporary must still go.
+  // A name taken by something other than a regular file (a directory, a
+  // FIFO standing in for a device, a link) is refused before anything is
+  // written: the rename would have replaced it (as root, /dev/full became a
+  // regular file).
   const std::string blocked = Path("blocked.h5");
   fs::create_directories(fs::path(blocked) / "inside");
-  s = WriteRves(blocked, SomeRecords(), info_);
-  EXPECT_FALSE(s.ok());
-  EXPECT_TRUE(MessageHas(s, "cannot rename"));
+  const std::string fifo = Path("fifo.h5");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0644), 0);
+  const std::string link = Path("link.h5");
+  fs::create_symlink(path, link);
+  for (const std::string& taken : {blocked, fifo, link}) {
+    s = WriteRves(taken, SomeRecords(), info_);
+    EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument) << s;
+    EXPECT_TRUE(MessageHas(s, "it exists and is not a regular file")) << s;
+    EXPECT_EQ(FilesStartingWith(dir_, fs::path(taken).filename().string() + ".tmp").size(), 0u);
+  }
   EXPECT_TRUE(fs::is_directory(blocked));
-  EXPECT_EQ(FilesStartingWith(dir_, "blocked.h5.tmp").size(), 0u);
+  EXPECT_TRUE(fs::is_fifo(fifo));
+  EXPECT_TRUE(fs::is_symlink(link));
+  EXPECT_TRUE(ReadBytes(path) == before) << "the link's target changed";
 
   // A read-only directory (meaningless for root, who may write anyway).
   if (::geteuid() != 0) {
