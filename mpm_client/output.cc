@@ -109,7 +109,12 @@ absl::StatusOr<std::map<std::string, std::vector<double>>> ReadCsvColumns(const 
   std::ifstream in(path);
   if (!in) return IoError("cannot read", path);
   std::string line;
-  if (!std::getline(in, line)) return absl::DataLossError(absl::StrCat(path, " is empty"));
+  // bad(): a read failed (a directory opens, then reads EISDIR), as opposed
+  // to the file's end.
+  if (!std::getline(in, line)) {
+    if (in.bad()) return IoError("cannot read", path);
+    return absl::DataLossError(absl::StrCat(path, " is empty"));
+  }
   std::vector<std::string> names = absl::StrSplit(line, ',');
   std::map<std::string, std::vector<double>> columns;
   for (const std::string& n : names) columns[n];
@@ -136,6 +141,7 @@ absl::StatusOr<std::map<std::string, std::vector<double>>> ReadCsvColumns(const 
       columns[names[i]].push_back(v);
     }
   }
+  if (in.bad()) return IoError("cannot read", path);  // not the end: a read that failed
   return columns;
 }
 

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -428,6 +429,13 @@ TEST(TimeseriesReaderTest, DamagedRowsAreDataLossNamingRowAndColumn) {
     EXPECT_EQ(r.status().code(), absl::StatusCode::kDataLoss) << r.status();
     EXPECT_TRUE(absl::EndsWith(r.status().message(), message)) << r.status();
   }
+  // A directory in the file's place opens, then fails to read: not "empty".
+  const std::string dir = ::testing::TempDir() + "/summary_test_directory.csv";
+  std::filesystem::create_directories(dir);
+  const auto directory = ReadCsvColumns(dir);
+  EXPECT_EQ(directory.status().code(), absl::StatusCode::kUnavailable) << directory.status();
+  EXPECT_EQ(directory.status().message(), "cannot read " + dir + ": Is a directory");
+  std::filesystem::remove(dir);
 }
 
 }  // namespace
