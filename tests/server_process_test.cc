@@ -353,8 +353,9 @@ TEST(ServerProcess, BadFlagsFailToStart) {
   EXPECT_EQ(WEXITSTATUS(status), 1);
 
   // Values that had started a server on another port (gRPC reads a port
-  // modulo 65536), with a truncated message limit (4096 MiB cast to int: 0),
-  // or aborted it (100000 threads), each refused with its reason. `timeout`
+  // modulo 65536), with a truncated message limit (4096 MiB cast to int: 0)
+  // or with a checkpoint directory it cannot write, or aborted it (100000
+  // threads), each refused with its reason. `timeout`
   // ends a server that starts after all.
   struct Case {
     const char* flags;
@@ -370,6 +371,9 @@ TEST(ServerProcess, BadFlagsFailToStart) {
            Case{"--listen=127.0.0.1:0 --max_memory_mb=9223372036854775807",
                 "--max_memory_mb=9223372036854775807 must lie in 1.."},
            Case{"--listen=127.0.0.1:0 --drain_seconds=-1", "--drain_seconds=-1 must be >= 0"},
+           // Found only at the stop that was to save every RVE into it.
+           Case{"--listen=127.0.0.1:0 --checkpoint_dir=/dev/null",
+                "cannot create checkpoint directory /dev/null: Not a directory"},
        }) {
     std::FILE* pipe = popen(
         (std::string("timeout 20 " RVE_SERVER_PATH " ") + c.flags + " 2>&1 >/dev/null").c_str(),

@@ -5,6 +5,7 @@
 #include <grpcpp/impl/codegen/method_handler.h>
 #include <grpcpp/impl/codegen/rpc_service_method.h>
 #include <grpcpp/support/server_interceptor.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <limits>
@@ -160,6 +161,21 @@ class ReflectionV1Proxy final : public grpc::Service {
   std::atomic<grpc::Server*> server_{nullptr};
 };
 
+// `dir` made if need be: PermissionDenied naming it where it cannot be made
+// or written into (a file of that name, /dev/null, a read-only place).
+absl::Status MakeCheckpointDir(const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (!ec && ::access(dir.c_str(), W_OK | X_OK) != 0) {
+    ec = std::error_code(errno, std::generic_category());
+  }
+  if (ec) {
+    return absl::PermissionDeniedError(
+        absl::StrCat("cannot create checkpoint directory ", dir, ": ", ec.message()));
+  }
+  return absl::OkStatus();
+}
+
 std::string NowUtc() {
   return absl::FormatTime("%Y-%m-%dT%H:%M:%SZ", absl::Now(), absl::UTCTimeZone());
 }
@@ -186,6 +202,9 @@ absl::StatusOr<std::unique_ptr<RveServer>> RveServer::Start(const ServerConfig& 
   s->config_ = config;
   s->registry_ = std::make_unique<Registry>(config.registry);
   if (!config.checkpoint_dir.empty()) {
+    // Made now, so that a directory that cannot be is found at start, not
+    // at the stop that was to save every RVE into it.
+    RETURN_IF_ERROR(MakeCheckpointDir(config.checkpoint_dir));
     RETURN_IF_ERROR(s->LoadCheckpoint(config.checkpoint_dir));
   }
   ServiceOptions options;
@@ -291,12 +310,7 @@ absl::Status RveServer::Stop(std::chrono::milliseconds grace) {
 void RveServer::Wait() { server_->Wait(); }
 
 absl::Status RveServer::SaveCheckpoint(const std::string& dir) {
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) {
-    return absl::PermissionDeniedError(
-        absl::StrCat("cannot create checkpoint directory ", dir, ": ", ec.message()));
-  }
+  RETURN_IF_ERROR(MakeCheckpointDir(dir));
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<store::RveRecord> rves;
   absl::Status s = registry_->ExportAll([&](store::RveRecord&& r) {
