@@ -30,7 +30,8 @@ import subprocess
 import sys
 import time
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from fuzz_common import ROOT, failure, sanitizer_env
+
 ABSURD = [0, -1, 1, 2147483648.0, 9.3e18, 1e308, -1e308, 1e-308, -0.0, 1e-30, 1e30, 1e6,
           1e-6, "", None, [], {}, [1e308, -1e308], [0, 0, 0], True]
 FACTORS = [-1.0, 0.5, 2.0, 10.0, 1e3, 1e-3, 1e6, 1e-6]
@@ -86,10 +87,7 @@ def main():
     ref = os.path.join(args.work, "reference")
     if not os.path.exists(ref):
         os.symlink(os.path.join(ROOT, "cases", "reference"), ref)
-    env = dict(os.environ)
-    env.setdefault("ASAN_OPTIONS", "detect_leaks=1")
-    env.setdefault("LSAN_OPTIONS", f"suppressions={ROOT}/deploy/lsan.supp:print_suppressions=0")
-    env.setdefault("UBSAN_OPTIONS", "print_stacktrace=1:halt_on_error=1")
+    env = sanitizer_env()
     rng = random.Random(args.seed)
     counts, findings = {}, 0
     with open(os.path.join(args.work, "log.txt"), "w") as log:
@@ -125,14 +123,7 @@ def main():
                 if rc is not None and rc > 0:  # refused when read: not run
                     counts["not read"] = counts.get("not read", 0) + 1
                     continue
-            if rc is None:
-                kind = "TIMEOUT"
-            elif "Sanitizer" in err or "runtime error" in err:
-                kind = "SANITIZER"
-            elif rc < 0:
-                kind = "SIGNAL"
-            else:
-                kind = "ran" if rc == 0 else "refused"
+            kind = failure(rc, err) or ("ran" if rc == 0 else "refused")
             counts[kind] = counts.get(kind, 0) + 1
             last = (err.strip().splitlines() or [""])[-1][:300]
             log.write(f"{it} {kind} rc={rc} {seconds:.1f}s {os.path.basename(name)} "
