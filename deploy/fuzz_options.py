@@ -96,6 +96,8 @@ def main():
     ap.add_argument("--work", default=os.path.join(ROOT, "build", "fuzz-options"),
                     help="scratch and working directory (default build/fuzz-options)")
     args = ap.parse_args()
+    # The calls run in --work: relative paths given here are the caller's.
+    args.build, args.work = os.path.abspath(args.build), os.path.abspath(args.work)
     client = os.path.join(args.build, "mpm_client/mpm_client")
     server = os.path.join(args.build, "rve_server/server/rve_server")
     cli = os.path.join(args.build, "rve_server/cli/rve_cli")
