@@ -19,11 +19,13 @@
 #include <thread>
 #include <vector>
 
+#include "absl/strings/str_cat.h"
 #include "health_probe.grpc.pb.h"
 #include "reflection_probe.grpc.pb.h"
 #include "reflection_v1_probe.grpc.pb.h"
 #include "rve_server/service/convert.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
+#include "tests/process_util.h"
 #include "tests/rpc_test_util.h"
 #include "tests/test_util.h"
 
@@ -336,32 +338,19 @@ TEST(ServerProcess, SigtermWithShortDrainEndsDespiteALongCall) {
   }
 }
 
+// Bad flags end the process with exit 1 and their reason before it listens:
+// a missing token file, and values that had started a server on another port
+// (gRPC reads a port modulo 65536), with a truncated message limit (4096 MiB
+// cast to int: 0) or with a checkpoint directory it cannot write, or aborted
+// it (100000 threads). `timeout` ends a server that starts after all.
 TEST(ServerProcess, BadFlagsFailToStart) {
-  // A missing token file is reported and the process exits 1 before listening.
-  const pid_t pid = fork();
-  if (pid == 0) {
-    const int null = open("/dev/null", O_WRONLY);
-    dup2(null, STDERR_FILENO);
-    dup2(null, STDOUT_FILENO);
-    execl(RVE_SERVER_PATH, RVE_SERVER_PATH, "--listen=127.0.0.1:0",
-          "--auth_token_file=/nonexistent/token", static_cast<char*>(nullptr));
-    _exit(127);
-  }
-  int status = 0;
-  waitpid(pid, &status, 0);
-  ASSERT_TRUE(WIFEXITED(status));
-  EXPECT_EQ(WEXITSTATUS(status), 1);
-
-  // Values that had started a server on another port (gRPC reads a port
-  // modulo 65536), with a truncated message limit (4096 MiB cast to int: 0)
-  // or with a checkpoint directory it cannot write, or aborted it (100000
-  // threads), each refused with its reason. `timeout`
-  // ends a server that starts after all.
   struct Case {
     const char* flags;
     const char* message;
   };
   for (const Case& c : {
+           Case{"--listen=127.0.0.1:0 --auth_token_file=/nonexistent/token",
+                "cannot read token file '/nonexistent/token'"},
            Case{"--listen=127.0.0.1:70000",
                 "listen address: \\\"127.0.0.1:70000\\\" is not HOST:PORT with a port in 0..65535"},
            Case{"--listen=127.0.0.1:", "is not HOST:PORT"},
@@ -375,18 +364,12 @@ TEST(ServerProcess, BadFlagsFailToStart) {
            Case{"--listen=127.0.0.1:0 --checkpoint_dir=/dev/null",
                 "cannot create checkpoint directory /dev/null: Not a directory"},
        }) {
-    std::FILE* pipe = popen(
-        (std::string("timeout 20 " RVE_SERVER_PATH " ") + c.flags + " 2>&1 >/dev/null").c_str(),
-        "r");
-    ASSERT_NE(pipe, nullptr);
-    std::string err;
-    char buffer[4096];
-    for (std::size_t n; (n = std::fread(buffer, 1, sizeof(buffer), pipe)) > 0;)
-      err.append(buffer, n);
-    const int code = pclose(pipe);
-    EXPECT_TRUE(WIFEXITED(code) && WEXITSTATUS(code) == 1) << c.flags << ": " << code << " " << err;
-    EXPECT_NE(err.find("msg=\"cannot start\""), std::string::npos) << c.flags << ": " << err;
-    EXPECT_NE(err.find(c.message), std::string::npos) << c.flags << ": " << err;
+    // stderr (the log) through the pipe, stdout dropped.
+    const testing_util::CommandResult r = testing_util::RunCommand(
+        absl::StrCat("timeout 20 " RVE_SERVER_PATH " ", c.flags, " 2>&1 >/dev/null"));
+    EXPECT_EQ(r.exit_code, 1) << c.flags << ": " << r.out;
+    EXPECT_NE(r.out.find("msg=\"cannot start\""), std::string::npos) << c.flags << ": " << r.out;
+    EXPECT_NE(r.out.find(c.message), std::string::npos) << c.flags << ": " << r.out;
   }
 }
 
