@@ -5,7 +5,7 @@ Each option of mpm_client (run and resume), rve_server and rve_cli's
 element-test is given numbers out of range, non-numbers, empty and very long
 values, and paths that are directories, devices or too long. Every call must
 end by itself with exit 0, 1 or 2, a message on stderr when not 0; a server
-that starts must stop with exit 0 on SIGTERM. A signal, a sanitizer report,
+that starts must stop on SIGTERM the same way. A signal, a sanitizer report,
 a call past --timeout or a failure without a message is a finding; the
 script prints each and exits 1 if there was any.
 
@@ -58,10 +58,10 @@ class Sweep:
             self.findings.append(f"{kind}: {line}")
             print(f"finding: {kind}: {line}", flush=True)
 
-    def call(self, argv, timeout=None):
+    def call(self, argv):
         try:
             r = subprocess.run(argv, capture_output=True, text=True, errors="replace",
-                               env=self.env, timeout=timeout or self.args.timeout,
+                               env=self.env, timeout=self.args.timeout,
                                cwd=self.args.work)
             self.judge(argv, r.returncode, r.stderr)
         except subprocess.TimeoutExpired:
@@ -69,7 +69,7 @@ class Sweep:
 
     def server(self, argv):
         """Starts rve_server; one still running after 3 s must stop on SIGTERM (exit 0, or 1
-        with its reason, e.g. a checkpoint directory it cannot create)."""
+        with its reason, e.g. a checkpoint it could not write)."""
         p = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                              errors="replace", env=self.env, cwd=self.args.work)
         try:
