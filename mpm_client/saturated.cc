@@ -39,6 +39,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "mpm_client/solver.h"
+#include "mpm_client/spd_solve.h"
 #include "mpm_client/two_phase.h"
 #include "rve_server/common/status_macros.h"
 
@@ -49,16 +50,6 @@ using Eigen::Matrix2d;
 using Eigen::Vector2d;
 
 constexpr double kFree = std::numeric_limits<double>::quiet_NaN();
-// Relative residual of the pressure solve: far below what the step's other
-// errors are, and reached in a few dozen iterations on the grids of the cases.
-constexpr double kPressureTolerance = 1e-12;
-// A solve that reaches its iteration limit short of kPressureTolerance is
-// still taken below this residual, where 1e-9 of the pressure is far below
-// the step's other errors: the nodal fit (FitNodalPressure) stalled at
-// 4.4e-12 after 1000 iterations at 3.09 s of the §4.3 column (a Mohr–Coulomb
-// skeleton with free_surface_beside_light_nodes, nearly at rest), a node
-// reached only by a point's corner making its matrix badly conditioned.
-constexpr double kStalledTolerance = 1e-9;
 // Free surface: nodes with less than this share of soil around them (a flat
 // face has ½, a corner ¼, a node just reached by a moving face ~0). A node
 // carries an unknown pressure only when nearly full: partly filled nodes
@@ -87,42 +78,6 @@ constexpr double kLightNeighbourFraction = 0.4;
 constexpr double kEmptyFraction = 1e-3;
 // Tikhonov weight of the nodal pressure fit, relative to the lumped diagonal.
 constexpr double kFitRegularisation = 1e-9;
-
-// Solves the symmetric positive-definite system a x = b by conjugate
-// gradients to kPressureTolerance (kStalledTolerance where it stalls);
-// InternalError naming `what` if it does not converge (with `hint`, the
-// likely cause, when given), or if a value that is not finite comes in (a, b)
-// or out (the error, x) of it: the step that built the system was unstable,
-// and the hint would mislead. `iterations` (optional) gets the count.
-absl::StatusOr<Eigen::VectorXd> SolveSpd(const Eigen::SparseMatrix<double>& a,
-                                         const Eigen::VectorXd& b, absl::string_view what,
-                                         absl::string_view hint = "", int* iterations = nullptr) {
-  const auto unstable = [&](absl::string_view where) {
-    return absl::InternalError(absl::StrCat(what, " met a value that is not finite ", where,
-                                            ": the solution became unstable (time step too "
-                                            "large?)"));
-  };
-  if (!b.allFinite() || !std::all_of(a.valuePtr(), a.valuePtr() + a.nonZeros(),
-                                     [](double x) { return std::isfinite(x); })) {
-    return unstable("in its matrix or right-hand side");
-  }
-  Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper> cg;
-  cg.setTolerance(kPressureTolerance);
-  cg.setMaxIterations(std::max<Eigen::Index>(1000, 4 * a.rows()));
-  cg.compute(a);
-  Eigen::VectorXd x = cg.solve(b);
-  if (iterations != nullptr) *iterations = static_cast<int>(cg.iterations());
-  if (!x.allFinite() || !std::isfinite(cg.error())) {
-    return unstable(absl::StrCat("in its iterations (", cg.iterations(), ")"));
-  }
-  const bool stalled = cg.info() == Eigen::NoConvergence && cg.error() <= kStalledTolerance;
-  if (cg.info() != Eigen::Success && !stalled) {
-    return absl::InternalError(absl::StrCat(what, " did not converge (", cg.iterations(),
-                                            " iterations, error ", cg.error(), ")",
-                                            hint.empty() ? "" : ": ", hint));
-  }
-  return x;
-}
 
 }  // namespace
 
