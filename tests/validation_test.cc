@@ -513,6 +513,10 @@ TEST(RunElementTestTest, BadSpecIsRefusedAndTheRveUntouched) {
       {"confining", [](ElementTestSpec& s) { s.confining = kInf; }},
       {"max_strain", [](ElementTestSpec& s) { s.max_strain = 0.5; }},
       {"max_strain", [](ElementTestSpec& s) { s.max_strain = 0.0; }},
+      // Below one DEM step's strain at the default I = 1e-3: refused before the
+      // consolidation, like the rest, so the RVE stays untouched.
+      {"max_strain", [](ElementTestSpec& s) { s.max_strain = 1e-308; }},
+      {"max_strain", [](ElementTestSpec& s) { s.max_strain = 1e-6; }},
       {"max_strain",
        [](ElementTestSpec& s) {
          s.kind = ElementTestKind::kOedometer;

@@ -101,13 +101,37 @@ absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
     Rve& rve, const ElementTestSpec& spec, const std::function<void(double)>& progress,
     const Interrupt& interrupt) {
   RETURN_IF_ERROR(CheckSpec(spec));
+  // The rate and the DEM step are the packing's, whatever its state: a test
+  // they cannot run is refused before the consolidation changes the RVE.
+  const double rate = rve.QuasiStaticStrainRate(spec.inertial_number, spec.confining);  // 1/s
+  const double step_strain = rate * rve.time_step();  // strain of one DEM step, [-]
+  if (!(spec.max_strain >= step_strain)) {
+    // It would end after its first step, strained far past max_strain
+    // (--strain=1e-308 wrote a biaxial test of one step, to 1.3e-05).
+    return absl::InvalidArgumentError(absl::StrCat(
+        "max_strain = ", spec.max_strain, " is invalid: one DEM step at the test's strain rate ",
+        "is a strain of ", step_strain, " (inertial_number ", spec.inertial_number, ", confining ",
+        spec.confining, " Pa), and max_strain must be at least that"));
+  }
+  const bool cyclic = spec.kind == ElementTestKind::kCyclicSimpleShear;
+  // Strain between recorded rows, and the steps that take.
+  const double row_strain = cyclic ? (spec.cyclic_control == CyclicControl::kStrain
+                                          ? 4.0 * spec.amplitude * spec.cycles / spec.rows
+                                          : spec.max_strain / spec.rows)
+                                   : spec.max_strain / spec.rows;
+  // Sized before the first step (llround needs it in range, too).
+  const double row_steps = row_strain / step_strain;
+  if (!(row_steps * spec.rows <= static_cast<double>(kMaxElementTestSteps))) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat("the test would take about ", row_steps * spec.rows, " DEM steps; at most ",
+                     kMaxElementTestSteps, " (raise inertial_number or lower max_strain)"));
+  }
   ASSIGN_OR_RETURN(RveState start,
                    ConsolidateIsotropic(rve, spec.confining, 1e-4, nullptr, interrupt));
   // Strains count from the consolidated state.
   const Eigen::Matrix2d f0_inv = rve.DeformationGradient().inverse();
   auto strain_f = [&] { return Eigen::Matrix2d(rve.DeformationGradient() * f0_inv); };
 
-  const double rate = rve.QuasiStaticStrainRate(spec.inertial_number, spec.confining);  // 1/s
   CellControl control;
   control.max_strain_rate = 4.0 * rate;
   control.servo_integral_steps = kServoIntegralSteps;
@@ -131,19 +155,6 @@ absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
     case ElementTestKind::kCyclicSimpleShear:
       control.xy = {ControlMode::kStrainRate, rate};
       break;
-  }
-  const bool cyclic = spec.kind == ElementTestKind::kCyclicSimpleShear;
-  // Strain between recorded rows, and the steps that take.
-  const double row_strain = cyclic ? (spec.cyclic_control == CyclicControl::kStrain
-                                          ? 4.0 * spec.amplitude * spec.cycles / spec.rows
-                                          : spec.max_strain / spec.rows)
-                                   : spec.max_strain / spec.rows;
-  // Sized before the first step (llround needs it in range, too).
-  const double row_steps = row_strain / (rate * rve.time_step());
-  if (!(row_steps * spec.rows <= static_cast<double>(kMaxElementTestSteps))) {
-    return absl::ResourceExhaustedError(
-        absl::StrCat("the test would take about ", row_steps * spec.rows, " DEM steps; at most ",
-                     kMaxElementTestSteps, " (raise inertial_number or lower max_strain)"));
   }
   const std::int64_t steps_per_row = std::max<std::int64_t>(1, std::llround(row_steps));
   // Cyclic tests end on the response; this bounds them whatever it does.

@@ -66,10 +66,13 @@ bool HasLoadingAxis(ElementTestKind kind);
 // Consolidates to spec.confining, then runs the test. `progress` receives
 // the fraction done in [0, 1]. `interrupt` (optional) is asked between DEM
 // steps; its status ends the test. Ranges: confining (0, 1e9] Pa,
-// inertial_number [1e-6, 0.1], rows [2, 1e6], cycles [1, 1e4], axis 0 or 1
-// (biaxial and oedometer only; the others refuse axis 0); a test that
-// would take more than kMaxElementTestSteps DEM steps is refused up front
-// (monotonic) or stopped there (cyclic) with ResourceExhausted.
+// max_strain (0, 0.5) (shear tests (0, 10)) and at least one DEM step's
+// strain at the test's rate, inertial_number [1e-6, 0.1], rows [2, 1e6],
+// cycles [1, 1e4], axis 0 or 1 (biaxial and oedometer only; the others
+// refuse axis 0): InvalidArgument, before the RVE changes. A test that
+// would take more than kMaxElementTestSteps DEM steps is refused up front,
+// before the RVE changes (monotonic), or stopped there (cyclic) with
+// ResourceExhausted.
 inline constexpr std::int64_t kMaxElementTestSteps = 1'000'000'000;
 inline constexpr std::int64_t kMaxElementTestRows = 2'000'000;  // rows recorded at most
 absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
