@@ -27,6 +27,7 @@
 #include "rve_server/client/endpoint.h"
 #include "rve_server/common/status_macros.h"
 #include "rve_server/common/text_file.h"
+#include "rve_server/engine/prepare.h"
 #include "store/results.h"
 
 namespace rvehub::mpm {
@@ -35,11 +36,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 double Seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
-
-// Pa: below about this an RVE's few contacts may not hold its initial
-// stress within the consolidation's 1 % (SET-dense, 400 discs: 300 Pa
-// converges, 210 Pa does not), and the run stops creating it.
-constexpr double kLowInitialStress = 1e3;
 
 // The StressModel the solver sees: one batched COMMIT per server per step.
 class RveStressModel : public StressModel {
@@ -572,9 +568,10 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   std::vector<std::string> template_of(n);
   std::vector<client::InitialStress> initial(n);
   std::vector<double> cost(n);
-  // Per region: its points starting below kLowInitialStress, and the least
+  // Per region: its points starting below dem::kLowConsolidationStress, and the least
   // principal stress among them (Pa, compression +).
-  std::vector<std::pair<std::int64_t, double>> low(spec.regions.size(), {0, kLowInitialStress});
+  std::vector<std::pair<std::int64_t, double>> low(spec.regions.size(),
+                                                   {0, dem::kLowConsolidationStress});
   for (std::size_t p = 0; p < n; ++p) {
     const MaterialRegion& r = spec.regions[points.region[p]];
     template_of[p] = sim->ServerTemplateName(r.rve_template);
@@ -598,7 +595,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
     if (r.initial_stress != InitialStressKind::kTemplate) {
       const double least =
           r.initial_stress == InitialStressKind::kK0 ? std::min(sv, r.k0 * sv) : sv;
-      if (least < kLowInitialStress) {
+      if (least < dem::kLowConsolidationStress) {
         auto& [count, lowest] = low[points.region[p]];
         ++count;
         lowest = std::min(lowest, least);
@@ -611,7 +608,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
         "note: region %s starts %d of its points below %.0f Pa (the least stress %.4g Pa): "
         "RVEs may not consolidate that low, and the run then stops while creating them; "
         "initial_stress.minimum raises the floor (cases/FORMAT.md)",
-        spec.regions[r].name, low[r].first, kLowInitialStress, low[r].second));
+        spec.regions[r].name, low[r].first, dem::kLowConsolidationStress, low[r].second));
   }
   sim->pool_->Assign(cost);
   sim->pool_->SetPointSizes(cost);

@@ -101,10 +101,8 @@ absl::StatusOr<RveState> ConsolidateToStress(Rve& rve, double sxx, double syy, d
   if (steps != nullptr) *steps += done;
   const RveState s = rve.Observe();
   if (!(s.void_ratio > 0)) return squeezed(s);
-  // Say what was asked and what the packing holds. Below about 1 kPa the
-  // few contacts left hold a target only roughly, and the shear stress may
-  // be what misses (SET-dense, 400 discs unloaded from 100 kPa: 300 Pa
-  // converges; at 210 Pa six rounds end with the deviator at 1.0–1.9 % of p).
+  // Say what was asked and what the packing holds: below
+  // kLowConsolidationStress the shear stress may be what misses.
   const std::string held =
       s.num_contacts == 0
           ? std::string("the packing lost every contact (no stress: a gas at this pressure)")
@@ -120,8 +118,9 @@ absl::StatusOr<RveState> ConsolidateToStress(Rve& rve, double sxx, double syy, d
       "deviator must come within %.3g Pa (1 %%), and after %d rounds of servo and relaxation "
       "%s%s",
       sxx, syy, kPressureTolerance * p, kMaxRounds, held,
-      p < 1e3 ? "; below about 1 kPa a packing's few contacts may not hold a stress that closely"
-              : ""));
+      p < kLowConsolidationStress
+          ? "; below about 1 kPa a packing's few contacts may not hold a stress that closely"
+          : ""));
 }
 
 namespace {

@@ -42,14 +42,20 @@ struct PreparationReport {
 // keeps the ratio above 3e-3 and ran to its 600 000-step cap (3–4 s per
 // RVE); the relaxation that follows balances the packing either way.
 // FailedPrecondition "... did not converge" when 6 servo-and-relax rounds
-// leave it out of reach: e.g. a loose packing compacted straight to about
-// 100 Pa, which in every round jams past the stress and then unjams into a
-// gas (no contacts); compacting higher and unloading reaches it (below).
+// leave it out of reach, saying what the packing holds. Below about
+// kLowConsolidationStress a packing's few contacts may not hold a stress
+// within 1 %: 40 loose discs compacted straight to 100 Pa end at σxx 88,
+// σyy 86, σxy 3.7 Pa, and at 1 Pa unjam into a gas (no contacts); SET-dense's
+// 400 discs unloaded from 100 kPa reach 300 Pa, but not 210 Pa (the
+// deviator at 1.0–1.9 % of p after each round) nor 100 Pa.
 // InvalidArgument when the stress, reached or not, leaves e ≤ 0: the discs'
 // overlaps then exceed the voids, no packing at all. The soft contacts set
 // where that starts, far below kMaxPressure (SET-dense, E = 600 MPa, 100
 // discs: prepared e0 0.18 at 100 kPa, 0.14 at 1 MPa; at 3 MPa its
 // frictionless compaction reaches e < 0).
+//
+// Pa: see above. mpm_client notes the points it would start below it.
+inline constexpr double kLowConsolidationStress = 1e3;
 //
 // kSettleSteps is the settle_steps material points are created with (the
 // registry): from a template at 100 or 20 kPa to 2–14 kPa it took 1 200 to
