@@ -1051,6 +1051,7 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
   const ApplyStats stats_start = pool_->apply_stats();
   Clock::time_point row_clock = start;
   std::int64_t row_step = solver_->step();
+  Clock::time_point last_progress = start;
   auto output_time = Clock::duration::zero();
   // Recovery points: one now, then every recovery_interval_ steps, chosen
   // from what taking one costs against a step.
@@ -1130,7 +1131,10 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
           std::ceil(taking / (options_.recovery_share * std::max(per_step, 1e-9))), 1.0, 1e5));
       point_clock = Clock::now();
     }
-    if (options_.progress && (step % o.progress_every == 0 || last)) {
+    if (options_.progress &&
+        (step % o.progress_every == 0 || last ||
+         Seconds(Clock::now() - last_progress) >= options_.progress_interval_s)) {
+      last_progress = Clock::now();
       const double wall = Seconds(Clock::now() - start);
       const double rate = wall > 0 ? (pool_->evaluations() - evals_start) / wall : 0.0;
       const double eta = wall / static_cast<double>(std::max<std::int64_t>(1, sum.steps)) *

@@ -75,6 +75,10 @@ struct SimulationOptions {
   // Resume only: its solver.nonlocal_fraction from the checkpoint on, (0, 1].
   std::optional<double> nonlocal_fraction;
   bool progress = true;                         // progress lines on stderr
+  // A progress line also comes when this much wall time has passed since the
+  // last one, s: a run whose steps have slowed to seconds each (a soil blown
+  // apart) would otherwise look hung for output.progress_every steps.
+  double progress_interval_s = 60.0;
   std::function<void(const std::string&)> log;  // default: stderr
 };
 

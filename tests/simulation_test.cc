@@ -12,8 +12,10 @@
 #include <iterator>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "absl/strings/match.h"
+#include "absl/strings/str_join.h"
 #include "mpm_client/case.h"
 #include "mpm_client/output.h"
 #include "mpm_client/templates.h"
@@ -298,6 +300,35 @@ CaseSpec ShortCase(int steps, double* dt_out = nullptr) {
   spec.output.checkpoint_every = 0;
   if (dt_out) *dt_out = spec.solver.time_step;
   return spec;
+}
+
+// Progress lines come every output.progress_every steps and, between them,
+// whenever progress_interval_s of wall time has passed: a run slowed to
+// seconds a step still shows it is alive. Interval 0: a line every step.
+TEST(SimulationTest, ProgressLinesComeAtLeastEveryIntervalOfWallTime) {
+  for (const double interval : {0.0, 3600.0}) {
+    CaseSpec spec = ShortCase(12);
+    spec.output.progress_every = 1000;
+    SimulationOptions o = Options(FreshDir("progress_interval"));
+    o.progress = true;
+    o.progress_interval_s = interval;
+    std::vector<std::string> lines;
+    o.log = [&](const std::string& line) {
+      if (absl::StartsWith(line, "step ")) lines.push_back(line);
+    };
+    std::unique_ptr<Simulation> sim = StartOrDie(spec, o);
+    ASSERT_NE(sim, nullptr);
+    ASSERT_TRUE(sim->StepToEnd().ok());
+    if (interval > 0) {
+      // Only the last step's line: 12 steps take far less than an hour.
+      ASSERT_EQ(lines.size(), 1u) << absl::StrJoin(lines, "\n");
+      EXPECT_TRUE(absl::StartsWith(lines[0], "step 12/12 ")) << lines[0];
+      continue;
+    }
+    ASSERT_EQ(lines.size(), 12u) << absl::StrJoin(lines, "\n");
+    EXPECT_TRUE(absl::StartsWith(lines[0], "step 1/12 ")) << lines[0];
+    EXPECT_TRUE(absl::StartsWith(lines[11], "step 12/12 ")) << lines[11];
+  }
 }
 
 // The end state of `spec` run in FreshDir(name) to `stop_after` steps (a
