@@ -74,7 +74,7 @@ struct SimulationOptions {
   std::optional<double> nonlocal_radius;
   // Resume only: its solver.nonlocal_fraction from the checkpoint on, (0, 1].
   std::optional<double> nonlocal_fraction;
-  bool progress = true;                         // progress lines on stderr
+  bool progress = true;  // progress lines on stderr
   // A progress line also comes when this much wall time has passed since the
   // last one, s: a run whose steps have slowed to seconds each (a soil blown
   // apart) would otherwise look hung for output.progress_every steps.
