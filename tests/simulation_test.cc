@@ -16,6 +16,7 @@
 
 #include "absl/strings/match.h"
 #include "absl/strings/str_join.h"
+#include "absl/strings/string_view.h"
 #include "mpm_client/case.h"
 #include "mpm_client/output.h"
 #include "mpm_client/templates.h"
@@ -258,6 +259,25 @@ TEST(SimulationTest, TemplateWithAnotherParticleCountIsPreparedAndCached) {
       << bad.status();
 }
 
+// The notes containing `text` that Simulation::Start logs for
+// column-collapse-ci on 100-disc packings with this floor (Pa) and vertical
+// gravity (m/s²), run to t = 0. Creating the RVEs may succeed or not; the
+// notes come first either way.
+std::vector<std::string> CollapseNotes(double minimum, double gravity, absl::string_view text) {
+  CaseSpec spec = LoadOrDie("column-collapse-ci");
+  spec.templates[0].particles = 100;
+  spec.regions[0].minimum_stress = minimum;
+  spec.solver.gravity = Eigen::Vector2d(0.0, gravity);
+  spec.solver.end_time = 0.0;
+  SimulationOptions o = Options(FreshDir("notes"));
+  std::vector<std::string> notes;
+  o.log = [&](const std::string& line) {
+    if (absl::StrContains(line, text)) notes.push_back(line);
+  };
+  (void)Simulation::Start(spec, o);
+  return notes;
+}
+
 // Points that start below 1 kPa get a note before their RVEs are
 // consolidated, which may fail there after half a minute (SET-dense at
 // 210 Pa): column-collapse-ci without its 2 kPa floor under a gravity of
@@ -265,18 +285,7 @@ TEST(SimulationTest, TemplateWithAnotherParticleCountIsPreparedAndCached) {
 // (100-disc packings keep it short). With the floor, no note.
 TEST(SimulationTest, PointsStartingBelowOneKilopascalGetANote) {
   for (const double minimum : {0.0, 2e3}) {
-    CaseSpec spec = LoadOrDie("column-collapse-ci");
-    spec.templates[0].particles = 100;
-    spec.regions[0].minimum_stress = minimum;
-    spec.solver.gravity = Eigen::Vector2d(0.0, -0.5);
-    spec.solver.end_time = 0.0;
-    SimulationOptions o = Options(FreshDir("low_stress"));
-    std::vector<std::string> notes;
-    o.log = [&](const std::string& line) {
-      if (absl::StrContains(line, "of its points below")) notes.push_back(line);
-    };
-    // Creating the RVEs may succeed or not; the note comes first either way.
-    (void)Simulation::Start(spec, o);
+    const std::vector<std::string> notes = CollapseNotes(minimum, -0.5, "of its points below");
     if (minimum > 0) {
       EXPECT_TRUE(notes.empty()) << notes.front();
       continue;
@@ -312,17 +321,7 @@ TEST(SimulationTest, AFloorAboveMostOfTheGeostaticStressGetsANote) {
     bool note;
   };
   for (const Row& row : {Row{2e3, -9.81, false}, Row{1e5, -9.81, true}, Row{1e5, 0.0, false}}) {
-    CaseSpec spec = LoadOrDie("column-collapse-ci");
-    spec.templates[0].particles = 100;
-    spec.regions[0].minimum_stress = row.minimum;
-    spec.solver.gravity = Eigen::Vector2d(0.0, row.gravity);
-    spec.solver.end_time = 0.0;
-    SimulationOptions o = Options(FreshDir("floor_note"));
-    std::vector<std::string> notes;
-    o.log = [&](const std::string& line) {
-      if (absl::StartsWith(line, "note: region")) notes.push_back(line);
-    };
-    (void)Simulation::Start(spec, o);
+    const std::vector<std::string> notes = CollapseNotes(row.minimum, row.gravity, "note: region");
     if (!row.note) {
       EXPECT_TRUE(notes.empty()) << row.minimum << " Pa: " << notes.front();
       continue;
