@@ -13,8 +13,10 @@ exits 1 if there was any.
   python3 deploy/fuzz_runs.py --binary=build-sanitize/mpm_client/mpm_client  # ASan/UBSan
 
 Seeded: the same seed, cases and binary give the same mutations. Each run's
-last stderr line goes to WORK/log.txt (refused runs: the reason); findings
-keep their case file and stderr in WORK. Its first runs (about 2700 mutated
+last stderr line goes to WORK/log.txt (refused runs: the reason; a run past
+--timeout: the last it printed, a progress line at least once a minute, so a
+slow run tells itself from a hung one); findings keep their case file and
+stderr in WORK. Its first runs (about 2700 mutated
 cases on the release build, several hundred under the sanitizers) found no
 crash or hang, but tiny positive fields whose quotients went non-finite, a
 water table above the soil and packings squeezed to e < 0: each is now
@@ -110,13 +112,18 @@ def main():
                 start = time.time()
                 try:
                     r = subprocess.run(
-                        [args.binary, "run", path, f"--out={out}", "--quiet", "--threads=1",
+                        [args.binary, "run", path, f"--out={out}", "--threads=1",
                          f"--template-cache={os.path.join(args.work, 'templates')}",
                          f"--stop-after={args.steps}"],
                         capture_output=True, text=True, env=env, timeout=args.timeout)
                     rc, err = r.returncode, r.stderr
-                except subprocess.TimeoutExpired:
-                    rc, err = None, ""
+                except subprocess.TimeoutExpired as e:
+                    # What it printed by then: its notes and progress lines (a
+                    # line a minute at least) tell a slow run from a hung one.
+                    partial = e.stderr or ""
+                    if isinstance(partial, bytes):
+                        partial = partial.decode(errors="replace")
+                    rc, err = None, partial
                 seconds = time.time() - start
             else:
                 rc, err, seconds = check.returncode, check.stderr, 0.0
