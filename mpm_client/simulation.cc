@@ -568,17 +568,16 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   std::vector<std::string> template_of(n);
   std::vector<client::InitialStress> initial(n);
   std::vector<double> cost(n);
-  // Per region: its points starting below dem::kLowConsolidationStress, and the least
-  // principal stress among them (Pa, compression +).
-  std::vector<std::pair<std::int64_t, double>> low(spec.regions.size(),
-                                                   {0, dem::kLowConsolidationStress});
-  // Per region: its points, those the floor (initial_stress.minimum) lifts,
-  // and the largest geostatic stress below the floor (Pa).
-  struct Floored {
-    std::int64_t points = 0, lifted = 0;
-    double largest = 0.0;
+  // Per region, for the notes below (Pa, compression +): its points with an
+  // initial stress of their own; those starting below
+  // dem::kLowConsolidationStress and the least principal stress among them;
+  // those the floor (initial_stress.minimum) lifts and the largest geostatic
+  // stress among them.
+  struct RegionStart {
+    std::int64_t points = 0, low = 0, lifted = 0;
+    double least = dem::kLowConsolidationStress, largest_lifted = 0.0;
   };
-  std::vector<Floored> floored(spec.regions.size());
+  std::vector<RegionStart> starts(spec.regions.size());
   for (std::size_t p = 0; p < n; ++p) {
     const MaterialRegion& r = spec.regions[points.region[p]];
     template_of[p] = sim->ServerTemplateName(r.rve_template);
@@ -600,43 +599,43 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
         break;
     }
     if (r.initial_stress != InitialStressKind::kTemplate) {
-      Floored& f = floored[points.region[p]];
-      ++f.points;
+      RegionStart& start = starts[points.region[p]];
+      ++start.points;
       if (r.minimum_stress > geostatic) {
-        ++f.lifted;
-        f.largest = std::max(f.largest, geostatic);
+        ++start.lifted;
+        start.largest_lifted = std::max(start.largest_lifted, geostatic);
       }
       const double least =
           r.initial_stress == InitialStressKind::kK0 ? std::min(sv, r.k0 * sv) : sv;
       if (least < dem::kLowConsolidationStress) {
-        auto& [count, lowest] = low[points.region[p]];
-        ++count;
-        lowest = std::min(lowest, least);
+        ++start.low;
+        start.least = std::min(start.least, least);
       }
     }
   }
   for (std::size_t r = 0; r < spec.regions.size(); ++r) {
-    if (low[r].first == 0) continue;
-    sim->Log(absl::StrFormat(
-        "note: region %s starts %d of its points below %.0f Pa (the least stress %.4g Pa): "
-        "RVEs may not consolidate that low, and the run then stops while creating them; "
-        "initial_stress.minimum raises the floor (cases/FORMAT.md)",
-        spec.regions[r].name, low[r].first, dem::kLowConsolidationStress, low[r].second));
-  }
-  // A floor meant for the few points near a free surface (2 kPa in the
-  // shipped cases) that lifts most of a soil under gravity starts it at a
-  // stress its weight does not balance: at the surface it pushes itself
-  // apart. (pipe-ci at a 1 MPa floor: kinetic energy 37 kJ by step 20,
-  // then 2.5 s a step.) Without gravity the floor is the stress meant.
-  for (std::size_t r = 0; r < spec.regions.size(); ++r) {
-    const Floored& f = floored[r];
-    if (g <= 0 || 2 * f.lifted <= f.points) continue;
-    sim->Log(absl::StrFormat(
-        "note: region %s's initial_stress.minimum (%.4g Pa) lifts %d of its %d points above "
-        "their geostatic stress (the largest of those %.4g Pa): the soil's weight does not "
-        "hold such a stress, and at a free surface the soil pushes itself apart (a run may "
-        "slow to seconds a step)",
-        spec.regions[r].name, spec.regions[r].minimum_stress, f.lifted, f.points, f.largest));
+    const RegionStart& start = starts[r];
+    if (start.low > 0) {
+      sim->Log(absl::StrFormat(
+          "note: region %s starts %d of its points below %.0f Pa (the least stress %.4g Pa): "
+          "RVEs may not consolidate that low, and the run then stops while creating them; "
+          "initial_stress.minimum raises the floor (cases/FORMAT.md)",
+          spec.regions[r].name, start.low, dem::kLowConsolidationStress, start.least));
+    }
+    // A floor meant for the few points near a free surface (2 kPa in the
+    // shipped cases) that lifts most of a soil under gravity starts it at a
+    // stress its weight does not balance: at the surface it pushes itself
+    // apart. (pipe-ci at a 1 MPa floor: kinetic energy 37 kJ by step 20,
+    // then 2.5 s a step.) Without gravity the floor is the stress meant.
+    if (g > 0 && 2 * start.lifted > start.points) {
+      sim->Log(absl::StrFormat(
+          "note: region %s's initial_stress.minimum (%.4g Pa) lifts %d of its %d points above "
+          "their geostatic stress (the largest of those %.4g Pa): the soil's weight does not "
+          "hold such a stress, and at a free surface the soil pushes itself apart (a run may "
+          "slow to seconds a step)",
+          spec.regions[r].name, spec.regions[r].minimum_stress, start.lifted, start.points,
+          start.largest_lifted));
+    }
   }
   sim->pool_->Assign(cost);
   sim->pool_->SetPointSizes(cost);
