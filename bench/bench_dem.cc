@@ -28,11 +28,11 @@
 #include <thread>
 #include <vector>
 
-#include "rve_server/engine/material.h"
 #include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
-#include "rve_server/engine/snapshot.h"
 #include "rve_server/service/worker_pool.h"
+#include "rve_server/values/material.h"
+#include "rve_server/values/snapshot.h"
 
 namespace {
 

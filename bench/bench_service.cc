@@ -31,18 +31,19 @@
 #include <vector>
 
 #include "rve_server/common/process.h"
-#include "rve_server/engine/material.h"
 #include "rve_server/engine/prepare.h"
 #include "rve_server/engine/rve.h"
-#include "rve_server/service/convert.h"
 #include "rve_server/service/log.h"
 #include "rve_server/service/server.h"
+#include "rve_server/values/material.h"
+#include "rve_server/wire/convert.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
 
 namespace {
 
 namespace dem = rvehub::dem;
 namespace service = rvehub::service;
+namespace wire = rvehub::wire;
 namespace v1 = rvehub::v1;
 using Clock = std::chrono::steady_clock;
 
@@ -85,7 +86,7 @@ Figures Measure(const dem::RveSnapshot& packing, int threads, int rves, int reps
   auto stub = v1::RveService::NewStub(channel);
   v1::UploadTemplateRequest up;
   up.mutable_entry()->set_name("t");
-  service::ToProto(packing, up.mutable_entry()->mutable_packing());
+  wire::ToProto(packing, up.mutable_entry()->mutable_packing());
   v1::TemplateInfo info;
   grpc::ClientContext uctx;
   if (!stub->UploadTemplate(&uctx, up, &info).ok()) std::exit(1);
@@ -96,7 +97,7 @@ Figures Measure(const dem::RveSnapshot& packing, int threads, int rves, int reps
     for (int id = 0; id < rves; ++id) req.add_ids(id);
     dem::Controls c = packing.controls;
     if (zero_steps) c.min_steps = 0;
-    service::ToProto(c, req.mutable_controls());
+    wire::ToProto(c, req.mutable_controls());
     v1::CreateRvesResponse resp;
     grpc::ClientContext ctx;
     if (!stub->CreateRves(&ctx, req, &resp).ok()) std::exit(1);
@@ -167,7 +168,7 @@ Figures Measure(const dem::RveSnapshot& packing, int threads, int rves, int reps
         return s;
       };
       v1::ApplyResponse resp;
-      for (const service::RveOutcome& o : *out) service::ToProto(o, resp.add_results());
+      for (const service::RveOutcome& o : *out) wire::ToProto(o, resp.add_results());
       f.build_us = std::min(f.build_us, lap() * 1e6 / rves);
       std::string bytes;
       resp.SerializeToString(&bytes);

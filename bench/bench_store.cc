@@ -18,11 +18,11 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
-#include "rve_server/engine/material.h"
 #include "rve_server/engine/prepare.h"
-#include "rve_server/engine/snapshot.h"
+#include "rve_server/values/material.h"
+#include "rve_server/values/record.h"
+#include "rve_server/values/snapshot.h"
 #include "store/checkpoint.h"
-#include "store/record.h"
 
 namespace {
 
@@ -60,7 +60,7 @@ bool SamePacking(const rvehub::dem::RveSnapshot& a, const rvehub::dem::RveSnapsh
 }
 
 int Run() {
-  using rvehub::store::RveRecord;
+  using rvehub::RveRecord;
   const auto t0 = Clock::now();
   absl::StatusOr<rvehub::dem::ParameterSet> set = rvehub::dem::FindParameterSet("SET-dense");
   if (!set.ok()) {

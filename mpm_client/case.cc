@@ -25,9 +25,8 @@
 #include "absl/strings/str_split.h"
 #include "rve_server/common/status_macros.h"
 #include "rve_server/common/text_file.h"
-#include "rve_server/engine/material.h"
-#include "rve_server/engine/rve.h"
-#include "rve_server/engine/snapshot.h"
+#include "rve_server/values/material.h"
+#include "rve_server/values/snapshot.h"
 
 namespace rvehub::mpm {
 namespace {

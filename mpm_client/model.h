@@ -16,8 +16,6 @@
 #include <string>
 #include <vector>
 
-#include "rve_server/client/types.h"
-
 namespace rvehub::mpm {
 
 inline constexpr double kNever = std::numeric_limits<double>::infinity();
@@ -131,11 +129,10 @@ inline Eigen::Vector2d FrameDisplacement(const SolverSpec& solver, double t) {
   return ShakingDisplacement(solver.shaking_amplitude, solver.shaking_frequency, t);
 }
 
-// Where the initial stress of a region's RVEs comes from: the client's one
-// initial-stress kind, its stresses taken from each point's depth —
-// kTemplate: the template's own state (e.g. isotropic p0); kIsotropic:
-// p = σv at the point's depth (+ surcharge); kK0: σyy = σv, σxx = K0·σv.
-using InitialStressKind = client::InitialStress::Kind;
+// Where the initial stress of a region's RVEs comes from, its stresses taken from each point's
+// depth — kTemplate: the template's own state (e.g. isotropic p0); kIsotropic: p = σv at the
+// point's depth (+ surcharge); kK0: σyy = σv, σxx = K0·σv.
+enum class InitialStressKind { kTemplate, kIsotropic, kK0 };
 
 // A rectangle filled with material points on a regular pattern:
 // points_per_cell_side² points per cell, at the cell's Gauss-like sub-centres.

@@ -13,8 +13,8 @@
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
 #include "mpm_client/summary.h"
-#include "rve_server/common/plot.h"
 #include "rve_server/common/status_macros.h"
+#include "toolkit/plot.h"
 
 namespace rvehub::mpm {
 namespace {

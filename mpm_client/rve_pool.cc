@@ -228,21 +228,21 @@ absl::Status RvePool::CallError(int k, const absl::Status& s, absl::string_view 
   return absl::Status(s.code(), absl::StrCat(what, ": ", label, ": ", s.message()));
 }
 
-absl::Status RvePool::PointError(int k, const client::RveOutcome& o, absl::string_view what) const {
+absl::Status RvePool::PointError(int k, const RveOutcome& o, absl::string_view what) const {
   return absl::Status(o.status.code(),
                       absl::StrCat(what, ": ", endpoints_[k]->label(), ": material point ", o.id,
                                    ": ", o.status.message()));
 }
 
 absl::Status RvePool::Collect(int k, std::span<const std::int64_t> ids,
-                              std::vector<client::RveOutcome>& outcomes, absl::string_view what,
+                              std::vector<RveOutcome>& outcomes, absl::string_view what,
                               std::vector<dem::RveState>& out) const {
   if (outcomes.size() != ids.size()) {
     return absl::DataLossError(absl::StrCat(what, ": ", endpoints_[k]->label(), " answered ",
                                             outcomes.size(), " RVEs of ", ids.size()));
   }
   for (std::size_t i = 0; i < ids.size(); ++i) {
-    const client::RveOutcome& o = outcomes[i];
+    const RveOutcome& o = outcomes[i];
     if (!o.status.ok()) return PointError(k, o, what);
     if (o.id != ids[i]) {
       return absl::DataLossError(absl::StrCat(what, ": ", endpoints_[k]->label(),
@@ -253,9 +253,9 @@ absl::Status RvePool::Collect(int k, std::span<const std::int64_t> ids,
   return absl::OkStatus();
 }
 
-absl::Status RvePool::UploadTemplates(std::span<const store::TemplateRecord> templates) {
+absl::Status RvePool::UploadTemplates(std::span<const TemplateRecord> templates) {
   return ForEachEndpoint([&](int k) -> absl::Status {
-    for (const store::TemplateRecord& t : templates) {
+    for (const TemplateRecord& t : templates) {
       if (absl::Status s = endpoints_[k]->PutTemplate(t); !s.ok())
         return CallError(k, s, absl::StrCat("uploading template \"", t.name, "\""));
     }
@@ -268,7 +268,7 @@ namespace {
 // The registry consolidates each distinct initial stress of a call once
 // (bitwise equal targets); the same key here keeps them in one call.
 using StressKey = std::tuple<int, std::uint64_t, std::uint64_t, std::uint64_t>;
-StressKey KeyOf(const client::InitialStress& s) {
+StressKey KeyOf(const InitialStress& s) {
   return {static_cast<int>(s.kind), absl::bit_cast<std::uint64_t>(s.pressure),
           absl::bit_cast<std::uint64_t>(s.vertical_compression),
           absl::bit_cast<std::uint64_t>(s.k0)};
@@ -278,7 +278,7 @@ StressKey KeyOf(const client::InitialStress& s) {
 // one per id) and the distinct stresses among them.
 struct CreateCall {
   std::vector<std::int64_t> ids;
-  std::vector<client::InitialStress> initial;
+  std::vector<InitialStress> initial;
   std::int64_t consolidations = 1;
 };
 
@@ -287,7 +287,7 @@ struct CreateCall {
 // each stress is still consolidated once and the workers stay busy, while
 // progress is seen every few consolidations.
 std::vector<CreateCall> SplitCreate(const std::vector<std::int64_t>& ids,
-                                    std::span<const client::InitialStress> initial_per_point,
+                                    std::span<const InitialStress> initial_per_point,
                                     std::int64_t per_call) {
   std::vector<CreateCall> calls;
   if (initial_per_point.size() <= 1) {
@@ -319,7 +319,7 @@ std::vector<CreateCall> SplitCreate(const std::vector<std::int64_t>& ids,
 
 absl::StatusOr<std::vector<dem::RveState>> RvePool::Create(
     std::span<const std::string> template_per_point,
-    std::span<const client::InitialStress> initial_per_point,
+    std::span<const InitialStress> initial_per_point,
     const std::map<std::string, dem::Controls>& controls, const CreateProgress& progress) {
   if (endpoints_.empty()) return NoEndpoints();
   if (assignment_.empty()) Assign(std::vector<double>(template_per_point.size(), 1.0));
@@ -369,8 +369,8 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Create(
         // are no measure.
         const bool consolidates =
             !c.initial.empty() &&
-            std::none_of(c.initial.begin(), c.initial.end(), [](const client::InitialStress& i) {
-              return i.kind == client::InitialStress::Kind::kTemplate;
+            std::none_of(c.initial.begin(), c.initial.end(), [](const InitialStress& i) {
+              return i.kind == InitialStress::Kind::kTemplate;
             });
         const std::int64_t workers = std::max(1, endpoints_[k]->workers());
         const double rounds = static_cast<double>(
@@ -380,7 +380,7 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Create(
               AdaptiveDeadline(round_seconds_[k] * rounds, absl::InfiniteDuration()));
         }
         const auto start = std::chrono::steady_clock::now();
-        absl::StatusOr<std::vector<client::RveOutcome>> r = endpoints_[k]->Create(
+        absl::StatusOr<std::vector<RveOutcome>> r = endpoints_[k]->Create(
             run_id_, t.name, c.ids, c.initial,
             own == controls.end() ? std::nullopt : std::optional<dem::Controls>(own->second));
         if (!r.ok()) return CallError(k, r.status(), what);
@@ -431,7 +431,7 @@ int RvePool::total_workers() const {
 }
 
 absl::Status RvePool::Judge(int k, std::int64_t step,
-                            absl::StatusOr<std::vector<client::RveOutcome>>& result,
+                            absl::StatusOr<std::vector<RveOutcome>>& result,
                             std::vector<dem::RveState>& out, ApplyStats& stats, bool& transient) {
   const std::vector<std::int64_t>& ids = points_[k];
   const std::string what = absl::StrCat("step ", step);
@@ -442,8 +442,8 @@ absl::Status RvePool::Judge(int k, std::int64_t step,
   }
   // A per-RVE failure of its own (a refused ΔF, a wrong step) is final;
   // RVEs skipped because the deadline passed are completed by a retry.
-  const client::RveOutcome* retry = nullptr;
-  for (const client::RveOutcome& o : *result) {
+  const RveOutcome* retry = nullptr;
+  for (const RveOutcome& o : *result) {
     if (o.status.ok()) continue;
     if (!IsTransient(o.status)) return PointError(k, o, what);
     if (retry == nullptr) retry = &o;
@@ -453,7 +453,7 @@ absl::Status RvePool::Judge(int k, std::int64_t step,
     return PointError(k, *retry, what);
   }
   RETURN_IF_ERROR(Collect(k, ids, *result, what, out));
-  for (const client::RveOutcome& o : *result) {
+  for (const RveOutcome& o : *result) {
     ++stats.increments;
     stats.dem_steps += o.state.steps;
     stats.engine_seconds += o.engine_seconds;
@@ -486,7 +486,7 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(
   // server answers RVEs already committed from memory), after a backoff
   // that doubles per attempt.
   struct Batch {
-    std::vector<client::Increment> increments;
+    std::vector<Increment> increments;
     std::unique_ptr<client::PendingApply> call;
     int attempts = 0;
     bool done = false;
@@ -518,7 +518,7 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(
     for (int k = 0; k < num_endpoints(); ++k) {
       Batch& b = batches[k];
       if (b.done) continue;
-      absl::StatusOr<std::vector<client::RveOutcome>> result = b.call->Finish();
+      absl::StatusOr<std::vector<RveOutcome>> result = b.call->Finish();
       last_apply_seconds_[k] += b.call->seconds();
       b.call.reset();
       bool transient = false;
@@ -565,8 +565,7 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Get(bool want_tangent) {
   absl::Status s = ForEachStateCall([&](int k) -> absl::Status {
     const std::vector<std::int64_t>& ids = points_[k];
     if (ids.empty()) return absl::OkStatus();
-    absl::StatusOr<std::vector<client::RveOutcome>> r =
-        endpoints_[k]->Get(run_id_, ids, want_tangent);
+    absl::StatusOr<std::vector<RveOutcome>> r = endpoints_[k]->Get(run_id_, ids, want_tangent);
     if (!r.ok()) return CallError(k, r.status(), "getting states");
     return Collect(k, ids, *r, "getting states", out);
   });
@@ -574,14 +573,14 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Get(bool want_tangent) {
   return out;
 }
 
-absl::StatusOr<std::vector<store::RveRecord>> RvePool::ExportAll() {
+absl::StatusOr<std::vector<RveRecord>> RvePool::ExportAll() {
   if (assignment_.empty()) return NoRves();
-  std::vector<std::vector<store::RveRecord>> parts(endpoints_.size());
+  std::vector<std::vector<RveRecord>> parts(endpoints_.size());
   absl::Status s = ForEachStateCall([&](int k) -> absl::Status {
     const std::vector<std::int64_t>& ids = points_[k];
     if (ids.empty()) return absl::OkStatus();  // empty ids would export the whole run
     parts[k].reserve(ids.size());
-    absl::Status e = endpoints_[k]->Export(run_id_, ids, [&](store::RveRecord&& r) {
+    absl::Status e = endpoints_[k]->Export(run_id_, ids, [&](RveRecord&& r) {
       parts[k].push_back(std::move(r));
       return absl::OkStatus();
     });
@@ -593,16 +592,16 @@ absl::StatusOr<std::vector<store::RveRecord>> RvePool::ExportAll() {
     return absl::OkStatus();
   });
   if (!s.ok()) return s;
-  std::vector<store::RveRecord> out;
+  std::vector<RveRecord> out;
   out.reserve(assignment_.size());
-  for (std::vector<store::RveRecord>& part : parts)
-    for (store::RveRecord& r : part) out.push_back(std::move(r));
+  for (std::vector<RveRecord>& part : parts)
+    for (RveRecord& r : part) out.push_back(std::move(r));
   std::sort(out.begin(), out.end(),
-            [](const store::RveRecord& a, const store::RveRecord& b) { return a.id < b.id; });
+            [](const RveRecord& a, const RveRecord& b) { return a.id < b.id; });
   return out;
 }
 
-absl::Status RvePool::ImportAll(std::vector<store::RveRecord> records) {
+absl::Status RvePool::ImportAll(std::vector<RveRecord> records) {
   if (endpoints_.empty()) return NoEndpoints();
   if (assignment_.empty()) Assign(std::vector<double>(records.size(), 1.0));
   const std::size_t n = assignment_.size();
@@ -611,7 +610,7 @@ absl::Status RvePool::ImportAll(std::vector<store::RveRecord> records) {
         absl::StrCat("import of ", records.size(), " RVEs for ", n, " material points"));
   }
   std::vector<bool> seen(n, false);
-  for (const store::RveRecord& r : records) {
+  for (const RveRecord& r : records) {
     if (r.id < 0 || static_cast<std::size_t>(r.id) >= n) {
       return absl::InvalidArgumentError(
           absl::StrCat("import: material point ", r.id, " is outside 0..", n - 1));
@@ -623,9 +622,9 @@ absl::Status RvePool::ImportAll(std::vector<store::RveRecord> records) {
     seen[r.id] = true;
   }
   std::sort(records.begin(), records.end(),
-            [](const store::RveRecord& a, const store::RveRecord& b) { return a.id < b.id; });
-  std::vector<std::vector<store::RveRecord>> parts(endpoints_.size());
-  for (store::RveRecord& r : records) {
+            [](const RveRecord& a, const RveRecord& b) { return a.id < b.id; });
+  std::vector<std::vector<RveRecord>> parts(endpoints_.size());
+  for (RveRecord& r : records) {
     r.run_id = run_id_;
     parts[assignment_[r.id]].push_back(std::move(r));
   }
@@ -645,20 +644,20 @@ absl::Status RvePool::DropAll() {
   });
 }
 
-absl::Status RvePool::Restore(std::vector<store::RveRecord> records) {
+absl::Status RvePool::Restore(std::vector<RveRecord> records) {
   RETURN_IF_ERROR(DropAll());
   return ImportAll(std::move(records));
 }
 
 absl::Status RvePool::Migrate(std::vector<int> endpoint_of_point,
-                              std::span<const store::RveRecord> records) {
+                              std::span<const RveRecord> records) {
   const std::size_t n = assignment_.size();
   if (endpoint_of_point.size() != n || records.size() != n) {
     return absl::InvalidArgumentError(absl::StrCat("migration of ", records.size(), " RVEs to ",
                                                    endpoint_of_point.size(), " places for ", n,
                                                    " material points"));
   }
-  std::vector<std::vector<store::RveRecord>> arriving(endpoints_.size());
+  std::vector<std::vector<RveRecord>> arriving(endpoints_.size());
   std::vector<std::vector<std::int64_t>> leaving(endpoints_.size());
   for (std::size_t p = 0; p < n; ++p) {
     const int to = endpoint_of_point[p], from = assignment_[p];
@@ -671,7 +670,7 @@ absl::Status RvePool::Migrate(std::vector<int> endpoint_of_point,
           absl::StrCat("migration: record ", p, " is for material point ", records[p].id));
     }
     if (to == from) continue;
-    store::RveRecord& r = arriving[to].emplace_back(records[p]);
+    RveRecord& r = arriving[to].emplace_back(records[p]);
     r.run_id = run_id_;
     leaving[from].push_back(static_cast<std::int64_t>(p));
   }

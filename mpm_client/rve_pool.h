@@ -23,9 +23,10 @@
 #include "absl/status/statusor.h"
 #include "absl/time/time.h"
 #include "rve_server/client/endpoint.h"
-#include "rve_server/engine/rve.h"
-#include "rve_server/engine/snapshot.h"
-#include "store/record.h"
+#include "rve_server/values/increment.h"
+#include "rve_server/values/record.h"
+#include "rve_server/values/snapshot.h"
+#include "rve_server/values/state.h"
 
 namespace rvehub::mpm {
 
@@ -132,11 +133,10 @@ class RvePool {
   // ExportAll gives them) is imported on its new endpoint, then dropped
   // from its old one. On error the assignment is unchanged and RVEs may be
   // on both endpoints: Restore puts everything right.
-  absl::Status Migrate(std::vector<int> endpoint_of_point,
-                       std::span<const store::RveRecord> records);
+  absl::Status Migrate(std::vector<int> endpoint_of_point, std::span<const RveRecord> records);
   // Every RVE replaced by `records` (one per point): the run is dropped on
   // every live endpoint, then ImportAll.
-  absl::Status Restore(std::vector<store::RveRecord> records);
+  absl::Status Restore(std::vector<RveRecord> records);
   const std::vector<int>& assignment() const { return assignment_; }
   std::int64_t num_points() const { return static_cast<std::int64_t>(assignment_.size()); }
   // The points on endpoint k, ascending (the order they are sent in).
@@ -144,7 +144,7 @@ class RvePool {
 
   // Every template to every endpoint (endpoints concurrently), replacing
   // those of the same names.
-  absl::Status UploadTemplates(std::span<const store::TemplateRecord> templates);
+  absl::Status UploadTemplates(std::span<const TemplateRecord> templates);
 
   // Creates the run's RVEs: template per point (or one for all) and initial
   // stress per point (empty: the template's state; one for all; or one per
@@ -162,7 +162,7 @@ class RvePool {
   using CreateProgress = std::function<void(std::int64_t done, std::int64_t total)>;
   absl::StatusOr<std::vector<dem::RveState>> Create(
       std::span<const std::string> template_per_point,
-      std::span<const client::InitialStress> initial_per_point = {},
+      std::span<const InitialStress> initial_per_point = {},
       const std::map<std::string, dem::Controls>& controls = {},
       const CreateProgress& progress = {});
 
@@ -179,10 +179,10 @@ class RvePool {
   absl::StatusOr<std::vector<dem::RveState>> Get(bool want_tangent);
 
   // Full states of every point, sorted by id.
-  absl::StatusOr<std::vector<store::RveRecord>> ExportAll();
+  absl::StatusOr<std::vector<RveRecord>> ExportAll();
   // One record per point (ids 0..n−1), placed by the current assignment
   // (without one: equal costs over the records) and renamed into this run.
-  absl::Status ImportAll(std::vector<store::RveRecord> records);
+  absl::Status ImportAll(std::vector<RveRecord> records);
   // Drops the run on every endpoint (one hosting none is fine).
   absl::Status DropAll();
 
@@ -230,8 +230,7 @@ class RvePool {
   // The result of endpoint k's batch of a step: OK with states into `out`
   // and counts into `stats`, or the error, `transient` when a retry of the
   // same batch may cure it.
-  absl::Status Judge(int k, std::int64_t step,
-                     absl::StatusOr<std::vector<client::RveOutcome>>& result,
+  absl::Status Judge(int k, std::int64_t step, absl::StatusOr<std::vector<RveOutcome>>& result,
                      std::vector<dem::RveState>& out, ApplyStats& stats, bool& transient);
   // Notes endpoint k for TakeFailed when `s` is transient.
   void NoteFailure(int k, const absl::Status& s);
@@ -239,12 +238,11 @@ class RvePool {
   // endpoint named (endpoints name themselves; a wrapper might not).
   absl::Status CallError(int k, const absl::Status& s, absl::string_view what) const;
   // The error for a failed outcome on endpoint k, naming the point.
-  absl::Status PointError(int k, const client::RveOutcome& o, absl::string_view what) const;
+  absl::Status PointError(int k, const RveOutcome& o, absl::string_view what) const;
   // States into `out` (point order) from the outcomes for `ids` on endpoint
   // k; the first failed outcome (in `ids` order) is the error.
-  absl::Status Collect(int k, std::span<const std::int64_t> ids,
-                       std::vector<client::RveOutcome>& outcomes, absl::string_view what,
-                       std::vector<dem::RveState>& out) const;
+  absl::Status Collect(int k, std::span<const std::int64_t> ids, std::vector<RveOutcome>& outcomes,
+                       absl::string_view what, std::vector<dem::RveState>& out) const;
 
   std::vector<std::unique_ptr<client::RveEndpoint>> endpoints_;
   const std::string run_id_;

@@ -25,9 +25,12 @@
 #include "mpm_client/templates.h"
 #include "mpm_client/two_phase.h"
 #include "rve_server/client/endpoint.h"
+#include "rve_server/client/remote_server.h"
 #include "rve_server/common/status_macros.h"
 #include "rve_server/common/text_file.h"
-#include "rve_server/engine/prepare.h"
+#include "rve_server/embedded/endpoint.h"
+#include "rve_server/values/preparation.h"
+#include "rve_server/values/state.h"
 #include "store/results.h"
 
 namespace rvehub::mpm {
@@ -152,23 +155,23 @@ std::string Simulation::ServerTemplateName(const std::string& name) const {
 absl::Status Simulation::UploadTemplates() {
   // Under names of this run: an upload replaces a template of the same name,
   // so two runs sharing a server must not share names.
-  std::vector<store::TemplateRecord> named = templates_;
-  for (store::TemplateRecord& t : named) t.name = ServerTemplateName(t.name);
+  std::vector<TemplateRecord> named = templates_;
+  for (TemplateRecord& t : named) t.name = ServerTemplateName(t.name);
   return pool_->UploadTemplates(named);
 }
 
 absl::Status Simulation::Connect() {
   std::vector<std::unique_ptr<client::RveEndpoint>> endpoints;
   if (options_.servers.empty()) {
-    client::EmbeddedOptions embedded;
+    embedded::EmbeddedOptions embedded;
     embedded.threads = options_.threads > 0
                            ? options_.threads
                            : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-    endpoints.push_back(client::MakeEmbeddedEndpoint(embedded));
+    endpoints.push_back(embedded::MakeEndpoint(embedded));
   } else {
     for (const std::string& address : options_.servers) {
       ASSIGN_OR_RETURN(std::unique_ptr<client::RveEndpoint> e,
-                       client::MakeRemoteEndpoint(address, options_.client));
+                       client::RemoteServer::Connect(address, options_.client));
       endpoints.push_back(std::move(e));
     }
   }
@@ -479,7 +482,7 @@ absl::StatusOr<store::SimCheckpoint> Simulation::Snapshot() {
   c.step = solver_->step();
   c.time = solver_->time();
   solver_->ExportState(c.doubles, c.ints);
-  ASSIGN_OR_RETURN(std::vector<store::RveRecord> rves, pool_->ExportAll());
+  ASSIGN_OR_RETURN(std::vector<RveRecord> rves, pool_->ExportAll());
   c.rves = std::move(rves);
   c.templates = templates_;
   return c;
@@ -534,15 +537,15 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   const std::string cache = options.template_cache_dir.empty() ? options.out_dir + "/templates"
                                                                : options.template_cache_dir;
   ASSIGN_OR_RETURN(
-      std::vector<store::TemplateRecord> templates,
+      std::vector<TemplateRecord> templates,
       ResolveTemplates(spec.templates, cache, [&](const std::string& l) { sim->Log(l); }));
   sim->templates_ = std::move(templates);
   RETURN_IF_ERROR(sim->Connect());
   RETURN_IF_ERROR(sim->UploadTemplates());
 
   // Material points; the density of a region defaults to its template's.
-  std::map<std::string, const store::TemplateRecord*> by_name;
-  for (const store::TemplateRecord& t : sim->templates_) by_name[t.name] = &t;
+  std::map<std::string, const TemplateRecord*> by_name;
+  for (const TemplateRecord& t : sim->templates_) by_name[t.name] = &t;
   std::vector<double> density;
   for (const MaterialRegion& r : spec.regions) {
     density.push_back(r.density > 0 ? r.density : BulkDensity(by_name.at(r.rve_template)->packing));
@@ -566,7 +569,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
     }
   }
   std::vector<std::string> template_of(n);
-  std::vector<client::InitialStress> initial(n);
+  std::vector<InitialStress> initial(n);
   std::vector<double> cost(n);
   // Per region, for the notes below (Pa, compression +): its points with an
   // initial stress of their own; those starting below
@@ -585,15 +588,17 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
     const double depth = std::max(0.0, r.surface_y - points.position[p].y());
     const double geostatic = stress_density[points.region[p]] * g * depth + r.surcharge;
     const double sv = std::max(r.minimum_stress, geostatic);
-    client::InitialStress& s = initial[p];
-    s.kind = r.initial_stress;
+    InitialStress& s = initial[p];
     switch (r.initial_stress) {
       case InitialStressKind::kTemplate:
+        s.kind = InitialStress::Kind::kTemplate;
         break;
       case InitialStressKind::kIsotropic:
+        s.kind = InitialStress::Kind::kIsotropic;
         s.pressure = sv;
         break;
       case InitialStressKind::kK0:
+        s.kind = InitialStress::Kind::kK0;
         s.vertical_compression = sv;
         s.k0 = r.k0;
         break;
@@ -643,7 +648,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   // inertial-number bound and stretch bound, where the case sets them.
   std::map<std::string, dem::Controls> controls;
   if (spec.rve.min_steps > 0 || spec.rve.max_inertial_number > 0 || spec.rve.max_stretch > 0) {
-    for (const store::TemplateRecord& t : sim->templates_) {
+    for (const TemplateRecord& t : sim->templates_) {
       dem::Controls c = t.packing.controls;
       if (spec.rve.min_steps > 0) c.min_steps = spec.rve.min_steps;
       if (spec.rve.max_inertial_number > 0) c.max_inertial_number = spec.rve.max_inertial_number;
@@ -795,7 +800,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
   RETURN_IF_ERROR(sim->Connect());
   RETURN_IF_ERROR(sim->UploadTemplates());
   std::vector<double> cost;
-  for (store::RveRecord& r : c.rves) {
+  for (RveRecord& r : c.rves) {
     r.run_id = sim->run_id_;
     cost.push_back(static_cast<double>(r.packing.radius.size()));
   }
@@ -830,7 +835,7 @@ struct Simulation::RecoveryPoint {
   std::int64_t step = -1;
   std::map<std::string, std::vector<double>> doubles;
   std::map<std::string, std::vector<std::int64_t>> ints;
-  std::vector<store::RveRecord> rves;  // every point's, by id
+  std::vector<RveRecord> rves;  // every point's, by id
 };
 
 bool Simulation::RecoveryOn() const { return options_.recovery && !options_.servers.empty(); }
@@ -843,7 +848,7 @@ double WallSeconds() { return Seconds(Clock::now().time_since_epoch()); }
 // `measured` (RvePool::point_work) where there is any, else its RVE's
 // particle count (before the first step). Only the ratios matter.
 std::vector<double> PlacementCost(std::span<const double> measured,
-                                  std::span<const store::RveRecord> rves) {
+                                  std::span<const RveRecord> rves) {
   const bool any = std::any_of(measured.begin(), measured.end(), [](double c) { return c > 0; });
   std::vector<double> cost(rves.size());
   for (std::size_t p = 0; p < rves.size(); ++p) {
@@ -864,7 +869,7 @@ absl::Status Simulation::TakeRecoveryPoint(SimulationSummary& sum) {
   recovery_ = std::move(point);
   // Sizes change where an RVE's cell doubled.
   std::vector<double> sizes;
-  for (const store::RveRecord& r : recovery_->rves) {
+  for (const RveRecord& r : recovery_->rves) {
     sizes.push_back(static_cast<double>(r.packing.radius.size()));
   }
   pool_->SetPointSizes(std::move(sizes));

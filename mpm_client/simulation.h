@@ -182,7 +182,7 @@ class Simulation {
   std::string case_json_;
   SimulationOptions options_;
   std::string run_id_;
-  std::vector<store::TemplateRecord> templates_;
+  std::vector<TemplateRecord> templates_;
   std::unique_ptr<RvePool> pool_;
   std::unique_ptr<StressModel> model_;
   std::unique_ptr<Solver> solver_;

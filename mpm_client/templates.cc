@@ -8,17 +8,17 @@
 #include "absl/strings/str_format.h"
 #include "rve_server/common/status_macros.h"
 #include "rve_server/common/text_file.h"
-#include "rve_server/engine/material.h"
-#include "rve_server/engine/prepare.h"
-#include "rve_server/engine/rve.h"
+#include "rve_server/embedded/packings.h"
+#include "rve_server/values/preparation.h"
+#include "rve_server/values/snapshot.h"
 #include "store/checkpoint.h"
 
 namespace rvehub::mpm {
 namespace {
 
 // The record of a template file: the one named `name`, or its only one.
-absl::StatusOr<store::TemplateRecord> FromFile(const TemplateSpec& spec) {
-  absl::StatusOr<std::vector<store::TemplateRecord>> records = store::ReadTemplates(spec.file);
+absl::StatusOr<TemplateRecord> FromFile(const TemplateSpec& spec) {
+  absl::StatusOr<std::vector<TemplateRecord>> records = store::ReadTemplates(spec.file);
   if (!records.ok()) {
     return absl::Status(records.status().code(),
                         absl::StrCat("template '", spec.name, "': ", records.status().message()));
@@ -31,16 +31,15 @@ absl::StatusOr<store::TemplateRecord> FromFile(const TemplateSpec& spec) {
     }
     return std::move(records->front());
   }
-  for (store::TemplateRecord& r : *records) {
+  for (TemplateRecord& r : *records) {
     if (r.name == spec.template_name) return std::move(r);
   }
   return absl::NotFoundError(absl::StrCat("template '", spec.name, "': ", spec.file,
                                           " has no template named '", spec.template_name, "'"));
 }
 
-absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
-                                               const std::string& cache_dir,
-                                               const std::function<void(const std::string&)>& log) {
+absl::StatusOr<TemplateRecord> Prepared(const TemplateSpec& spec, const std::string& cache_dir,
+                                        const std::function<void(const std::string&)>& log) {
   const dem::TemplateVariant variant{.pressure = spec.pressure,
                                      .void_ratio = spec.void_ratio,
                                      .num_particles = spec.particles,
@@ -52,7 +51,7 @@ absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
   if (absl::StatusOr<bool> cached_file = PathExists(path); !cached_file.ok()) {
     if (log) log(absl::StrCat("template cache unusable (", cached_file.status().message(), ")"));
   } else if (*cached_file) {
-    absl::StatusOr<std::vector<store::TemplateRecord>> cached = store::ReadTemplates(path);
+    absl::StatusOr<std::vector<TemplateRecord>> cached = store::ReadTemplates(path);
     if (cached.ok() && cached->size() == 1) return std::move(cached->front());
     if (log) log(absl::StrCat("template cache ", path, " unusable, preparing again"));
   }
@@ -60,28 +59,24 @@ absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
   dem::PreparationReport report;
   // The first progress line ("N discs, seed S") is the one worth a log line.
   bool announced = false;
-  absl::StatusOr<dem::RveSnapshot> packing = dem::PrepareTemplate(
+  absl::StatusOr<TemplateRecord> prepared = embedded::PrepareTemplate(
       spec.parameter_set, spec.seed, variant, &report, [&](const std::string& line) {
         if (log && !announced) log(absl::StrCat("  ", line));
         announced = true;
       });
-  if (!packing.ok()) {
-    return absl::Status(packing.status().code(), absl::StrCat("preparing template '", spec.name,
-                                                              "': ", packing.status().message()));
+  if (!prepared.ok()) {
+    return absl::Status(prepared.status().code(), absl::StrCat("preparing template '", spec.name,
+                                                               "': ", prepared.status().message()));
   }
   if (log) log(absl::StrFormat("  e0 = %.4f at p0 = %.0f Pa", report.void_ratio, report.pressure));
-  store::TemplateRecord record;
-  record.name = stem;
-  record.description = dem::TemplateDescription(spec.parameter_set, spec.seed,
-                                                packing->radius.size(), report, variant);
-  record.packing = *std::move(packing);
+  TemplateRecord record = *std::move(prepared);
   std::error_code ec;
   std::filesystem::create_directories(cache_dir, ec);
   store::FileInfo info;
   info.created_by = "mpm_client";
   // The cache only saves time: a failure to write it is not an error.
   if (absl::Status s =
-          store::WriteTemplates(path, std::span<const store::TemplateRecord>(&record, 1), info);
+          store::WriteTemplates(path, std::span<const TemplateRecord>(&record, 1), info);
       !s.ok() && log) {
     log(absl::StrCat("could not cache the template: ", s.message()));
   }
@@ -90,13 +85,13 @@ absl::StatusOr<store::TemplateRecord> Prepared(const TemplateSpec& spec,
 
 }  // namespace
 
-absl::StatusOr<std::vector<store::TemplateRecord>> ResolveTemplates(
+absl::StatusOr<std::vector<TemplateRecord>> ResolveTemplates(
     const std::vector<TemplateSpec>& specs, const std::string& cache_dir,
     const std::function<void(const std::string&)>& log) {
-  std::vector<store::TemplateRecord> out;
+  std::vector<TemplateRecord> out;
   out.reserve(specs.size());
   for (const TemplateSpec& spec : specs) {
-    ASSIGN_OR_RETURN(store::TemplateRecord r,
+    ASSIGN_OR_RETURN(TemplateRecord r,
                      spec.file.empty() ? Prepared(spec, cache_dir, log) : FromFile(spec));
     r.name = spec.name;
     out.push_back(std::move(r));

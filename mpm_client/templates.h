@@ -10,7 +10,7 @@
 
 #include "absl/status/statusor.h"
 #include "mpm_client/model.h"
-#include "store/record.h"
+#include "rve_server/values/record.h"
 
 namespace rvehub::mpm {
 
@@ -18,7 +18,7 @@ namespace rvehub::mpm {
 // `cache_dir` holds prepared templates as "<parameter_set>-seed<N>.h5",
 // with "-p<P>Pa", "-e<E>" and "-<N>discs" where the spec sets pressure,
 // void_ratio or particles (created when missing). `log` receives one line per preparation.
-absl::StatusOr<std::vector<store::TemplateRecord>> ResolveTemplates(
+absl::StatusOr<std::vector<TemplateRecord>> ResolveTemplates(
     const std::vector<TemplateSpec>& specs, const std::string& cache_dir,
     const std::function<void(const std::string&)>& log = {});
 

@@ -21,9 +21,16 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "store/record.h"
+#include "rve_server/values/record.h"
 
 namespace rvehub::store {
+
+// File-level facts written into every store file.
+struct FileInfo {
+  std::string created_by;           // program and version, e.g. "rve_server 0.3.0"
+  std::string created_at;           // ISO 8601 UTC
+  std::int32_t format_version = 0;  // filled in by the reader
+};
 
 // The format version this code writes, and the newest it reads.
 inline constexpr std::int32_t kFormatVersion = 1;

@@ -26,8 +26,8 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
-#include "rve_server/engine/material.h"
-#include "rve_server/engine/snapshot.h"
+#include "rve_server/values/material.h"
+#include "rve_server/values/snapshot.h"
 #include "store/checkpoint.h"
 #include "store/hdf5.h"
 

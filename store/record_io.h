@@ -16,9 +16,9 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "rve_server/values/record.h"
 #include "store/checkpoint.h"
 #include "store/hdf5.h"
-#include "store/record.h"
 
 namespace rvehub::store::internal {
 

@@ -19,8 +19,8 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "rve_server/values/record.h"
 #include "store/checkpoint.h"  // kFormatVersion
-#include "store/record.h"
 
 namespace rvehub::store {
 

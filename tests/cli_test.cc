@@ -27,7 +27,7 @@
 #include "gtest/gtest.h"
 #include "nlohmann/json.hpp"
 #include "rve_server/client/channel.h"
-#include "rve_server/client/server_client.h"
+#include "rve_server/client/remote_server.h"
 #include "rve_server/service/registry.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
 #include "tests/process_util.h"
@@ -607,7 +607,9 @@ TEST(CliServerTest, ElementTestOnTheServerMatchesTheLocalRun) {
   const Result unknown = RunCli(absl::StrCat("element-test ", server.server_flag(),
                                              " --template=nope --out='", remote_csv, "'"));
   EXPECT_EQ(unknown.exit_code, 1) << unknown.output;
-  EXPECT_TRUE(absl::StrContains(unknown.output, "NOT_FOUND: unknown template \"nope\""))
+  EXPECT_TRUE(absl::StrContains(
+      unknown.output,
+      absl::StrCat("NOT_FOUND: RVE server ", server.address(), ": unknown template \"nope\"")))
       << unknown.output;
   EXPECT_FALSE(std::ifstream(remote_csv).good());
   EXPECT_EQ(server.Stop(), 0) << server.Log();
@@ -748,7 +750,9 @@ TEST(CliServerTest, GetPrintsOneRve) {
 
   const Result unknown_run = RunCli(absl::StrCat("get ", server.server_flag(), " --run=x --id=5"));
   EXPECT_EQ(unknown_run.exit_code, 1) << unknown_run.output;
-  EXPECT_TRUE(absl::StrContains(unknown_run.output, "NOT_FOUND: unknown run \"x\""))
+  EXPECT_TRUE(absl::StrContains(
+      unknown_run.output,
+      absl::StrCat("NOT_FOUND: RVE server ", server.address(), ": unknown run \"x\"")))
       << unknown_run.output;
   const Result unknown_id = RunCli(absl::StrCat("get ", server.server_flag(), " --run=g --id=99"));
   EXPECT_EQ(unknown_id.exit_code, 1) << unknown_id.output;
@@ -792,7 +796,9 @@ TEST(CliServerTest, CheckpointAndRestoreRoundTrip) {
   const Result missing_run =
       RunCli(absl::StrCat("checkpoint ", source.server_flag(), " --run=x --out='", only_b, "'"));
   EXPECT_EQ(missing_run.exit_code, 1) << missing_run.output;
-  EXPECT_TRUE(absl::StrContains(missing_run.output, "NOT_FOUND: unknown run \"x\""))
+  EXPECT_TRUE(absl::StrContains(
+      missing_run.output,
+      absl::StrCat("NOT_FOUND: RVE server ", source.address(), ": unknown run \"x\"")))
       << missing_run.output;
 
   const std::string restore = absl::StrCat("restore ", target.server_flag(), " --file='", all, "'");
@@ -867,24 +873,27 @@ TEST(CliTest, ClientNameCheckIsTheServers) {
   }
 }
 
-// ServerClient, rve_cli's way to a server: plain results, and errors that
-// keep the server's code and name the call and the server.
-TEST(CliServerTest, ServerClientNamesTheCallAndServerInErrors) {
+// RemoteServer, rve_cli's way to a server: plain results, and errors that
+// keep the server's code and name the server.
+TEST(CliServerTest, RemoteServerNamesTheServerInErrors) {
   Server server;
   ASSERT_FALSE(server.address().empty());
-  const client::ServerClient c(server.address(), {}, std::chrono::seconds(60));
-  const absl::StatusOr<client::ServerInfo> info = c.GetServerInfo();
+  absl::StatusOr<std::unique_ptr<client::RemoteServer>> c =
+      client::RemoteServer::Connect(server.address(), {});
+  ASSERT_TRUE(c.ok()) << c.status();
+  const absl::StatusOr<client::ServerInfo> info = (*c)->GetServerInfo();
   ASSERT_TRUE(info.ok()) << info.status();
   EXPECT_EQ(info->api_version, "rvehub.v1");
-  const absl::StatusOr<std::vector<client::RunInfo>> runs = c.ListRuns();
+  const absl::StatusOr<std::vector<RunInfo>> runs = (*c)->ListRuns();
   ASSERT_TRUE(runs.ok()) << runs.status();
   EXPECT_TRUE(runs->empty());
   const std::int64_t ids[] = {1};
-  const absl::StatusOr<std::int64_t> dropped = c.Drop("none", ids);
+  const absl::StatusOr<std::int64_t> dropped = (*c)->DropRves("none", ids);
   EXPECT_TRUE(absl::IsNotFound(dropped.status())) << dropped.status();
-  EXPECT_TRUE(
-      absl::EndsWith(dropped.status().message(), absl::StrCat(" (Drop on ", server.address(), ")")))
+  EXPECT_TRUE(absl::StartsWith(dropped.status().message(),
+                               absl::StrCat("RVE server ", server.address(), ": ")))
       << dropped.status();
+  c->reset();
   EXPECT_EQ(server.Stop(), 0) << server.Log();
 }
 

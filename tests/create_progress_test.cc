@@ -11,6 +11,7 @@
 
 #include "mpm_client/rve_pool.h"
 #include "rve_server/client/endpoint.h"
+#include "rve_server/embedded/endpoint.h"
 #include "tests/test_util.h"
 
 namespace rvehub::mpm {
@@ -20,23 +21,23 @@ using dem::testing_util::SameBits;
 
 TEST(CreateProgressTest, ReportsEachCallAndMatchesOneCall) {
   dem::RveSnapshot packing = dem::testing_util::Prepared("SET-dense");
-  const store::TemplateRecord record{"t", "SET-dense seed 1", packing};
+  const TemplateRecord record{"t", "SET-dense seed 1", packing};
   // 9 distinct stresses over 12 points (points 9..11 repeat 0..2); one
   // worker: calls of 2, 2, 2, 2 and 1 consolidations.
   constexpr int kPoints = 12;
-  std::vector<client::InitialStress> initial(kPoints);
+  std::vector<InitialStress> initial(kPoints);
   std::vector<std::int64_t> ids;
   for (int p = 0; p < kPoints; ++p) {
-    initial[p].kind = client::InitialStress::Kind::kIsotropic;
+    initial[p].kind = InitialStress::Kind::kIsotropic;
     initial[p].pressure = 100e3 * (1 + 0.01 * (p % 9));
     ids.push_back(p);
   }
-  client::EmbeddedOptions options;
+  embedded::EmbeddedOptions options;
   options.threads = 1;
   std::vector<std::unique_ptr<client::RveEndpoint>> endpoints;
-  endpoints.push_back(client::MakeEmbeddedEndpoint(options));
+  endpoints.push_back(embedded::MakeEndpoint(options));
   RvePool pool(std::move(endpoints), "run");
-  ASSERT_TRUE(pool.UploadTemplates(std::vector<store::TemplateRecord>{record}).ok());
+  ASSERT_TRUE(pool.UploadTemplates(std::vector<TemplateRecord>{record}).ok());
   std::vector<std::pair<std::int64_t, std::int64_t>> reports;
   absl::StatusOr<std::vector<dem::RveState>> states = pool.Create(
       std::vector<std::string>(kPoints, "t"), initial, {},
@@ -46,9 +47,9 @@ TEST(CreateProgressTest, ReportsEachCallAndMatchesOneCall) {
                          {0, 9}, {2, 9}, {4, 9}, {6, 9}, {8, 9}, {9, 9}}));
 
   // The same RVEs created in one call.
-  std::unique_ptr<client::RveEndpoint> single = client::MakeEmbeddedEndpoint(options);
+  std::unique_ptr<client::RveEndpoint> single = embedded::MakeEndpoint(options);
   ASSERT_TRUE(single->PutTemplate(record).ok());
-  absl::StatusOr<std::vector<client::RveOutcome>> one =
+  absl::StatusOr<std::vector<RveOutcome>> one =
       single->Create("run", "t", ids, initial, std::nullopt);
   ASSERT_TRUE(one.ok()) << one.status();
   ASSERT_EQ(one->size(), static_cast<std::size_t>(kPoints));

@@ -17,11 +17,11 @@
 #include "absl/status/statusor.h"
 #include "absl/synchronization/mutex.h"
 #include "gtest/gtest.h"
-#include "rve_server/engine/material.h"
 #include "rve_server/engine/rve.h"
-#include "rve_server/engine/snapshot.h"
 #include "rve_server/service/registry.h"
 #include "rve_server/service/worker_pool.h"
+#include "rve_server/values/material.h"
+#include "rve_server/values/snapshot.h"
 #include "tests/test_util.h"
 
 namespace rvehub::dem {

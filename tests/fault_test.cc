@@ -35,6 +35,7 @@
 #include "mpm_client/rve_pool.h"
 #include "mpm_client/simulation.h"
 #include "rve_server/client/endpoint.h"
+#include "rve_server/client/remote_server.h"
 #include "store/checkpoint.h"
 #include "store/results.h"
 #include "tests/process_util.h"
@@ -305,7 +306,7 @@ std::unique_ptr<RvePool> PoolOn(const std::vector<std::unique_ptr<ServerProcess>
   std::vector<std::unique_ptr<client::RveEndpoint>> endpoints;
   for (const auto& s : servers) {
     absl::StatusOr<std::unique_ptr<client::RveEndpoint>> e =
-        client::MakeRemoteEndpoint(s->address(), {});
+        client::RemoteServer::Connect(s->address(), {});
     EXPECT_TRUE(e.ok()) << e.status();
     if (!e.ok()) return nullptr;
     endpoints.push_back(*std::move(e));
@@ -330,7 +331,7 @@ TEST(FaultTest, ServerStoppedDuringAnExportIsFoundAtTheDeadline) {
   RvePool& pool = *remote;
   dem::RveSnapshot packing = dem::testing_util::Prepared("SET-dense");
   packing.controls.min_steps = 10;
-  const std::vector<store::TemplateRecord> templates = {{"set-dense", "SET-dense", packing}};
+  const std::vector<TemplateRecord> templates = {{"set-dense", "SET-dense", packing}};
   ASSERT_TRUE(pool.UploadTemplates(templates).ok());
   const std::vector<std::string> names(4, "set-dense");
   ASSERT_TRUE(pool.Create(names).ok());
@@ -342,7 +343,7 @@ TEST(FaultTest, ServerStoppedDuringAnExportIsFoundAtTheDeadline) {
 
   servers[1]->Signal(SIGSTOP);
   const auto t0 = std::chrono::steady_clock::now();
-  const absl::StatusOr<std::vector<store::RveRecord>> lost = pool.ExportAll();
+  const absl::StatusOr<std::vector<RveRecord>> lost = pool.ExportAll();
   const double seconds = SecondsSince(t0);
   servers[1]->Signal(SIGCONT);
   ExpectGivenUpAtTheDeadline("export", lost.status(), servers[1]->address(), seconds, 10.0);
@@ -365,13 +366,13 @@ TEST(FaultTest, ServerStoppedDuringCreationEndsItAtTheDeadline) {
   std::unique_ptr<RvePool> remote = PoolOn(servers, "create-run", o);
   ASSERT_NE(remote, nullptr);
   RvePool& pool = *remote;
-  const std::vector<store::TemplateRecord> templates = {
+  const std::vector<TemplateRecord> templates = {
       {"set-dense", "SET-dense", dem::testing_util::Prepared("SET-dense")}};
   ASSERT_TRUE(pool.UploadTemplates(templates).ok());
   // Four depths: two calls of two consolidations on the server's 1 worker.
-  std::vector<client::InitialStress> initial;
+  std::vector<InitialStress> initial;
   for (double p : {40e3, 60e3, 80e3, 120e3}) {
-    initial.push_back({client::InitialStress::Kind::kIsotropic, p, 0.0, 0.0});
+    initial.push_back({InitialStress::Kind::kIsotropic, p, 0.0, 0.0});
   }
   const std::vector<std::string> names(initial.size(), "set-dense");
   std::chrono::steady_clock::time_point stopped;
@@ -432,7 +433,7 @@ TEST(FaultTest, CrashDuringCheckpointWriteLeavesThePreviousCheckpointAndNoStrayF
   constexpr int kFirst = 10, kMore = 3000;
   auto add = [&](ServerProcess& server, std::int64_t first, int n) {
     absl::StatusOr<std::unique_ptr<client::RveEndpoint>> e =
-        client::MakeRemoteEndpoint(server.address(), {});
+        client::RemoteServer::Connect(server.address(), {});
     ASSERT_TRUE(e.ok()) << e.status();
     ASSERT_TRUE((*e)->PutTemplate({"set-dense", "SET-dense", packing}).ok());
     std::vector<std::int64_t> ids;
@@ -465,7 +466,7 @@ TEST(FaultTest, CrashDuringCheckpointWriteLeavesThePreviousCheckpointAndNoStrayF
     ASSERT_TRUE(caught) << "the checkpoint write was not seen under way";
     EXPECT_TRUE(fs::exists(temp));  // what a killed write leaves
   }
-  absl::StatusOr<std::vector<store::RveRecord>> previous = store::ReadRves(ckpt + "/rves.h5");
+  absl::StatusOr<std::vector<RveRecord>> previous = store::ReadRves(ckpt + "/rves.h5");
   ASSERT_TRUE(previous.ok()) << previous.status();
   EXPECT_EQ(previous->size(), static_cast<std::size_t>(kFirst));
   {
@@ -476,9 +477,9 @@ TEST(FaultTest, CrashDuringCheckpointWriteLeavesThePreviousCheckpointAndNoStrayF
           << "stray file " << e.path();
     }
     absl::StatusOr<std::unique_ptr<client::RveEndpoint>> e =
-        client::MakeRemoteEndpoint(server.address(), {});
+        client::RemoteServer::Connect(server.address(), {});
     ASSERT_TRUE(e.ok()) << e.status();
-    absl::StatusOr<std::vector<client::RveOutcome>> all = (*e)->Get("run", {}, false);
+    absl::StatusOr<std::vector<RveOutcome>> all = (*e)->Get("run", {}, false);
     ASSERT_TRUE(all.ok()) << all.status();
     EXPECT_EQ(all->size(), static_cast<std::size_t>(kFirst));
     EXPECT_EQ(server.Stop(), 0);

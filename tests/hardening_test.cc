@@ -18,6 +18,9 @@
 namespace rvehub::service::testing {
 namespace {
 
+using wire::FromProto;
+using wire::ToProto;
+
 using Clock = std::chrono::steady_clock;
 
 double Seconds(Clock::time_point since) {

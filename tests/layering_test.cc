@@ -1,7 +1,10 @@
-// The layers point one way: engine ← store ← service, and the client library
-// ← mpm_client and rve_cli. This test reads every source file's #include
-// lines and fails, naming file, line and header, when one reaches across the
-// order (tests/ and bench/ may include anything).
+// The layers point one way, folder by folder: values and common at the
+// bottom; the engine, the store and the wire on them; the service on those;
+// the client library on values and the wire alone; the embedded endpoint on
+// the client's interface and the service; the binaries and clients on top.
+// This test reads every source file's #include lines and fails, naming file,
+// line and header, when one reaches across the order (tests/ and bench/ may
+// include anything).
 #include <filesystem>
 #include <fstream>
 #include <regex>
@@ -42,40 +45,54 @@ bool IsStandard(const std::string& header, bool io) {
   return false;
 }
 
+// Each folder may include its own headers and those of the folders listed,
+// by prefix: no file-level exceptions. The order, bottom up (README.md, Tour):
+// values, common <- engine, store, wire <- service <- client <- embedded <-
+// the binaries and clients.
 const std::vector<Layer>& Layers() {
   static const auto* layers = new std::vector<Layer>{
+      // The values every layer shares: plain types, their ranges and checks.
+      {"rve_server/values", {"rve_server/values/", "absl/"}, {"Eigen/"}, /*standard_io=*/false},
+      // What every binary shares: Abseil and the standard library (the
+      // long-running binaries' heap settings: glibc's malloc.h).
+      {"rve_server/common", {"rve_server/common/", "absl/"}, {"malloc.h"}},
       // The engine: Eigen, Abseil, the standard library; no I/O.
       {"rve_server/engine",
-       {"rve_server/engine/", "rve_server/common/status_macros.h", "absl/"},
+       {"rve_server/engine/", "rve_server/values/", "rve_server/common/", "absl/"},
        {"Eigen/"},
        /*standard_io=*/false},
-      // What every binary shares: Abseil and the standard library (plots:
-      // cairo; the long-running binaries' heap settings: glibc's malloc.h).
-      {"rve_server/common", {"rve_server/common/", "absl/"}, {"cairo", "malloc.h"}},
       {"store",
-       {"store/", "rve_server/engine/", "rve_server/common/", "absl/"},
+       {"store/", "rve_server/values/", "rve_server/common/", "absl/"},
        {"hdf5.h", "Eigen/"}},
+      {"rve_server/wire",
+       {"rve_server/wire/", "rve_server/values/", "rve_server/common/", "rvehub/v1/", "absl/"},
+       {"Eigen/", "google/protobuf/"}},
       {"rve_server/service",
-       {"rve_server/service/", "rve_server/engine/", "rve_server/common/", "store/", "rvehub/v1/",
-        "absl/"},
+       {"rve_server/service/", "rve_server/engine/", "rve_server/values/", "rve_server/wire/",
+        "rve_server/common/", "store/", "rvehub/v1/", "absl/"},
        {"grpcpp/", "grpc/", "Eigen/", "google/protobuf/"}},
       {"rve_server/server",
        {"rve_server/server/", "rve_server/service/", "rve_server/common/", "absl/"},
        {"grpcpp/"}},
-      // The client library: may sit on the registry (the embedded endpoint)
-      // and the wire conversions, never on the server's gRPC service.
+      // The client library: values and the wire only.
       {"rve_server/client",
-       {"rve_server/client/", "rve_server/service/registry.h", "rve_server/service/rve_batch.h",
-        "rve_server/service/convert.h", "rve_server/service/worker_pool.h", "rve_server/engine/",
-        "rve_server/common/", "store/", "rvehub/v1/", "absl/"},
+       {"rve_server/client/", "rve_server/values/", "rve_server/wire/", "rve_server/common/",
+        "rvehub/v1/", "absl/"},
        {"grpcpp/", "grpc/", "Eigen/", "google/protobuf/"}},
-      {"mpm_client",
-       {"mpm_client/", "rve_server/client/", "rve_server/engine/", "rve_server/common/", "store/",
-        "absl/", "nlohmann/"},
-       {"Eigen/", "nlohmann/"}},
+      // The service in a client's process, behind the client's interface.
+      {"rve_server/embedded",
+       {"rve_server/embedded/", "rve_server/client/", "rve_server/service/", "rve_server/engine/",
+        "rve_server/values/", "rve_server/common/", "absl/"},
+       {"Eigen/"}},
+      // What the client programs share (plots: cairo).
+      {"toolkit", {"toolkit/", "rve_server/common/", "absl/", "nlohmann/"}, {"cairo", "Eigen/"}},
       {"rve_server/cli",
-       {"rve_server/cli/", "rve_server/client/", "rve_server/engine/", "rve_server/common/",
-        "store/", "absl/", "nlohmann/"},
+       {"rve_server/cli/", "rve_server/client/", "rve_server/embedded/", "rve_server/values/",
+        "rve_server/common/", "store/", "toolkit/", "absl/", "nlohmann/"},
+       {"Eigen/", "nlohmann/"}},
+      {"mpm_client",
+       {"mpm_client/", "rve_server/client/", "rve_server/embedded/", "rve_server/values/",
+        "rve_server/common/", "store/", "toolkit/", "absl/", "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
   };
   return *layers;
@@ -133,15 +150,26 @@ TEST(LayeringTest, TheRulesRejectCrossings) {
     return false;
   };
   EXPECT_FALSE(allowed("mpm_client", "rve_server/service/registry.h", true));
-  EXPECT_FALSE(allowed("mpm_client", "rve_server/cli/plot.h", true));
+  EXPECT_FALSE(allowed("mpm_client", "rve_server/engine/rve.h", true));
+  EXPECT_FALSE(allowed("mpm_client", "rve_server/cli/element_test_io.h", true));
+  EXPECT_FALSE(allowed("store", "rve_server/engine/rve.h", true));
   EXPECT_FALSE(allowed("store", "rve_server/service/registry.h", true));
   EXPECT_FALSE(allowed("store", "rve_server/client/endpoint.h", true));
-  EXPECT_FALSE(allowed("rve_server/engine", "store/record.h", true));
+  EXPECT_FALSE(allowed("rve_server/values", "rve_server/engine/rve.h", true));
+  EXPECT_FALSE(allowed("rve_server/values", "fstream", false));
+  EXPECT_FALSE(allowed("rve_server/engine", "store/checkpoint.h", true));
   EXPECT_FALSE(allowed("rve_server/engine", "fstream", false));
   EXPECT_FALSE(allowed("rve_server/engine", "grpcpp/grpcpp.h", false));
   EXPECT_FALSE(allowed("rve_server/service", "rve_server/client/endpoint.h", true));
+  EXPECT_FALSE(allowed("rve_server/client", "rve_server/service/registry.h", true));
+  EXPECT_FALSE(allowed("rve_server/client", "rve_server/engine/rve.h", true));
+  EXPECT_FALSE(allowed("rve_server/client", "store/checkpoint.h", true));
+  EXPECT_FALSE(allowed("rve_server/common", "cairo.h", false));
+  EXPECT_FALSE(allowed("rve_server/server", "toolkit/plot.h", true));
   EXPECT_TRUE(allowed("rve_server/engine", "Eigen/Dense", false));
   EXPECT_TRUE(allowed("rve_server/engine", "vector", false));
+  EXPECT_TRUE(allowed("rve_server/client", "rve_server/wire/convert.h", true));
+  EXPECT_TRUE(allowed("rve_server/embedded", "rve_server/service/registry.h", true));
   EXPECT_TRUE(allowed("mpm_client", "rve_server/client/endpoint.h", true));
 }
 

@@ -11,9 +11,9 @@
 #include <vector>
 
 #include "gtest/gtest.h"
-#include "rve_server/engine/material.h"
 #include "rve_server/engine/rve.h"
-#include "rve_server/engine/snapshot.h"
+#include "rve_server/values/material.h"
+#include "rve_server/values/snapshot.h"
 #include "tests/test_util.h"
 
 namespace rvehub::dem {

@@ -1,4 +1,4 @@
-#include "rve_server/common/plot.h"
+#include "toolkit/plot.h"
 
 #include <cairo.h>
 

@@ -22,8 +22,9 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
-#include "rve_server/client/embedded_endpoint.h"
 #include "rve_server/client/endpoint.h"
+#include "rve_server/client/remote_server.h"
+#include "rve_server/embedded/endpoint.h"
 #include "rve_server/service/log.h"
 #include "rve_server/service/server.h"
 #include "tests/test_util.h"
@@ -55,10 +56,10 @@ constexpr char kRun[] = "mpm-run";
 // SET-dense (400 discs) with few DEM steps per increment, under two names
 // (the second with other controls) so that one endpoint needs a Create per
 // template.
-std::vector<store::TemplateRecord> Templates() {
+std::vector<TemplateRecord> Templates() {
   dem::RveSnapshot p = Prepared("SET-dense");
   p.controls.min_steps = 10;
-  std::vector<store::TemplateRecord> t = {{"set-dense", "SET-dense seed 1, min_steps 10", p}};
+  std::vector<TemplateRecord> t = {{"set-dense", "SET-dense seed 1, min_steps 10", p}};
   p.controls.min_steps = 12;
   t.push_back({"set-dense-12", "SET-dense seed 1, min_steps 12", p});
   return t;
@@ -124,7 +125,7 @@ class Servers {
 std::unique_ptr<client::RveEndpoint> Remote(const std::string& address,
                                             const client::RemoteOptions& remote = {}) {
   absl::StatusOr<std::unique_ptr<client::RveEndpoint>> e =
-      client::MakeRemoteEndpoint(address, {}, remote);
+      client::RemoteServer::Connect(address, {}, remote);
   EXPECT_TRUE(e.ok()) << e.status();
   return e.ok() ? *std::move(e) : nullptr;
 }
@@ -138,7 +139,7 @@ std::vector<std::unique_ptr<client::RveEndpoint>> RemoteEndpoints(
 
 std::vector<std::unique_ptr<client::RveEndpoint>> EmbeddedEndpoints(int n) {
   std::vector<std::unique_ptr<client::RveEndpoint>> e;
-  for (int k = 0; k < n; ++k) e.push_back(client::MakeEmbeddedEndpoint(NewRegistry()));
+  for (int k = 0; k < n; ++k) e.push_back(embedded::MakeEndpoint(NewRegistry()));
   return e;
 }
 
@@ -150,7 +151,7 @@ PoolOptions QuickRetries() {
 
 // Uploads the templates and creates the points (equal costs).
 void Start(RvePool& pool) {
-  const std::vector<store::TemplateRecord> templates = Templates();
+  const std::vector<TemplateRecord> templates = Templates();
   ASSERT_TRUE(pool.UploadTemplates(templates).ok());
   const std::vector<std::string> names = TemplatePerPoint();
   absl::StatusOr<std::vector<dem::RveState>> created = pool.Create(names);
@@ -171,8 +172,7 @@ void ExpectSameStates(const std::vector<dem::RveState>& a, const std::vector<dem
     ExpectIdenticalStates(a[p], b[p], absl::StrCat(where, ", point ", p));
 }
 
-void ExpectSameRecords(const std::vector<store::RveRecord>& a,
-                       const std::vector<store::RveRecord>& b) {
+void ExpectSameRecords(const std::vector<RveRecord>& a, const std::vector<RveRecord>& b) {
   ASSERT_EQ(a.size(), b.size());
   for (std::size_t k = 0; k < a.size(); ++k) {
     EXPECT_EQ(a[k].id, static_cast<std::int64_t>(k));
@@ -200,14 +200,14 @@ int ClosedPort() {
 // A finished Apply with a given result.
 class DoneApply final : public client::PendingApply {
  public:
-  explicit DoneApply(absl::StatusOr<std::vector<client::RveOutcome>> r) : r_(std::move(r)) {}
-  absl::StatusOr<std::vector<client::RveOutcome>> Finish() override { return std::move(r_); }
+  explicit DoneApply(absl::StatusOr<std::vector<RveOutcome>> r) : r_(std::move(r)) {}
+  absl::StatusOr<std::vector<RveOutcome>> Finish() override { return std::move(r_); }
   double seconds() const override { return 0.0; }
 
  private:
-  absl::StatusOr<std::vector<client::RveOutcome>> r_;
+  absl::StatusOr<std::vector<RveOutcome>> r_;
 };
-std::unique_ptr<client::PendingApply> Done(absl::StatusOr<std::vector<client::RveOutcome>> r) {
+std::unique_ptr<client::PendingApply> Done(absl::StatusOr<std::vector<RveOutcome>> r) {
   return std::make_unique<DoneApply>(std::move(r));
 }
 
@@ -231,17 +231,15 @@ class FaultyEndpoint final : public client::RveEndpoint {
   std::string name() const override { return "faulty"; }
   std::string label() const override { return "faulty endpoint"; }
   int workers() const override { return inner_->workers(); }
-  absl::Status PutTemplate(const store::TemplateRecord& r) override {
-    return inner_->PutTemplate(r);
-  }
-  absl::StatusOr<std::vector<client::RveOutcome>> Create(
+  absl::Status PutTemplate(const TemplateRecord& r) override { return inner_->PutTemplate(r); }
+  absl::StatusOr<std::vector<RveOutcome>> Create(
       absl::string_view run, absl::string_view t, std::span<const std::int64_t> ids,
-      std::span<const client::InitialStress> initial,
+      std::span<const InitialStress> initial,
       const std::optional<dem::Controls>& controls) override {
     return inner_->Create(run, t, ids, initial, controls);
   }
   std::unique_ptr<client::PendingApply> StartApply(absl::string_view run, std::int64_t step,
-                                                   std::span<const client::Increment> increments,
+                                                   std::span<const Increment> increments,
                                                    const dem::ApplyOptions& options,
                                                    absl::Duration deadline) override {
     const int call = ++apply_calls_;
@@ -249,7 +247,7 @@ class FaultyEndpoint final : public client::RveEndpoint {
       case Fault::kNone:
         return inner_->StartApply(run, step, increments, options, deadline);
       case Fault::kLoseFirstReply: {
-        absl::StatusOr<std::vector<client::RveOutcome>> r =
+        absl::StatusOr<std::vector<RveOutcome>> r =
             inner_->Apply(run, step, increments, options, deadline);
         if (call == 1) return Done(absl::UnavailableError("connection reset by peer"));
         return Done(std::move(r));
@@ -261,16 +259,16 @@ class FaultyEndpoint final : public client::RveEndpoint {
     }
     return Done(absl::InternalError("unreachable"));
   }
-  absl::StatusOr<std::vector<client::RveOutcome>> Get(absl::string_view run,
-                                                      std::span<const std::int64_t> ids,
-                                                      bool want_tangent) override {
+  absl::StatusOr<std::vector<RveOutcome>> Get(absl::string_view run,
+                                              std::span<const std::int64_t> ids,
+                                              bool want_tangent) override {
     return inner_->Get(run, ids, want_tangent);
   }
   absl::Status Export(absl::string_view run, std::span<const std::int64_t> ids,
                       const client::RecordSink& sink) override {
     return inner_->Export(run, ids, sink);
   }
-  absl::Status Import(std::vector<store::RveRecord> records) override {
+  absl::Status Import(std::vector<RveRecord> records) override {
     return inner_->Import(std::move(records));
   }
   absl::Status Drop(absl::string_view run, std::span<const std::int64_t> ids) override {
@@ -330,8 +328,8 @@ TEST(RvePoolTest, EmbeddedAndRemotePoolsAgreeBitForBit) {
   ASSERT_TRUE(gb.ok()) << gb.status();
   ExpectSameStates(*ga, *gb, "Get");
 
-  absl::StatusOr<std::vector<store::RveRecord>> ea = embedded.ExportAll();
-  absl::StatusOr<std::vector<store::RveRecord>> eb = remote.ExportAll();
+  absl::StatusOr<std::vector<RveRecord>> ea = embedded.ExportAll();
+  absl::StatusOr<std::vector<RveRecord>> eb = remote.ExportAll();
   ASSERT_TRUE(ea.ok()) << ea.status();
   ASSERT_TRUE(eb.ok()) << eb.status();
   ExpectSameRecords(*ea, *eb);
@@ -351,18 +349,18 @@ TEST(RvePoolTest, GeostaticStartsInSmallMessagesAgreeBitForBit) {
   RvePool embedded(EmbeddedEndpoints(1), kRun);
   RvePool remote(RemoteEndpoints(servers, small), kRun);
   // One initial stress per point: isotropic or K0 with depth.
-  std::vector<client::InitialStress> initial(kPoints);
+  std::vector<InitialStress> initial(kPoints);
   for (int p = 0; p < kPoints; ++p) {
     if (p % 2 == 0) {
-      initial[p].kind = client::InitialStress::Kind::kIsotropic;
+      initial[p].kind = InitialStress::Kind::kIsotropic;
       initial[p].pressure = 100e3 * (1 + 0.02 * p);
     } else {
-      initial[p].kind = client::InitialStress::Kind::kK0;
+      initial[p].kind = InitialStress::Kind::kK0;
       initial[p].vertical_compression = 100e3 * (1 + 0.02 * p);
       initial[p].k0 = 0.9;
     }
   }
-  std::vector<store::TemplateRecord> templates = Templates();
+  std::vector<TemplateRecord> templates = Templates();
   const std::vector<std::string> names = TemplatePerPoint();
   for (RvePool* pool : {&embedded, &remote}) ASSERT_TRUE(pool->UploadTemplates(templates).ok());
   absl::StatusOr<std::vector<dem::RveState>> a = embedded.Create(names, initial);
@@ -407,7 +405,7 @@ TEST(RvePoolTest, AssignmentIsGreedyLongestProcessingTime) {
 TEST(RvePoolTest, RetriesALostReplyButNotABadRequest) {
   RvePool plain(EmbeddedEndpoints(1), kRun);
   std::vector<std::unique_ptr<client::RveEndpoint>> faulty_endpoints;
-  auto faulty = std::make_unique<FaultyEndpoint>(client::MakeEmbeddedEndpoint(NewRegistry()),
+  auto faulty = std::make_unique<FaultyEndpoint>(embedded::MakeEndpoint(NewRegistry()),
                                                  FaultyEndpoint::Fault::kLoseFirstReply);
   FaultyEndpoint* lossy = faulty.get();
   faulty_endpoints.push_back(std::move(faulty));
@@ -424,7 +422,7 @@ TEST(RvePoolTest, RetriesALostReplyButNotABadRequest) {
        {std::tuple{FaultyEndpoint::Fault::kRefuse, absl::StatusCode::kInvalidArgument, 1},
         std::tuple{FaultyEndpoint::Fault::kAlwaysUnavailable, absl::StatusCode::kUnavailable, 4}}) {
     std::vector<std::unique_ptr<client::RveEndpoint>> e;
-    auto f = std::make_unique<FaultyEndpoint>(client::MakeEmbeddedEndpoint(NewRegistry()), fault);
+    auto f = std::make_unique<FaultyEndpoint>(embedded::MakeEndpoint(NewRegistry()), fault);
     FaultyEndpoint* raw = f.get();
     e.push_back(std::move(f));
     RvePool pool(std::move(e), kRun, QuickRetries());
@@ -444,17 +442,17 @@ TEST(RvePoolTest, AnEndpointThatGaveUpIsReportedAndTheRunRestoredOnTheOthers) {
   RvePool reference(EmbeddedEndpoints(1), kRun);
   Start(reference);
   std::vector<std::unique_ptr<client::RveEndpoint>> e = EmbeddedEndpoints(1);
-  auto faulty = std::make_unique<FaultyEndpoint>(client::MakeEmbeddedEndpoint(NewRegistry()),
+  auto faulty = std::make_unique<FaultyEndpoint>(embedded::MakeEndpoint(NewRegistry()),
                                                  FaultyEndpoint::Fault::kAlwaysUnavailable);
   FaultyEndpoint* dead = faulty.get();
   e.push_back(std::move(faulty));
-  e.push_back(client::MakeEmbeddedEndpoint(NewRegistry()));
+  e.push_back(embedded::MakeEndpoint(NewRegistry()));
   PoolOptions o = QuickRetries();
   o.max_attempts = 2;
   RvePool pool(std::move(e), kRun, o);
   Start(pool);
   ASSERT_EQ(pool.points_of(1).size(), 2u);
-  absl::StatusOr<std::vector<store::RveRecord>> at0 = pool.ExportAll();
+  absl::StatusOr<std::vector<RveRecord>> at0 = pool.ExportAll();
   ASSERT_TRUE(at0.ok()) << at0.status();
   EXPECT_TRUE(pool.TakeFailed().empty());
 
@@ -481,7 +479,7 @@ TEST(RvePoolTest, AnEndpointThatGaveUpIsReportedAndTheRunRestoredOnTheOthers) {
 
   // A refusal is final but no loss.
   std::vector<std::unique_ptr<client::RveEndpoint>> r;
-  r.push_back(std::make_unique<FaultyEndpoint>(client::MakeEmbeddedEndpoint(NewRegistry()),
+  r.push_back(std::make_unique<FaultyEndpoint>(embedded::MakeEndpoint(NewRegistry()),
                                                FaultyEndpoint::Fault::kRefuse));
   RvePool refusing(std::move(r), kRun, QuickRetries());
   Start(refusing);
@@ -495,12 +493,12 @@ TEST(RvePoolTest, MigrationMovesRvesBetweenEndpointsBitIdentically) {
   Start(reference);
   Start(pool);
   ExpectSameStates(ApplyOrDie(reference, 1), ApplyOrDie(pool, 1), "step 1");
-  absl::StatusOr<std::vector<store::RveRecord>> records = pool.ExportAll();
+  absl::StatusOr<std::vector<RveRecord>> records = pool.ExportAll();
   ASSERT_TRUE(records.ok()) << records.status();
   const std::vector<int> before = pool.assignment();
 
   // Records that do not match the points are refused, nothing moved.
-  std::vector<store::RveRecord> shuffled = *records;
+  std::vector<RveRecord> shuffled = *records;
   std::swap(shuffled[0], shuffled[1]);
   EXPECT_TRUE(absl::IsInvalidArgument(pool.Migrate({2, 2, 2, 2, 2, 2}, shuffled)));
   EXPECT_EQ(pool.assignment(), before);
@@ -511,7 +509,7 @@ TEST(RvePoolTest, MigrationMovesRvesBetweenEndpointsBitIdentically) {
   // Moved RVEs left their old endpoints: point 0 was on endpoint 0.
   ASSERT_EQ(before[0], 0);
   const std::int64_t moved = 0;
-  absl::StatusOr<std::vector<client::RveOutcome>> gone =
+  absl::StatusOr<std::vector<RveOutcome>> gone =
       pool.endpoint(0).Get(kRun, std::span<const std::int64_t>(&moved, 1), false);
   ASSERT_TRUE(gone.ok()) << gone.status();
   EXPECT_TRUE(absl::IsNotFound((*gone)[0].status)) << (*gone)[0].status;
@@ -576,7 +574,7 @@ TEST(RvePoolTest, StateCallDeadlineFollowsTheMeasuredCalls) {
   EXPECT_EQ(faulty[1]->call_timeout(), absl::Seconds(600));
   // Measured at milliseconds: the floor.
   EXPECT_EQ(pool.NextStateCallDeadline(), absl::Seconds(3));
-  absl::StatusOr<std::vector<store::RveRecord>> records = pool.ExportAll();
+  absl::StatusOr<std::vector<RveRecord>> records = pool.ExportAll();
   ASSERT_TRUE(records.ok()) << records.status();
   EXPECT_EQ(faulty[1]->call_timeout(), absl::Seconds(3));
   pool.RelaxDeadline();
@@ -585,7 +583,7 @@ TEST(RvePoolTest, StateCallDeadlineFollowsTheMeasuredCalls) {
   EXPECT_EQ(pool.NextApplyDeadline(), absl::Seconds(6));
   ApplyOrDie(pool, 2);  // the restored RVEs go on
 
-  auto only = std::make_unique<FaultyEndpoint>(client::MakeEmbeddedEndpoint(NewRegistry()),
+  auto only = std::make_unique<FaultyEndpoint>(embedded::MakeEndpoint(NewRegistry()),
                                                FaultyEndpoint::Fault::kNone);
   FaultyEndpoint* fixed_endpoint = only.get();
   std::vector<std::unique_ptr<client::RveEndpoint>> one;
@@ -603,16 +601,16 @@ TEST(RvePoolTest, StateCallDeadlineFollowsTheMeasuredCalls) {
 // second gets 20 × the first's time, at least the floor. Without the
 // adaptive rule nothing is set.
 TEST(RvePoolTest, CreateDeadlineFollowsTheFirstConsolidations) {
-  std::vector<client::InitialStress> initial;
+  std::vector<InitialStress> initial;
   for (double p : {40e3, 60e3, 80e3, 120e3}) {
-    initial.push_back({client::InitialStress::Kind::kIsotropic, p, 0.0, 0.0});
+    initial.push_back({InitialStress::Kind::kIsotropic, p, 0.0, 0.0});
   }
   const std::vector<std::string> names(initial.size(), "set-dense");
   for (double factor : {20.0, 0.0}) {
     PoolOptions o;
     o.deadline_factor = factor;
     o.min_apply_deadline = absl::Seconds(3);
-    auto only = std::make_unique<FaultyEndpoint>(client::MakeEmbeddedEndpoint(NewRegistry()),
+    auto only = std::make_unique<FaultyEndpoint>(embedded::MakeEndpoint(NewRegistry()),
                                                  FaultyEndpoint::Fault::kNone);
     FaultyEndpoint* endpoint = only.get();
     std::vector<std::unique_ptr<client::RveEndpoint>> one;
@@ -651,8 +649,8 @@ TEST(RvePoolTest, SkewedLoadIsBalancedByMeasuredCost) {
   ASSERT_TRUE(big_rve->DoubleCell(1).ok());  // the same packing, 2 × 2 tiles
   const dem::RveSnapshot big = big_rve->ToSnapshot();
   ASSERT_EQ(big.radius.size(), 4 * small.radius.size());
-  const std::vector<store::TemplateRecord> templates = {{"small", "400 discs", small},
-                                                        {"big", "1600 discs", big}};
+  const std::vector<TemplateRecord> templates = {{"small", "400 discs", small},
+                                                 {"big", "1600 discs", big}};
   // 12 points, every third big: round robin puts all 4 big ones on server 0.
   constexpr int kSkewed = 12;
   std::vector<std::string> names;
@@ -700,7 +698,7 @@ TEST(RvePoolTest, SkewedLoadIsBalancedByMeasuredCost) {
   const double naive_s = pool.Makespan(pool.assignment(), seconds) / ideal(seconds);
   EXPECT_GT(naive, 1.5);
   std::vector<int> plan = pool.PlanAssignment(naive_cost);
-  absl::StatusOr<std::vector<store::RveRecord>> records = pool.ExportAll();
+  absl::StatusOr<std::vector<RveRecord>> records = pool.ExportAll();
   ASSERT_TRUE(records.ok()) << records.status();
   ASSERT_TRUE(pool.Migrate(plan, *records).ok());
   const std::vector<double> balanced_cost = measure(6, 5);
@@ -743,7 +741,7 @@ TEST(RvePoolTest, UnreachableServerIsUnavailableNamingTheAddress) {
   client::RemoteOptions remote;
   remote.connect_timeout = absl::Seconds(2);
   absl::StatusOr<std::unique_ptr<client::RveEndpoint>> e =
-      client::MakeRemoteEndpoint(address, {}, remote);
+      client::RemoteServer::Connect(address, {}, remote);
   ASSERT_FALSE(e.ok());
   EXPECT_TRUE(absl::IsUnavailable(e.status())) << e.status();
   ExpectContains(e.status().message(), absl::StrCat("RVE server ", address, " is unreachable"));
@@ -786,7 +784,7 @@ TEST(RvePoolTest, ExportImportOntoOtherEndpointsContinuesBitIdentically) {
   RvePool original(EmbeddedEndpoints(2), kRun);
   Start(original);
   for (std::int64_t step = 1; step <= 3; ++step) ApplyOrDie(original, step);
-  absl::StatusOr<std::vector<store::RveRecord>> saved = original.ExportAll();
+  absl::StatusOr<std::vector<RveRecord>> saved = original.ExportAll();
   ASSERT_TRUE(saved.ok()) << saved.status();
   ASSERT_EQ(saved->size(), static_cast<std::size_t>(kPoints));
 
@@ -800,8 +798,8 @@ TEST(RvePoolTest, ExportImportOntoOtherEndpointsContinuesBitIdentically) {
     ExpectSameStates(ApplyOrDie(original, step), ApplyOrDie(resumed, step),
                      absl::StrCat("step ", step, " after import"));
   }
-  absl::StatusOr<std::vector<store::RveRecord>> a = original.ExportAll();
-  absl::StatusOr<std::vector<store::RveRecord>> b = resumed.ExportAll();
+  absl::StatusOr<std::vector<RveRecord>> a = original.ExportAll();
+  absl::StatusOr<std::vector<RveRecord>> b = resumed.ExportAll();
   ASSERT_TRUE(a.ok()) << a.status();
   ASSERT_TRUE(b.ok()) << b.status();
   ExpectSameRecords(*a, *b);
@@ -847,7 +845,7 @@ TEST(RvePoolTest, ApplyStatsCountIncrementsAndDemSteps) {
 // template's own as a whole (the other template keeps min_steps 12).
 TEST(RvePoolTest, ControlsPerTemplate) {
   RvePool pool(EmbeddedEndpoints(1), kRun);
-  const std::vector<store::TemplateRecord> templates = Templates();
+  const std::vector<TemplateRecord> templates = Templates();
   ASSERT_TRUE(pool.UploadTemplates(templates).ok());
   dem::Controls quick = templates[0].packing.controls;
   quick.min_steps = 1;
@@ -878,29 +876,29 @@ TEST(RvePoolTest, ControlsPerTemplate) {
 // Points with the same initial stress share one consolidation: their RVEs
 // are identical, and equal to one consolidated on its own.
 TEST(RvePoolTest, PointsWithTheSameInitialStressGetIdenticalRves) {
-  const std::vector<store::TemplateRecord> templates = Templates();
-  std::vector<client::InitialStress> initial(kPoints);
+  const std::vector<TemplateRecord> templates = Templates();
+  std::vector<InitialStress> initial(kPoints);
   for (int p = 0; p < kPoints; ++p) {
-    initial[p].kind = client::InitialStress::Kind::kIsotropic;
+    initial[p].kind = InitialStress::Kind::kIsotropic;
     initial[p].pressure = p % 2 == 0 ? 60e3 : 80e3;
   }
   RvePool pool(EmbeddedEndpoints(1), kRun);
   ASSERT_TRUE(pool.UploadTemplates(templates).ok());
   const std::vector<std::string> one_template(kPoints, "set-dense");
   ASSERT_TRUE(pool.Create(one_template, initial).ok());
-  absl::StatusOr<std::vector<store::RveRecord>> all = pool.ExportAll();
+  absl::StatusOr<std::vector<RveRecord>> all = pool.ExportAll();
   ASSERT_TRUE(all.ok()) << all.status();
 
-  const std::vector<client::InitialStress> just_one = {initial[1]};
+  const std::vector<InitialStress> just_one = {initial[1]};
   RvePool single(EmbeddedEndpoints(1), kRun);
   ASSERT_TRUE(single.UploadTemplates(templates).ok());
   single.Assign(std::vector<double>{1.0});
   const std::vector<std::string> name = {"set-dense"};
   ASSERT_TRUE(single.Create(name, just_one).ok());
-  absl::StatusOr<std::vector<store::RveRecord>> own = single.ExportAll();
+  absl::StatusOr<std::vector<RveRecord>> own = single.ExportAll();
   ASSERT_TRUE(own.ok()) << own.status();
 
-  auto same = [](const store::RveRecord& a, const store::RveRecord& b) {
+  auto same = [](const RveRecord& a, const RveRecord& b) {
     return a.packing.sx == b.packing.sx && a.packing.sy == b.packing.sy &&
            a.packing.cell == b.packing.cell;
   };

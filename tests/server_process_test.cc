@@ -23,7 +23,7 @@
 #include "health_probe.grpc.pb.h"
 #include "reflection_probe.grpc.pb.h"
 #include "reflection_v1_probe.grpc.pb.h"
-#include "rve_server/service/convert.h"
+#include "rve_server/wire/convert.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
 #include "tests/process_util.h"
 #include "tests/rpc_test_util.h"
@@ -31,6 +31,9 @@
 
 namespace rvehub::service {
 namespace {
+
+using wire::FromProto;
+using wire::ToProto;
 
 namespace fs = std::filesystem;
 

@@ -13,14 +13,17 @@
 #include <string>
 #include <vector>
 
-#include "rve_server/service/convert.h"
 #include "rve_server/service/log.h"
 #include "rve_server/service/server.h"
+#include "rve_server/wire/convert.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
 #include "tests/rpc_test_util.h"
 #include "tests/test_util.h"
 
 namespace rvehub::service::testing {
+
+using wire::FromProto;
+using wire::ToProto;
 
 inline constexpr char kTemplate[] = "set-dense";
 

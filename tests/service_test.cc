@@ -12,9 +12,9 @@
 
 #include "health_probe.grpc.pb.h"
 #include "rve_server/common/text_file.h"
-#include "rve_server/service/convert.h"
 #include "rve_server/service/log.h"
 #include "rve_server/service/server.h"
+#include "rve_server/wire/convert.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
 #include "tests/rpc_test_util.h"
 #include "tests/service_harness.h"
@@ -22,6 +22,9 @@
 
 namespace rvehub::service {
 namespace {
+
+using wire::FromProto;
+using wire::ToProto;
 
 using dem::testing_util::ExpectIdenticalPackings;
 using dem::testing_util::Prepared;

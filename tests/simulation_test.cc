@@ -148,8 +148,7 @@ TEST(SimulationTest, SingleElementMatchesElementTestUpToPeak) {
   EXPECT_NEAR(points_strain, platen_strain, 1e-3 * platen_strain);
 
   // The DEM element test on the same template.
-  absl::StatusOr<std::vector<store::TemplateRecord>> t =
-      ResolveTemplates(spec.templates, TemplateCache());
+  absl::StatusOr<std::vector<TemplateRecord>> t = ResolveTemplates(spec.templates, TemplateCache());
   ASSERT_TRUE(t.ok()) << t.status();
   absl::StatusOr<dem::Rve> rve = dem::Rve::Create(t->front().packing);
   ASSERT_TRUE(rve.ok()) << rve.status();
@@ -237,13 +236,13 @@ TEST(SimulationTest, TemplateWithAnotherParticleCountIsPreparedAndCached) {
   t.parameter_set = "SET-dense";
   t.seed = 3;
   t.particles = 100;
-  absl::StatusOr<std::vector<store::TemplateRecord>> first = ResolveTemplates({t}, cache);
+  absl::StatusOr<std::vector<TemplateRecord>> first = ResolveTemplates({t}, cache);
   ASSERT_TRUE(first.ok()) << first.status();
   ASSERT_EQ(first->size(), 1u);
   EXPECT_EQ(first->front().name, "small");
   EXPECT_EQ(first->front().packing.radius.size(), 100u);
   EXPECT_TRUE(fs::exists(fs::path(cache) / "SET-dense-seed3-100discs.h5"));
-  absl::StatusOr<std::vector<store::TemplateRecord>> again = ResolveTemplates({t}, cache);
+  absl::StatusOr<std::vector<TemplateRecord>> again = ResolveTemplates({t}, cache);
   ASSERT_TRUE(again.ok()) << again.status();
   EXPECT_EQ(again->front().packing.sx, first->front().packing.sx);
   EXPECT_EQ(again->front().packing.sy, first->front().packing.sy);
@@ -252,7 +251,7 @@ TEST(SimulationTest, TemplateWithAnotherParticleCountIsPreparedAndCached) {
       << again->front().description;
   // A bad count is the engine's error, named after the template.
   t.particles = 1;
-  absl::StatusOr<std::vector<store::TemplateRecord>> bad = ResolveTemplates({t}, cache);
+  absl::StatusOr<std::vector<TemplateRecord>> bad = ResolveTemplates({t}, cache);
   ASSERT_FALSE(bad.ok());
   EXPECT_EQ(bad.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_TRUE(absl::StartsWith(bad.status().message(), "preparing template 'small': "))
@@ -496,7 +495,7 @@ TEST(SimulationTest, StretchBoundReachesEveryRve) {
     absl::StatusOr<store::SimCheckpoint> snap = sim->Snapshot();
     ASSERT_TRUE(snap.ok()) << snap.status();
     ASSERT_EQ(snap->rves.size(), 4u);
-    for (const store::RveRecord& r : snap->rves) {
+    for (const RveRecord& r : snap->rves) {
       EXPECT_EQ(r.packing.controls.max_stretch, bound > 0 ? bound : 0.05) << r.id;
     }
   }

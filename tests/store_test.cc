@@ -24,9 +24,9 @@
 #include "absl/strings/string_view.h"
 #include "gtest/gtest.h"
 #include "rve_server/engine/rve.h"
-#include "rve_server/engine/snapshot.h"
+#include "rve_server/values/record.h"
+#include "rve_server/values/snapshot.h"
 #include "store/checkpoint.h"
-#include "store/record.h"
 #include "tests/store_test_util.h"
 #include "tests/test_util.h"
 

@@ -8,8 +8,8 @@
 
 #include "absl/status/statusor.h"
 #include "gtest/gtest.h"
-#include "rve_server/engine/material.h"
 #include "rve_server/engine/prepare.h"
+#include "rve_server/values/material.h"
 
 namespace rvehub::dem::testing_util {
 

@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "rve_server/engine/rve.h"
-#include "rve_server/engine/snapshot.h"
+#include "rve_server/values/snapshot.h"
 
 namespace rvehub::dem::testing_util {
 

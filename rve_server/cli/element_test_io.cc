@@ -6,7 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
-#include "rve_server/common/plot.h"
+#include "toolkit/plot.h"
 
 namespace rvehub::cli {
 

@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
-#include "rve_server/engine/element_test.h"
+#include "rve_server/values/element_test.h"
 
 namespace rvehub::cli {
 

@@ -44,17 +44,18 @@
 #include "nlohmann/json.hpp"
 #include "rve_server/cli/element_test_io.h"
 #include "rve_server/client/channel.h"
-#include "rve_server/client/server_client.h"
-#include "rve_server/client/types.h"
+#include "rve_server/client/remote_server.h"
 #include "rve_server/common/address.h"
 #include "rve_server/common/flags.h"
 #include "rve_server/common/status_macros.h"
 #include "rve_server/common/version.h"
-#include "rve_server/engine/element_test.h"
-#include "rve_server/engine/prepare.h"
-#include "rve_server/engine/rve.h"
+#include "rve_server/embedded/packings.h"
+#include "rve_server/values/element_test.h"
+#include "rve_server/values/material.h"
+#include "rve_server/values/preparation.h"
+#include "rve_server/values/record.h"
+#include "rve_server/values/snapshot.h"
 #include "store/checkpoint.h"
-#include "store/record.h"
 
 // The options of every command. A command reads an option only when it is
 // given (cli::Args), so the defaults live in the commands and their help
@@ -370,14 +371,22 @@ std::vector<std::string> WithServerFlags(std::vector<std::string> flags) {
   return flags;
 }
 
-// Servers are reached only through the client library: ServerClient names
-// the call and server in its errors ("... (ListRuns on HOST:PORT)").
-using Remote = client::ServerClient;
+// Servers are reached only through the client library's RemoteServer, whose
+// errors name the server ("RVE server HOST:PORT: ...").
+using Remote = std::unique_ptr<client::RemoteServer>;
 
-absl::StatusOr<Remote> Connect(const Flags& flags) {
+// Where and how to reach a server, from the server options (usage errors
+// before any file is read or call made).
+struct ServerOptions {
   std::string target;
-  RETURN_IF_ERROR(Require(flags, "server", "HOST:PORT", &target));
-  if (absl::Status s = ValidateAddress("--server", target, PortZero::kRefused); !s.ok()) {
+  client::ClientOptions client;
+  client::RemoteOptions remote;
+};
+
+absl::StatusOr<ServerOptions> ReadServerOptions(const Flags& flags) {
+  ServerOptions out;
+  RETURN_IF_ERROR(Require(flags, "server", "HOST:PORT", &out.target));
+  if (absl::Status s = ValidateAddress("--server", out.target, PortZero::kRefused); !s.ok()) {
     return UsageError(s.message());
   }
   double timeout = 600;
@@ -386,10 +395,20 @@ absl::StatusOr<Remote> Connect(const Flags& flags) {
   std::string token_file, tls_ca;
   RETURN_IF_ERROR(Get(flags, "token-file", &token_file));
   RETURN_IF_ERROR(Get(flags, "tls-ca", &tls_ca));
-  ASSIGN_OR_RETURN(client::ClientOptions options,
-                   client::ClientOptionsFromFiles(token_file, tls_ca));
-  return Remote(std::move(target), std::move(options),
-                std::chrono::milliseconds(static_cast<std::int64_t>(std::llround(timeout * 1e3))));
+  ASSIGN_OR_RETURN(out.client, client::ClientOptionsFromFiles(token_file, tls_ca));
+  // Every call gets --timeout as its deadline; 0: none.
+  const absl::Duration deadline = timeout > 0 ? absl::Seconds(timeout) : absl::InfiniteDuration();
+  out.remote.connect_timeout = out.remote.call_timeout = out.remote.create_timeout = deadline;
+  return out;
+}
+
+absl::StatusOr<Remote> Connect(const ServerOptions& server) {
+  return client::RemoteServer::Connect(server.target, server.client, server.remote);
+}
+
+absl::StatusOr<Remote> Connect(const Flags& flags) {
+  ASSIGN_OR_RETURN(ServerOptions server, ReadServerOptions(flags));
+  return Connect(server);
 }
 
 // ---------------------------------------------------------------------------
@@ -464,9 +483,8 @@ struct LocalPacking {
   std::string material;
   std::uint64_t seed = 1;
   dem::TemplateVariant variant;
-  std::string name;  // its default template name (dem::TemplateName)
   dem::PreparationReport report;
-  dem::RveSnapshot packing;
+  TemplateRecord record;  // named and described as the preparation does
 };
 
 absl::StatusOr<LocalPacking> PreparePacking(const Flags& flags) {
@@ -498,13 +516,13 @@ absl::StatusOr<LocalPacking> PreparePacking(const Flags& flags) {
     }
     v.rolling_eta = eta;
   }
-  out.name = dem::TemplateName(out.material, out.seed, v);
   std::fprintf(stderr, "preparing %s...\n", out.material.c_str());
   // Its first line is "N discs, seed S".
-  ASSIGN_OR_RETURN(out.packing, dem::PrepareTemplate(out.material, out.seed, v, &out.report,
-                                                     [](const std::string& line) {
-                                                       std::fprintf(stderr, "  %s\n", line.c_str());
-                                                     }));
+  ASSIGN_OR_RETURN(out.record, embedded::PrepareTemplate(out.material, out.seed, v, &out.report,
+                                                         [](const std::string& line) {
+                                                           std::fprintf(stderr, "  %s\n",
+                                                                        line.c_str());
+                                                         }));
   const dem::PreparationReport& r = out.report;
   std::fprintf(
       stderr, "prepared: e0 = %.4f, p0 = %.1f Pa, Z = %.2f, compaction friction %.4f, %lld steps\n",
@@ -519,8 +537,8 @@ absl::StatusOr<std::vector<dem::ElementTestRow>> RunOnServer(const Flags& flags,
                                                              const std::string& test,
                                                              const std::string& template_name) {
   ASSIGN_OR_RETURN(Remote remote, Connect(flags));
-  ProgressLine progress(absl::StrCat(test, " on ", template_name, " at ", remote.target()));
-  absl::StatusOr<std::vector<dem::ElementTestRow>> rows = remote.RunElementTest(
+  ProgressLine progress(absl::StrCat(test, " on ", template_name, " at ", remote->name()));
+  absl::StatusOr<std::vector<dem::ElementTestRow>> rows = remote->RunElementTest(
       template_name, spec, [&](double fraction) { progress.Update(fraction); });
   progress.Done();
   return rows;
@@ -589,10 +607,10 @@ absl::Status ElementTestCommand(const Flags& flags) {
       if (flags.contains(key)) return UsageError(absl::StrCat("--", key, " needs --server"));
     }
     ASSIGN_OR_RETURN(LocalPacking local, PreparePacking(flags));
-    ASSIGN_OR_RETURN(dem::Rve rve, dem::Rve::Create(std::move(local.packing)));
-    title = absl::StrCat(test, " on ", local.name);
+    title = absl::StrCat(test, " on ", local.record.name);
     ProgressLine progress(title);
-    rows = dem::RunElementTest(rve, spec, [&](double fraction) { progress.Update(fraction); });
+    rows = embedded::RunElementTest(std::move(local.record.packing), spec,
+                                    [&](double fraction) { progress.Update(fraction); });
     progress.Done();
   }
   if (!rows.ok()) return rows.status();
@@ -617,10 +635,10 @@ absl::Status PrepareCommand(const Flags& flags) {
     }
   }
   ASSIGN_OR_RETURN(LocalPacking local, PreparePacking(flags));
-  ASSIGN_OR_RETURN(dem::Rve rve, dem::Rve::Create(local.packing));
-  const dem::RveState s = rve.Observe(/*want_tangent=*/true);
+  ASSIGN_OR_RETURN(const dem::RveState s,
+                   embedded::Observe(local.record.packing, /*want_tangent=*/true));
   std::printf("material %s\nparticles %d\nvoid_ratio %.6f\nporosity %.6f\n", local.material.c_str(),
-              rve.num_particles(), s.void_ratio, s.porosity);
+              static_cast<int>(local.record.packing.radius.size()), s.void_ratio, s.porosity);
   std::printf("p_Pa %.3f\nsxx_Pa %.3f\nsyy_Pa %.3f\nsxy_Pa %.3f\n", s.MeanPressure(),
               -s.stress(0, 0), -s.stress(1, 1), -s.stress(0, 1));
   std::printf(
@@ -630,15 +648,11 @@ absl::Status PrepareCommand(const Flags& flags) {
               s.unbalanced_force_ratio, s.time_step, (*s.tangent)(0, 0), (*s.tangent)(4, 4));
   if (out.empty()) return absl::OkStatus();
 
-  store::TemplateRecord record;
-  record.name = name.empty() ? local.name : name;
-  record.description = dem::TemplateDescription(local.material, local.seed, rve.num_particles(),
-                                                local.report, local.variant);
-  record.packing = std::move(local.packing);
+  TemplateRecord& record = local.record;
+  if (!name.empty()) record.name = name;
   store::FileInfo info;
   info.created_by = CreatedBy();
-  RETURN_IF_ERROR(
-      store::WriteTemplates(out, std::span<const store::TemplateRecord>(&record, 1), info));
+  RETURN_IF_ERROR(store::WriteTemplates(out, std::span<const TemplateRecord>(&record, 1), info));
   std::printf("template %s\nwrote %s\n", record.name.c_str(), out.c_str());
   return absl::OkStatus();
 }
@@ -703,11 +717,11 @@ std::string Mib(std::int64_t bytes) {
 
 absl::Status InfoCommand(const Flags& flags) {
   ASSIGN_OR_RETURN(Remote remote, Connect(flags));
-  ASSIGN_OR_RETURN(client::ServerInfo info, remote.GetServerInfo());
-  ASSIGN_OR_RETURN(std::vector<client::RunInfo> runs, remote.ListRuns());
-  ASSIGN_OR_RETURN(std::vector<client::TemplateInfo> templates, remote.ListTemplates());
+  ASSIGN_OR_RETURN(client::ServerInfo info, remote->GetServerInfo());
+  ASSIGN_OR_RETURN(std::vector<RunInfo> runs, remote->ListRuns());
+  ASSIGN_OR_RETURN(std::vector<TemplateInfo> templates, remote->ListTemplates());
 
-  std::printf("server     %s\n", remote.target().c_str());
+  std::printf("server     %s\n", remote->name().c_str());
   std::printf("version    %s (%s), up %.1f s\n", info.version.c_str(), info.api_version.c_str(),
               info.uptime_seconds);
   std::printf("threads    %d\n", info.threads);
@@ -724,9 +738,9 @@ absl::Status InfoCommand(const Flags& flags) {
   std::printf("\nruns: %d\n", static_cast<int>(runs.size()));
   if (!runs.empty()) {
     int width = 3;
-    for (const client::RunInfo& r : runs) width = std::max<int>(width, r.run_id.size());
+    for (const RunInfo& r : runs) width = std::max<int>(width, r.run_id.size());
     std::printf("  %-*s %10s  %s\n", width, "RUN", "RVES", "STEPS");
-    for (const client::RunInfo& r : runs) {
+    for (const RunInfo& r : runs) {
       const std::string steps = r.min_step == r.max_step
                                     ? absl::StrCat(r.min_step)
                                     : absl::StrCat(r.min_step, "..", r.max_step);
@@ -737,13 +751,13 @@ absl::Status InfoCommand(const Flags& flags) {
   std::printf("\ntemplates: %d\n", static_cast<int>(templates.size()));
   if (!templates.empty()) {
     int width = 4, material_width = 8;
-    for (const client::TemplateInfo& t : templates) {
+    for (const TemplateInfo& t : templates) {
       width = std::max<int>(width, t.name.size());
       material_width = std::max<int>(material_width, t.material_name.size());
     }
     std::printf("  %-*s %9s %10s %14s  %-*s  %s\n", width, "NAME", "PARTICLES", "VOID_RATIO",
                 "P_PA", material_width, "MATERIAL", "DESCRIPTION");
-    for (const client::TemplateInfo& t : templates) {
+    for (const TemplateInfo& t : templates) {
       std::printf("  %-*s %9lld %10.4f %14.1f  %-*s  %s\n", width, t.name.c_str(),
                   static_cast<long long>(t.num_particles), t.void_ratio, t.mean_pressure,
                   material_width, t.material_name.c_str(), t.description.c_str());
@@ -752,7 +766,7 @@ absl::Status InfoCommand(const Flags& flags) {
   return absl::OkStatus();
 }
 
-void PrintStateText(const std::string& run, const client::RveOutcome& r) {
+void PrintStateText(const std::string& run, const RveOutcome& r) {
   const dem::RveState& s = r.state;
   PrintValue("run", run);
   PrintValue("id", absl::StrCat(r.id));
@@ -783,7 +797,7 @@ void PrintStateText(const std::string& run, const client::RveOutcome& r) {
   }
 }
 
-void PrintStateJson(const std::string& run, const client::RveOutcome& r) {
+void PrintStateJson(const std::string& run, const RveOutcome& r) {
   const dem::RveState& s = r.state;
   Json j = {
       {"run_id", run},
@@ -827,7 +841,9 @@ absl::Status GetCommand(const Flags& flags) {
   RETURN_IF_ERROR(Get(flags, "format", &format));
   if (format != "text" && format != "json") return UsageError("--format must be text or json");
   ASSIGN_OR_RETURN(Remote remote, Connect(flags));
-  ASSIGN_OR_RETURN(client::RveOutcome r, remote.GetState(run, id, tangent));
+  const std::int64_t ids[] = {id};
+  ASSIGN_OR_RETURN(std::vector<RveOutcome> states, remote->Get(run, ids, tangent));
+  const RveOutcome& r = states.front();
   if (!r.status.ok()) return r.status;
   if (format == "json") {
     PrintStateJson(run, r);
@@ -842,14 +858,17 @@ absl::Status UploadTemplateCommand(const Flags& flags) {
   bool replace = false;
   RETURN_IF_ERROR(Require(flags, "file", "FILE.h5", &file));
   RETURN_IF_ERROR(GetBool(flags, "replace", &replace));
-  ASSIGN_OR_RETURN(Remote remote, Connect(flags));
-  absl::StatusOr<std::vector<store::TemplateRecord>> templates = store::ReadTemplates(file);
+  ASSIGN_OR_RETURN(const ServerOptions server, ReadServerOptions(flags));
+  // The file is read before the server is called: a wrong file is refused
+  // without one.
+  absl::StatusOr<std::vector<TemplateRecord>> templates = store::ReadTemplates(file);
   if (!templates.ok()) return ExplainFileKind(templates.status(), file);
   if (templates->empty()) {
     return absl::FailedPreconditionError(absl::StrCat("'", file, "' holds no templates"));
   }
-  for (const store::TemplateRecord& t : *templates) {
-    ASSIGN_OR_RETURN(client::TemplateInfo info, remote.UploadTemplate(t, replace));
+  ASSIGN_OR_RETURN(Remote remote, Connect(server));
+  for (const TemplateRecord& t : *templates) {
+    ASSIGN_OR_RETURN(TemplateInfo info, remote->UploadTemplate(t, replace));
     std::printf("uploaded %s: %lld particles, e = %.4f, p = %.1f Pa, material %s (%s)\n",
                 info.name.c_str(), static_cast<long long>(info.num_particles), info.void_ratio,
                 info.mean_pressure, info.material_name.c_str(), info.description.c_str());
@@ -867,12 +886,12 @@ absl::Status CheckpointCommand(const Flags& flags) {
   if (!run.empty()) {
     runs.push_back(run);
   } else {
-    ASSIGN_OR_RETURN(std::vector<client::RunInfo> list, remote.ListRuns());
-    for (const client::RunInfo& r : list) runs.push_back(r.run_id);
+    ASSIGN_OR_RETURN(std::vector<RunInfo> list, remote->ListRuns());
+    for (const RunInfo& r : list) runs.push_back(r.run_id);
   }
-  std::vector<store::RveRecord> records;
+  std::vector<RveRecord> records;
   for (const std::string& r : runs) {
-    RETURN_IF_ERROR(remote.ExportRun(r, [&records](store::RveRecord&& record) {
+    RETURN_IF_ERROR(remote->Export(r, {}, [&records](RveRecord&& record) {
       records.push_back(std::move(record));
       return absl::OkStatus();
     }));
@@ -892,13 +911,15 @@ absl::Status RestoreCommand(const Flags& flags) {
   std::string file, run;
   RETURN_IF_ERROR(Require(flags, "file", "FILE.h5", &file));
   RETURN_IF_ERROR(Get(flags, "run", &run));
-  ASSIGN_OR_RETURN(Remote remote, Connect(flags));
+  ASSIGN_OR_RETURN(const ServerOptions server, ReadServerOptions(flags));
   const auto start = std::chrono::steady_clock::now();
-  absl::StatusOr<std::vector<store::RveRecord>> all = store::ReadRves(file);
+  // The file is read before the server is called: a wrong file is refused
+  // without one.
+  absl::StatusOr<std::vector<RveRecord>> all = store::ReadRves(file);
   if (!all.ok()) return ExplainFileKind(all.status(), file);
-  std::vector<const store::RveRecord*> records;
-  for (const store::RveRecord& r : *all) {
-    if (run.empty() || r.run_id == run) records.push_back(&r);
+  std::vector<RveRecord> records;
+  for (RveRecord& r : *all) {
+    if (run.empty() || r.run_id == run) records.push_back(std::move(r));
   }
   if (records.empty() && !run.empty()) {
     return absl::NotFoundError(absl::StrCat("'", file, "' holds no RVE of run \"", run, "\""));
@@ -907,9 +928,10 @@ absl::Status RestoreCommand(const Flags& flags) {
     std::printf("imported 0 RVEs (%s holds none)\n", file.c_str());
     return absl::OkStatus();
   }
-  ASSIGN_OR_RETURN(client::ImportSummary imported, remote.Import(records));
+  ASSIGN_OR_RETURN(Remote remote, Connect(server));
+  ASSIGN_OR_RETURN(client::ImportSummary imported, remote->ImportRecords(std::move(records)));
   std::printf("imported %lld RVEs into %s (%lld chunks, %.2f s)\n",
-              static_cast<long long>(imported.imported), remote.target().c_str(),
+              static_cast<long long>(imported.imported), remote->name().c_str(),
               static_cast<long long>(imported.chunks), SecondsSince(start));
   return absl::OkStatus();
 }
@@ -917,9 +939,9 @@ absl::Status RestoreCommand(const Flags& flags) {
 // The runs a server hosts: one line each (tab-separated, for scripts).
 absl::Status ListRunsCommand(const Flags& flags) {
   ASSIGN_OR_RETURN(Remote remote, Connect(flags));
-  ASSIGN_OR_RETURN(std::vector<client::RunInfo> runs, remote.ListRuns());
+  ASSIGN_OR_RETURN(std::vector<RunInfo> runs, remote->ListRuns());
   std::printf("RUN\tRVES\tMIN_STEP\tMAX_STEP\n");
-  for (const client::RunInfo& r : runs) {
+  for (const RunInfo& r : runs) {
     std::printf("%s\t%lld\t%lld\t%lld\n", r.run_id.c_str(), static_cast<long long>(r.num_rves),
                 static_cast<long long>(r.min_step), static_cast<long long>(r.max_step));
   }
@@ -937,9 +959,9 @@ absl::Status DropCommand(const Flags& flags) {
     ids.push_back(id);
   }
   ASSIGN_OR_RETURN(Remote remote, Connect(flags));
-  ASSIGN_OR_RETURN(std::int64_t dropped, remote.Drop(run, ids));
+  ASSIGN_OR_RETURN(std::int64_t dropped, remote->DropRves(run, ids));
   std::printf("dropped %lld RVEs of run %s on %s\n", static_cast<long long>(dropped), run.c_str(),
-              remote.target().c_str());
+              remote->name().c_str());
   return absl::OkStatus();
 }
 

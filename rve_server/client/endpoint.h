@@ -1,11 +1,14 @@
-// One RVE server as a client sees it: a Registry in this process (embedded:
-// direct calls, no gRPC, no marshalling) or a remote rve_server reached over
-// gRPC. Both give the same results bit for bit (the wire carries doubles
-// exactly), so a run may mix them or move between them.
+// One RVE server as a client sees it: a remote rve_server reached over gRPC
+// (RemoteServer, remote_server.h) or a registry in this process (embedded:
+// direct calls, no gRPC, no marshalling; rve_server/embedded supplies it).
+// Both give the same results bit for bit (the wire carries doubles exactly),
+// so a run may mix them or move between them. Values only: no engine, no
+// server internals.
 #ifndef RVEHUB_RVE_SERVER_CLIENT_ENDPOINT_H_
 #define RVEHUB_RVE_SERVER_CLIENT_ENDPOINT_H_
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
@@ -18,12 +21,14 @@
 #include "absl/strings/string_view.h"
 #include "absl/time/time.h"
 #include "rve_server/client/channel.h"
-#include "rve_server/client/types.h"
-#include "rve_server/engine/rve.h"
-#include "rve_server/engine/snapshot.h"
-#include "store/record.h"
+#include "rve_server/values/increment.h"
+#include "rve_server/values/record.h"
+#include "rve_server/values/snapshot.h"
 
 namespace rvehub::client {
+
+// Receives exported RVE states one at a time; an error stops the export.
+using RecordSink = std::function<absl::Status(RveRecord&&)>;
 
 // `s` with "<label>: " before its message (OK stays OK): how every error of
 // an endpoint names it.
@@ -60,7 +65,7 @@ class RveEndpoint {
   virtual bool in_process() const { return false; }
 
   // Uploads a template, replacing one of the same name.
-  virtual absl::Status PutTemplate(const store::TemplateRecord& record) = 0;
+  virtual absl::Status PutTemplate(const TemplateRecord& record) = 0;
 
   // Creates RVEs of `template_name` with ids `ids` in run `run`, consolidated
   // to `initial` (empty: the template's state; one for all; or one per id)
@@ -100,7 +105,7 @@ class RveEndpoint {
 
   // All or nothing per call (a remote import is one stream): AlreadyExists
   // when a (run, id) is hosted.
-  virtual absl::Status Import(std::vector<store::RveRecord> records) = 0;
+  virtual absl::Status Import(std::vector<RveRecord> records) = 0;
 
   // Drops RVEs of the run (empty ids: all of them); NotFound when the
   // endpoint hosts none of the run or not one of `ids` (then nothing is
@@ -120,35 +125,6 @@ class RveEndpoint {
   // The same for Create (RemoteOptions::create_timeout at first).
   virtual void SetCreateTimeout(absl::Duration timeout) { (void)timeout; }
 };
-
-// An RVE registry of this process's own, with `threads` workers.
-struct EmbeddedOptions {
-  int threads = 1;
-};
-std::unique_ptr<RveEndpoint> MakeEmbeddedEndpoint(const EmbeddedOptions& options);
-
-struct RemoteOptions {
-  // GetServerInfo on creation must answer within this.
-  absl::Duration connect_timeout = absl::Seconds(5);
-  // Deadline of Create, which may consolidate thousands of RVEs to their
-  // initial stresses (seconds each).
-  absl::Duration create_timeout = absl::Hours(2);
-  // Deadline of the other calls (Apply gets its own).
-  absl::Duration call_timeout = absl::Minutes(10);
-  // RVEs per Create/Apply/Get message at most: about 1 KB each in a reply
-  // with a tangent, so 2048 stays far below the default 64 MiB limit. The
-  // server's own max batch lowers it further.
-  std::int64_t max_batch = 2048;
-};
-
-// A gRPC stub for the server at `address` (HOST:PORT), checked with a
-// GetServerInfo call: Unavailable "RVE server HOST:PORT is unreachable:
-// <reason>" when it gets no answer; a refusal (a wrong token:
-// Unauthenticated) keeps its code. Every other error of the endpoint starts
-// with "RVE server HOST:PORT: ".
-absl::StatusOr<std::unique_ptr<RveEndpoint>> MakeRemoteEndpoint(const std::string& address,
-                                                                const ClientOptions& options,
-                                                                const RemoteOptions& remote = {});
 
 }  // namespace rvehub::client
 

@@ -7,7 +7,7 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
 #include "rve_server/common/status_macros.h"
-#include "rve_server/service/convert.h"
+#include "rve_server/wire/convert.h"
 
 namespace rvehub::client {
 namespace {
@@ -30,8 +30,7 @@ std::int64_t ImportChunkBudget(std::int64_t server_max_message_bytes,
 }
 
 absl::Status ReadExport(grpc::ClientContext& ctx, grpc::ClientReader<v1::RveChunk>& reader,
-                        absl::string_view run,
-                        const std::function<absl::Status(store::RveRecord&&)>& sink,
+                        absl::string_view run, const std::function<absl::Status(RveRecord&&)>& sink,
                         const StreamStatusFn& check) {
   v1::RveChunk chunk;
   std::int64_t declared = -1, received = 0;
@@ -39,7 +38,7 @@ absl::Status ReadExport(grpc::ClientContext& ctx, grpc::ClientReader<v1::RveChun
   while (failed.ok() && reader.Read(&chunk)) {
     if (declared < 0) declared = chunk.total_records();
     for (const v1::RveRecord& r : chunk.records()) {
-      absl::StatusOr<store::RveRecord> record = service::FromProto(r);
+      absl::StatusOr<RveRecord> record = wire::FromProto(r);
       if (!record.ok()) {
         failed =
             absl::DataLossError(absl::StrCat("run \"", run, "\" record ", received, " (id ", r.id(),

@@ -14,8 +14,8 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/string_view.h"
+#include "rve_server/values/record.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
-#include "store/record.h"
 
 namespace rvehub::client {
 
@@ -35,8 +35,7 @@ std::int64_t ImportChunkBudget(std::int64_t server_max_message_bytes,
 // final status through `check` when that is not OK, then DataLoss when the
 // stream declared another number of records than it carried.
 absl::Status ReadExport(grpc::ClientContext& ctx, grpc::ClientReader<v1::RveChunk>& reader,
-                        absl::string_view run,
-                        const std::function<absl::Status(store::RveRecord&&)>& sink,
+                        absl::string_view run, const std::function<absl::Status(RveRecord&&)>& sink,
                         const StreamStatusFn& check);
 
 // Writes `n` records to an Import stream, `record(k, out)` filling record k,

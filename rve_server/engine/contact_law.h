@@ -8,7 +8,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "rve_server/engine/material.h"
+#include "rve_server/values/material.h"
 
 namespace rvehub::dem {
 

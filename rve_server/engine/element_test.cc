@@ -16,18 +16,6 @@ namespace {
 constexpr double kServoIntegralSteps = 300;
 constexpr double kServoGain = 0.2;
 
-struct NamedKind {
-  const char* name;
-  ElementTestKind kind;
-};
-constexpr NamedKind kKinds[] = {
-    {"drained-biaxial", ElementTestKind::kDrainedBiaxial},
-    {"isotropic", ElementTestKind::kIsotropic},
-    {"oedometer", ElementTestKind::kOedometer},
-    {"undrained-simple-shear", ElementTestKind::kUndrainedSimpleShear},
-    {"cyclic-simple-shear", ElementTestKind::kCyclicSimpleShear},
-};
-
 ElementTestRow MakeRow(const RveState& s, const Eigen::Matrix2d& f, int axis, std::int64_t step) {
   ElementTestRow r;
   r.step = step;
@@ -82,20 +70,6 @@ absl::Status CheckSpec(const ElementTestSpec& spec) {
 }
 
 }  // namespace
-
-bool HasLoadingAxis(ElementTestKind kind) {
-  return kind == ElementTestKind::kDrainedBiaxial || kind == ElementTestKind::kOedometer;
-}
-
-absl::StatusOr<ElementTestKind> ParseElementTestKind(absl::string_view name) {
-  std::string known;
-  for (const NamedKind& k : kKinds) {
-    if (name == k.name) return k.kind;
-    absl::StrAppend(&known, known.empty() ? "" : ", ", k.name);
-  }
-  return absl::InvalidArgumentError(
-      absl::StrCat("unknown element test '", name, "'; known: ", known));
-}
 
 absl::StatusOr<std::vector<ElementTestRow>> RunElementTest(
     Rve& rve, const ElementTestSpec& spec, const std::function<void(double)>& progress,

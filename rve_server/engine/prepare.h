@@ -10,25 +10,12 @@
 
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
-#include "rve_server/engine/material.h"
 #include "rve_server/engine/rve.h"
-#include "rve_server/engine/snapshot.h"
+#include "rve_server/values/material.h"
+#include "rve_server/values/preparation.h"
+#include "rve_server/values/snapshot.h"
 
 namespace rvehub::dem {
-
-struct PreparationReport {
-  double compaction_friction = 0.0;  // μ used while compacting, [-]
-  int trials = 0;                    // compactions run to steer e toward the target
-  double void_ratio = 0.0;           // e0 reached, [-]
-  double pressure = 0.0;             // p0 reached, Pa (compression +)
-  double coordination = 0.0;         // [-]
-  std::int64_t steps = 0;            // DEM steps over all trials
-  // The steering's reach at p0, [-]: e of the frictionless compaction (the
-  // densest it packs) and of the one at the material's friction (the
-  // loosest; 0 when not run, the target lying at or below the densest).
-  double densest_void_ratio = 0.0;
-  double loosest_void_ratio = 0.0;
-};
 
 // Consolidates isotropically to p (Pa, compression +) by a cell servo, then
 // relaxes at fixed cell (a moving servo keeps stirring the packing) until the
@@ -43,7 +30,7 @@ struct PreparationReport {
 // RVE); the relaxation that follows balances the packing either way.
 // FailedPrecondition "... did not converge" when 6 servo-and-relax rounds
 // leave it out of reach, saying what the packing holds. Below about
-// kLowConsolidationStress a packing's few contacts may not hold a stress
+// kLowConsolidationStress (values/preparation.h) a packing's few contacts may not hold a stress
 // within 1 %: 40 loose discs compacted straight to 100 Pa end at σxx 88,
 // σyy 86, σxy 3.7 Pa, and at 1 Pa unjam into a gas (no contacts); SET-dense's
 // 400 discs unloaded from 100 kPa reach 300 Pa, but not 210 Pa (the
@@ -53,9 +40,6 @@ struct PreparationReport {
 // where that starts, far below kMaxPressure (SET-dense, E = 600 MPa, 100
 // discs: prepared e0 0.18 at 100 kPa, 0.14 at 1 MPa; at 3 MPa its
 // frictionless compaction reaches e < 0).
-//
-// Pa: see above. mpm_client notes the points it would start below it.
-inline constexpr double kLowConsolidationStress = 1e3;
 //
 // kSettleSteps is the settle_steps material points are created with (the
 // registry): from a template at 100 or 20 kPa to 2–14 kPa it took 1 200 to
@@ -86,30 +70,6 @@ absl::StatusOr<RveSnapshot> PreparePacking(
     const ParameterSet& set, const Controls& controls = {}, PreparationReport* report = nullptr,
     const std::function<void(const std::string&)>& progress = {});
 
-// How a template departs from its parameter set's packing; each field left
-// at its default keeps the set's.
-struct TemplateVariant {
-  // Pa, compression +: compact at this pressure instead of the set's p0 (0:
-  // the set's). A packing compacted at the stress it will be used at reaches
-  // the set's e0 there, where one compacted at 100 kPa and unloaded swells
-  // and loses contacts.
-  double pressure = 0;
-  // Target e0 instead of the set's (0: the set's): the same material packed
-  // denser or looser. The compaction friction, between 0 and the material's,
-  // bounds what can be reached: a target beyond it is refused (below); the
-  // report gives the e0 reached.
-  double void_ratio = 0;
-  // Discs instead of the set's count (0: the set's): a larger (or smaller)
-  // sample of the same material, e.g. to see how much of an element test's
-  // result is the sample's size.
-  int num_particles = 0;
-  // η of the rolling-resistance limit |M_r| ≤ η·r_min·fn instead of the
-  // set's, [-] (unset: the set's): another material, for sets with rolling
-  // resistance (β > 0). footing-dense's peak φ' rises from 24.5° at η = 0
-  // to 30.7° at the set's 0.05 (means over seeds 1–9).
-  std::optional<double> rolling_eta = std::nullopt;
-};
-
 // The one way to make a template from a named parameter set and a seed
 // (rve_cli prepare, mpm_client's case templates): the set's preparation with
 // its seed replaced and `variant` applied. NotFound naming the known sets
@@ -127,23 +87,6 @@ absl::StatusOr<RveSnapshot> PrepareTemplate(
     absl::string_view parameter_set, std::uint64_t seed, const TemplateVariant& variant = {},
     PreparationReport* report = nullptr,
     const std::function<void(const std::string&)>& progress = {});
-
-// The name of a packing prepared by PrepareTemplate when nobody names it
-// (rve_cli prepare --out, mpm_client's template cache files):
-// "<set>-seed<S>", then "-p<P>Pa", "-e<E>", "-<N>discs" and "-eta<η>" for
-// whichever field of `variant` is set, since each makes another packing.
-// Values as %.6g without '+' (2e06 for 2 MPa), so the name is a valid
-// template name.
-std::string TemplateName(absl::string_view parameter_set, std::uint64_t seed,
-                         const TemplateVariant& variant);
-
-// The description a template prepared by PrepareTemplate carries in its file
-// (rve_cli prepare --out, mpm_client's template cache): "material M, seed S,
-// N discs, e0 = E, p0 = P Pa", from the report of its preparation, with
-// ", rolling eta H" where `variant` replaces the set's η.
-std::string TemplateDescription(absl::string_view parameter_set, std::uint64_t seed,
-                                std::size_t num_particles, const PreparationReport& report,
-                                const TemplateVariant& variant = {});
 
 }  // namespace rvehub::dem
 

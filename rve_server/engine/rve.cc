@@ -32,12 +32,6 @@ absl::Status CheckFinite(double v, absl::string_view what, std::size_t index) {
 
 }  // namespace
 
-double SolidArea(const std::vector<double>& radius) {
-  double a = 0.0;
-  for (double r : radius) a += kPi * r * r;
-  return a;
-}
-
 Rve::Rve(RveSnapshot packing) : p_(std::move(packing)) {
   const auto [rmin, rmax] = std::minmax_element(p_.radius.begin(), p_.radius.end());
   radius_min_ = *rmin;
@@ -203,53 +197,6 @@ std::size_t Rve::MemoryBytes() const {
          bytes(nbr_i_) + bytes(nbr_j_) + bytes(nbr_kn_) + bytes(nbr_ft_) + bytes(nbr_moment_) +
          bytes(nbr_bond_) + bytes(inv_mass_) + bytes(inv_inertia_) + p_.material.name.capacity() +
          3 * p_.radius.size() * sizeof(double);  // fx_, fy_, tq_ (filled by the first step)
-}
-
-absl::Status ValidateDeltaF(const Eigen::Matrix3d& delta_f) {
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) {
-      if (!std::isfinite(delta_f(r, c))) {
-        return absl::InvalidArgumentError(
-            absl::StrCat("ΔF(", r, ",", c, ") = ", delta_f(r, c), " is not finite"));
-      }
-    }
-  }
-  constexpr double kPlaneTol = 1e-12;
-  if (std::abs(delta_f(2, 2) - 1.0) > kPlaneTol || std::abs(delta_f(0, 2)) > kPlaneTol ||
-      std::abs(delta_f(1, 2)) > kPlaneTol || std::abs(delta_f(2, 0)) > kPlaneTol ||
-      std::abs(delta_f(2, 1)) > kPlaneTol) {
-    return absl::InvalidArgumentError(
-        "ΔF must be plane strain for a 2-D RVE: ΔF_zz = 1 and no out-of-plane coupling");
-  }
-  const double det = delta_f.topLeftCorner<2, 2>().determinant();
-  if (!(det > 0)) {
-    return absl::InvalidArgumentError(absl::StrCat("det ΔF = ", det, " must be > 0"));
-  }
-  return absl::OkStatus();
-}
-
-absl::Status Validate(const ApplyOptions& o) {
-  if (!(o.relax_tolerance >= kMinRelaxTolerance && o.relax_tolerance <= 1)) {
-    return absl::InvalidArgumentError(absl::StrCat("relax_tolerance = ", o.relax_tolerance,
-                                                   " is invalid: must lie in [", kMinRelaxTolerance,
-                                                   ", 1]"));
-  }
-  if (o.relax_max_steps < 0 || o.relax_max_steps > kMaxRelaxSteps) {
-    return absl::InvalidArgumentError(absl::StrCat("relax_max_steps = ", o.relax_max_steps,
-                                                   " is invalid: must lie in [0, ", kMaxRelaxSteps,
-                                                   "]"));
-  }
-  if (!(o.max_inertial_number == 0 || (o.max_inertial_number >= kMinInertialNumber &&
-                                       o.max_inertial_number <= kMaxInertialNumber))) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "max_inertial_number = ", o.max_inertial_number, " is invalid: must be 0 or lie in [",
-        kMinInertialNumber, ", ", kMaxInertialNumber, "]"));
-  }
-  if (!(o.duration >= 0 && o.duration <= kMaxDuration)) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "duration = ", o.duration, " s is invalid: must lie in [0, ", kMaxDuration, "] s"));
-  }
-  return absl::OkStatus();
 }
 
 absl::Status Rve::SetFriction(double friction) {

@@ -12,77 +12,11 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "rve_server/engine/snapshot.h"
+#include "rve_server/values/increment.h"
+#include "rve_server/values/snapshot.h"
+#include "rve_server/values/state.h"
 
 namespace rvehub::dem {
-
-// Homogenised state of an RVE. Tensors are 3×3 (plane strain): the 2-D RVE
-// carries no out-of-plane stress, so σzz = σxz = σyz = 0.
-// In-plane invariants of a Cauchy stress (tension +; shared/reference):
-// p = −tr σ/2 (Pa, compression +) and q = sqrt(½ s:s) = sqrt(¼(σxx − σyy)² + σxy²) (Pa).
-inline double InPlaneMeanPressure(const Eigen::Matrix3d& stress) {
-  return -0.5 * (stress(0, 0) + stress(1, 1));
-}
-inline double InPlaneDeviatorStress(const Eigen::Matrix3d& stress) {
-  const double d = stress(0, 0) - stress(1, 1);
-  return std::sqrt(0.25 * d * d + stress(0, 1) * stress(0, 1));
-}
-
-struct RveState {
-  Eigen::Matrix3d stress = Eigen::Matrix3d::Zero();  // Love–Weber Cauchy σ, Pa, tension +
-  Eigen::Matrix3d fabric = Eigen::Matrix3d::Zero();  // φ = (1/Nc)Σ n⊗n, [-]
-  Eigen::Matrix3d fabric_anisotropy_tensor = Eigen::Matrix3d::Zero();  // 4(φ − I/2), [-]
-  double fabric_anisotropy = 0.0;                                      // Fa = sqrt(½ Fa:Fa), [-]
-  bool fabric_defined = false;           // false when the RVE has no contacts
-  double void_ratio = 0.0;               // e = (A_cell − A_solid)/A_solid, 2-D areas, [-]
-  double porosity = 0.0;                 // n = e/(1+e), [-]
-  double coordination = 0.0;             // Z = 2·Nc/N, [-]
-  double mechanical_coordination = 0.0;  // without rattlers (< 2 contacts), [-]
-  double permeability = 0.0;             // k = c·e³/(1+e), m/s
-  double mean_rotation = 0.0;            // mean particle rotation since creation, rad (ccw +)
-  double kinetic_energy = 0.0;           // J (translational fluctuation + rotational)
-  double unbalanced_force_ratio = 0.0;   // mean |Σ F on particle| / mean |contact force|
-  std::int64_t num_contacts = 0;
-  double volume = 0.0;  // V = A·t, m³
-  // Of the call that produced this state:
-  std::int64_t steps = 0;         // DEM steps used
-  double time_step = 0.0;         // s
-  double mass_scale = 1.0;        // density scaling used
-  double MeanPressure() const;    // p of `stress`, see InPlaneMeanPressure
-  double DeviatorStress() const;  // q of `stress`, see InPlaneDeviatorStress
-  // Elastic tangent from contacts, D_ijkl = (1/V)Σ(kn n_i d_j n_k d_l + kt t_i d_j t_k d_l),
-  // Pa, stored as D(3i+j, 3k+l). Set only when asked for: most states are
-  // copied several times per increment and never need its 648 bytes.
-  std::optional<Eigen::Matrix<double, 9, 9>> tangent;
-};
-
-inline double RveState::MeanPressure() const { return InPlaneMeanPressure(stress); }
-inline double RveState::DeviatorStress() const { return InPlaneDeviatorStress(stress); }
-
-struct ApplyOptions {
-  bool relax = false;             // after the increment, relax at fixed cell
-  double relax_tolerance = 1e-4;  // unbalanced-force ratio to stop relaxing
-  std::int64_t relax_max_steps = 20000;
-  bool want_tangent = false;
-  // Tighter bound on the inertial number for this call, [-]; 0 (or a value
-  // above the RVE's Controls::max_inertial_number): the RVE's own bound.
-  double max_inertial_number = 0.0;
-  // Physical duration of the increment, s; > 0: at most ⌈duration/Δt⌉ DEM
-  // steps (min_steps still holds), so the RVE never deforms slower than the
-  // continuum does. Where the quasi-static bound asks for more (a flowing
-  // packing, one near zero pressure) the RVE then follows its own inertial
-  // (rate-dependent) response at the continuum's strain rate. 0: no cap.
-  double duration = 0.0;
-  // Measure the stress alone at the increment's end, for a caller that reads
-  // only the stress between its outputs (an MPM step): the state returned
-  // carries stress, volume, void ratio, porosity, permeability, steps, Δt,
-  // mass scale (and the tangent if asked for) and leaves the fabric, the
-  // contact counts and coordinations, the unbalanced-force ratio, the mean
-  // rotation and the kinetic energy at zero. The RVE itself evolves exactly
-  // as in a full call; a later full observation measures the rest, bit for
-  // bit. Saves most of the homogenisation of a one-DEM-step increment.
-  bool stress_only = false;
-};
 
 // Asked between DEM steps by the engine's long loops (Apply, Relax, Run,
 // consolidation, element tests), every kInterruptCheckSteps steps: OK to go
@@ -91,23 +25,6 @@ struct ApplyOptions {
 // bound work it cannot size beforehand; it never touches the arithmetic.
 using Interrupt = std::function<absl::Status()>;
 inline constexpr std::int64_t kInterruptCheckSteps = 256;
-
-// Limits on one call's work, checked before anything changes (the documented
-// ranges of the wire contract, see rve_service.proto).
-inline constexpr std::int64_t kMaxStepsPerApply = 100'000'000;  // DEM steps of one increment
-inline constexpr std::int64_t kMaxRelaxSteps = 10'000'000;      // ApplyOptions::relax_max_steps
-inline constexpr double kMinRelaxTolerance = 1e-12;             // ApplyOptions::relax_tolerance
-inline constexpr double kMinInertialNumber = 1e-6;              // any inertial number bound, [-]
-inline constexpr double kMaxInertialNumber = 1.0;
-inline constexpr double kMaxDuration = 1e6;  // s, ApplyOptions::duration
-
-// Ranges of ApplyOptions (relax_tolerance in [1e-12, 1], relax_max_steps in
-// [0, 1e7], max_inertial_number 0 or in [1e-6, 1], duration in [0, 1e6] s).
-absl::Status Validate(const ApplyOptions& options);
-
-// The checks Apply makes on ΔF before touching anything: 9 finite values,
-// plane strain (ΔF_zz = 1, no out-of-plane coupling) and det ΔF > 0.
-absl::Status ValidateDeltaF(const Eigen::Matrix3d& delta_f);
 
 // Mixed control of the cell for element tests and preparation.
 enum class ControlMode { kStrainRate, kStress };
@@ -343,16 +260,6 @@ class Rve {
   bool track_energy_ = false;
   double radius_min_ = 0.0, radius_max_ = 0.0, radius_mean_ = 0.0, solid_area_ = 0.0;
 };
-
-double SolidArea(const std::vector<double>& radius);  // Σ π r², m²
-
-// Limits on a packing's size, so that a malformed or hostile packing cannot
-// ask for unbounded memory or time (the neighbour grid grows with the cell
-// area over the squared particle size).
-inline constexpr std::size_t kMaxParticles = 1'000'000;
-inline constexpr double kMaxGridCellsPerParticle = 1000;  // ≈ solid fraction ≥ 6e-4
-inline constexpr double kMinGridCells = 1e4;
-inline constexpr std::size_t kMaxNameBytes = 128;  // material name, printable ASCII
 
 // Every check a packing must pass before an RVE is built from it, on every
 // path (templates, imports, checkpoints): material and controls, array

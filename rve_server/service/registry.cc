@@ -23,7 +23,6 @@ namespace {
 
 constexpr std::size_t kMaxDescriptionBytes = 4096;
 constexpr int kMaxListedIds = 8;  // ids named in one error message at most
-constexpr double kMaxK0 = 10.0;   // σh/σv of a K0 state at most, [-]
 
 }  // namespace
 
@@ -91,7 +90,7 @@ absl::Status CheckCancelled(const CancelFn& cancelled) {
                                              "committed step"));
 }
 
-TemplateSummary Summarise(const store::TemplateRecord& t, const dem::RveState& s) {
+TemplateInfo Summarise(const TemplateRecord& t, const dem::RveState& s) {
   return {t.name,
           t.description,
           t.packing.material.name,
@@ -102,34 +101,9 @@ TemplateSummary Summarise(const store::TemplateRecord& t, const dem::RveState& s
 
 }  // namespace
 
-absl::Status Validate(const InitialStress& initial) {
-  switch (initial.kind) {
-    case InitialStress::Kind::kTemplate:
-      return absl::OkStatus();
-    case InitialStress::Kind::kIsotropic:
-      if (!(initial.pressure > 0 && initial.pressure <= dem::kMaxPressure)) {
-        return absl::InvalidArgumentError(absl::StrCat("initial pressure ", initial.pressure,
-                                                       " Pa must lie in (0, ", dem::kMaxPressure,
-                                                       "] Pa (compression +)"));
-      }
-      return absl::OkStatus();
-    case InitialStress::Kind::kK0:
-      if (!(initial.vertical_compression > 0 && initial.vertical_compression <= dem::kMaxPressure &&
-            initial.k0 > 0 && initial.k0 <= kMaxK0 &&
-            initial.k0 * initial.vertical_compression <= dem::kMaxPressure)) {
-        return absl::InvalidArgumentError(
-            absl::StrCat("K0 state needs a vertical stress in (0, ", dem::kMaxPressure,
-                         "] Pa (compression +) and K0 in (0, ", kMaxK0,
-                         "], got σv = ", initial.vertical_compression, " Pa, K0 = ", initial.k0));
-      }
-      return absl::OkStatus();
-  }
-  return absl::InvalidArgumentError("unknown kind of initial stress");
-}
-
 Registry::Registry(const RegistryOptions& options) : options_(options), pool_(options.threads) {}
 
-absl::StatusOr<TemplateSummary> Registry::PutTemplate(store::TemplateRecord record, bool replace) {
+absl::StatusOr<TemplateInfo> Registry::PutTemplate(TemplateRecord record, bool replace) {
   RETURN_IF_ERROR(ValidateName("template name", record.name));
   if (record.description.size() > kMaxDescriptionBytes) {
     return absl::InvalidArgumentError(absl::StrCat("template description has ",
@@ -149,7 +123,7 @@ absl::StatusOr<TemplateSummary> Registry::PutTemplate(store::TemplateRecord reco
     return absl::InvalidArgumentError(
         absl::StrCat("template ", QuotedName(record.name), ": ", rve.status().message()));
   }
-  const TemplateSummary summary = Summarise(record, rve->Observe());
+  const TemplateInfo summary = Summarise(record, rve->Observe());
   absl::MutexLock lock(&mu_);
   if (!replace && templates_.contains(record.name)) {
     return absl::AlreadyExistsError(absl::StrCat("template ", QuotedName(record.name),
@@ -160,21 +134,21 @@ absl::StatusOr<TemplateSummary> Registry::PutTemplate(store::TemplateRecord reco
   return summary;
 }
 
-std::vector<TemplateSummary> Registry::ListTemplates() const {
+std::vector<TemplateInfo> Registry::ListTemplates() const {
   absl::MutexLock lock(&mu_);
-  std::vector<TemplateSummary> out;
+  std::vector<TemplateInfo> out;
   for (const auto& [name, t] : templates_) out.push_back(t.summary);
   return out;
 }
 
-std::vector<store::TemplateRecord> Registry::AllTemplates() const {
+std::vector<TemplateRecord> Registry::AllTemplates() const {
   absl::MutexLock lock(&mu_);
-  std::vector<store::TemplateRecord> out;
+  std::vector<TemplateRecord> out;
   for (const auto& [name, t] : templates_) out.push_back(t.record);
   return out;
 }
 
-absl::StatusOr<store::TemplateRecord> Registry::FindTemplate(absl::string_view name) const {
+absl::StatusOr<TemplateRecord> Registry::FindTemplate(absl::string_view name) const {
   RETURN_IF_ERROR(ValidateName("template name", name));
   absl::MutexLock lock(&mu_);
   auto t = templates_.find(name);
@@ -245,7 +219,7 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
     RETURN_IF_ERROR(dem::Validate(*controls));
   }
 
-  ASSIGN_OR_RETURN(store::TemplateRecord found, FindTemplate(template_name));
+  ASSIGN_OR_RETURN(TemplateRecord found, FindTemplate(template_name));
   dem::RveSnapshot base = std::move(found.packing);
   std::int64_t bytes_each = 0;
   if (controls.has_value()) base.controls = *controls;
@@ -590,12 +564,12 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Get(absl::string_view run_id,
 }
 
 absl::Status Registry::Export(absl::string_view run_id, std::span<const std::int64_t> ids,
-                              const std::function<absl::Status(store::RveRecord&&)>& sink) const {
+                              const std::function<absl::Status(RveRecord&&)>& sink) const {
   RETURN_IF_ERROR(ValidateName("run id", run_id));
   RETURN_IF_ERROR(CheckIdList(ids, options_.max_batch));
   ASSIGN_OR_RETURN(auto entries, Lookup(run_id, ids));
   for (const auto& [id, e] : entries) {
-    store::RveRecord r;
+    RveRecord r;
     r.run_id = std::string(run_id);
     r.id = id;
     {
@@ -609,8 +583,7 @@ absl::Status Registry::Export(absl::string_view run_id, std::span<const std::int
   return absl::OkStatus();
 }
 
-absl::Status Registry::ExportAll(
-    const std::function<absl::Status(store::RveRecord&&)>& sink) const {
+absl::Status Registry::ExportAll(const std::function<absl::Status(RveRecord&&)>& sink) const {
   std::vector<std::string> run_ids;
   {
     absl::MutexLock lock(&mu_);
@@ -624,13 +597,13 @@ absl::Status Registry::ExportAll(
   return absl::OkStatus();
 }
 
-absl::StatusOr<std::int64_t> Registry::Import(std::vector<store::RveRecord> records) {
+absl::StatusOr<std::int64_t> Registry::Import(std::vector<RveRecord> records) {
   if (records.empty()) return absl::InvalidArgumentError("import of no RVEs");
   // Validate and build every RVE before touching the registry.
   std::vector<std::optional<dem::Rve>> made(records.size());
   std::vector<absl::Status> status(records.size());
   auto build_one = [&](std::size_t k) {
-    const store::RveRecord& r = records[k];
+    const RveRecord& r = records[k];
     absl::Status s = ValidateName("run id", r.run_id);
     if (s.ok() && r.step < 0) s = absl::InvalidArgumentError(absl::StrCat("step ", r.step, " < 0"));
     if (s.ok() && !r.last_delta_f.allFinite())
@@ -671,7 +644,7 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<store::RveRecord> reco
   }
   const std::int64_t n = static_cast<std::int64_t>(records.size());
   absl::MutexLock lock(&mu_);
-  for (const store::RveRecord& r : records) {
+  for (const RveRecord& r : records) {
     auto run = runs_.find(r.run_id);
     if (run != runs_.end() && run->second.contains(r.id)) {
       return absl::AlreadyExistsError(absl::StrCat("run ", QuotedName(r.run_id),
@@ -730,7 +703,7 @@ absl::StatusOr<std::int64_t> Registry::Drop(absl::string_view run_id,
   return dropped;
 }
 
-std::vector<RunSummary> Registry::ListRuns() const {
+std::vector<RunInfo> Registry::ListRuns() const {
   std::vector<std::pair<std::string, std::vector<EntryPtr>>> runs;
   {
     absl::MutexLock lock(&mu_);
@@ -740,9 +713,9 @@ std::vector<RunSummary> Registry::ListRuns() const {
       runs.emplace_back(id, std::move(entries));
     }
   }
-  std::vector<RunSummary> out;
+  std::vector<RunInfo> out;
   for (const auto& [id, entries] : runs) {
-    RunSummary r{id, static_cast<std::int64_t>(entries.size()), 0, 0};
+    RunInfo r{id, static_cast<std::int64_t>(entries.size()), 0, 0};
     bool first = true;
     for (const EntryPtr& e : entries) {
       absl::MutexLock lock(&e->mu);

@@ -24,9 +24,9 @@
 #include "absl/synchronization/mutex.h"
 #include "rve_server/common/names.h"
 #include "rve_server/engine/rve.h"
-#include "rve_server/service/rve_batch.h"
 #include "rve_server/service/worker_pool.h"
-#include "store/record.h"
+#include "rve_server/values/increment.h"
+#include "rve_server/values/record.h"
 
 namespace rvehub::service {
 
@@ -42,28 +42,11 @@ struct RegistryOptions {
   std::int64_t max_batch = 100'000;            // RVEs per call at most
 };
 
-enum class ApplyMode { kCommit, kTrial };
-
-// A batch call's values (rve_batch.h), the client endpoints' too.
+// A batch call's values (values/increment.h), the client endpoints' too.
+using ::rvehub::ApplyMode;
 using ::rvehub::Increment;
 using ::rvehub::InitialStress;
 using ::rvehub::RveOutcome;
-
-struct TemplateSummary {
-  std::string name;
-  std::string description;
-  std::string material_name;
-  std::int64_t num_particles = 0;
-  double void_ratio = 0.0;     // [-]
-  double mean_pressure = 0.0;  // Pa, compression +
-};
-
-struct RunSummary {
-  std::string run_id;
-  std::int64_t num_rves = 0;
-  std::int64_t min_step = 0;
-  std::int64_t max_step = 0;
-};
 
 struct RegistryStats {
   std::int64_t num_rves = 0;
@@ -77,9 +60,6 @@ struct RegistryStats {
 // increments, consolidations and relaxations between DEM steps, undoing
 // them). The same type as dem::Interrupt.
 using CancelFn = std::function<absl::Status()>;
-
-// Finite positive stresses (and K0) for the kind; kTemplate is always valid.
-absl::Status Validate(const InitialStress& initial);
 
 // Run ids and template names follow the one rule of rve_server/common/names.h
 // (the client checks the same one).
@@ -95,11 +75,11 @@ class Registry {
 
   // Templates. InvalidArgument for a bad name or packing, AlreadyExists
   // unless `replace`.
-  absl::StatusOr<TemplateSummary> PutTemplate(store::TemplateRecord record, bool replace);
-  std::vector<TemplateSummary> ListTemplates() const;
-  std::vector<store::TemplateRecord> AllTemplates() const;
+  absl::StatusOr<TemplateInfo> PutTemplate(TemplateRecord record, bool replace);
+  std::vector<TemplateInfo> ListTemplates() const;
+  std::vector<TemplateRecord> AllTemplates() const;
   // NotFound naming the template when it is not hosted.
-  absl::StatusOr<store::TemplateRecord> FindTemplate(absl::string_view name) const;
+  absl::StatusOr<TemplateRecord> FindTemplate(absl::string_view name) const;
 
   // Creates RVEs from a template, optionally consolidated (in parallel) to
   // initial stresses — none, one for all, or one per id (geostatic starts:
@@ -140,19 +120,19 @@ class Registry {
   // Full states, one record at a time to `sink` (in id order; empty ids: the
   // whole run). Stops at the first error of `sink`.
   absl::Status Export(absl::string_view run_id, std::span<const std::int64_t> ids,
-                      const std::function<absl::Status(store::RveRecord&&)>& sink) const;
+                      const std::function<absl::Status(RveRecord&&)>& sink) const;
   // Every RVE of every run (for checkpoints), sorted by (run, id).
-  absl::Status ExportAll(const std::function<absl::Status(store::RveRecord&&)>& sink) const;
+  absl::Status ExportAll(const std::function<absl::Status(RveRecord&&)>& sink) const;
 
   // All or nothing: InvalidArgument naming a malformed record, AlreadyExists
   // when a (run, id) is hosted or repeated, ResourceExhausted beyond limits.
-  absl::StatusOr<std::int64_t> Import(std::vector<store::RveRecord> records);
+  absl::StatusOr<std::int64_t> Import(std::vector<RveRecord> records);
 
   // Drops RVEs (empty ids: the whole run); NotFound for an unknown run or id
   // (then nothing is dropped). Returns how many were dropped.
   absl::StatusOr<std::int64_t> Drop(absl::string_view run_id, std::span<const std::int64_t> ids);
 
-  std::vector<RunSummary> ListRuns() const;
+  std::vector<RunInfo> ListRuns() const;
   // RVEs hosted for a run (0 for an unknown run).
   std::int64_t CountRves(absl::string_view run_id) const;
   RegistryStats Stats() const;
@@ -192,8 +172,8 @@ class Registry {
   mutable absl::Mutex mu_;
   std::map<std::string, Run, std::less<>> runs_ ABSL_GUARDED_BY(mu_);
   struct Template {
-    store::TemplateRecord record;
-    TemplateSummary summary;  // computed once, on upload
+    TemplateRecord record;
+    TemplateInfo summary;  // computed once, on upload
   };
   std::map<std::string, Template, std::less<>> templates_ ABSL_GUARDED_BY(mu_);
   std::int64_t num_rves_ ABSL_GUARDED_BY(mu_) = 0;

@@ -14,10 +14,16 @@
 #include "absl/strings/str_cat.h"
 #include "rve_server/common/status_macros.h"
 #include "rve_server/engine/element_test.h"
-#include "rve_server/service/convert.h"
 #include "rve_server/service/log.h"
+#include "rve_server/wire/convert.h"
 
 namespace rvehub::service {
+
+// The wire conversions (rve_server/wire/convert.h).
+using wire::FromProto;
+using wire::kMaxResultMessageBytes;
+using wire::ToProto;
+
 namespace {
 
 constexpr std::int64_t kChunkOverheadBytes = 64 << 10;  // headroom below the message limit
@@ -248,9 +254,8 @@ grpc::Status RveServiceImpl::DoUploadTemplate(grpc::ServerContext* ctx,
   }
   absl::StatusOr<dem::RveSnapshot> packing = FromProto(req->entry().packing());
   if (!packing.ok()) return ToGrpc(packing.status());
-  store::TemplateRecord record{req->entry().name(), req->entry().description(),
-                               *std::move(packing)};
-  absl::StatusOr<TemplateSummary> s = registry_.PutTemplate(std::move(record), req->replace());
+  TemplateRecord record{req->entry().name(), req->entry().description(), *std::move(packing)};
+  absl::StatusOr<TemplateInfo> s = registry_.PutTemplate(std::move(record), req->replace());
   if (!s.ok()) return ToGrpc(s.status());
   ToProto(*s, resp);
   Log("info", "template uploaded",
@@ -262,7 +267,7 @@ grpc::Status RveServiceImpl::ListTemplates(grpc::ServerContext* ctx,
                                            const v1::ListTemplatesRequest*,
                                            v1::ListTemplatesResponse* resp) {
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
-  for (const TemplateSummary& t : registry_.ListTemplates()) ToProto(t, resp->add_templates());
+  for (const TemplateInfo& t : registry_.ListTemplates()) ToProto(t, resp->add_templates());
   return grpc::Status::OK;
 }
 
@@ -419,7 +424,7 @@ grpc::Status RveServiceImpl::DoExport(grpc::ServerContext* ctx, const v1::Export
     chunk_bytes = 0;
     return absl::OkStatus();
   };
-  absl::Status s = registry_.Export(req->run_id(), ids, [&](store::RveRecord&& r) {
+  absl::Status s = registry_.Export(req->run_id(), ids, [&](RveRecord&& r) {
     v1::RveRecord record;
     ToProto(r, &record);
     const std::int64_t size = static_cast<std::int64_t>(record.ByteSizeLong());
@@ -447,7 +452,7 @@ grpc::Status RveServiceImpl::ImportBytes(grpc::ServerContext* ctx,
                         absl::StrCat("malformed import stream: ", why, "; nothing imported"));
   };
   const std::int64_t max_records = registry_.options().max_rves;
-  std::vector<store::RveRecord> records;
+  std::vector<RveRecord> records;
   grpc::ByteBuffer bytes;
   std::int64_t declared = 0;
   int chunks = 0;
@@ -484,7 +489,7 @@ grpc::Status RveServiceImpl::ImportBytes(grpc::ServerContext* ctx,
                                     " records it declared (chunk ", chunks, ")"));
     }
     for (int k = 0; k < chunk.records_size(); ++k) {
-      absl::StatusOr<store::RveRecord> r = FromProto(chunk.records(k));
+      absl::StatusOr<RveRecord> r = FromProto(chunk.records(k));
       if (!r.ok()) {
         return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                             absl::StrCat("import chunk ", chunks, " record ", k, ": ",
@@ -523,13 +528,7 @@ grpc::Status RveServiceImpl::DoDrop(grpc::ServerContext* ctx, const v1::DropRequ
 grpc::Status RveServiceImpl::ListRuns(grpc::ServerContext* ctx, const v1::ListRunsRequest*,
                                       v1::ListRunsResponse* resp) {
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
-  for (const RunSummary& r : registry_.ListRuns()) {
-    v1::RunInfo* info = resp->add_runs();
-    info->set_run_id(r.run_id);
-    info->set_num_rves(r.num_rves);
-    info->set_min_step(r.min_step);
-    info->set_max_step(r.max_step);
-  }
+  for (const RunInfo& r : registry_.ListRuns()) ToProto(r, resp->add_runs());
   return grpc::Status::OK;
 }
 
@@ -562,7 +561,7 @@ grpc::Status RveServiceImpl::DoRunElementTest(grpc::ServerContext* ctx,
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
   absl::StatusOr<dem::ElementTestSpec> spec = FromProto(*req);
   if (!spec.ok()) return ToGrpc(spec.status());
-  absl::StatusOr<store::TemplateRecord> tmpl = registry_.FindTemplate(req->template_name());
+  absl::StatusOr<TemplateRecord> tmpl = registry_.FindTemplate(req->template_name());
   if (!tmpl.ok()) return ToGrpc(tmpl.status());
   absl::StatusOr<dem::Rve> rve = dem::Rve::Create(tmpl->packing);
   if (!rve.ok()) return ToGrpc(rve.status());

@@ -312,8 +312,8 @@ void RveServer::Wait() { server_->Wait(); }
 absl::Status RveServer::SaveCheckpoint(const std::string& dir) {
   RETURN_IF_ERROR(MakeCheckpointDir(dir));
   const auto t0 = std::chrono::steady_clock::now();
-  std::vector<store::RveRecord> rves;
-  absl::Status s = registry_->ExportAll([&](store::RveRecord&& r) {
+  std::vector<RveRecord> rves;
+  absl::Status s = registry_->ExportAll([&](RveRecord&& r) {
     rves.push_back(std::move(r));
     return absl::OkStatus();
   });
@@ -323,7 +323,7 @@ absl::Status RveServer::SaveCheckpoint(const std::string& dir) {
       !s.ok()) {
     return s;
   }
-  const std::vector<store::TemplateRecord> templates = registry_->AllTemplates();
+  const std::vector<TemplateRecord> templates = registry_->AllTemplates();
   if (s = store::WriteTemplates((std::filesystem::path(dir) / kTemplatesFile).string(), templates,
                                 info);
       !s.ok()) {
@@ -350,14 +350,14 @@ absl::Status RveServer::LoadCheckpoint(const std::string& dir) {
   ASSIGN_OR_RETURN(const bool templates_exist, PathExists(templates_path));
   ASSIGN_OR_RETURN(const bool rves_exist, PathExists(rves_path));
   if (templates_exist) {
-    ASSIGN_OR_RETURN(std::vector<store::TemplateRecord> t, store::ReadTemplates(templates_path));
-    for (store::TemplateRecord& r : t) {
-      ASSIGN_OR_RETURN(TemplateSummary put, registry_->PutTemplate(std::move(r), true));
+    ASSIGN_OR_RETURN(std::vector<TemplateRecord> t, store::ReadTemplates(templates_path));
+    for (TemplateRecord& r : t) {
+      ASSIGN_OR_RETURN(TemplateInfo put, registry_->PutTemplate(std::move(r), true));
       ++num_templates;
     }
   }
   if (rves_exist) {
-    ASSIGN_OR_RETURN(std::vector<store::RveRecord> r, store::ReadRves(rves_path));
+    ASSIGN_OR_RETURN(std::vector<RveRecord> r, store::ReadRves(rves_path));
     if (!r.empty()) {
       absl::StatusOr<std::int64_t> n = registry_->Import(std::move(r));
       if (!n.ok()) {

@@ -1,8 +1,8 @@
-// Minimal PNG line plots (cairo) for element-test results: a grid of panels,
-// each with nice axis ticks, a title, axis labels and a legend.
+// Minimal PNG line plots (cairo) for the tools that plot (rve_cli, mpm_client):
+// a grid of panels, each with nice axis ticks, a title, axis labels and a legend.
 
-#ifndef RVEHUB_RVE_SERVER_COMMON_PLOT_H_
-#define RVEHUB_RVE_SERVER_COMMON_PLOT_H_
+#ifndef RVEHUB_TOOLKIT_PLOT_H_
+#define RVEHUB_TOOLKIT_PLOT_H_
 
 #include <string>
 #include <vector>
@@ -39,4 +39,4 @@ absl::Status WritePng(const std::string& path, const std::vector<Panel>& panels,
 
 }  // namespace rvehub::plot
 
-#endif  // RVEHUB_RVE_SERVER_COMMON_PLOT_H_
+#endif  // RVEHUB_TOOLKIT_PLOT_H_

@@ -1,21 +1,22 @@
-// Translation between the wire messages (proto/rvehub/v1) and engine/store
-// types. Pure functions; malformed messages give InvalidArgument naming the
-// field.
-#ifndef RVEHUB_RVE_SERVER_SERVICE_CONVERT_H_
-#define RVEHUB_RVE_SERVER_SERVICE_CONVERT_H_
+// Translation between the wire messages (proto/rvehub/v1) and the values
+// every layer shares (rve_server/values): the only protobuf conversions, used
+// by the server's service and by the client library alike. Pure functions;
+// malformed messages give InvalidArgument naming the field.
+#ifndef RVEHUB_RVE_SERVER_WIRE_CONVERT_H_
+#define RVEHUB_RVE_SERVER_WIRE_CONVERT_H_
 
 #include <Eigen/Dense>
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "rve_server/engine/element_test.h"
-#include "rve_server/engine/rve.h"
-#include "rve_server/engine/snapshot.h"
-#include "rve_server/service/registry.h"
+#include "rve_server/values/element_test.h"
+#include "rve_server/values/increment.h"
+#include "rve_server/values/record.h"
+#include "rve_server/values/snapshot.h"
+#include "rve_server/values/state.h"
 #include "rvehub/v1/rve_service.pb.h"
-#include "store/record.h"
 
-namespace rvehub::service {
+namespace rvehub::wire {
 
 // 3×3 row-major, 9 values.
 void ToProto(const Eigen::Matrix3d& m, google::protobuf::RepeatedField<double>* out);
@@ -32,8 +33,8 @@ void ToProto(const dem::RveSnapshot& p, v1::Packing* out);
 // length each); physics is checked later by dem::Rve::Create.
 absl::StatusOr<dem::RveSnapshot> FromProto(const v1::Packing& p);
 
-void ToProto(const store::RveRecord& r, v1::RveRecord* out);
-absl::StatusOr<store::RveRecord> FromProto(const v1::RveRecord& r);
+void ToProto(const RveRecord& r, v1::RveRecord* out);
+absl::StatusOr<RveRecord> FromProto(const v1::RveRecord& r);
 
 void ToProto(const dem::RveState& s, const Eigen::Matrix3d& deformation_gradient,
              v1::RveState* out);
@@ -42,7 +43,10 @@ inline constexpr std::size_t kMaxResultMessageBytes = 512;
 // RveOutcome → RveResult (code from the absl status).
 void ToProto(const RveOutcome& o, v1::RveResult* out);
 
-void ToProto(const TemplateSummary& t, v1::TemplateInfo* out);
+void ToProto(const TemplateInfo& t, v1::TemplateInfo* out);
+TemplateInfo FromProto(const v1::TemplateInfo& t);
+void ToProto(const RunInfo& r, v1::RunInfo* out);
+RunInfo FromProto(const v1::RunInfo& r);
 
 // Values sent as they are (a default is sent as itself); zero fields mean
 // "the default" on the way back.
@@ -76,6 +80,6 @@ void ToProto(const InitialStress& s, v1::InitialStress* out);
 // the code is OK. An error (FromProto(RveState)'s) only for a malformed state.
 absl::Status FromProto(const v1::RveResult& r, RveOutcome* out);
 
-}  // namespace rvehub::service
+}  // namespace rvehub::wire
 
-#endif  // RVEHUB_RVE_SERVER_SERVICE_CONVERT_H_
+#endif  // RVEHUB_RVE_SERVER_WIRE_CONVERT_H_

@@ -1,10 +1,10 @@
-#include "rve_server/service/convert.h"
+#include "rve_server/wire/convert.h"
 
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
 
-namespace rvehub::service {
+namespace rvehub::wire {
 namespace {
 
 using google::protobuf::RepeatedField;
@@ -200,7 +200,7 @@ absl::StatusOr<dem::RveSnapshot> FromProto(const v1::Packing& p) {
   return out;
 }
 
-void ToProto(const store::RveRecord& r, v1::RveRecord* out) {
+void ToProto(const RveRecord& r, v1::RveRecord* out) {
   out->set_run_id(r.run_id);
   out->set_id(r.id);
   out->set_step(r.step);
@@ -208,8 +208,8 @@ void ToProto(const store::RveRecord& r, v1::RveRecord* out) {
   ToProto(r.packing, out->mutable_packing());
 }
 
-absl::StatusOr<store::RveRecord> FromProto(const v1::RveRecord& r) {
-  store::RveRecord out;
+absl::StatusOr<RveRecord> FromProto(const v1::RveRecord& r) {
+  RveRecord out;
   out.run_id = r.run_id();
   out.id = r.id();
   out.step = r.step();
@@ -265,13 +265,35 @@ void ToProto(const RveOutcome& o, v1::RveResult* out) {
   }
 }
 
-void ToProto(const TemplateSummary& t, v1::TemplateInfo* out) {
+void ToProto(const TemplateInfo& t, v1::TemplateInfo* out) {
   out->set_name(t.name);
   out->set_description(t.description);
   out->set_material_name(t.material_name);
   out->set_num_particles(t.num_particles);
   out->set_void_ratio(t.void_ratio);
   out->set_mean_pressure(t.mean_pressure);
+}
+
+TemplateInfo FromProto(const v1::TemplateInfo& t) {
+  TemplateInfo out;
+  out.name = t.name();
+  out.description = t.description();
+  out.material_name = t.material_name();
+  out.num_particles = t.num_particles();
+  out.void_ratio = t.void_ratio();
+  out.mean_pressure = t.mean_pressure();
+  return out;
+}
+
+void ToProto(const RunInfo& r, v1::RunInfo* out) {
+  out->set_run_id(r.run_id);
+  out->set_num_rves(r.num_rves);
+  out->set_min_step(r.min_step);
+  out->set_max_step(r.max_step);
+}
+
+RunInfo FromProto(const v1::RunInfo& r) {
+  return {r.run_id(), r.num_rves(), r.min_step(), r.max_step()};
 }
 
 void ToProto(const dem::ApplyOptions& o, v1::ApplyOptions* out) {
@@ -518,4 +540,4 @@ absl::Status FromProto(const v1::RveState& s, dem::RveState* out,
   return absl::OkStatus();
 }
 
-}  // namespace rvehub::service
+}  // namespace rvehub::wire

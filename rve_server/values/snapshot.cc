@@ -1,13 +1,19 @@
-#include "rve_server/engine/snapshot.h"
+#include "rve_server/values/snapshot.h"
 
 #include <cmath>
+#include <numbers>
 
 #include "absl/strings/str_cat.h"
-#include "rve_server/engine/rve_internal.h"
 
 namespace rvehub::dem {
 
-using internal::kPi;
+constexpr double kPi = std::numbers::pi;
+
+double SolidArea(const std::vector<double>& radius) {
+  double a = 0.0;
+  for (double r : radius) a += kPi * r * r;
+  return a;
+}
 
 absl::Status Validate(const Controls& c) {
   auto check = [](bool ok, absl::string_view field, double v, absl::string_view rule) {

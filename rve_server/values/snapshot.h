@@ -1,16 +1,18 @@
 // RveSnapshot, the complete state of one RVE as a plain struct (particles,
 // contact history, cell, material, controls and counters; a "packing" is only
-// its particle part): what the service and store layers serialise. Restoring
-// it gives a bit-identical continuation.
-#ifndef RVEHUB_RVE_SERVER_ENGINE_SNAPSHOT_H_
-#define RVEHUB_RVE_SERVER_ENGINE_SNAPSHOT_H_
+// its particle part): what the engine restores, the store saves and the wire
+// carries. Restoring it gives a bit-identical continuation. With the ranges
+// every layer checks it against.
+#ifndef RVEHUB_RVE_SERVER_VALUES_SNAPSHOT_H_
+#define RVEHUB_RVE_SERVER_VALUES_SNAPSHOT_H_
 
 #include <Eigen/Dense>
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
 #include "absl/status/status.h"
-#include "rve_server/engine/material.h"
+#include "rve_server/values/material.h"
 
 namespace rvehub::dem {
 
@@ -65,8 +67,22 @@ struct RveSnapshot {
 inline constexpr double kMinPressureFloor = 1.0;  // Pa
 inline constexpr double kMaxPressure = 1e9;       // Pa, any stress target or floor
 inline constexpr std::int64_t kMaxMinSteps = 1'000'000;
+inline constexpr double kMinInertialNumber = 1e-6;  // any inertial number bound, [-]
+inline constexpr double kMaxInertialNumber = 1.0;
 absl::Status Validate(const Controls& c);
+
+// Limits on a packing's size, so that a malformed or hostile packing cannot
+// ask for unbounded memory or time (the neighbour grid grows with the cell
+// area over the squared particle size); the engine's ValidatePacking applies
+// them on every path (templates, imports, checkpoints).
+inline constexpr std::size_t kMaxParticles = 1'000'000;
+inline constexpr double kMaxGridCellsPerParticle = 1000;  // ≈ solid fraction ≥ 6e-4
+inline constexpr double kMinGridCells = 1e4;
+inline constexpr std::size_t kMaxNameBytes = 128;  // material name, printable ASCII
+
+// Σ π r², the discs' own area, m² (overlaps not taken out).
+double SolidArea(const std::vector<double>& radius);
 
 }  // namespace rvehub::dem
 
-#endif  // RVEHUB_RVE_SERVER_ENGINE_SNAPSHOT_H_
+#endif  // RVEHUB_RVE_SERVER_VALUES_SNAPSHOT_H_

@@ -1,4 +1,4 @@
-#include "rve_server/client/embedded_endpoint.h"
+#include "rve_server/embedded/endpoint.h"
 
 #include <memory>
 #include <utility>
@@ -7,8 +7,13 @@
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 
-namespace rvehub::client {
+namespace rvehub::embedded {
 namespace {
+
+using client::Labelled;
+using client::PendingApply;
+using client::RecordSink;
+using client::RveEndpoint;
 
 // An Apply already done inside StartApply.
 class DoneApply final : public PendingApply {
@@ -33,7 +38,7 @@ class EmbeddedEndpoint final : public RveEndpoint {
   bool in_process() const override { return true; }
   std::string label() const override { return "embedded RVE registry"; }
 
-  absl::Status PutTemplate(const store::TemplateRecord& record) override {
+  absl::Status PutTemplate(const TemplateRecord& record) override {
     return Error(registry_->PutTemplate(record, /*replace=*/true).status());
   }
 
@@ -62,7 +67,7 @@ class EmbeddedEndpoint final : public RveEndpoint {
     }
     std::vector<RveOutcome> out(increments.size());
     const absl::Status applied =
-        registry_->ApplyEach(run, step, service::ApplyMode::kCommit, options, increments, cancelled,
+        registry_->ApplyEach(run, step, ApplyMode::kCommit, options, increments, cancelled,
                              [&out](std::size_t k, RveOutcome&& o) { out[k] = std::move(o); });
     const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
     if (!applied.ok()) return std::make_unique<DoneApply>(Error(applied), seconds);
@@ -82,7 +87,7 @@ class EmbeddedEndpoint final : public RveEndpoint {
     return Error(registry_->Export(run, ids, sink));
   }
 
-  absl::Status Import(std::vector<store::RveRecord> records) override {
+  absl::Status Import(std::vector<RveRecord> records) override {
     return Error(registry_->Import(std::move(records)).status());
   }
 
@@ -100,14 +105,14 @@ class EmbeddedEndpoint final : public RveEndpoint {
 
 }  // namespace
 
-std::unique_ptr<RveEndpoint> MakeEmbeddedEndpoint(std::shared_ptr<service::Registry> registry) {
+std::unique_ptr<RveEndpoint> MakeEndpoint(std::shared_ptr<service::Registry> registry) {
   return std::make_unique<EmbeddedEndpoint>(std::move(registry));
 }
 
-std::unique_ptr<RveEndpoint> MakeEmbeddedEndpoint(const EmbeddedOptions& options) {
+std::unique_ptr<RveEndpoint> MakeEndpoint(const EmbeddedOptions& options) {
   service::RegistryOptions registry;
   registry.threads = options.threads;
-  return MakeEmbeddedEndpoint(std::make_shared<service::Registry>(registry));
+  return MakeEndpoint(std::make_shared<service::Registry>(registry));
 }
 
-}  // namespace rvehub::client
+}  // namespace rvehub::embedded

@@ -1,7 +1,7 @@
 // Particle and contact parameters of a DEM material, and the named parameter
 // sets of ../shared/reference/README.md. Pure data plus validation.
-#ifndef RVEHUB_RVE_SERVER_ENGINE_MATERIAL_H_
-#define RVEHUB_RVE_SERVER_ENGINE_MATERIAL_H_
+#ifndef RVEHUB_RVE_SERVER_VALUES_MATERIAL_H_
+#define RVEHUB_RVE_SERVER_VALUES_MATERIAL_H_
 
 #include <cstdint>
 #include <string>
@@ -71,4 +71,4 @@ std::vector<std::string> ParameterSetNames();
 
 }  // namespace rvehub::dem
 
-#endif  // RVEHUB_RVE_SERVER_ENGINE_MATERIAL_H_
+#endif  // RVEHUB_RVE_SERVER_VALUES_MATERIAL_H_

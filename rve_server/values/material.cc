@@ -1,4 +1,4 @@
-#include "rve_server/engine/material.h"
+#include "rve_server/values/material.h"
 
 #include <cmath>
 #include <numbers>
