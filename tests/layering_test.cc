@@ -1,7 +1,8 @@
 // The layers point one way: engine ← store ← service, and the client library
-// ← mpm_client and rve_cli. This test reads every source file's #include
-// lines and fails, naming file, line and header, when one reaches across the
-// order (tests/ and bench/ may include anything).
+// ← mpm_client and rve_cli; toolkit (what the client programs share) ←
+// mpm_client, and it knows no client. This test reads every source file's
+// #include lines and fails, naming file, line and header, when one reaches
+// across the order (tests/ and bench/ may include anything).
 #include <filesystem>
 #include <fstream>
 #include <regex>
@@ -69,9 +70,14 @@ const std::vector<Layer>& Layers() {
         "rve_server/service/convert.h", "rve_server/service/worker_pool.h", "rve_server/engine/",
         "rve_server/common/", "store/", "rvehub/v1/", "absl/"},
        {"grpcpp/", "grpc/", "Eigen/", "google/protobuf/"}},
+      // What the client programs share (JSON input files): no client's model,
+      // of the project's own headers only the Status macros.
+      {"toolkit",
+       {"toolkit/", "rve_server/common/status_macros.h", "absl/"},
+       {"Eigen/", "nlohmann/"}},
       {"mpm_client",
-       {"mpm_client/", "rve_server/client/", "rve_server/engine/", "rve_server/common/", "store/",
-        "absl/", "nlohmann/"},
+       {"mpm_client/", "toolkit/", "rve_server/client/", "rve_server/engine/", "rve_server/common/",
+        "store/", "absl/", "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
       {"rve_server/cli",
        {"rve_server/cli/", "rve_server/client/", "rve_server/engine/", "rve_server/common/",
@@ -140,9 +146,12 @@ TEST(LayeringTest, TheRulesRejectCrossings) {
   EXPECT_FALSE(allowed("rve_server/engine", "fstream", false));
   EXPECT_FALSE(allowed("rve_server/engine", "grpcpp/grpcpp.h", false));
   EXPECT_FALSE(allowed("rve_server/service", "rve_server/client/endpoint.h", true));
+  EXPECT_FALSE(allowed("toolkit", "mpm_client/model.h", true));
+  EXPECT_FALSE(allowed("toolkit", "rve_server/common/text_file.h", true));
   EXPECT_TRUE(allowed("rve_server/engine", "Eigen/Dense", false));
   EXPECT_TRUE(allowed("rve_server/engine", "vector", false));
   EXPECT_TRUE(allowed("mpm_client", "rve_server/client/endpoint.h", true));
+  EXPECT_TRUE(allowed("mpm_client", "toolkit/field_table.h", true));
 }
 
 }  // namespace
