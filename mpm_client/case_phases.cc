@@ -15,13 +15,7 @@ Fields<DrainedBoundary> DrainedFields(const GridLines* lines) {
   return {
       NameField<DrainedBoundary>(),
       EnumField("line", &DrainedBoundary::axis, Need::kRequired, "drained line", kAxes, &AxisName),
-      {"position",
-       [lines](const Object& o, DrainedBoundary* d) -> absl::Status {
-         RETURN_IF_ERROR(GetNumber(o, "position", Need::kRequired, kAny, &d->position));
-         int index = 0;
-         return lines->Snap(d->position, d->axis, o.At("position"), &index, &d->position);
-       },
-       [](const DrainedBoundary& d, OrderedJson& j) { j["position"] = d.position; }},
+      GridLinePositionField<DrainedBoundary>(lines),
       NumberField("pressure", &DrainedBoundary::pressure, Need::kOptional, kAny),
       OptionalFiniteField("from", &DrainedBoundary::from, kAny),
       OptionalFiniteField("to", &DrainedBoundary::to, kAny),

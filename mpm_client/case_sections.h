@@ -88,6 +88,19 @@ class GridLines {
   GridSpec grid_;
 };
 
+// "position": a coordinate along the line of axis S::axis (read before it),
+// snapped onto a grid line of `lines` (null when only writing).
+template <typename S>
+Field<S> GridLinePositionField(const GridLines* lines) {
+  return {"position",
+          [lines](const Object& o, S* s) -> absl::Status {
+            RETURN_IF_ERROR(GetNumber(o, "position", Need::kRequired, kAny, &s->position));
+            int index = 0;
+            return lines->Snap(s->position, s->axis, o.At("position"), &index, &s->position);
+          },
+          [](const S& s, OrderedJson& j) { j["position"] = s.position; }};
+}
+
 // A region's extent in grid cells, for the overlap and free-surface checks.
 struct CellBox {
   int lo[2] = {0, 0};

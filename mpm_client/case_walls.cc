@@ -20,13 +20,7 @@ Fields<Wall> WallFields(const GridLines* lines) {
       NameField<Wall>(),
       EnumField("kind", &Wall::contact, Need::kRequired, "wall kind", kWallKinds, &ContactKindName),
       EnumField("line", &Wall::axis, Need::kRequired, "wall line", kAxes, &AxisName),
-      {"position",
-       [lines](const Object& o, Wall* w) -> absl::Status {
-         RETURN_IF_ERROR(GetNumber(o, "position", Need::kRequired, kAny, &w->position));
-         int index = 0;
-         return lines->Snap(w->position, w->axis, o.At("position"), &index, &w->position);
-       },
-       [](const Wall& w, OrderedJson& j) { j["position"] = w.position; }},
+      GridLinePositionField<Wall>(lines),
       FrictionField<Wall>("kind"),
       OptionalFiniteField("remove_time", &Wall::remove_time, kNonNegative),
       FlagField("unilateral", &Wall::unilateral),
