@@ -232,8 +232,9 @@ std::vector<std::string> NamesOf(const std::vector<T>& items) {
 }
 
 // A list of named objects at `key` (GetArray): `items` is resized to the
-// list, each element read by parse(element, pointer, index, &item) in
-// order, then the names checked with CheckUnique.
+// list (an absent optional list: empty), each element read by
+// parse(element, pointer, index, &item) in order, then the names checked
+// with CheckUnique.
 template <typename T, typename F>
 absl::Status GetList(const Object& o, absl::string_view key, Need need, absl::string_view what,
                      std::vector<T>* items, F parse) {
