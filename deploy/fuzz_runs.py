@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Release check: mutated reduced cases that `mpm_client check` accepts are run.
 
-case_test's CaseFuzz reads mutated cases and runs the accepted ones 20 steps
+case_fuzz_test's CaseFuzz reads mutated cases and runs the accepted ones 20 steps
 with an elastic stand-in for their RVEs; this runs each accepted one for a few
 steps with its RVEs on the embedded server (no network), the way a user's typo
 would run. Every run must end by

@@ -84,8 +84,9 @@ const std::vector<Layer>& Layers() {
        {"rve_server/embedded/", "rve_server/client/", "rve_server/service/", "rve_server/engine/",
         "rve_server/values/", "rve_server/common/", "absl/"},
        {"Eigen/"}},
-      // What the client programs share (plots: cairo).
-      {"toolkit", {"toolkit/", "rve_server/common/", "absl/", "nlohmann/"}, {"cairo", "Eigen/"}},
+      // What the client programs share: plots (cairo), JSON input files read
+      // into plain structs (field tables). No client's model.
+      {"toolkit", {"toolkit/", "rve_server/common/", "absl/"}, {"cairo", "Eigen/", "nlohmann/"}},
       {"rve_server/cli",
        {"rve_server/cli/", "rve_server/client/", "rve_server/embedded/", "rve_server/values/",
         "rve_server/common/", "store/", "toolkit/", "absl/", "nlohmann/"},
@@ -166,11 +167,14 @@ TEST(LayeringTest, TheRulesRejectCrossings) {
   EXPECT_FALSE(allowed("rve_server/client", "store/checkpoint.h", true));
   EXPECT_FALSE(allowed("rve_server/common", "cairo.h", false));
   EXPECT_FALSE(allowed("rve_server/server", "toolkit/plot.h", true));
+  EXPECT_FALSE(allowed("toolkit", "mpm_client/model.h", true));
+  EXPECT_FALSE(allowed("toolkit", "rve_server/client/endpoint.h", true));
   EXPECT_TRUE(allowed("rve_server/engine", "Eigen/Dense", false));
   EXPECT_TRUE(allowed("rve_server/engine", "vector", false));
   EXPECT_TRUE(allowed("rve_server/client", "rve_server/wire/convert.h", true));
   EXPECT_TRUE(allowed("rve_server/embedded", "rve_server/service/registry.h", true));
   EXPECT_TRUE(allowed("mpm_client", "rve_server/client/endpoint.h", true));
+  EXPECT_TRUE(allowed("mpm_client", "toolkit/field_table.h", true));
 }
 
 }  // namespace
