@@ -1015,6 +1015,11 @@ int Main(int argc, char** argv) {
     }
     absl::StatusOr<Flags> flags = ParseFlags(
         argc, argv, 2, command->server ? WithServerFlags(command->flags) : command->flags);
+    if (flags.ok()) {
+      for (const std::string& warning : flags->warnings) {
+        std::fprintf(stderr, "rve_cli: warning: %s\n", warning.c_str());
+      }
+    }
     status = flags.ok() ? command->run(*flags) : flags.status();
   }
   if (status.ok()) return 0;
