@@ -119,7 +119,7 @@ Server options (info, get, upload-template, checkpoint, restore, list-runs, drop
 element-test --server):
   --server=HOST:PORT   the rve_server to talk to
   --token-file=FILE    file holding the bearer token of a server started with
-                       --auth_token_file
+                       --auth-token-file
   --tls-ca=FILE        PEM CA certificate verifying a TLS server (default: plaintext)
   --timeout=SECONDS    deadline of each call (default 600; 0: none)
 
@@ -130,7 +130,7 @@ constexpr char kServerOptions[] = R"(
 Server options:
   --server=HOST:PORT   the rve_server to talk to
   --token-file=FILE    file holding the bearer token of a server started with
-                       --auth_token_file
+                       --auth-token-file
   --tls-ca=FILE        PEM CA certificate verifying a TLS server (default: plaintext)
   --timeout=SECONDS    deadline of each call (default 600; 0: none)
 )";
