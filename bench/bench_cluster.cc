@@ -58,7 +58,7 @@ class Server {
  public:
   explicit Server(const std::string& log) {
     std::vector<std::string> args = {RVE_SERVER_PATH, "--listen=127.0.0.1:0", "--threads=1",
-                                     "--drain_seconds=1"};
+                                     "--drain-seconds=1"};
     std::vector<char*> argv;
     for (std::string& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);

@@ -16,7 +16,7 @@ Servers listen and clients dial on 127.0.0.1 only. Everything is written
 under --work (default build/fuzz-options), which is also the working
 directory, so values taken for relative paths land there. Its first sweeps
 found mpm_client and rve_server aborting on a directory given as a token or
-certificate file and on a --template-cache or --checkpoint_dir name too long
+certificate file and on a --template-cache or --checkpoint-dir name too long
 for the system, reading /dev/zero until the memory was gone, rve_server
 aborting on --threads=100000, and ports past 65535 read modulo 65536; each
 is now refused with its reason.
@@ -140,17 +140,17 @@ def main():
             s.call([client, "resume", v])
 
         listen = "--listen=127.0.0.1:0"
-        for flag in ["--threads", "--max_rves", "--max_memory_mb", "--max_batch",
-                     "--max_message_mb", "--drain_seconds", "--health_without_token"]:
+        for flag in ["--threads", "--max-rves", "--max-memory-mb", "--max-batch",
+                     "--max-message-mb", "--drain-seconds", "--health-without-token"]:
             for v in NUMBERS + ["9223372036854775807"]:
-                s.server([server, listen, "--drain_seconds=2", f"{flag}={v}"])
-        for flag in ["--auth_token_file", "--checkpoint_dir", "--tls_cert"]:
+                s.server([server, listen, "--drain-seconds=2", f"{flag}={v}"])
+        for flag in ["--auth-token-file", "--checkpoint-dir", "--tls-cert"]:
             for v in PATHS:
-                extra = ["--tls_key=/tmp"] if flag == "--tls_cert" else []
-                s.server([server, listen, "--drain_seconds=2", f"{flag}={v}"] + extra)
+                extra = ["--tls-key=/tmp"] if flag == "--tls-cert" else []
+                s.server([server, listen, "--drain-seconds=2", f"{flag}={v}"] + extra)
         for v in ["", ":", "127.0.0.1:", "127.0.0.1:70000", "127.0.0.1:-1", "127.0.0.1:abc",
                   "[::1]:0", "127.0.0.1:0:0", LONG]:
-            s.server([server, f"--listen={v}", "--drain_seconds=2"])
+            s.server([server, f"--listen={v}", "--drain-seconds=2"])
 
         # Element tests on a small packing, cut short, each option absurd.
         test = [cli, "element-test", "--particles=50", "--strain=0.002", "--rows=20"]

@@ -64,7 +64,7 @@ for ((i = 0; i < n; i++)); do
   # Emptied here, not by the redirection below: that happens in the child,
   # after this loop may already have read a previous run's address.
   : >"$dir/server-$i.out"
-  "$server" --listen=127.0.0.1:0 --threads="$threads" --drain_seconds=5 \
+  "$server" --listen=127.0.0.1:0 --threads="$threads" --drain-seconds=5 \
     >"$dir/server-$i.out" 2>"$dir/server-$i.log" &
   pids+=($!)
   # The server's first stdout line: "listening on HOST:PORT" (bounded wait).

@@ -421,6 +421,9 @@ int Main(int argc, char** argv) {
   SetUpLongRunningProcess();
   absl::StatusOr<Command> command = Parse(argc, argv);
   if (!command.ok()) return Fail(command.status(), 2);
+  for (const std::string& warning : command->args.warnings) {
+    std::fprintf(stderr, "mpm_client: warning: %s\n", warning.c_str());
+  }
   if (command->name == "help") {
     std::fputs(kUsage, stdout);
     return 0;

@@ -144,8 +144,8 @@ TEST(CliTest, EveryBinaryHelpExitsZeroWithoutBuildPaths) {
   }
   const testing_util::CommandResult server =
       testing_util::RunCommand(absl::StrCat("'", RVE_SERVER_PATH, "' --help"));
-  for (const char* flag : {"--listen=127.0.0.1:50051", "--threads=0", "--checkpoint_dir=",
-                           "--auth_token_file=", "--tls_cert=", "--drain_seconds=30"}) {
+  for (const char* flag : {"--listen=127.0.0.1:50051", "--threads=0", "--checkpoint-dir=",
+                           "--auth-token-file=", "--tls-cert=", "--drain-seconds=30"}) {
     EXPECT_TRUE(absl::StrContains(server.out, flag)) << flag << " in\n" << server.out;
   }
 }
@@ -173,7 +173,7 @@ TEST(CliTest, ServerWithAFailedCheckpointExitsOne) {
                          << "' \"$@\"\n";
   std::filesystem::permissions(wrapper, std::filesystem::perms::owner_all);
   testing_util::ServerProcess server(wrapper, TempPath("limited_server.log"),
-                                     {absl::StrCat("--checkpoint_dir=", dir)});
+                                     {absl::StrCat("--checkpoint-dir=", dir)});
   ASSERT_FALSE(server.address().empty()) << server.Log();
   // A template (66 KB) to checkpoint: upload one prepared here.
   const std::string file = TempPath("limited_template.h5");
@@ -766,7 +766,7 @@ TEST(CliServerTest, GetPrintsOneRve) {
 // exported ones bit for bit and continue identically.
 TEST(CliServerTest, CheckpointAndRestoreRoundTrip) {
   Server source;
-  Server target({"--max_message_mb=1"});
+  Server target({"--max-message-mb=1"});
   ASSERT_FALSE(source.address().empty());
   ASSERT_FALSE(target.address().empty());
   const std::string name = PrepareAndUpload(source, 2);
@@ -845,7 +845,7 @@ TEST(CliServerTest, CheckpointAndRestoreRoundTrip) {
 TEST(CliServerTest, TokenFromTheTokenFile) {
   const std::string token_file = TempPath("token");
   std::ofstream(token_file) << "  s3cret-token\n";
-  Server server({absl::StrCat("--auth_token_file=", token_file)});
+  Server server({absl::StrCat("--auth-token-file=", token_file)});
   ASSERT_FALSE(server.address().empty());
   const Result refused = RunCli(absl::StrCat("info ", server.server_flag()));
   EXPECT_EQ(refused.exit_code, 1) << refused.output;

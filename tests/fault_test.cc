@@ -428,7 +428,7 @@ TEST(FaultTest, OnlyServerKilledAndRestartedOnItsAddressTakesTheRunBack) {
 TEST(FaultTest, CrashDuringCheckpointWriteLeavesThePreviousCheckpointAndNoStrayFiles) {
   const std::string dir = FreshDir("checkpoint");
   const std::string ckpt = dir + "/ckpt";
-  const std::vector<std::string> args = {"--checkpoint_dir=" + ckpt};
+  const std::vector<std::string> args = {"--checkpoint-dir=" + ckpt};
   const dem::RveSnapshot& packing = dem::testing_util::Prepared("SET-dense");
   constexpr int kFirst = 10, kMore = 3000;
   auto add = [&](ServerProcess& server, std::int64_t first, int n) {

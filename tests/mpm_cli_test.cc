@@ -822,7 +822,7 @@ TEST(MpmCliTest, LocalClusterScriptRunsACaseOnLoopbackServersAndStopsThem) {
 TEST(MpmCliTest, TokenFileIsSentToTheServers) {
   const std::string token = TempPath("token");
   std::ofstream(token) << "mpm-s3cret\n";
-  testing_util::ServerProcess server = StartServer({absl::StrCat("--auth_token_file=", token)});
+  testing_util::ServerProcess server = StartServer({absl::StrCat("--auth-token-file=", token)});
   ASSERT_FALSE(server.address().empty());
   const std::string run = absl::StrCat(
       "run ", Quote(WriteCase("token", SmallCase())), " --out=", Quote(TempPath("token_out")),

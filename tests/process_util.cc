@@ -47,7 +47,7 @@ ServerProcess::ServerProcess(const std::string& server_path, std::string log_pat
                              std::vector<std::string> extra_args)
     : log_path_(std::move(log_path)) {
   std::vector<std::string> args = {server_path, "--listen=127.0.0.1:0", "--threads=1",
-                                   "--drain_seconds=5"};
+                                   "--drain-seconds=5"};
   args.insert(args.end(), extra_args.begin(), extra_args.end());
   std::vector<char*> argv;
   for (std::string& a : args) argv.push_back(a.data());

@@ -19,6 +19,7 @@
 #include <thread>
 #include <vector>
 
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "health_probe.grpc.pb.h"
 #include "reflection_probe.grpc.pb.h"
@@ -208,7 +209,7 @@ TEST(ServerProcess, HealthAndReflectionRespond) {
 TEST(ServerProcess, SigtermDrainsCheckpointsAndRestartContinues) {
   const fs::path dir = fs::temp_directory_path() / ("rvehub_ckpt_" + std::to_string(getpid()));
   fs::remove_all(dir);
-  const std::string dir_flag = "--checkpoint_dir=" + dir.string();
+  const std::string dir_flag = "--checkpoint-dir=" + dir.string();
   constexpr int kRves = 32;  // step 2 then keeps both workers busy for ~1 s
   v1::ApplyResponse uninterrupted;
   v1::RveRecord before_stop;
@@ -310,7 +311,7 @@ TEST(ServerProcess, SigtermDrainsCheckpointsAndRestartContinues) {
 // reaches, no client deadline) no longer keeps a SIGTERM with a 2 s drain
 // from ending the process.
 TEST(ServerProcess, SigtermWithShortDrainEndsDespiteALongCall) {
-  ServerProcess server({"--listen=127.0.0.1:0", "--threads=1", "--drain_seconds=2"});
+  ServerProcess server({"--listen=127.0.0.1:0", "--threads=1", "--drain-seconds=2"});
   ASSERT_TRUE(CreateRun(server.stub(), 1).ok());
   v1::ApplyRequest req = Increments(1, 1, 1e-4);
   req.mutable_options()->set_relax(true);
@@ -352,19 +353,19 @@ TEST(ServerProcess, BadFlagsFailToStart) {
     const char* message;
   };
   for (const Case& c : {
-           Case{"--listen=127.0.0.1:0 --auth_token_file=/nonexistent/token",
+           Case{"--listen=127.0.0.1:0 --auth-token-file=/nonexistent/token",
                 "cannot read token file '/nonexistent/token'"},
            Case{"--listen=127.0.0.1:70000",
                 "listen address: \\\"127.0.0.1:70000\\\" is not HOST:PORT with a port in 0..65535"},
            Case{"--listen=127.0.0.1:", "is not HOST:PORT"},
            Case{"--listen=127.0.0.1:0 --threads=100000", "--threads=100000 must lie in 0..1024"},
-           Case{"--listen=127.0.0.1:0 --max_message_mb=4096",
-                "--max_message_mb=4096 must lie in 1..2047"},
-           Case{"--listen=127.0.0.1:0 --max_memory_mb=9223372036854775807",
-                "--max_memory_mb=9223372036854775807 must lie in 1.."},
-           Case{"--listen=127.0.0.1:0 --drain_seconds=-1", "--drain_seconds=-1 must be >= 0"},
+           Case{"--listen=127.0.0.1:0 --max-message-mb=4096",
+                "--max-message-mb=4096 must lie in 1..2047"},
+           Case{"--listen=127.0.0.1:0 --max-memory-mb=9223372036854775807",
+                "--max-memory-mb=9223372036854775807 must lie in 1.."},
+           Case{"--listen=127.0.0.1:0 --drain-seconds=-1", "--drain-seconds=-1 must be >= 0"},
            // Found only at the stop that was to save every RVE into it.
-           Case{"--listen=127.0.0.1:0 --checkpoint_dir=/dev/null",
+           Case{"--listen=127.0.0.1:0 --checkpoint-dir=/dev/null",
                 "cannot create checkpoint directory /dev/null: Not a directory"},
        }) {
     // stderr (the log) through the pipe, stdout dropped.
@@ -373,6 +374,64 @@ TEST(ServerProcess, BadFlagsFailToStart) {
     EXPECT_EQ(r.exit_code, 1) << c.flags << ": " << r.out;
     EXPECT_NE(r.out.find("msg=\"cannot start\""), std::string::npos) << c.flags << ": " << r.out;
     EXPECT_NE(r.out.find(c.message), std::string::npos) << c.flags << ": " << r.out;
+  }
+}
+
+// Options spelled the old way, with underscores, still work: the server
+// starts with their values and logs one warning per old name, naming the
+// new spelling.
+TEST(ServerProcess, OldSpellingWarnsAndRuns) {
+  const std::string log =
+      (fs::temp_directory_path() / ("rvehub_old_spelling_" + std::to_string(getpid()) + ".log"))
+          .string();
+  testing_util::ServerProcess server(RVE_SERVER_PATH, log,
+                                     {"--max_batch=500", "--max_batch=700", "--max-rves=900"});
+  ASSERT_FALSE(server.address().empty()) << server.Log();
+  auto stub = v1::RveService::NewStub(
+      grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials()));
+  v1::ServerInfo info;
+  ASSERT_TRUE(stub->GetServerInfo(Ctx().get(), {}, &info).ok());
+  EXPECT_EQ(info.max_batch(), 700);
+  EXPECT_EQ(info.max_rves(), 900);
+  EXPECT_EQ(server.Stop(), 0);
+  const std::string text = server.Log();
+  const std::string warning = "level=warn msg=\"--max_batch is now spelled --max-batch\"\n";
+  const std::size_t at = text.find(warning);
+  EXPECT_NE(at, std::string::npos) << text;
+  EXPECT_EQ(text.find(warning, at + 1), std::string::npos) << "one warning per name:\n" << text;
+  EXPECT_FALSE(absl::StrContains(text, "max-rves is now")) << text;
+  fs::remove(log);
+}
+
+// A command line the server cannot read ends it with exit 2 and the reason,
+// before it listens; --help anywhere wins (usage on stdout, exit 0).
+TEST(ServerProcess, UsageErrorsExitTwoAndHelpExitsZero) {
+  struct Case {
+    const char* flags;
+    const char* message;
+  };
+  for (const Case& c : {
+           Case{"--bogus=1", "unknown option --bogus (see --help)"},
+           Case{"--max_memory-mb=64", "unknown option --max_memory-mb (see --help)"},
+           Case{"--nohealth_without_token", "unknown option --nohealth_without_token"},
+           Case{"--flagfile=/dev/null", "unknown option --flagfile"},
+           Case{"--threads=abc", "bad value for --threads: 'abc'"},
+           Case{"--threads", "--threads needs a value (--threads=...)"},
+           Case{"--listen 127.0.0.1:0", "--listen needs a value"},
+           Case{"extra", "unexpected argument 'extra'"},
+       }) {
+    const testing_util::CommandResult r = testing_util::RunCommand(
+        absl::StrCat("timeout 20 " RVE_SERVER_PATH " ", c.flags, " 2>&1 >/dev/null"));
+    EXPECT_EQ(r.exit_code, 2) << c.flags << ": " << r.out;
+    EXPECT_NE(r.out.find("msg=\"cannot start\""), std::string::npos) << c.flags << ": " << r.out;
+    EXPECT_NE(r.out.find(c.message), std::string::npos) << c.flags << ": " << r.out;
+  }
+  for (const char* flags : {"--help", "--bogus -h", "--checkpoint_dir=/x --helpfull"}) {
+    const testing_util::CommandResult r =
+        testing_util::RunCommand(absl::StrCat("timeout 20 " RVE_SERVER_PATH " ", flags, " 2>&1"));
+    EXPECT_EQ(r.exit_code, 0) << flags << ": " << r.out;
+    EXPECT_TRUE(absl::StrContains(r.out, "--checkpoint-dir=\"\"")) << flags << ": " << r.out;
+    EXPECT_FALSE(absl::StrContains(r.out, "is now spelled")) << flags << ": " << r.out;
   }
 }
 

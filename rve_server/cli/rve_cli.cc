@@ -120,7 +120,7 @@ Server options (info, get, upload-template, checkpoint, restore, list-runs, drop
 element-test --server):
   --server=HOST:PORT   the rve_server to talk to
   --token-file=FILE    file holding the bearer token of a server started with
-                       --auth_token_file
+                       --auth-token-file
   --tls-ca=FILE        PEM CA certificate verifying a TLS server (default: plaintext)
   --timeout=SECONDS    deadline of each call (default 600; 0: none)
 
@@ -131,7 +131,7 @@ constexpr char kServerOptions[] = R"(
 Server options:
   --server=HOST:PORT   the rve_server to talk to
   --token-file=FILE    file holding the bearer token of a server started with
-                       --auth_token_file
+                       --auth-token-file
   --tls-ca=FILE        PEM CA certificate verifying a TLS server (default: plaintext)
   --timeout=SECONDS    deadline of each call (default 600; 0: none)
 )";
@@ -1037,6 +1037,11 @@ int Main(int argc, char** argv) {
     }
     absl::StatusOr<Flags> flags = ParseFlags(
         argc, argv, 2, command->server ? WithServerFlags(command->flags) : command->flags);
+    if (flags.ok()) {
+      for (const std::string& warning : flags->warnings) {
+        std::fprintf(stderr, "rve_cli: warning: %s\n", warning.c_str());
+      }
+    }
     status = flags.ok() ? command->run(*flags) : flags.status();
   }
   if (status.ok()) return 0;

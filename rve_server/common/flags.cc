@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "absl/status/status.h"
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 
 namespace rvehub::cli {
@@ -33,12 +34,23 @@ absl::StatusOr<Args> ParseArgs(int argc, char** argv, int first, const ArgSpec& 
       continue;
     }
     const std::size_t eq = arg.find('=');
-    const std::string name = arg.substr(2, eq == std::string::npos ? std::string::npos : eq - 2);
+    const std::string given = arg.substr(2, eq == std::string::npos ? std::string::npos : eq - 2);
+    // The old spelling has no hyphen left: a mix is a typo, not an old script.
+    std::string name = given;
+    if (!spec.allowed.contains(name) && !absl::StrContains(name, '-')) {
+      std::replace(name.begin(), name.end(), '_', '-');
+    }
     // Only the command's own options: absl's built-in ones (--flagfile,
     // --fromenv, ...) and other commands' options are unknown here.
     absl::CommandLineFlag* flag = spec.allowed.contains(name) ? FindFlag(name) : nullptr;
     if (flag == nullptr) {
-      return absl::InvalidArgumentError(absl::StrCat("unknown option --", name, " (see --help)"));
+      return absl::InvalidArgumentError(absl::StrCat("unknown option --", given, " (see --help)"));
+    }
+    if (name != given) {
+      std::string warning = absl::StrCat("--", given, " is now spelled --", name);
+      if (std::find(args.warnings.begin(), args.warnings.end(), warning) == args.warnings.end()) {
+        args.warnings.push_back(std::move(warning));
+      }
     }
     const bool is_bool = flag->IsOfType<bool>();
     if (spec.bare.contains(name) && eq != std::string::npos) {

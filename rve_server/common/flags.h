@@ -5,7 +5,9 @@
 // a usage error; absl exits 1), leaves --help to the caller (its own usage
 // text, exit 0), accepts only the options a command names, spells names with
 // hyphens (--stop-after reads FLAGS_stop_after) and can collect every value
-// of a repeatable option.
+// of a repeatable option. The underscore spelling that rve_server once took
+// (--checkpoint_dir) still works, with a warning naming the hyphen one, so
+// that existing scripts and manifests keep running.
 #ifndef RVEHUB_RVE_SERVER_COMMON_FLAGS_H_
 #define RVEHUB_RVE_SERVER_COMMON_FLAGS_H_
 
@@ -35,8 +37,12 @@ struct ArgSpec {
 
 struct Args {
   std::vector<std::string> positional;
+  // Keys here and in `repeated` are the hyphen spelling, however given.
   std::map<std::string, std::string> text;  // the last value given of each option
   std::map<std::string, std::vector<std::string>> repeated;
+  // One line per option given in its old underscore spelling, for the binary
+  // to print: "--checkpoint_dir is now spelled --checkpoint-dir".
+  std::vector<std::string> warnings;
   bool contains(const std::string& name) const {
     return text.contains(name) || repeated.contains(name);
   }
@@ -46,9 +52,11 @@ struct Args {
 bool WantsHelp(int argc, char** argv, int first);
 
 // Parses argv[first..] ("--name=value", "--switch", positionals); the parsed
-// values are set on the binary's ABSL_FLAGs. InvalidArgument with a message
-// for people on an unknown option, a missing or unparsable value, or a
-// positional argument where none is allowed.
+// values are set on the binary's ABSL_FLAGs. An allowed option given with
+// underscores for all its hyphens is taken, with a warning; a mix of the two
+// (--max_memory-mb) is neither spelling and unknown. InvalidArgument with a
+// message for people on an unknown option, a missing or unparsable value, or
+// a positional argument where none is allowed.
 absl::StatusOr<Args> ParseArgs(int argc, char** argv, int first, const ArgSpec& spec);
 
 // The ABSL_FLAG behind option `name` (hyphen spelling); nullptr if none.

@@ -1,6 +1,6 @@
 // rve_server: hosts DEM RVEs over gRPC (rvehub.v1.RveService).
-//   rve_server --listen=0.0.0.0:50051 --threads=16 --checkpoint_dir=/var/lib/rvehub
-// SIGTERM or SIGINT drains calls in flight and, with --checkpoint_dir, saves
+//   rve_server --listen=0.0.0.0:50051 --threads=16 --checkpoint-dir=/var/lib/rvehub
+// SIGTERM or SIGINT drains calls in flight and, with --checkpoint-dir, saves
 // every RVE to HDF5 (reloaded on the next start).
 #include <algorithm>
 #include <csignal>
@@ -13,11 +13,10 @@
 
 #include "absl/flags/commandlineflag.h"
 #include "absl/flags/flag.h"
-#include "absl/flags/parse.h"
 #include "absl/flags/reflection.h"
-#include "absl/flags/usage.h"
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
+#include "rve_server/common/flags.h"
 #include "rve_server/common/process.h"
 #include "rve_server/common/text_file.h"
 #include "rve_server/service/log.h"
@@ -33,9 +32,9 @@ ABSL_FLAG(int64_t, max_message_mb, 64, "gRPC message size limit, MiB, both ways"
 ABSL_FLAG(std::string, auth_token_file, "",
           "file holding a bearer token; calls must then carry \"authorization: Bearer <token>\"");
 ABSL_FLAG(bool, health_without_token, false,
-          "with --auth_token_file, grpc.health.v1.Health answers without the token (for "
+          "with --auth-token-file, grpc.health.v1.Health answers without the token (for "
           "Kubernetes' gRPC probes, which send none); every other call still needs it");
-ABSL_FLAG(std::string, tls_cert, "", "PEM certificate chain file (with --tls_key: TLS)");
+ABSL_FLAG(std::string, tls_cert, "", "PEM certificate chain file (with --tls-key: TLS)");
 ABSL_FLAG(std::string, tls_key, "", "PEM private key file");
 ABSL_FLAG(std::string, checkpoint_dir, "",
           "directory for rves.h5/templates.h5: loaded on start, written on SIGTERM");
@@ -46,35 +45,51 @@ namespace {
 constexpr char kUsage[] =
     "rve_server — hosts DEM RVEs over gRPC (rvehub.v1.RveService, health, reflection)\n"
     "\n"
-    "Usage: rve_server [--listen=HOST:PORT] [--threads=N] [--checkpoint_dir=DIR]\n"
-    "                  [--auth_token_file=F] [--tls_cert=F --tls_key=F] [options]\n"
+    "Usage: rve_server [--listen=HOST:PORT] [--threads=N] [--checkpoint-dir=DIR]\n"
+    "                  [--auth-token-file=F] [--tls-cert=F --tls-key=F] [options]\n"
     "\n"
-    "SIGTERM or SIGINT: calls in flight finish (up to --drain_seconds), the RVEs are\n"
-    "written to --checkpoint_dir, exit 0. Log lines are logfmt on stderr.\n"
+    "SIGTERM or SIGINT: calls in flight finish (up to --drain-seconds), the RVEs are\n"
+    "written to --checkpoint-dir, exit 0. Log lines are logfmt on stderr.\n"
     "\n"
     "Options:\n";
 
-// Usage and this binary's flags (absl's own --help exits 1 and names each
-// flag's source file by its build path).
-void PrintUsage() {
-  std::fputs(kUsage, stdout);
+// This binary's flags, by name (the libraries linked in define others).
+std::vector<absl::CommandLineFlag*> ServerFlags() {
   std::vector<absl::CommandLineFlag*> flags;
   for (const auto& [name, flag] : absl::GetAllFlags()) {
     if (absl::EndsWith(flag->Filename(), "rve_server_main.cc")) flags.push_back(flag);
   }
   std::sort(flags.begin(), flags.end(), [](auto* a, auto* b) { return a->Name() < b->Name(); });
-  for (const absl::CommandLineFlag* f : flags) {
-    const std::string value = f->DefaultValue();
-    std::printf("  --%s=%s\n      %s\n", std::string(f->Name()).c_str(),
-                value.empty() ? "\"\"" : value.c_str(), f->Help().c_str());
-  }
-  std::fputs("\nExit status: 0 after a clean stop, 1 when it cannot start or stop cleanly.\n",
-             stdout);
+  return flags;
 }
 
-int Fail(const absl::Status& s) {
+// The option's name on the command line: the flag's, with hyphens.
+std::string OptionName(const absl::CommandLineFlag& flag) {
+  std::string name(flag.Name());
+  std::replace(name.begin(), name.end(), '_', '-');
+  return name;
+}
+
+// Usage and this binary's flags (absl's own --help exits 1 and names each
+// flag's source file by its build path).
+void PrintUsage() {
+  std::fputs(kUsage, stdout);
+  for (const absl::CommandLineFlag* f : ServerFlags()) {
+    const std::string value = f->DefaultValue();
+    std::printf("  --%s=%s\n      %s\n", OptionName(*f).c_str(),
+                value.empty() ? "\"\"" : value.c_str(), f->Help().c_str());
+  }
+  std::fputs(
+      "\nThe old spellings with underscores (--checkpoint_dir) still work, with a warning.\n"
+      "\nExit status: 0 after a clean stop, 1 when it cannot start or stop cleanly, 2 on an\n"
+      "unknown option or a value that does not parse.\n",
+      stdout);
+}
+
+// The log line of any failure to start; exit status `code`.
+int Fail(const absl::Status& s, int code = 1) {
   rvehub::service::Log("error", "cannot start", {{"error", std::string(s.message())}});
-  return 1;
+  return code;
 }
 
 }  // namespace
@@ -87,14 +102,18 @@ int main(int argc, char** argv) {
       return 0;
     }
   }
-  absl::SetProgramUsageMessage(kUsage);
-  absl::ParseCommandLine(argc, argv);
+  rvehub::cli::ArgSpec spec;
+  for (const absl::CommandLineFlag* f : ServerFlags()) spec.allowed.insert(OptionName(*f));
+  spec.positional = false;
+  const absl::StatusOr<rvehub::cli::Args> args = rvehub::cli::ParseArgs(argc, argv, 1, spec);
+  if (!args.ok()) return Fail(args.status(), 2);
+  for (const std::string& warning : args->warnings) rvehub::service::Log("warn", warning);
   rvehub::SetUpLongRunningProcess();
   using rvehub::service::ServerConfig;
   ServerConfig config;
   config.listen = absl::GetFlag(FLAGS_listen);
   // The flags' own ranges, before any arithmetic on them (a shift by 20 of
-  // a huge --max_memory_mb overflows); RveServer::Start checks the rest.
+  // a huge --max-memory-mb overflows); RveServer::Start checks the rest.
   const int threads = absl::GetFlag(FLAGS_threads);
   if (threads < 0 || threads > rvehub::service::kMaxThreads) {
     return Fail(
@@ -103,14 +122,14 @@ int main(int argc, char** argv) {
   }
   if (const std::int64_t mb = absl::GetFlag(FLAGS_max_memory_mb); mb < 1 || mb > (1LL << 40)) {
     return Fail(absl::InvalidArgumentError(
-        absl::StrCat("--max_memory_mb=", mb, " must lie in 1..", 1LL << 40)));
+        absl::StrCat("--max-memory-mb=", mb, " must lie in 1..", 1LL << 40)));
   }
   if (const std::int64_t mb = absl::GetFlag(FLAGS_max_message_mb); mb < 1 || mb > 2047) {
     return Fail(absl::InvalidArgumentError(
-        absl::StrCat("--max_message_mb=", mb, " must lie in 1..2047 (gRPC's limit is 2 GiB)")));
+        absl::StrCat("--max-message-mb=", mb, " must lie in 1..2047 (gRPC's limit is 2 GiB)")));
   }
   if (const int s = absl::GetFlag(FLAGS_drain_seconds); s < 0) {
-    return Fail(absl::InvalidArgumentError(absl::StrCat("--drain_seconds=", s, " must be >= 0")));
+    return Fail(absl::InvalidArgumentError(absl::StrCat("--drain-seconds=", s, " must be >= 0")));
   }
   config.registry.threads =
       threads > 0 ? threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
