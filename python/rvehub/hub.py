@@ -199,10 +199,16 @@ class Hub:
             self._channel = grpc.insecure_channel(target, options)
         self._stub = pb_grpc.RveServiceStub(self._channel)
         self._max_message_bytes: Optional[int] = None
+        self._closed = False
 
     # -- plumbing -------------------------------------------------------------
 
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RuntimeError(f"{self!r} is closed")
+
     def _call(self, rpc: str, request, timeout: Optional[float] = None):
+        self._check_open()
         method = getattr(self._stub, rpc)
         try:
             return method(request, timeout=timeout if timeout is not None else self.timeout,
@@ -211,6 +217,7 @@ class Hub:
             raise RveError.from_rpc(e, rpc, self.target) from None
 
     def _stream(self, rpc: str, request, timeout: Optional[float] = None):
+        self._check_open()
         method = getattr(self._stub, rpc)
         call = method(request, timeout=timeout if timeout is not None else self.timeout,
                       metadata=self._metadata)
@@ -222,7 +229,9 @@ class Hub:
             call.cancel()
 
     def close(self) -> None:
-        """Closes the connection (a local server is also stopped)."""
+        """Closes the connection (a local server is also stopped); later calls
+        raise RuntimeError."""
+        self._closed = True
         self._channel.close()
 
     def __enter__(self) -> "Hub":
@@ -232,7 +241,7 @@ class Hub:
         self.close()
 
     def __repr__(self) -> str:
-        return f"{type(self).__name__}({self.target!r})"
+        return f"{type(self).__name__}({getattr(self, 'target', '')!r})"
 
     # -- server ---------------------------------------------------------------
 
