@@ -503,7 +503,7 @@ class Hub:
             req.cyclic_stress_control = cyclic_control == "stress"
         if axis is not None:
             if axis not in _AXES:
-                raise ValueError(f"axis must be 'x' or 'y', got {axis!r}")
+                raise ValueError(f"axis must be 'x', 'y' or 'z' (z needs a 3-D RVE), got {axis!r}")
             if axis != "y" and test not in ("drained-biaxial", "oedometer"):
                 raise ValueError("axis applies to drained-biaxial and oedometer only")
             req.axis = _AXES[axis]
