@@ -87,3 +87,14 @@ def test_the_server_stops_when_the_interpreter_exits(tmp_path):
     pid = int(out.stdout.split()[0])
     with pytest.raises(ProcessLookupError):
         os.kill(pid, 0)
+
+
+def test_stubs_found_from_the_build_folder():
+    # With only python/ on PYTHONPATH, the stubs are looked for in
+    # $RVEHUB_BUILD_DIR/python (and build/python under the repository).
+    package_dir = os.path.dirname(os.path.dirname(rvehub.__file__))
+    stubs = os.path.dirname(os.path.dirname(os.path.dirname(rvehub.hub.pb.__file__)))
+    env = dict(os.environ, PYTHONPATH=package_dir, RVEHUB_BUILD_DIR=os.path.dirname(stubs))
+    code = "import rvehub, rvehub_gen; print(rvehub_gen.__file__)"
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True, timeout=60, env=env)
+    assert out.stdout.startswith(stubs)
