@@ -96,5 +96,6 @@ def test_stubs_found_from_the_build_folder():
     stubs = os.path.dirname(os.path.dirname(os.path.dirname(rvehub.hub.pb.__file__)))
     env = dict(os.environ, PYTHONPATH=package_dir, RVEHUB_BUILD_DIR=os.path.dirname(stubs))
     code = "import rvehub, rvehub_gen; print(rvehub_gen.__file__)"
-    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True, timeout=60, env=env)
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True,
+                         timeout=60, env=env)
     assert out.stdout.startswith(stubs)
