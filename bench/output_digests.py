@@ -3,6 +3,7 @@
 
   python3 bench/output_digests.py --build=build --work=/tmp/digests-new [--jobs=2]
   python3 bench/output_digests.py --compare OLD.json NEW.json
+  python3 bench/output_digests.py --rehash WORK   (digests.json again from WORK's outputs)
 
 The first form runs, with the build's binaries:
   - every reduced case (cases/*-ci.json) and the default case, single-element-biaxial;
@@ -10,7 +11,8 @@ The first form runs, with the build's binaries:
   - the element tests of cases/element_tests.sh;
 and writes WORK/digests.json: for each run, a SHA-256 of timeseries.csv, of every dataset
 of results.h5 and checkpoint.h5 (values and shape, not the file's bytes: those carry
-creation times), of summary.json without its timing fields, and of each element-test CSV.
+creation times; without the run ids, which carry the start time; timeseries.csv without
+its wall time per step), of summary.json without its timing fields, and of each element-test CSV.
 The second form compares two such files and exits 1 when anything differs.
 
 Needs numpy and h5py (Debian: python3-numpy python3-h5py).
@@ -62,7 +64,7 @@ def h5_digests(path):
     out = {}
 
     def visit(name, obj):
-        if isinstance(obj, h5py.Dataset):
+        if isinstance(obj, h5py.Dataset) and name.split("/")[-1] not in RUN_ID_DATASETS:
             value = obj[()]
             arr = np.asarray(value)
             if arr.dtype.kind in "OSU":
@@ -85,11 +87,25 @@ def strip_timing(value):
     return value
 
 
+# What differs between two runs of the same build: the wall time per step and
+# the run id (case name and start time) its RVEs are hosted under.
+WALL_COLUMNS = ("wall_per_step_s",)
+RUN_ID_DATASETS = ("run_id",)
+
+
+def timeseries_digest(path):
+    """The CSV without its wall-time columns."""
+    with open(path) as f:
+        rows = [line.rstrip("\n").split(",") for line in f]
+    keep = [k for k, name in enumerate(rows[0]) if name not in WALL_COLUMNS] if rows else []
+    return sha("\n".join(",".join(r[k] for k in keep if k < len(r)) for r in rows).encode())
+
+
 def run_digests(out_dir):
     d = {}
     ts = os.path.join(out_dir, "timeseries.csv")
     if os.path.exists(ts):
-        d["timeseries.csv"] = file_digest(ts)
+        d["timeseries.csv"] = timeseries_digest(ts)
     for name in ("results.h5", "checkpoint.h5"):
         path = os.path.join(out_dir, name)
         if os.path.exists(path):
@@ -157,6 +173,21 @@ def collect(args):
     print(f"{sum(len(v) for v in digests.values())} digests of {len(digests)} runs: {path}")
 
 
+def rehash(work):
+    digests = {}
+    for name in sorted(os.listdir(work)):
+        path = os.path.join(work, name)
+        if name == "element-tests":
+            for csv in sorted(glob.glob(os.path.join(path, "*.csv"))):
+                test = os.path.splitext(os.path.basename(csv))[0]
+                digests["element-test " + test] = {"csv": file_digest(csv)}
+        elif os.path.isdir(path) and name != "templates":
+            digests[name] = run_digests(path)
+    with open(os.path.join(work, "digests.json"), "w") as f:
+        json.dump(digests, f, indent=1, sort_keys=True)
+    print(f"{sum(len(v) for v in digests.values())} digests of {len(digests)} runs")
+
+
 def compare(old_path, new_path):
     with open(old_path) as f:
         old = json.load(f)
@@ -184,9 +215,13 @@ def main():
     p.add_argument("--work")
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--compare", nargs=2, metavar=("OLD", "NEW"))
+    p.add_argument("--rehash", metavar="WORK")
     args = p.parse_args()
     if args.compare:
         return compare(*args.compare)
+    if args.rehash:
+        rehash(args.rehash)
+        return 0
     if not args.work:
         p.error("--work is needed to collect digests")
     collect(args)

@@ -6,6 +6,7 @@
 // previous one readable and, once restarted, no stray files.
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <chrono>
@@ -57,7 +58,8 @@ const bool kFastClientPolling = [] {
 }();
 
 std::string FreshDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("rvehub_fault_test_" + name);
+  const fs::path dir =
+      fs::temp_directory_path() / ("rvehub_fault_test_" + std::to_string(getpid()) + "_" + name);
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir.string();

@@ -4,6 +4,7 @@
 #include "mpm_client/simulation.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdlib>
@@ -42,7 +43,8 @@ std::string TemplateCache() {
 }
 
 std::string FreshDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("rvehub_simulation_test_" + name);
+  const fs::path dir = fs::temp_directory_path() /
+                       ("rvehub_simulation_test_" + std::to_string(getpid()) + "_" + name);
   fs::remove_all(dir);
   return dir.string();
 }
