@@ -534,25 +534,50 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   sim->options_ = options;
   sim->run_id_ = MakeRunId(spec.name);
   RETURN_IF_ERROR(MakeOutputDir(options.out_dir));
-  const std::string cache = options.template_cache_dir.empty() ? options.out_dir + "/templates"
-                                                               : options.template_cache_dir;
-  ASSIGN_OR_RETURN(
-      std::vector<TemplateRecord> templates,
-      ResolveTemplates(spec.templates, cache, [&](const std::string& l) { sim->Log(l); }));
-  sim->templates_ = std::move(templates);
+  RETURN_IF_ERROR(sim->ResolveCaseTemplates());
   RETURN_IF_ERROR(sim->Connect());
   RETURN_IF_ERROR(sim->UploadTemplates());
-
-  // Material points; the density of a region defaults to its template's.
-  std::map<std::string, const TemplateRecord*> by_name;
-  for (const TemplateRecord& t : sim->templates_) by_name[t.name] = &t;
-  std::vector<double> density;
-  for (const MaterialRegion& r : spec.regions) {
-    density.push_back(r.density > 0 ? r.density : BulkDensity(by_name.at(r.rve_template)->packing));
-  }
+  const std::vector<double> density = sim->RegionDensities();
   ASSIGN_OR_RETURN(MaterialPoints points, FillRegions(spec, density));
-  const std::size_t n = points.size();
+  const RveStarts starts = sim->PlanRveStarts(points, density);
+  RETURN_IF_ERROR(sim->CreateRves(starts, points));
+  ASSIGN_OR_RETURN(const double dt, sim->InitialTimeStep(density));
+  sim->model_ = std::make_unique<RveStressModel>(sim->pool_.get(), &sim->rve_seconds_);
+  ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver,
+                   Solver::Create(spec, std::move(points), sim->model_.get(), dt));
+  sim->solver_ = std::move(solver);
+  sim->LogCornerOverhangs();
+  sim->SetApplyOptions();
+  RETURN_IF_ERROR(sim->OpenOutputs(/*resume=*/false));
+  return sim;
+}
 
+absl::Status Simulation::ResolveCaseTemplates() {
+  const std::string cache = options_.template_cache_dir.empty() ? options_.out_dir + "/templates"
+                                                                : options_.template_cache_dir;
+  ASSIGN_OR_RETURN(templates_,
+                   ResolveTemplates(spec_.templates, cache, [&](const std::string& l) { Log(l); }));
+  return absl::OkStatus();
+}
+
+const TemplateRecord& Simulation::CaseTemplate(const std::string& name) const {
+  return *std::find_if(templates_.begin(), templates_.end(),
+                       [&](const TemplateRecord& t) { return t.name == name; });
+}
+
+std::vector<double> Simulation::RegionDensities() const {
+  std::vector<double> density;
+  for (const MaterialRegion& r : spec_.regions) {
+    density.push_back(r.density > 0 ? r.density
+                                    : BulkDensity(CaseTemplate(r.rve_template).packing));
+  }
+  return density;
+}
+
+Simulation::RveStarts Simulation::PlanRveStarts(const MaterialPoints& points,
+                                                const std::vector<double>& density) const {
+  const CaseSpec& spec = spec_;
+  const std::size_t n = points.size();
   // RVEs: one per point, consolidated to the geostatic stress of its depth
   // when the region asks for it (σv = ρ·|g|·depth + surcharge). Saturated:
   // the effective stress, with the buoyant density ρ − (1 − n0)·ρ_f (the
@@ -562,15 +587,19 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   std::vector<double> stress_density = density;  // kg/m³
   if (spec.phases.saturated) {
     for (std::size_t r = 0; r < spec.regions.size(); ++r) {
-      const dem::RveSnapshot& t = by_name.at(spec.regions[r].rve_template)->packing;
+      const dem::RveSnapshot& t = CaseTemplate(spec.regions[r].rve_template).packing;
       const double n0 = spec.phases.porosity > 0 ? spec.phases.porosity
                                                  : 1.0 - BulkDensity(t) / t.material.density;
       stress_density[r] -= (1.0 - n0) * spec.phases.fluid_density;
     }
   }
-  std::vector<std::string> template_of(n);
-  std::vector<InitialStress> initial(n);
-  std::vector<double> cost(n);
+  RveStarts out;
+  out.template_of.resize(n);
+  out.initial.resize(n);
+  out.cost.resize(n);
+  std::vector<std::string>& template_of = out.template_of;
+  std::vector<InitialStress>& initial = out.initial;
+  std::vector<double>& cost = out.cost;
   // Per region, for the notes below (Pa, compression +): its points with an
   // initial stress of their own; those starting below
   // dem::kLowConsolidationStress and the least principal stress among them;
@@ -583,8 +612,8 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   std::vector<RegionStart> starts(spec.regions.size());
   for (std::size_t p = 0; p < n; ++p) {
     const MaterialRegion& r = spec.regions[points.region[p]];
-    template_of[p] = sim->ServerTemplateName(r.rve_template);
-    cost[p] = static_cast<double>(by_name.at(r.rve_template)->packing.radius.size());
+    template_of[p] = ServerTemplateName(r.rve_template);
+    cost[p] = static_cast<double>(CaseTemplate(r.rve_template).packing.radius.size());
     const double depth = std::max(0.0, r.surface_y - points.position[p].y());
     const double geostatic = stress_density[points.region[p]] * g * depth + r.surcharge;
     const double sv = std::max(r.minimum_stress, geostatic);
@@ -621,7 +650,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   for (std::size_t r = 0; r < spec.regions.size(); ++r) {
     const RegionStart& start = starts[r];
     if (start.low > 0) {
-      sim->Log(absl::StrFormat(
+      Log(absl::StrFormat(
           "note: region %s starts %d of its points below %.0f Pa (the least stress %.4g Pa): "
           "RVEs may not consolidate that low, and the run then stops while creating them; "
           "initial_stress.minimum raises the floor (cases/FORMAT.md)",
@@ -633,7 +662,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
     // apart. (pipe-ci at a 1 MPa floor: kinetic energy 37 kJ by step 20,
     // then 2.5 s a step.) Without gravity the floor is the stress meant.
     if (g > 0 && 2 * start.lifted > start.points) {
-      sim->Log(absl::StrFormat(
+      Log(absl::StrFormat(
           "note: region %s's initial_stress.minimum (%.4g Pa) lifts %d of its %d points above "
           "their geostatic stress (the largest of those %.4g Pa): the soil's weight does not "
           "hold such a stress, and at a free surface the soil pushes itself apart (a run may "
@@ -642,21 +671,30 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
           start.largest_lifted));
     }
   }
-  sim->pool_->Assign(cost);
-  sim->pool_->SetPointSizes(cost);
+  return out;
+}
+
+absl::Status Simulation::CreateRves(const RveStarts& starts, MaterialPoints& points) {
+  const CaseSpec& spec = spec_;
+  const SimulationOptions& options = options_;
+  const std::size_t n = points.size();
+  const std::vector<std::string>& template_of = starts.template_of;
+  const std::vector<InitialStress>& initial = starts.initial;
+  pool_->Assign(starts.cost);
+  pool_->SetPointSizes(starts.cost);
   // Each template's own controls with the case's DEM steps per increment,
   // inertial-number bound and stretch bound, where the case sets them.
   std::map<std::string, dem::Controls> controls;
   if (spec.rve.min_steps > 0 || spec.rve.max_inertial_number > 0 || spec.rve.max_stretch > 0) {
-    for (const TemplateRecord& t : sim->templates_) {
+    for (const TemplateRecord& t : templates_) {
       dem::Controls c = t.packing.controls;
       if (spec.rve.min_steps > 0) c.min_steps = spec.rve.min_steps;
       if (spec.rve.max_inertial_number > 0) c.max_inertial_number = spec.rve.max_inertial_number;
       if (spec.rve.max_stretch > 0) c.max_stretch = spec.rve.max_stretch;
-      controls[sim->ServerTemplateName(t.name)] = c;
+      controls[ServerTemplateName(t.name)] = c;
     }
   }
-  sim->Log(absl::StrFormat("creating %d RVEs on %d server(s)...", n, sim->pool_->num_endpoints()));
+  Log(absl::StrFormat("creating %d RVEs on %d server(s)...", n, pool_->num_endpoints()));
   const Clock::time_point create_start = Clock::now();
   // A line every ~2 s while the RVEs are consolidated (minutes for large
   // cases), in the style of the stepping's progress lines, from a ticker
@@ -680,15 +718,15 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
             done > 0 ? absl::StrFormat("%.0f s", wall / static_cast<double>(done) *
                                                      static_cast<double>(total - done))
                      : std::string("?");
-        sim->Log(
+        Log(
             absl::StrFormat("consolidating RVEs: %d/%d initial stresses done  wall %.1f s  "
                             "ETA %s",
                             done, total, wall, eta));
       }
     });
   }
-  absl::StatusOr<std::vector<dem::RveState>> states = sim->pool_->Create(
-      template_of, initial, controls, [&](std::int64_t done, std::int64_t total) {
+  absl::StatusOr<std::vector<dem::RveState>> states =
+      pool_->Create(template_of, initial, controls, [&](std::int64_t done, std::int64_t total) {
         absl::MutexLock lock(&consolidation.mu);
         consolidation.done = done;
         consolidation.total = total;
@@ -699,7 +737,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   }
   if (ticker.joinable()) ticker.join();
   if (!states.ok()) return states.status();
-  sim->Log(absl::StrFormat("created %d RVEs in %.1f s", n, Seconds(Clock::now() - create_start)));
+  Log(absl::StrFormat("created %d RVEs in %.1f s", n, Seconds(Clock::now() - create_start)));
   for (std::size_t p = 0; p < n; ++p) {
     points.stress[p] = (*states)[p].stress;
     points.response[p] = RveStressModel::ToResponse((*states)[p]);
@@ -710,14 +748,18 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
       points.vertical_stress0[p] = -(*states)[p].stress(1, 1);
     }
   }
+  return absl::OkStatus();
+}
 
-  // Time step: fixed, or Δt = cfl·h/c with c = sqrt(M/ρ) from the stiffest
+absl::StatusOr<double> Simulation::InitialTimeStep(const std::vector<double>& density) {
+  const CaseSpec& spec = spec_;
+  // Fixed, or Δt = cfl·h/c with c = sqrt(M/ρ) from the stiffest
   // RVE's contact tangent (an upper bound of its P-wave modulus).
   double dt = spec.solver.time_step;
   if (dt <= 0) {
     double modulus = spec.solver.wave_modulus;
     if (modulus <= 0) {
-      ASSIGN_OR_RETURN(std::vector<dem::RveState> tangent, sim->pool_->Get(/*want_tangent=*/true));
+      ASSIGN_OR_RETURN(std::vector<dem::RveState> tangent, pool_->Get(/*want_tangent=*/true));
       for (const dem::RveState& s : tangent) {
         if (s.tangent) modulus = std::max(modulus, TangentWaveModulus(*s.tangent));
       }
@@ -728,20 +770,13 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
           "cannot derive the time step: the RVEs have no stiffness (set solver.time_step)");
     }
     dt = CflTimeStep(spec.solver.cfl, spec.grid.cell_size, modulus, spec.solver.mass_scale * rho);
-    sim->Log(absl::StrFormat("time step %.4g s (CFL %.2f, M = %.4g MPa, rho = %.1f kg/m3%s)", dt,
-                             spec.solver.cfl, modulus * 1e-6, rho,
-                             spec.solver.mass_scale != 1.0
-                                 ? absl::StrFormat(", mass scaled %g times", spec.solver.mass_scale)
-                                 : ""));
+    Log(absl::StrFormat("time step %.4g s (CFL %.2f, M = %.4g MPa, rho = %.1f kg/m3%s)", dt,
+                        spec.solver.cfl, modulus * 1e-6, rho,
+                        spec.solver.mass_scale != 1.0
+                            ? absl::StrFormat(", mass scaled %g times", spec.solver.mass_scale)
+                            : ""));
   }
-  sim->model_ = std::make_unique<RveStressModel>(sim->pool_.get(), &sim->rve_seconds_);
-  ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver,
-                   Solver::Create(spec, std::move(points), sim->model_.get(), dt));
-  sim->solver_ = std::move(solver);
-  sim->LogCornerOverhangs();
-  sim->SetApplyOptions();
-  RETURN_IF_ERROR(sim->OpenOutputs(/*resume=*/false));
-  return sim;
+  return dt;
 }
 
 absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string& checkpoint_path,

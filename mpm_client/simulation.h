@@ -137,8 +137,31 @@ class Simulation {
 
  private:
   Simulation() = default;
+
+  // Start's stages, in order.
+  // The case's templates, prepared (and cached) or read from their files.
+  absl::Status ResolveCaseTemplates();
+  const TemplateRecord& CaseTemplate(const std::string& name) const;
   absl::Status Connect();  // endpoints and pool
   absl::Status UploadTemplates();
+  // Each region's bulk density, kg/m³: the case's, else its template's.
+  std::vector<double> RegionDensities() const;
+  // What each point's RVE starts from: its template on the servers, its
+  // initial stress (geostatic where the region asks for it) and its cost
+  // (discs) for the assignment to servers; logs notes on regions that start
+  // below what a packing consolidates to, or that a floor lifts.
+  struct RveStarts {
+    std::vector<std::string> template_of;
+    std::vector<InitialStress> initial;
+    std::vector<double> cost;
+  };
+  RveStarts PlanRveStarts(const MaterialPoints& points, const std::vector<double>& density) const;
+  // Creates (and consolidates) the RVEs on the servers, with a progress line
+  // every ~2 s, and gives the points their RVEs' stresses and responses.
+  absl::Status CreateRves(const RveStarts& starts, MaterialPoints& points);
+  // The case's Δt, or the CFL step from the stiffest RVE's tangent, s.
+  absl::StatusOr<double> InitialTimeStep(const std::vector<double>& density);
+
   // The name of a case template on the servers: unique to this run.
   std::string ServerTemplateName(const std::string& name) const;
   absl::Status OpenOutputs(bool resume);
