@@ -342,7 +342,7 @@ struct PressureMonitor {
 // are incompressible; the fluid drags on the skeleton by Darcy's law with a
 // permeability k = c·e³/(1 + e) that follows the void ratio. Every face that
 // is not drained is impermeable.
-// How the saturated step splits velocity and pore pressure (saturated.cc).
+// How the saturated step splits velocity and pore pressure (two_phase_solver.cc).
 enum class Projection {
   // The paper's eqs. 6–10: the intermediate velocities carry p^n and the
   // Poisson equation gives p^{n+1} − p^n; the correction has no drag.
@@ -386,7 +386,7 @@ struct PhasesSpec {
   // With drained_free_surface: a node beside one that has mass but less than
   // 0.4 of its volume in soil (a face that has just moved into a new cell)
   // holds p = 0 too. Fine cells need it (a moving face otherwise grows the
-  // pore pressure next to it with alternating sign: saturated.cc).
+  // pore pressure next to it with alternating sign: two_phase_solver.cc).
   bool free_surface_beside_light_nodes = false;
   ExcessDatum excess_from = ExcessDatum::kWaterTable;
   std::vector<DrainedBoundary> drained;

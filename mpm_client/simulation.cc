@@ -21,6 +21,7 @@
 #include "mpm_client/case.h"
 #include "mpm_client/output.h"
 #include "mpm_client/shape.h"
+#include "mpm_client/solver_checkpoint.h"
 #include "mpm_client/summary.h"
 #include "mpm_client/templates.h"
 #include "mpm_client/two_phase.h"
@@ -481,7 +482,7 @@ absl::StatusOr<store::SimCheckpoint> Simulation::Snapshot() {
   c.run_id = run_id_;
   c.step = solver_->step();
   c.time = solver_->time();
-  solver_->ExportState(c.doubles, c.ints);
+  ExportSolverState(*solver_, c.doubles, c.ints);
   ASSIGN_OR_RETURN(std::vector<RveRecord> rves, pool_->ExportAll());
   c.rves = std::move(rves);
   c.templates = templates_;
@@ -844,7 +845,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
   RETURN_IF_ERROR(sim->pool_->ImportAll(std::move(c.rves)));
   sim->model_ = std::make_unique<RveStressModel>(sim->pool_.get(), &sim->rve_seconds_);
   ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver,
-                   Solver::FromState(sim->spec_, c.doubles, c.ints, sim->model_.get()));
+                   SolverFromState(sim->spec_, c.doubles, c.ints, sim->model_.get()));
   sim->solver_ = std::move(solver);
   if (dt_ratio != 1.0) {
     const double dt = sim->solver_->dt();
@@ -899,7 +900,7 @@ absl::Status Simulation::TakeRecoveryPoint(SimulationSummary& sum) {
   const Clock::time_point t0 = Clock::now();
   auto point = std::make_unique<RecoveryPoint>();
   point->step = solver_->step();
-  solver_->ExportState(point->doubles, point->ints);
+  ExportSolverState(*solver_, point->doubles, point->ints);
   ASSIGN_OR_RETURN(point->rves, pool_->ExportAll());
   recovery_ = std::move(point);
   // Sizes change where an RVE's cell doubled.
@@ -1011,7 +1012,7 @@ absl::Status Simulation::Recover(const absl::Status& cause, SimulationSummary& s
     }
   }
   ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver,
-                   Solver::FromState(spec_, recovery_->doubles, recovery_->ints, model_.get()));
+                   SolverFromState(spec_, recovery_->doubles, recovery_->ints, model_.get()));
   solver_ = std::move(solver);
   SetApplyOptions();
   RETURN_IF_ERROR(out_->results->Close());

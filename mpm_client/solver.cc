@@ -8,7 +8,9 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "mpm_client/body_contact.h"
+#include "mpm_client/explicit_solver.h"
 #include "mpm_client/two_phase.h"
+#include "mpm_client/two_phase_solver.h"
 #include "rve_server/common/status_macros.h"
 
 namespace rvehub::mpm {
@@ -18,19 +20,6 @@ using Eigen::Matrix2d;
 using Eigen::Matrix3d;
 using Eigen::Vector2d;
 
-// Nodes lighter than this fraction of the lightest point are inactive: their
-// velocity would be force/(tiny mass), the small-mass instability.
-constexpr double kInactiveMassFraction = 1e-10;
-// The same in a saturated step, larger: a node that the edge of a GIMP
-// point's domain just reaches has a mass ~ε² and a velocity v* ~ 1/ε (force
-// over mass), so its term in the point's ∇·v*, ~ε·(1/ε), stays finite as ε
-// → 0 and enters the pressure solve at full size. The soil's surface moving
-// by micrometres switched such nodes on and off: pressure kicks of 0.1–1 kPa
-// at the centre of the cyclic box (elastic skeleton, 0.25 m cells), ringing
-// at period 2 for a few steps; none from 1e-6 (0.25 m cells) and 1e-5
-// (0.05 m cells) on. The dry step takes its strain from the mapped
-// velocities, which are averages of the points', and is not affected.
-constexpr double kSaturatedInactiveMassFraction = 1e-5;
 // Tolerance, in cells, for "on a grid line".
 constexpr double kGridTolerance = 1e-9;
 // Faces within this many cells of a body are contact candidates.
@@ -97,19 +86,6 @@ absl::Status ValidateHistory(absl::string_view name, const std::vector<VelocityP
     last = v.time;
   }
   return absl::OkStatus();
-}
-
-// Flat-array helpers for ExportState/ImportState.
-template <typename T>
-absl::StatusOr<const std::vector<T>*> Field(const std::map<std::string, std::vector<T>>& map,
-                                            const std::string& key, std::size_t size) {
-  const auto it = map.find(key);
-  if (it == map.end()) return absl::InvalidArgumentError(absl::StrCat("state lacks ", key));
-  if (it->second.size() != size) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("state field ", key, " has ", it->second.size(), " values, expected ", size));
-  }
-  return &it->second;
 }
 
 }  // namespace
@@ -374,7 +350,18 @@ absl::Status ValidatePoints(const MaterialPoints& points, ShapeKind shape,
 
 }  // namespace
 
-absl::StatusOr<std::unique_ptr<Solver>> Solver::Init(const CaseSpec& spec, StressModel* model) {
+absl::StatusOr<std::unique_ptr<Solver>> Solver::ForCase(const CaseSpec& spec, StressModel* model) {
+  std::unique_ptr<Solver> solver;
+  if (spec.phases.saturated) {
+    solver.reset(new TwoPhaseSolver());
+  } else {
+    solver.reset(new ExplicitSolver());
+  }
+  RETURN_IF_ERROR(solver->SetUp(spec, model));
+  return solver;
+}
+
+absl::Status Solver::SetUp(const CaseSpec& spec, StressModel* model) {
   if (model == nullptr) return absl::InvalidArgumentError("Solver needs a stress model");
   RETURN_IF_ERROR(ValidateGrid(spec.grid));
   const SolverSpec& sv = spec.solver;
@@ -403,14 +390,10 @@ absl::StatusOr<std::unique_ptr<Solver>> Solver::Init(const CaseSpec& spec, Stres
     return Invalid(
         "solver", absl::StrCat("nonlocal_fraction = ", sv.nonlocal_fraction, " must be in (0, 1]"));
   }
-  if (sv.nonlocal_radius > 0.0 && spec.phases.saturated) {
-    return Invalid("solver", "a nonlocal strain is for dry cases only");
-  }
-  std::unique_ptr<Solver> solver(new Solver());
-  solver->grid_ = spec.grid;
-  solver->solver_ = sv;
-  solver->walls_ = spec.walls;
-  solver->bodies_ = spec.bodies;
+  grid_ = spec.grid;
+  solver_ = sv;
+  walls_ = spec.walls;
+  bodies_ = spec.bodies;
   for (const SurfaceTraction& traction : spec.tractions) {
     const std::vector<LoadFactorPoint>& history = traction.history;
     for (std::size_t k = 0; k < history.size(); ++k) {
@@ -420,27 +403,19 @@ absl::StatusOr<std::unique_ptr<Solver>> Solver::Init(const CaseSpec& spec, Stres
                        "history times must be >= 0 and increase strictly, factors finite");
       }
     }
-    solver->load_histories_.push_back(history);
+    load_histories_.push_back(history);
   }
-  solver->model_ = model;
-  const double h = spec.grid.cell_size;
+  model_ = model;
   for (const Wall& wall : spec.walls) {
     const std::string what = absl::StrCat("wall ", wall.name);
     if (wall.axis != 0 && wall.axis != 1) return Invalid(what, "axis must be 0 or 1");
-    const int line = GridLineIndex(wall.position, spec.grid.origin[wall.axis], h,
-                                   wall.axis == 0 ? spec.grid.nx : spec.grid.ny);
+    const int line = GridLine(wall.axis, wall.position);
     if (line < 0) {
       return Invalid(what, absl::StrCat("position ", wall.position, " is not on a grid line"));
     }
     if (!(wall.friction >= 0.0)) return Invalid(what, "friction must be >= 0");
-    std::vector<std::int32_t> nodes;
-    const int along = wall.axis == 0 ? spec.grid.ny : spec.grid.nx;
-    for (int k = 0; k <= along; ++k) {
-      nodes.push_back(wall.axis == 0 ? line + (spec.grid.nx + 1) * k
-                                     : k + (spec.grid.nx + 1) * line);
-    }
-    solver->wall_nodes_.push_back(std::move(nodes));
-    solver->wall_lines_.push_back(line);
+    wall_nodes_.push_back(NodesOnLine(wall.axis, line));
+    wall_lines_.push_back(line);
   }
   for (const RigidBody& body : spec.bodies) {
     const std::string what = absl::StrCat("body ", body.name);
@@ -453,58 +428,34 @@ absl::StatusOr<std::unique_ptr<Solver>> Solver::Init(const CaseSpec& spec, Stres
     }
     RETURN_IF_ERROR(ValidateHistory(what, body.velocity));
   }
-  solver->reactions_.assign(spec.walls.size() + spec.bodies.size(), Vector2d::Zero());
-  solver->phases_ = spec.phases;
-  solver->max_void_ratio_ = spec.rve.max_void_ratio;
-  if (spec.phases.saturated) {
-    const PhasesSpec& ph = spec.phases;
-    if (!(ph.fluid_density > 0.0) || !(ph.permeability > 0.0) ||
-        !(ph.porosity >= 0.0 && ph.porosity < 1.0)) {
-      return Invalid("phases", "fluid_density and permeability must be > 0, porosity in [0, 1)");
-    }
-    for (const DrainedBoundary& d : ph.drained) {
-      const std::string what = absl::StrCat("drained boundary ", d.name);
-      const int line = GridLineIndex(d.position, spec.grid.origin[d.axis], h,
-                                     d.axis == 0 ? spec.grid.nx : spec.grid.ny);
-      if ((d.axis != 0 && d.axis != 1) || line < 0 || !std::isfinite(d.pressure)) {
-        return Invalid(what, "must lie on a grid line with a finite pressure");
-      }
-      std::vector<std::int32_t> nodes;
-      const int along = d.axis == 0 ? spec.grid.ny : spec.grid.nx;
-      for (int k = 0; k <= along; ++k) {
-        const double s = spec.grid.origin[1 - d.axis] + k * h;  // m, along the line
-        if (s < d.from - kGridTolerance * h || s > d.to + kGridTolerance * h) continue;
-        nodes.push_back(d.axis == 0 ? line + (spec.grid.nx + 1) * k
-                                    : k + (spec.grid.nx + 1) * line);
-      }
-      solver->drained_nodes_.push_back(std::move(nodes));
-    }
-    // Bodies are impermeable and the water slides along them freely.
-    solver->fluid_bodies_ = spec.bodies;
-    for (RigidBody& body : solver->fluid_bodies_) body.contact = ContactKind::kSmooth;
-    solver->node_porous_.assign(NodeCount(spec.grid), 0);
-    for (std::size_t b = 0; b < ph.drained.size(); ++b) {
-      const auto along = static_cast<std::uint8_t>(1 << ph.drained[b].axis);
-      for (std::int32_t node : solver->drained_nodes_[b]) solver->node_porous_[node] |= along;
-    }
+  reactions_.assign(spec.walls.size() + spec.bodies.size(), Vector2d::Zero());
+  phases_ = spec.phases;
+  max_void_ratio_ = spec.rve.max_void_ratio;
+  return SetUpScheme(spec);
+}
+
+int Solver::GridLine(int axis, double position) const {
+  return GridLineIndex(position, grid_.origin[axis], grid_.cell_size,
+                       axis == 0 ? grid_.nx : grid_.ny);
+}
+
+std::vector<std::int32_t> Solver::NodesOnLine(int axis, int line, double from, double to) const {
+  const double h = grid_.cell_size;
+  std::vector<std::int32_t> nodes;
+  const int along = axis == 0 ? grid_.ny : grid_.nx;
+  for (int k = 0; k <= along; ++k) {
+    const double s = grid_.origin[1 - axis] + k * h;  // m, along the line
+    if (s < from - kGridTolerance * h || s > to + kGridTolerance * h) continue;
+    nodes.push_back(axis == 0 ? line + (grid_.nx + 1) * k : k + (grid_.nx + 1) * line);
   }
-  return solver;
+  return nodes;
 }
 
 absl::StatusOr<std::unique_ptr<Solver>> Solver::Create(const CaseSpec& spec, MaterialPoints initial,
                                                        StressModel* model, double dt) {
-  ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver, Init(spec, model));
+  ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver, ForCase(spec, model));
   RETURN_IF_ERROR(ValidatePoints(initial, spec.solver.shape, spec.tractions.size()));
-  if (spec.phases.saturated) {
-    for (std::size_t p = 0; p < initial.size(); ++p) {
-      if (!(initial.porosity0[p] > 0.0 && initial.porosity0[p] < 1.0) ||
-          !std::isfinite(initial.pore_pressure[p])) {
-        return Invalid(absl::StrCat("material point ", p),
-                       absl::StrCat("porosity ", initial.porosity0[p],
-                                    " must lie in (0, 1) and the pore pressure be finite"));
-      }
-    }
-  }
+  RETURN_IF_ERROR(solver->ValidateInitialPoints(initial));
   Solver& sv = *solver;
   sv.points_ = std::move(initial);
   sv.Prepare();
@@ -523,12 +474,20 @@ absl::StatusOr<std::unique_ptr<Solver>> Solver::Create(const CaseSpec& spec, Mat
   return solver;
 }
 
-absl::StatusOr<std::unique_ptr<Solver>> Solver::FromState(
-    const CaseSpec& spec, const std::map<std::string, std::vector<double>>& doubles,
-    const std::map<std::string, std::vector<std::int64_t>>& ints, StressModel* model) {
-  ASSIGN_OR_RETURN(std::unique_ptr<Solver> solver, Init(spec, model));
-  RETURN_IF_ERROR((solver)->ImportState(doubles, ints));
-  return solver;
+absl::Status Solver::Restore(MaterialPoints points, double time, double dt, std::int64_t step,
+                             std::vector<Eigen::Vector2d> reactions) {
+  RETURN_IF_ERROR(ValidatePoints(points, solver_.shape, load_histories_.size()));
+  if (reactions.size() != reactions_.size()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(reactions.size(), " reactions for ", reactions_.size(), " walls and bodies"));
+  }
+  points_ = std::move(points);
+  reactions_ = std::move(reactions);
+  time_ = time;
+  dt_ = dt;
+  step_ = step;
+  Prepare();
+  return absl::OkStatus();
 }
 
 Eigen::Vector2d Solver::BodyAcceleration() const {
@@ -541,10 +500,7 @@ void Solver::Prepare() {
   const std::size_t n = points_.size();
   double min_mass = std::numeric_limits<double>::infinity();
   for (double m : points_.mass) min_mass = std::min(min_mass, m);
-  min_node_mass_ =
-      n > 0 ? (phases_.saturated ? kSaturatedInactiveMassFraction : kInactiveMassFraction) *
-                  solver_.mass_scale * min_mass
-            : 0.0;
+  min_node_mass_ = n > 0 ? inactive_mass_fraction_ * solver_.mass_scale * min_mass : 0.0;
   shape_.resize(n);
   lost_.assign(n, 0);
   load_shape_.resize(points_.loads.size());
@@ -562,17 +518,6 @@ void Solver::Prepare() {
   delta_f_.resize(n);
   rve_delta_f_.resize(n);
   response_.resize(n);
-  if (phases_.saturated) {
-    for (auto* v : {&node_fluid_velocity_, &node_fluid_force_, &node_fluid_velocity_new_}) {
-      v->resize(nodes);
-    }
-    for (auto* v : {&node_fluid_mass_, &node_drag_, &node_pressure_, &pressure_fixed_, &node_base_,
-                    &node_delta_, &node_volume_, &node_domain_, &node_soil_}) {
-      v->resize(nodes);
-    }
-    node_pressure_last_.resize(nodes, std::numeric_limits<double>::quiet_NaN());
-    fluid_fixed_.resize(nodes);
-  }
 }
 
 absl::Status Solver::EvaluateShapes() {
@@ -664,14 +609,6 @@ void Solver::FindContacts() {
         contact.weight[k] = shape.weight[k] + shape.gradient[k].dot(arm);
       }
     }
-  }
-  if (!phases_.saturated) return;
-  // The same faces hold the water out of the bodies, the mass floor scaled
-  // to the point's water (ConstrainFluid).
-  fluid_contacts_ = contacts_;
-  for (SurfaceContact& contact : fluid_contacts_) {
-    const std::size_t p = contact.point;
-    contact.mass_floor = kContactMassFloor * Porosity(p) * phases_.fluid_density * mp.volume[p];
   }
 }
 
@@ -869,78 +806,22 @@ absl::Status Solver::AddLoadForces() {
   return absl::OkStatus();
 }
 
-absl::Status Solver::Step() {
+absl::Status Solver::CheckReady() const {
   if (!(dt_ > 0.0) || !std::isfinite(dt_)) {
     return absl::FailedPreconditionError(absl::StrCat("time step dt = ", dt_, " must be > 0"));
   }
   if (shape_.size() != points_.size() || load_shape_.size() != points_.loads.size()) {
     return absl::FailedPreconditionError("the number of material points or loads changed");
   }
-  if (phases_.saturated) return StepSaturated();
-  RETURN_IF_ERROR(EvaluateShapes());
-  MaterialPoints& mp = points_;
-  const std::size_t n = mp.size();
-  const int nodes = NodeCount(grid_);
-  const double alpha = solver_.pic_fraction;
+  return absl::OkStatus();
+}
 
-  // (a) P2G: nodal mass and momentum, then v^n = p/m on active nodes. The
-  // nodal mass is the inertia, the point masses times the mass scale.
-  const double scale = solver_.mass_scale;
-  std::fill(node_mass_.begin(), node_mass_.end(), 0.0);
-  std::fill(node_velocity_.begin(), node_velocity_.end(), Vector2d::Zero());
-  for (std::size_t p = 0; p < n; ++p) {
-    const ShapeValues& s = shape_[p];
-    const double mass = scale * mp.mass[p];
-    const Vector2d momentum = mass * mp.velocity[p];
-    for (int k = 0; k < s.count; ++k) {
-      node_mass_[s.node[k]] += s.weight[k] * mass;
-      node_velocity_[s.node[k]] += s.weight[k] * momentum;
-    }
-  }
-  for (int i = 0; i < nodes; ++i) {
-    node_velocity_[i] = node_mass_[i] > min_node_mass_ ? Vector2d(node_velocity_[i] / node_mass_[i])
-                                                       : Vector2d::Zero();
-  }
-  // The G2P below passes a fraction α of this first correction on to the
-  // points (PIC keeps it, FLIP adds only increments), so that fraction
-  // belongs to the reactions: then Δ(Σ m v) = (external − Σ reactions)·Δt.
+void Solver::ConstrainStart() {
   std::fill(impulse_.begin(), impulse_.end(), Vector2d::Zero());
-  Constrain(node_velocity_, time_, alpha);
+  Constrain(node_velocity_, time_, solver_.pic_fraction);
+}
 
-  // (b) ΔF = I + Δt·L, L = Σ v_I ⊗ ∇S_Ip; one batched stress update.
-  RETURN_IF_ERROR(UpdateStress());
-
-  // (c) Nodal forces: internal −Σ σ_p·∇S_Ip V_p (in-plane part), gravity
-  // Σ m_p g S_Ip = m_I g / scale (BodyAcceleration: on the real mass),
-  // tractions; then v^{n+1} = v^n + Δt f/m.
-  const Vector2d body = BodyAcceleration();
-  for (int i = 0; i < nodes; ++i) node_force_[i] = node_mass_[i] * body;
-  const std::vector<Matrix2d> sigma = ForceStresses();
-  for (std::size_t p = 0; p < n; ++p) {
-    const ShapeValues& s = shape_[p];
-    const Matrix2d sigma_v = sigma[p] * mp.volume[p];
-    for (int k = 0; k < s.count; ++k) node_force_[s.node[k]] -= sigma_v * s.gradient[k];
-  }
-  RETURN_IF_ERROR(AddLoadForces());
-  for (int i = 0; i < nodes; ++i) {
-    node_velocity_new_[i] =
-        node_mass_[i] > min_node_mass_
-            ? Vector2d(node_velocity_[i] + (dt_ / node_mass_[i]) * node_force_[i])
-            : Vector2d::Zero();
-  }
-  Constrain(node_velocity_new_, time_ + dt_, 1.0);
-
-  // (d) G2P: v_p ← α v_PIC + (1 − α) v_FLIP (eq. 19), x_p ← x_p + Δt v_PIC (eq. 16).
-  for (std::size_t p = 0; p < n; ++p) {
-    const ShapeValues& s = shape_[p];
-    Vector2d v_pic = Vector2d::Zero(), dv = Vector2d::Zero();
-    for (int k = 0; k < s.count; ++k) {
-      v_pic += s.weight[k] * node_velocity_new_[s.node[k]];
-      dv += s.weight[k] * (node_velocity_new_[s.node[k]] - node_velocity_[s.node[k]]);
-    }
-    mp.position[p] = KeepOffWalls(mp.position[p], mp.position[p] + dt_ * v_pic);
-    mp.velocity[p] = alpha * v_pic + (1.0 - alpha) * (mp.velocity[p] + dv);
-  }
+absl::Status Solver::FinishStep() {
   RETURN_IF_ERROR(CheckPointsFinite());
   for (std::size_t k = 0; k < reactions_.size(); ++k) reactions_[k] = impulse_[k] / -dt_;
   time_ += dt_;
@@ -1041,231 +922,21 @@ double Solver::PotentialEnergy() const {
   return e;
 }
 
-// State keys. doubles: time, dt (1 each); per point: position, velocity,
-// half_size0 (x, y), mass, volume, volume0, deformation_gradient (4, row
-// major), stress, response_stress (9, row major), void_ratio,
-// fabric_anisotropy, mean_rotation, coordination, permeability; per load:
-// load_traction (2), load_length0, load_ramp_time; reactions (2 per wall and
-// body); saturated cases also fluid_velocity (2), pore_pressure, porosity0,
-// position0 (2), vertical_stress0 per point and node_pressure per grid node
-// (NaN: inactive in the last step). ints: step (1); region per point;
-// load_point, load_normal_axis, load_normal_sign, load_source per load.
-void Solver::ExportState(std::map<std::string, std::vector<double>>& doubles,
-                         std::map<std::string, std::vector<std::int64_t>>& ints) const {
+double Solver::Porosity(std::size_t p) const {
   const MaterialPoints& mp = points_;
-  const std::size_t n = mp.size(), nl = mp.loads.size();
-  auto put = [&](const std::string& key, std::size_t width, auto&& get) {
-    std::vector<double>& out = doubles[key];
-    out.clear();
-    out.reserve(n * width);
-    for (std::size_t p = 0; p < n; ++p) get(p, out);
-  };
-  auto vec2 = [](const Vector2d& v, std::vector<double>& out) {
-    out.push_back(v.x());
-    out.push_back(v.y());
-  };
-  auto mat = [](const auto& m, std::vector<double>& out) {
-    for (int r = 0; r < m.rows(); ++r) {
-      for (int c = 0; c < m.cols(); ++c) out.push_back(m(r, c));
-    }
-  };
-  doubles["time"] = {time_};
-  doubles["dt"] = {dt_};
-  put("position", 2, [&](std::size_t p, auto& o) { vec2(mp.position[p], o); });
-  put("velocity", 2, [&](std::size_t p, auto& o) { vec2(mp.velocity[p], o); });
-  put("half_size0", 2, [&](std::size_t p, auto& o) { vec2(mp.half_size0[p], o); });
-  put("mass", 1, [&](std::size_t p, auto& o) { o.push_back(mp.mass[p]); });
-  put("volume", 1, [&](std::size_t p, auto& o) { o.push_back(mp.volume[p]); });
-  put("volume0", 1, [&](std::size_t p, auto& o) { o.push_back(mp.volume0[p]); });
-  put("deformation_gradient", 4, [&](std::size_t p, auto& o) { mat(mp.F[p], o); });
-  put("stress", 9, [&](std::size_t p, auto& o) { mat(mp.stress[p], o); });
-  put("response_stress", 9, [&](std::size_t p, auto& o) { mat(mp.response[p].stress, o); });
-  put("void_ratio", 1, [&](std::size_t p, auto& o) { o.push_back(mp.response[p].void_ratio); });
-  put("fabric_anisotropy", 1,
-      [&](std::size_t p, auto& o) { o.push_back(mp.response[p].fabric_anisotropy); });
-  put("mean_rotation", 1,
-      [&](std::size_t p, auto& o) { o.push_back(mp.response[p].mean_rotation); });
-  put("coordination", 1, [&](std::size_t p, auto& o) { o.push_back(mp.response[p].coordination); });
-  put("permeability", 1, [&](std::size_t p, auto& o) { o.push_back(mp.response[p].permeability); });
-  if (phases_.saturated) {
-    put("fluid_velocity", 2, [&](std::size_t p, auto& o) { vec2(mp.fluid_velocity[p], o); });
-    put("pore_pressure", 1, [&](std::size_t p, auto& o) { o.push_back(mp.pore_pressure[p]); });
-    put("porosity0", 1, [&](std::size_t p, auto& o) { o.push_back(mp.porosity0[p]); });
-    put("position0", 2, [&](std::size_t p, auto& o) { vec2(mp.position0[p], o); });
-    put("vertical_stress0", 1,
-        [&](std::size_t p, auto& o) { o.push_back(mp.vertical_stress0[p]); });
-    doubles["node_pressure"] = node_pressure_last_;
-  }
-  std::vector<double>& traction = doubles["load_traction"];
-  std::vector<double>& length0 = doubles["load_length0"];
-  std::vector<double>& ramp = doubles["load_ramp_time"];
-  std::vector<std::int64_t>& point = ints["load_point"];
-  std::vector<std::int64_t>& axis = ints["load_normal_axis"];
-  std::vector<std::int64_t>& sign = ints["load_normal_sign"];
-  std::vector<std::int64_t>& source = ints["load_source"];
-  traction.clear(), length0.clear(), ramp.clear(), point.clear(), axis.clear(), sign.clear();
-  source.clear();
-  for (std::size_t k = 0; k < nl; ++k) {
-    const SurfaceLoad& load = mp.loads[k];
-    vec2(load.traction, traction);
-    length0.push_back(load.length0);
-    ramp.push_back(load.ramp_time);
-    point.push_back(load.point);
-    axis.push_back(load.normal_axis);
-    sign.push_back(load.normal_sign);
-    source.push_back(load.source);
-  }
-  std::vector<double>& reactions = doubles["reactions"];
-  reactions.clear();
-  for (const Vector2d& r : reactions_) vec2(r, reactions);
-  ints["step"] = {step_};
-  ints["region"].assign(mp.region.begin(), mp.region.end());
+  return PorosityAt(mp.porosity0[p], mp.volume[p] / mp.volume0[p]);
 }
 
-absl::Status Solver::ImportState(const std::map<std::string, std::vector<double>>& doubles,
-                                 const std::map<std::string, std::vector<std::int64_t>>& ints) {
-  const auto mass_it = doubles.find("mass");
-  const auto load_it = ints.find("load_point");
-  if (mass_it == doubles.end() || load_it == ints.end()) {
-    return absl::InvalidArgumentError("state lacks mass or load_point");
-  }
-  const std::size_t n = mass_it->second.size(), nl = load_it->second.size();
-  // Fetch every field first so that a bad state changes nothing.
-  std::map<std::string, const std::vector<double>*> d;
-  const std::pair<const char*, std::size_t> double_fields[] = {
-      {"time", 1},
-      {"dt", 1},
-      {"position", 2 * n},
-      {"velocity", 2 * n},
-      {"half_size0", 2 * n},
-      {"mass", n},
-      {"volume", n},
-      {"volume0", n},
-      {"deformation_gradient", 4 * n},
-      {"stress", 9 * n},
-      {"response_stress", 9 * n},
-      {"void_ratio", n},
-      {"fabric_anisotropy", n},
-      {"mean_rotation", n},
-      {"coordination", n},
-      {"permeability", n},
-      {"load_traction", 2 * nl},
-      {"load_length0", nl},
-      {"load_ramp_time", nl},
-      {"reactions", 2 * reactions_.size()}};
-  for (const auto& [key, size] : double_fields) {
-    ASSIGN_OR_RETURN(const std::vector<double>* f, Field(doubles, key, size));
-    d[key] = f;
-  }
-  if (phases_.saturated) {
-    for (const auto& [key, size] : {std::pair{"fluid_velocity", 2 * n},
-                                    {"pore_pressure", n},
-                                    {"porosity0", n},
-                                    {"position0", 2 * n},
-                                    {"vertical_stress0", n}}) {
-      ASSIGN_OR_RETURN(const std::vector<double>* f, Field(doubles, key, size));
-      d[key] = f;
-    }
-  }
-  std::map<std::string, const std::vector<std::int64_t>*> i;
-  const std::pair<const char*, std::size_t> int_fields[] = {{"step", 1},
-                                                            {"region", n},
-                                                            {"load_point", nl},
-                                                            {"load_normal_axis", nl},
-                                                            {"load_normal_sign", nl}};
-  for (const auto& [key, size] : int_fields) {
-    ASSIGN_OR_RETURN(const std::vector<std::int64_t>* f, Field(ints, key, size));
-    i[key] = f;
-  }
-  const std::vector<std::int64_t>* source = nullptr;
-  if (ints.contains("load_source")) {
-    ASSIGN_OR_RETURN(source, Field(ints, "load_source", nl));
-  }
-  MaterialPoints mp;
-  mp.Resize(n);
-  auto vec2 = [](const std::vector<double>& v, std::size_t p) {
-    return Vector2d(v[2 * p], v[2 * p + 1]);
-  };
-  auto mat = [](auto& m, const std::vector<double>& v, std::size_t p) {
-    const std::size_t size = m.rows() * m.cols();
-    for (int r = 0; r < m.rows(); ++r) {
-      for (int c = 0; c < m.cols(); ++c) m(r, c) = v[size * p + m.cols() * r + c];
-    }
-  };
-  for (std::size_t p = 0; p < n; ++p) {
-    mp.position[p] = vec2(*d["position"], p);
-    mp.velocity[p] = vec2(*d["velocity"], p);
-    mp.half_size0[p] = vec2(*d["half_size0"], p);
-    mp.mass[p] = (*d["mass"])[p];
-    mp.volume[p] = (*d["volume"])[p];
-    mp.volume0[p] = (*d["volume0"])[p];
-    mat(mp.F[p], *d["deformation_gradient"], p);
-    mat(mp.stress[p], *d["stress"], p);
-    PointResponse& r = mp.response[p];
-    mat(r.stress, *d["response_stress"], p);
-    r.void_ratio = (*d["void_ratio"])[p];
-    r.fabric_anisotropy = (*d["fabric_anisotropy"])[p];
-    r.mean_rotation = (*d["mean_rotation"])[p];
-    r.coordination = (*d["coordination"])[p];
-    r.permeability = (*d["permeability"])[p];
-    mp.region[p] = static_cast<std::int32_t>((*i["region"])[p]);
-    if (phases_.saturated) {
-      mp.fluid_velocity[p] = vec2(*d["fluid_velocity"], p);
-      mp.pore_pressure[p] = (*d["pore_pressure"])[p];
-      mp.porosity0[p] = (*d["porosity0"])[p];
-      mp.position0[p] = vec2(*d["position0"], p);
-      mp.vertical_stress0[p] = (*d["vertical_stress0"])[p];
-      if (!(mp.porosity0[p] > 0.0 && mp.porosity0[p] < 1.0)) {
-        return absl::InvalidArgumentError(
-            absl::StrCat("state porosity0[", p, "] = ", mp.porosity0[p], " is not in (0, 1)"));
-      }
-    }
-  }
-  mp.loads.resize(nl);
-  for (std::size_t k = 0; k < nl; ++k) {
-    SurfaceLoad& load = mp.loads[k];
-    const std::int64_t point = (*i["load_point"])[k];
-    if (point < 0 || static_cast<std::size_t>(point) >= n) {
-      return absl::InvalidArgumentError(absl::StrCat("state load ", k, " names point ", point));
-    }
-    load.point = static_cast<std::int32_t>(point);
-    load.traction = vec2(*d["load_traction"], k);
-    load.length0 = (*d["load_length0"])[k];
-    load.ramp_time = (*d["load_ramp_time"])[k];
-    load.normal_axis = static_cast<int>((*i["load_normal_axis"])[k]);
-    load.normal_sign = static_cast<int>((*i["load_normal_sign"])[k]);
-    // States written before load histories existed have no sources.
-    const std::int64_t from = source == nullptr ? -1 : (*source)[k];
-    if (from < -1 || from >= static_cast<std::int64_t>(load_histories_.size())) {
-      return absl::InvalidArgumentError(absl::StrCat("state load ", k, " names traction ", from));
-    }
-    load.source = static_cast<std::int32_t>(from);
-    if ((load.normal_axis != 0 && load.normal_axis != 1) ||
-        (load.normal_sign != 1 && load.normal_sign != -1)) {
-      return absl::InvalidArgumentError(absl::StrCat("state load ", k, " has a bad normal"));
-    }
-  }
-  RETURN_IF_ERROR(ValidatePoints(mp, solver_.shape, load_histories_.size()));
-  const double time = (*d["time"])[0], dt = (*d["dt"])[0];
-  const std::int64_t step = (*i["step"])[0];
-  if (!(time >= 0.0 && std::isfinite(time)) || !(dt >= 0.0 && std::isfinite(dt)) || step < 0) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "state time ", time, " s, dt ", dt, " s and step ", step, " must be finite and >= 0"));
-  }
-  std::vector<double> node_pressure;
-  if (phases_.saturated) {
-    ASSIGN_OR_RETURN(const std::vector<double>* f,
-                     Field(doubles, "node_pressure", static_cast<std::size_t>(NodeCount(grid_))));
-    node_pressure = *f;
-  }
-  points_ = std::move(mp);
-  for (std::size_t k = 0; k < reactions_.size(); ++k) reactions_[k] = vec2(*d["reactions"], k);
-  time_ = time;
-  dt_ = dt;
-  step_ = step;
-  Prepare();
-  if (phases_.saturated) node_pressure_last_ = std::move(node_pressure);
-  return absl::OkStatus();
+double Solver::Permeability(std::size_t p) const {
+  const double e0 = VoidRatio(points_.porosity0[p]);
+  return KozenyCarmanPermeability(KozenyCarmanCoefficient(e0, phases_.permeability),
+                                  VoidRatio(Porosity(p)));
+}
+
+double Solver::MixtureMass() const {
+  double m = 0.0;
+  for (std::size_t p = 0; p < points_.size(); ++p) m += points_.mass[p];
+  return m;
 }
 
 }  // namespace rvehub::mpm

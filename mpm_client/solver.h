@@ -1,19 +1,19 @@
-// The explicit MPM solver: material points on a fixed background grid,
-// update-stress-first (USF) steps as in Liang & Zhao §2.3, with walls, rigid
-// bodies, gravity and surface tractions. It knows nothing of RVEs: stresses
-// come from a StressModel. Plane strain, y up, SI units, Cauchy stress with
-// tension positive. Single-threaded and deterministic: the same input gives
-// bit-identical output.
+// The MPM solver's shared part: material points on a fixed background grid
+// with walls, rigid bodies, gravity and surface tractions, and the state and
+// stages the time-stepping schemes share (class Solver; the schemes derive
+// from it). It knows nothing of RVEs: stresses come from a StressModel.
+// Plane strain, y up, SI units, Cauchy stress with tension positive.
+// Single-threaded and deterministic: the same input gives bit-identical
+// output.
 #ifndef RVEHUB_MPM_CLIENT_SOLVER_H_
 #define RVEHUB_MPM_CLIENT_SOLVER_H_
 
 #include <Eigen/Dense>
 #include <cstdint>
 #include <functional>
-#include <map>
+#include <limits>
 #include <memory>
 #include <span>
-#include <string>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -166,39 +166,53 @@ bool HasComeApart(const PointResponse& last);
 void AverageVolumeChange(std::span<const ShapeValues> shapes, std::span<const double> volume,
                          int node_count, std::span<Eigen::Matrix2d> df);
 
+// The shared part of the MPM time-stepping schemes: the case (grid, walls,
+// bodies, tractions), the material points, time, Δt and step count, the
+// reactions, and the stages both schemes use — shape functions, the walls'
+// and bodies' constraints, the stress update through the StressModel (with
+// F-bar and the nonlocal strain), the internal forces' stresses, surface
+// loads, the points' move off walls. One class per scheme derives from it,
+// in the manner of cb-geo mpm's mpm_explicit / mpm_semi_implicit_twophase:
+// ExplicitSolver (explicit_solver.h), the dry USF step of Liang & Zhao
+// §2.3, and TwoPhaseSolver (two_phase_solver.h), the semi-implicit u–v–p
+// step of liang-zhao-wu-soga-2023. ForCase (and so Create) picks one from
+// the case. The checkpoint's flat arrays live in solver_checkpoint.h.
 class Solver {
  public:
-  // Validates the spec (grid, walls on grid lines, bodies, PIC fraction) and
-  // the points. The time step is dt when positive, else spec.solver.time_step
-  // when positive, else the CFL step from spec.solver.wave_modulus when that
-  // is positive (with the densest point), else 0 and the caller must set_dt
-  // before Step. `model` must outlive the solver.
+  virtual ~Solver() = default;
+  Solver(const Solver&) = delete;
+  Solver& operator=(const Solver&) = delete;
+
+  // The scheme for the case, its spec validated (grid, walls on grid lines,
+  // bodies, PIC fraction; a saturated case's phases), without points yet:
+  // TwoPhaseSolver where spec.phases.saturated, else ExplicitSolver. Create
+  // and a checkpoint (SolverFromState) give it its points. `model` must
+  // outlive the solver.
+  static absl::StatusOr<std::unique_ptr<Solver>> ForCase(const CaseSpec& spec, StressModel* model);
+  // ForCase with the points validated. The time step is dt when positive,
+  // else spec.solver.time_step when positive, else the CFL step from
+  // spec.solver.wave_modulus when that is positive (with the densest
+  // point), else 0 and the caller must set_dt before Step.
   static absl::StatusOr<std::unique_ptr<Solver>> Create(const CaseSpec& spec,
                                                         MaterialPoints initial, StressModel* model,
                                                         double dt = 0.0);
-  // A solver for `spec` with the state of ExportState (a checkpoint).
-  static absl::StatusOr<std::unique_ptr<Solver>> FromState(
-      const CaseSpec& spec, const std::map<std::string, std::vector<double>>& doubles,
-      const std::map<std::string, std::vector<std::int64_t>>& ints, StressModel* model);
 
-  // One explicit USF step of size dt (a saturated case: the semi-implicit
-  // two-phase step, StepSaturated). On an error up to the stress update (a
-  // point outside the grid, an inverted point, the model's error or a
-  // non-finite response from it) the points are unchanged, but the model may
-  // have advanced; on a later one (a load without nodes, a pressure solve
-  // that fails, a step that leaves a point's state not finite) they are not,
-  // and the run cannot go on from them. Time and step count advance only
-  // with a step that succeeds.
-  absl::Status Step();
+  // One step of size dt of the case's scheme. On an error up to the stress
+  // update (a point outside the grid, an inverted point, the model's error
+  // or a non-finite response from it) the points are unchanged, but the
+  // model may have advanced; on a later one (a load without nodes, a
+  // pressure solve that fails, a step that leaves a point's state not
+  // finite) they are not, and the run cannot go on from them. Time and step
+  // count advance only with a step that succeeds.
+  virtual absl::Status Step() = 0;
 
   // Saturated cases: each point's porosity n = 1 − (1 − n0)/J (grains
   // incompressible), [-], and permeability k = c·e³/(1 + e), m/s.
   double Porosity(std::size_t p) const;
   double Permeability(std::size_t p) const;
-  // Solids' plus fluid's mass, kg.
-  double MixtureMass() const;
-  // CG iterations of the last pressure solve (saturated), for diagnostics.
-  int pressure_iterations() const { return pressure_iterations_; }
+  // The mass the step moves, kg: the solids' (the two-phase scheme adds the
+  // water's).
+  virtual double MixtureMass() const;
 
   double time() const { return time_; }        // s
   std::int64_t step() const { return step_; }  // steps done
@@ -226,6 +240,9 @@ class Solver {
   // For the driver to set the initial stresses, responses or velocities;
   // the number of points and loads must stay (Step refuses otherwise).
   MaterialPoints& mutable_points() { return points_; }
+  const GridSpec& grid() const { return grid_; }
+  // The case's tractions, whose histories a load's source indexes.
+  std::size_t traction_count() const { return load_histories_.size(); }
 
   // The force each wall, then each rigid body (in CaseSpec order) received
   // from the soil in the last step, N (total for the domain thickness):
@@ -242,28 +259,60 @@ class Solver {
   // without gravity): with the kinetic energy, the energy budget of a flow.
   double PotentialEnergy() const;
 
-  // The whole state as named flat arrays (bit-exact), and back into a solver
-  // created from the same spec. Keys: see solver.cc.
-  void ExportState(std::map<std::string, std::vector<double>>& doubles,
-                   std::map<std::string, std::vector<std::int64_t>>& ints) const;
-  absl::Status ImportState(const std::map<std::string, std::vector<double>>& doubles,
-                           const std::map<std::string, std::vector<std::int64_t>>& ints);
+  // Replaces the state with another of the same case (a checkpoint's): the
+  // points, time (s), Δt (s), steps done and the last step's reactions (N,
+  // one per wall and body). InvalidArgument for points Create would refuse,
+  // and then nothing changes.
+  absl::Status Restore(MaterialPoints points, double time, double dt, std::int64_t step,
+                       std::vector<Eigen::Vector2d> reactions);
 
- private:
-  Solver() = default;
-  // A solver for the spec without points (validates the spec).
-  static absl::StatusOr<std::unique_ptr<Solver>> Init(const CaseSpec& spec, StressModel* model);
+ protected:
+  // inactive_mass_fraction: nodes lighter than this fraction of the lightest
+  // point's inertia are inactive (the scheme's choice), [-].
+  explicit Solver(double inactive_mass_fraction)
+      : inactive_mass_fraction_(inactive_mass_fraction) {}
+
+  // Validates the spec's shared part and takes it over, then SetUpScheme.
+  absl::Status SetUp(const CaseSpec& spec, StressModel* model);
+  // The scheme's own part of the spec (called last by SetUp).
+  virtual absl::Status SetUpScheme(const CaseSpec& /*spec*/) { return absl::OkStatus(); }
+  // What the scheme asks of the initial points beyond the shared checks
+  // (Create's).
+  virtual absl::Status ValidateInitialPoints(const MaterialPoints& /*points*/) const {
+    return absl::OkStatus();
+  }
+  // Sizes the scratch arrays for the points and finds the inactive-node mass
+  // (a scheme sizes its own after calling this).
+  virtual void Prepare();
+
+  // The grid line index of `position` (m) along `axis`, or −1 off the lines.
+  int GridLine(int axis, double position) const;
+  // The nodes on grid line `line` of `axis` (x = const for 0) whose
+  // coordinate along the line lies in [from, to] (m, to rounding), in order.
+  std::vector<std::int32_t> NodesOnLine(int axis, int line,
+                                        double from = -std::numeric_limits<double>::infinity(),
+                                        double to = std::numeric_limits<double>::infinity()) const;
+  // FailedPrecondition unless Δt > 0 and the points and loads are those the
+  // scratch arrays were sized for (every Step's first check).
+  absl::Status CheckReady() const;
   // Gravity less the box's acceleration over this step (a shaken box's frame,
   // SolverSpec::shaking_amplitude): (v_box(t + Δt) − v_box(t))/Δt, so that
   // the frame's velocity change is exact, m/s². Per unit of the grid's
   // inertia: under mass scaling gravity acts on the real mass (g/s), the
   // frame's force is inertia and scales with it.
   Eigen::Vector2d BodyAcceleration() const;
-  // Sizes the scratch arrays for the points and finds the inactive-node mass.
-  void Prepare();
   // Shape values of every point and load (at the step's start), and the
-  // loads' forces; OutOfRange for a point off the grid.
+  // loads' forces; OutOfRange for a point off the grid. Then the points'
+  // faces near each body (contacts_).
   absl::Status EvaluateShapes();
+  // Whether a node carries enough mass to take part in the step.
+  bool Active(int node) const { return node_mass_[node] > min_node_mass_; }
+  // Clears the walls' and bodies' impulses and constrains the nodal
+  // velocities mapped at the step's start, node_velocity_. The G2P passes a
+  // fraction α (the PIC fraction) of this first correction on to the points
+  // (PIC keeps it, FLIP adds only increments), so that fraction belongs to
+  // the reactions: then Δ(Σ m v) = (external − Σ reactions)·Δt.
+  void ConstrainStart();
   // Applies the walls' and bodies' constraints at time t to the nodal
   // velocities, with the bodies and shaken walls moving at their velocity
   // at body_time;
@@ -274,8 +323,6 @@ class Solver {
   // momentum each body gave to impulse_.
   void ResolveBodies(std::span<const SurfaceContact> contacts, std::span<const RigidBody> bodies,
                      ContactGrid grid, double body_time, double weight);
-  // The points' faces near each body at the step's start (contacts_).
-  void FindContacts();
   // A point's new position `to` (m), moved from `from`, held on the line of
   // any wall it would cross or, at the grid's edge, leave the grid through.
   // A GIMP point moves with its domain's mean velocity, which does not
@@ -291,41 +338,14 @@ class Solver {
   // over the nodes around its surface position that carry mass;
   // FailedPrecondition where none does.
   absl::Status AddLoadForces();
-  // The two-phase step (saturated.cc).
-  absl::Status StepSaturated();
-  // FailedPrecondition naming the first point the step has left with a
-  // field that is not finite (the step was unstable); each step checks this
-  // before it advances the time.
-  absl::Status CheckPointsFinite() const;
-  // Impermeable walls and bodies, the water's counterpart of Constrain: the
-  // fluid's velocity normal to each wall's line is the wall's at wall_time
-  // (0 unless shaken; fluid_fixed_ records the components held), except on
-  // a drained boundary's nodes (a porous stone); the points' faces near a
-  // body do not approach it, the water sliding freely (fluid_contacts_).
-  // Adds weight × the fluid's momentum change to impulse_.
-  void ConstrainFluid(std::vector<Eigen::Vector2d>& velocity, double wall_time, double weight);
-  // A porous stone (a drained line on a wall's line): where the wall holds
-  // the solids, the water's normal velocity in node_fluid_velocity_new_ is
-  // solved again against solids held at the wall's velocity, not the free
-  // mixture the 2×2 solve assumed: v_f = (M_f v0 + Δt F_f + D u)/(M_f + D),
-  // v0 = start, u = pull (the held solids' velocity, or v0 itself where the
-  // drag acts on the change only), D = node_drag_, F_f = node_fluid_force_.
-  // The change counts in the wall's impulse.
-  void DrainThroughWalls(const std::vector<Eigen::Vector2d>& start,
-                         const std::vector<Eigen::Vector2d>& pull);
-  // The pore pressure of the water at rest (hydrostatic below the water
-  // table, 0 above it or without one) at height y and at a node, Pa.
-  double RestPressure(double y) const;
-  double NodeRest(int node) const;
-  // The nodes whose pore pressure is prescribed this step (drained lines,
-  // the free surface), into pressure_fixed_ (NaN: free).
-  void FindDrainedNodes();
-  // p^n at the active nodes that lack one (NaN in node_pressure_), fitted
-  // to the points' pressures.
-  absl::Status FitNodalPressure();
+  // The end of every step: FailedPrecondition naming the first point the
+  // step has left with a field that is not finite (the step was unstable);
+  // else the reactions from the impulses, and time and step count advance.
+  absl::Status FinishStep();
 
   GridSpec grid_;
   SolverSpec solver_;
+  PhasesSpec phases_;  // the case's water (porosity and permeability of the points)
   std::vector<Wall> walls_;
   std::vector<RigidBody> bodies_;
   std::vector<std::vector<LoadFactorPoint>> load_histories_;  // per CaseSpec traction
@@ -338,6 +358,7 @@ class Solver {
   double dt_ = 0.0;
   std::int64_t step_ = 0;
   std::vector<Eigen::Vector2d> reactions_;  // N, last step
+  const double inactive_mass_fraction_;     // see the constructor
   double min_node_mass_ = 0.0;              // kg: lighter nodes are inactive
 
   // Scratch reused by every step (no allocation in the step loop).
@@ -353,7 +374,15 @@ class Solver {
   std::vector<std::uint8_t> node_fixed_;            // per node: components a wall holds
   std::vector<SurfaceContact> contacts_;            // faces near bodies, this step
   std::vector<Eigen::Vector2d> body_velocity_;      // per body, m/s
-  std::vector<Eigen::Matrix2d> in_plane_df_;        // per point, ΔF in-plane (F-bar applied)
+
+ private:
+  // The points' faces near each body at the step's start (contacts_).
+  void FindContacts();
+  // FailedPrecondition naming the first point the step has left with a
+  // field that is not finite.
+  absl::Status CheckPointsFinite() const;
+
+  std::vector<Eigen::Matrix2d> in_plane_df_;  // per point, ΔF in-plane (F-bar applied)
   std::vector<std::uint8_t> f_bar_apart_;     // per point, 1: left out of F-bar (HasComeApart)
   NonlocalMap nonlocal_;                      // this step's (solver.nonlocal_radius)
   std::vector<Eigen::Matrix3d> delta_f_;      // per point, the continuum's ΔF
@@ -361,33 +390,6 @@ class Solver {
   std::vector<PointResponse> response_;
   bool stress_only_ = false;     // set_stress_only
   double max_void_ratio_ = 0.0;  // RveSpec::max_void_ratio
-
-  // Saturated cases (saturated.cc).
-  PhasesSpec phases_;
-  std::vector<std::vector<std::int32_t>> drained_nodes_;   // per drained boundary
-  std::vector<double> node_fluid_mass_;                    // kg
-  std::vector<Eigen::Vector2d> node_fluid_velocity_;       // v_f^n, then v_f*, m/s
-  std::vector<Eigen::Vector2d> node_fluid_force_;          // N
-  std::vector<Eigen::Vector2d> node_fluid_velocity_new_;   // v_f^{n+1}
-  std::vector<Eigen::Vector2d> node_fluid_velocity_star_;  // v_f* before the correction
-  std::vector<double> node_drag_;                          // Δt·Σ S·drag·V, kg
-  std::vector<double> node_pressure_;                      // p^n, Pa
-  // p^{n+1} of the last step per node, Pa; NaN where the node was inactive.
-  // Part of the state: the next step's p^n where the node is still active.
-  std::vector<double> node_pressure_last_;
-  std::vector<double> pressure_fixed_;     // prescribed p, Pa, or NaN
-  std::vector<double> node_base_;          // b: p^n or p_r (saturated.cc), Pa
-  std::vector<double> node_delta_;         // δ = p^{n+1} − b, Pa
-  std::vector<double> node_volume_;        // Σ_p S_Ip V_p, m³
-  std::vector<double> node_domain_;        // share of a node's volume inside walls and grid, [-]
-  std::vector<double> node_soil_;          // soil share of a node's domain, [-], 0 where inactive
-  std::vector<std::uint8_t> fluid_fixed_;  // per node: components walls hold
-  // Per node: bit 0 / bit 1 set on a drained line x = c / y = c (a wall on
-  // that line lets the water through there).
-  std::vector<std::uint8_t> node_porous_;
-  std::vector<RigidBody> fluid_bodies_;         // the bodies, smooth for the water
-  std::vector<SurfaceContact> fluid_contacts_;  // contacts_ with the water's mass floor
-  int pressure_iterations_ = 0;
 };
 
 }  // namespace rvehub::mpm

@@ -20,6 +20,7 @@
 #include "mpm_client/nonlocal.h"
 #include "mpm_client/shape.h"
 #include "mpm_client/solver.h"
+#include "mpm_client/solver_checkpoint.h"
 #include "tests/test_util.h"
 
 namespace rvehub::mpm {
@@ -448,10 +449,10 @@ TEST(RveIncrementTest, AnExpandingBlockOpensItsPointsButNotTheirPackingsAboveThe
     // packings the same increments.
     std::map<std::string, std::vector<double>> doubles;
     std::map<std::string, std::vector<std::int64_t>> ints;
-    (*solver)->ExportState(doubles, ints);
+    ExportSolverState(**solver, doubles, ints);
     RecordingModel resumed_model(e);
     absl::StatusOr<std::unique_ptr<Solver>> resumed =
-        Solver::FromState(spec, doubles, ints, &resumed_model);
+        SolverFromState(spec, doubles, ints, &resumed_model);
     ASSERT_TRUE(resumed.ok()) << resumed.status();
     RunSteps(**solver, 1);
     RunSteps(**resumed, 1);
@@ -1830,8 +1831,8 @@ TEST(SolverErrorsTest, ANonFiniteAnswerOrStepIsAnErrorNamingThePoint) {
 void ExpectBitIdentical(const Solver& a, const Solver& b) {
   std::map<std::string, std::vector<double>> da, db;
   std::map<std::string, std::vector<std::int64_t>> ia, ib;
-  a.ExportState(da, ia);
-  b.ExportState(db, ib);
+  ExportSolverState(a, da, ia);
+  ExportSolverState(b, db, ib);
   ASSERT_EQ(da.size(), db.size());
   for (const auto& [key, values] : da) {
     ExpectSameBits(values, db.at(key), key.c_str());
@@ -1875,9 +1876,9 @@ TEST(CheckpointTest, ADroppedPointIsParkedOffTheGridAndResumesBitIdentically) {
   // grid again after import, and both continue bit-identically.
   std::map<std::string, std::vector<double>> doubles;
   std::map<std::string, std::vector<std::int64_t>> ints;
-  solver->ExportState(doubles, ints);
+  ExportSolverState(*solver, doubles, ints);
   std::unique_ptr<Solver> resumed = *Solver::Create(spec, *mp, &model);
-  ASSERT_TRUE(resumed->ImportState(doubles, ints).ok());
+  ASSERT_TRUE(ImportSolverState(*resumed, doubles, ints).ok());
   for (int i = 0; i < 10; ++i) {
     ASSERT_TRUE(solver->Step().ok());
     ASSERT_TRUE(resumed->Step().ok());
@@ -1922,9 +1923,9 @@ TEST(CheckpointTest, ExportImportContinuesBitIdentically) {
   RunSteps(*a, 10);
   std::map<std::string, std::vector<double>> doubles;
   std::map<std::string, std::vector<std::int64_t>> ints;
-  a->ExportState(doubles, ints);
+  ExportSolverState(*a, doubles, ints);
   LinearElasticModel model_b = model;  // the material's own state travels separately
-  absl::StatusOr<std::unique_ptr<Solver>> b = Solver::FromState(spec, doubles, ints, &model_b);
+  absl::StatusOr<std::unique_ptr<Solver>> b = SolverFromState(spec, doubles, ints, &model_b);
   ASSERT_TRUE(b.ok()) << b.status();
   ExpectBitIdentical(*a, **b);
   for (int i = 0; i < 20; ++i) {
@@ -1938,31 +1939,31 @@ TEST(CheckpointTest, ExportImportContinuesBitIdentically) {
   // A state with a field missing or of the wrong length changes nothing.
   std::map<std::string, std::vector<double>> broken = doubles;
   broken.erase("velocity");
-  EXPECT_EQ((*b)->ImportState(broken, ints).code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(ImportSolverState(**b, broken, ints).code(), absl::StatusCode::kInvalidArgument);
   broken = doubles;
   broken["stress"].pop_back();
-  EXPECT_EQ((*b)->ImportState(broken, ints).code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(ImportSolverState(**b, broken, ints).code(), absl::StatusCode::kInvalidArgument);
   // A load naming a traction the case does not have.
   std::map<std::string, std::vector<std::int64_t>> bad_source = ints;
   bad_source["load_source"].back() = 2;
-  const absl::Status named = (*b)->ImportState(doubles, bad_source);
+  const absl::Status named = ImportSolverState(**b, doubles, bad_source);
   EXPECT_EQ(named.code(), absl::StatusCode::kInvalidArgument);
   EXPECT_NE(named.message().find("names traction 2"), std::string::npos) << named;
   // Values that are not finite, or a time before the start.
   broken = doubles;
   broken["velocity"][3] = std::numeric_limits<double>::infinity();
-  absl::Status refused = (*b)->ImportState(broken, ints);
+  absl::Status refused = ImportSolverState(**b, broken, ints);
   EXPECT_EQ(refused.code(), absl::StatusCode::kInvalidArgument);
   EXPECT_NE(refused.message().find("material point 1: velocity ("), std::string::npos) << refused;
   EXPECT_NE(refused.message().find(", inf) m/s is not finite"), std::string::npos) << refused;
   broken = doubles;
   broken["response_stress"][9 * 4 + 8] = std::numeric_limits<double>::quiet_NaN();
-  refused = (*b)->ImportState(broken, ints);
+  refused = ImportSolverState(**b, broken, ints);
   EXPECT_NE(refused.message().find("material point 4: RVE stress is not finite"), std::string::npos)
       << refused;
   broken = doubles;
   broken["time"][0] = -1.0;
-  refused = (*b)->ImportState(broken, ints);
+  refused = ImportSolverState(**b, broken, ints);
   EXPECT_EQ(refused.code(), absl::StatusCode::kInvalidArgument);
   EXPECT_NE(refused.message().find("state time -1 s"), std::string::npos) << refused;
   EXPECT_EQ((*b)->step(), 30);

@@ -1,4 +1,4 @@
-// The saturated (two-phase u–v–p) MPM step (mpm_client/saturated.cc): its
+// The saturated (two-phase u–v–p) MPM step (mpm_client/two_phase_solver.cc): its
 // kernels, Terzaghi's consolidation with an elastic skeleton, a hydrostatic
 // column at rest, one time step for permeabilities from 1e-2 to 1e-6 m/s,
 // mass conservation and checkpoint round trips.
@@ -23,6 +23,7 @@
 #include "mpm_client/model.h"
 #include "mpm_client/mohr_coulomb.h"
 #include "mpm_client/solver.h"
+#include "mpm_client/solver_checkpoint.h"
 #include "tests/test_util.h"
 
 namespace rvehub::mpm {
@@ -887,11 +888,10 @@ TEST(TwoPhaseSolverTest, ExportImportContinuesBitIdentically) {
   for (int i = 0; i < 30; ++i) ASSERT_TRUE(a->Step().ok());
   std::map<std::string, std::vector<double>> doubles;
   std::map<std::string, std::vector<std::int64_t>> ints;
-  a->ExportState(doubles, ints);
+  ExportSolverState(*a, doubles, ints);
   ASSERT_TRUE(doubles.contains("pore_pressure"));
   LinearElasticModel model_b = model;
-  absl::StatusOr<std::unique_ptr<Solver>> b =
-      Solver::FromState(column.spec, doubles, ints, &model_b);
+  absl::StatusOr<std::unique_ptr<Solver>> b = SolverFromState(column.spec, doubles, ints, &model_b);
   ASSERT_TRUE(b.ok()) << b.status();
   for (int i = 0; i < 30; ++i) {
     ASSERT_TRUE(a->Step().ok());
@@ -899,12 +899,12 @@ TEST(TwoPhaseSolverTest, ExportImportContinuesBitIdentically) {
   }
   std::map<std::string, std::vector<double>> da, db;
   std::map<std::string, std::vector<std::int64_t>> ia, ib;
-  a->ExportState(da, ia);
-  (*b)->ExportState(db, ib);
+  ExportSolverState(*a, da, ia);
+  ExportSolverState(**b, db, ib);
   for (const auto& [key, values] : da) ExpectSameBits(values, db.at(key), key.c_str());
   // A saturated state without its pore pressures is refused.
   doubles.erase("pore_pressure");
-  EXPECT_EQ((*b)->ImportState(doubles, ints).code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(ImportSolverState(**b, doubles, ints).code(), absl::StatusCode::kInvalidArgument);
 }
 
 // The wave case's half-space (21 m × 10 m, liang-zhao-wu-soga §4.4) on
