@@ -39,9 +39,9 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
-#include "mpm_client/case.h"
-#include "mpm_client/output.h"
-#include "mpm_client/simulation.h"
+#include "mpm_client/case/case.h"
+#include "mpm_client/run/output.h"
+#include "mpm_client/run/simulation.h"
 #include "rve_server/common/process.h"
 
 extern char** environ;

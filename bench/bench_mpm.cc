@@ -28,8 +28,8 @@
 #include <string>
 #include <vector>
 
-#include "mpm_client/case.h"
-#include "mpm_client/simulation.h"
+#include "mpm_client/case/case.h"
+#include "mpm_client/run/simulation.h"
 #include "rve_server/common/process.h"
 #include "rve_server/service/server.h"
 

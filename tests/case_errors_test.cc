@@ -11,7 +11,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/match.h"
 #include "gtest/gtest.h"
-#include "mpm_client/case.h"
+#include "mpm_client/case/case.h"
 #include "tests/case_test_util.h"
 
 namespace rvehub::mpm::case_test {

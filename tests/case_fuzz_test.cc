@@ -17,9 +17,9 @@
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "gtest/gtest.h"
-#include "mpm_client/case.h"
-#include "mpm_client/elastic.h"
-#include "mpm_client/solver.h"
+#include "mpm_client/case/case.h"
+#include "mpm_client/core/elastic.h"
+#include "mpm_client/core/solver.h"
 #include "tests/case_test_util.h"
 #include "tests/env_util.h"
 

@@ -3,7 +3,7 @@
 // ToJson round-trips, defaults match model.h, overrides apply before the
 // checks, the memory estimate bounds a case and every shipped case reads
 // back. Bad input: case_errors_test.cc; mutated cases: case_fuzz_test.cc.
-#include "mpm_client/case.h"
+#include "mpm_client/case/case.h"
 
 #include <filesystem>
 #include <fstream>

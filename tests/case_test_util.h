@@ -18,7 +18,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "gtest/gtest.h"
-#include "mpm_client/case.h"
+#include "mpm_client/case/case.h"
 
 namespace rvehub::mpm::case_test {
 

@@ -9,7 +9,7 @@
 #include <utility>
 #include <vector>
 
-#include "mpm_client/rve_pool.h"
+#include "mpm_client/run/rve_pool.h"
 #include "rve_server/client/endpoint.h"
 #include "rve_server/embedded/endpoint.h"
 #include "tests/test_util.h"

@@ -91,12 +91,55 @@ const std::vector<Layer>& Layers() {
        {"rve_server/cli/", "rve_server/client/", "rve_server/embedded/", "rve_server/values/",
         "rve_server/common/", "store/", "toolkit/", "absl/", "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
+      // The RVE-free MPM: neither engine nor store nor client.
+      {"mpm_client/core", {"mpm_client/core/", "rve_server/common/", "absl/"}, {"Eigen/"}},
+      {"mpm_client/case",
+       {"mpm_client/case/", "mpm_client/core/", "toolkit/", "rve_server/values/",
+        "rve_server/common/", "absl/", "nlohmann/"},
+       {"Eigen/", "nlohmann/"}},
+      {"mpm_client/run",
+       {"mpm_client/run/", "mpm_client/case/", "mpm_client/core/", "rve_server/client/",
+        "rve_server/embedded/", "rve_server/values/", "rve_server/common/", "store/", "toolkit/",
+        "absl/", "nlohmann/"},
+       {"Eigen/", "nlohmann/"}},
+      // The binary.
       {"mpm_client",
-       {"mpm_client/", "rve_server/client/", "rve_server/embedded/", "rve_server/values/",
-        "rve_server/common/", "store/", "toolkit/", "absl/", "nlohmann/"},
+       {"mpm_client/", "rve_server/client/", "rve_server/common/", "absl/", "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
   };
   return *layers;
+}
+
+// The layer a source file (path relative to the root) belongs to: the one
+// with the longest folder holding it (mpm_client/core/ before mpm_client/);
+// nullptr when none does.
+const Layer* LayerOf(const std::string& file) {
+  const Layer* best = nullptr;
+  for (const Layer& layer : Layers()) {
+    if (absl::StartsWith(file, layer.folder + "/") &&
+        (best == nullptr || layer.folder.size() > best->folder.size())) {
+      best = &layer;
+    }
+  }
+  return best;
+}
+
+bool IsSource(const fs::directory_entry& entry) {
+  const std::string ext = entry.path().extension().string();
+  return entry.is_regular_file() && (ext == ".h" || ext == ".cc");
+}
+
+// Every source file of the product's folders has a rule: a new folder
+// cannot slip past the order.
+TEST(LayeringTest, EveryFolderHasALayer) {
+  const fs::path root(RVEHUB_SOURCE_DIR);
+  for (const char* top : {"rve_server", "store", "toolkit", "mpm_client"}) {
+    for (const fs::directory_entry& entry : fs::recursive_directory_iterator(root / top)) {
+      if (!IsSource(entry)) continue;
+      const std::string name = fs::relative(entry.path(), root).string();
+      EXPECT_NE(LayerOf(name), nullptr) << name << " is in no layer of layering_test.cc";
+    }
+  }
 }
 
 TEST(LayeringTest, IncludesFollowTheLayerOrder) {
@@ -106,10 +149,10 @@ TEST(LayeringTest, IncludesFollowTheLayerOrder) {
   for (const Layer& layer : Layers()) {
     ASSERT_TRUE(fs::is_directory(root / layer.folder)) << layer.folder;
     for (const fs::directory_entry& entry : fs::recursive_directory_iterator(root / layer.folder)) {
-      const std::string ext = entry.path().extension().string();
-      if (!entry.is_regular_file() || (ext != ".h" && ext != ".cc")) continue;
-      ++files;
+      if (!IsSource(entry)) continue;
       const std::string name = fs::relative(entry.path(), root).string();
+      if (LayerOf(name) != &layer) continue;  // a sub-folder's own layer checks it
+      ++files;
       std::ifstream in(entry.path());
       std::string line;
       for (int number = 1; std::getline(in, line); ++number) {
@@ -151,6 +194,7 @@ TEST(LayeringTest, TheRulesRejectCrossings) {
     return false;
   };
   EXPECT_FALSE(allowed("mpm_client", "rve_server/service/registry.h", true));
+  EXPECT_FALSE(allowed("mpm_client/run", "rve_server/service/registry.h", true));
   EXPECT_FALSE(allowed("mpm_client", "rve_server/engine/rve.h", true));
   EXPECT_FALSE(allowed("mpm_client", "rve_server/cli/element_test_io.h", true));
   EXPECT_FALSE(allowed("store", "rve_server/engine/rve.h", true));
@@ -167,14 +211,22 @@ TEST(LayeringTest, TheRulesRejectCrossings) {
   EXPECT_FALSE(allowed("rve_server/client", "store/checkpoint.h", true));
   EXPECT_FALSE(allowed("rve_server/common", "cairo.h", false));
   EXPECT_FALSE(allowed("rve_server/server", "toolkit/plot.h", true));
-  EXPECT_FALSE(allowed("toolkit", "mpm_client/model.h", true));
+  EXPECT_FALSE(allowed("toolkit", "mpm_client/core/model.h", true));
   EXPECT_FALSE(allowed("toolkit", "rve_server/client/endpoint.h", true));
   EXPECT_TRUE(allowed("rve_server/engine", "Eigen/Dense", false));
   EXPECT_TRUE(allowed("rve_server/engine", "vector", false));
   EXPECT_TRUE(allowed("rve_server/client", "rve_server/wire/convert.h", true));
   EXPECT_TRUE(allowed("rve_server/embedded", "rve_server/service/registry.h", true));
-  EXPECT_TRUE(allowed("mpm_client", "rve_server/client/endpoint.h", true));
-  EXPECT_TRUE(allowed("mpm_client", "toolkit/field_table.h", true));
+  EXPECT_TRUE(allowed("mpm_client/run", "rve_server/client/endpoint.h", true));
+  EXPECT_FALSE(allowed("mpm_client/core", "rve_server/values/state.h", true));
+  EXPECT_FALSE(allowed("mpm_client/core", "store/results.h", true));
+  EXPECT_FALSE(allowed("mpm_client/core", "mpm_client/run/rve_pool.h", true));
+  EXPECT_FALSE(allowed("mpm_client/case", "mpm_client/run/simulation.h", true));
+  EXPECT_FALSE(allowed("mpm_client/run", "rve_server/engine/rve.h", true));
+  EXPECT_EQ(LayerOf("mpm_client/core/solver.h")->folder, "mpm_client/core");
+  EXPECT_EQ(LayerOf("mpm_client/mpm_client_main.cc")->folder, "mpm_client");
+  EXPECT_EQ(LayerOf("bench/bench_dem.cc"), nullptr);
+  EXPECT_TRUE(allowed("mpm_client/case", "toolkit/field_table.h", true));
 }
 
 }  // namespace

@@ -14,13 +14,13 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
-#include "mpm_client/body_contact.h"
-#include "mpm_client/elastic.h"
-#include "mpm_client/model.h"
-#include "mpm_client/nonlocal.h"
-#include "mpm_client/shape.h"
-#include "mpm_client/solver.h"
-#include "mpm_client/solver_checkpoint.h"
+#include "mpm_client/core/body_contact.h"
+#include "mpm_client/core/elastic.h"
+#include "mpm_client/core/model.h"
+#include "mpm_client/core/nonlocal.h"
+#include "mpm_client/core/shape.h"
+#include "mpm_client/core/solver.h"
+#include "mpm_client/core/solver_checkpoint.h"
 #include "tests/test_util.h"
 
 namespace rvehub::mpm {

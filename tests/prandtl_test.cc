@@ -14,11 +14,11 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
-#include "mpm_client/case.h"
-#include "mpm_client/elastic.h"
-#include "mpm_client/mohr_coulomb.h"
-#include "mpm_client/solver.h"
-#include "mpm_client/summary.h"
+#include "mpm_client/case/case.h"
+#include "mpm_client/core/elastic.h"
+#include "mpm_client/core/mohr_coulomb.h"
+#include "mpm_client/core/solver.h"
+#include "mpm_client/run/summary.h"
 #include "tests/env_util.h"
 
 namespace rvehub::mpm {

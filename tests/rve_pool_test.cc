@@ -2,7 +2,7 @@
 // over them — bit-identical results whatever the endpoints, cost balancing,
 // retries of lost replies, errors naming the endpoint and point, and
 // export/import onto another set of endpoints.
-#include "mpm_client/rve_pool.h"
+#include "mpm_client/run/rve_pool.h"
 
 #include <arpa/inet.h>
 #include <gtest/gtest.h>

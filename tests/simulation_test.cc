@@ -1,7 +1,7 @@
 // The multiscale simulation end to end: the single element test against the
 // DEM element test on the same RVE (liang-zhao-mpm-dem §3.1), checkpoint and
 // resume, and remote servers against the embedded one.
-#include "mpm_client/simulation.h"
+#include "mpm_client/run/simulation.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -18,10 +18,10 @@
 #include "absl/strings/match.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/string_view.h"
-#include "mpm_client/case.h"
-#include "mpm_client/output.h"
-#include "mpm_client/templates.h"
-#include "mpm_client/two_phase.h"
+#include "mpm_client/case/case.h"
+#include "mpm_client/run/output.h"
+#include "mpm_client/run/templates.h"
+#include "mpm_client/core/two_phase.h"
 #include "rve_server/common/status_macros.h"
 #include "rve_server/engine/element_test.h"
 #include "rve_server/service/server.h"

@@ -13,12 +13,12 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "mpm_client/elastic.h"
-#include "mpm_client/explicit_solver.h"
-#include "mpm_client/model.h"
-#include "mpm_client/solver.h"
-#include "mpm_client/solver_checkpoint.h"
-#include "mpm_client/two_phase_solver.h"
+#include "mpm_client/core/elastic.h"
+#include "mpm_client/core/explicit_solver.h"
+#include "mpm_client/core/model.h"
+#include "mpm_client/core/solver.h"
+#include "mpm_client/core/solver_checkpoint.h"
+#include "mpm_client/core/two_phase_solver.h"
 #include "tests/test_util.h"
 
 namespace rvehub::mpm {

@@ -1,4 +1,4 @@
-#include "mpm_client/spd_solve.h"
+#include "mpm_client/core/spd_solve.h"
 
 #include <gtest/gtest.h>
 

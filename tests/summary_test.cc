@@ -1,6 +1,6 @@
 // The headline figures of summary.json from hand-made timeseries columns,
 // and the timeseries reader that `summarise` feeds them from.
-#include "mpm_client/summary.h"
+#include "mpm_client/run/summary.h"
 
 #include <gtest/gtest.h>
 
@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "absl/strings/match.h"
-#include "mpm_client/output.h"
+#include "mpm_client/run/output.h"
 
 namespace rvehub::mpm {
 namespace {

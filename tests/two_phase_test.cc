@@ -2,7 +2,7 @@
 // kernels, Terzaghi's consolidation with an elastic skeleton, a hydrostatic
 // column at rest, one time step for permeabilities from 1e-2 to 1e-6 m/s,
 // mass conservation and checkpoint round trips.
-#include "mpm_client/two_phase.h"
+#include "mpm_client/core/two_phase.h"
 
 #include <gtest/gtest.h>
 
@@ -19,11 +19,11 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
-#include "mpm_client/elastic.h"
-#include "mpm_client/model.h"
-#include "mpm_client/mohr_coulomb.h"
-#include "mpm_client/solver.h"
-#include "mpm_client/solver_checkpoint.h"
+#include "mpm_client/core/elastic.h"
+#include "mpm_client/core/model.h"
+#include "mpm_client/core/mohr_coulomb.h"
+#include "mpm_client/core/solver.h"
+#include "mpm_client/core/solver_checkpoint.h"
 #include "tests/test_util.h"
 
 namespace rvehub::mpm {

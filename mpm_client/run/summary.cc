@@ -1,0 +1,448 @@
+#include "mpm_client/run/summary.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <numbers>
+#include <queue>
+
+#include "absl/strings/str_cat.h"
+#include "nlohmann/json.hpp"
+#include "rve_server/common/status_macros.h"
+
+namespace rvehub::mpm {
+namespace {
+
+using Columns = std::map<std::string, std::vector<double>>;
+
+absl::StatusOr<const std::vector<double>*> Column(const Columns& columns, const std::string& name) {
+  const auto it = columns.find(name);
+  if (it == columns.end() || it->second.empty()) {
+    return absl::InvalidArgumentError(absl::StrCat("timeseries has no column ", name));
+  }
+  return &it->second;
+}
+
+// The body a summary reads: output.plot_body, else the case's first body.
+absl::StatusOr<std::string> SummaryBody(const CaseSpec& spec) {
+  if (!spec.output.plot_body.empty()) return spec.output.plot_body;
+  if (spec.bodies.empty()) return absl::InvalidArgumentError("the summary needs a body");
+  return spec.bodies.front().name;
+}
+
+absl::StatusOr<Summary> Footing(const CaseSpec& spec, const Columns& columns) {
+  ASSIGN_OR_RETURN(const std::string body, SummaryBody(spec));
+  ASSIGN_OR_RETURN(const std::vector<double>* fy, Column(columns, body + "_fy"));
+  ASSIGN_OR_RETURN(const std::vector<double>* dy, Column(columns, body + "_dy"));
+  const double area = spec.output.plot_width * spec.solver.thickness;  // m²
+  std::vector<double> q(fy->size()), d(dy->size());
+  for (std::size_t i = 0; i < q.size(); ++i) q[i] = (*fy)[i] / area;
+  for (std::size_t i = 0; i < d.size(); ++i) d[i] = -(*dy)[i];
+  // The load jumps each time the footing crosses a node row: average over
+  // one cell of settlement, or a fifth of a shorter curve.
+  const auto [dmin, dmax] = std::minmax_element(d.begin(), d.end());
+  const double span = std::min(spec.grid.cell_size, 0.2 * (*dmax - *dmin));  // m
+  ASSIGN_OR_RETURN(const UltimateLoad ultimate, FindUltimateLoad(d, q, span));
+  Summary out;
+  // The surcharge: the pressure on the ground surface (a +y traction).
+  double surcharge = 0.0;
+  for (const SurfaceTraction& t : spec.tractions) {
+    if (t.normal_axis == 1 && t.normal_sign == 1 && -t.traction.y() > 0.0) {
+      surcharge = -t.traction.y();
+      break;
+    }
+  }
+  if (surcharge > 0.0) out.emplace_back("N_q", ultimate.load / surcharge);
+  out.emplace_back("ultimate_load_Pa", ultimate.load);
+  out.emplace_back("settlement_at_ultimate_m", ultimate.settlement);
+  out.emplace_back("ultimate_is_peak", ultimate.peak ? 1.0 : 0.0);
+  if (spec.output.phi_deg > 0.0) {
+    out.emplace_back("phi_deg", spec.output.phi_deg);
+    const double phi = spec.output.phi_deg * std::numbers::pi / 180.0;  // rad
+    out.emplace_back("N_q_prandtl", PrandtlNq(phi));
+    out.emplace_back("N_q_reduced", ReducedNq(phi));
+  }
+  if (surcharge > 0.0) out.emplace_back("surcharge_Pa", surcharge);
+  return out;
+}
+
+// The median of values, or 0 for none.
+double Median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  const auto mid = values.begin() + values.size() / 2;
+  std::nth_element(values.begin(), mid, values.end());
+  return *mid;
+}
+
+absl::StatusOr<Summary> Pipe(const CaseSpec& spec, const Columns& columns) {
+  ASSIGN_OR_RETURN(const std::string body, SummaryBody(spec));
+  ASSIGN_OR_RETURN(const std::vector<double>* fx, Column(columns, body + "_fx"));
+  ASSIGN_OR_RETURN(const std::vector<double>* fy, Column(columns, body + "_fy"));
+  ASSIGN_OR_RETURN(const std::vector<double>* dx, Column(columns, body + "_dx"));
+  ASSIGN_OR_RETURN(const std::vector<double>* dy, Column(columns, body + "_dy"));
+  const std::size_t n = fx->size();
+  if (fy->size() != n || dx->size() != n || dy->size() != n) {
+    return absl::InvalidArgumentError("the pipe's force and displacement columns differ in length");
+  }
+  double hx = 0.0, vy = 0.0;
+  for (double f : *fx) hx = std::max(hx, std::abs(f));
+  for (double f : *fy) vy = std::max(vy, std::abs(f));
+  Summary out{{"peak_vertical_force_N", vy}, {"peak_horizontal_force_N", hx}};
+  // The stages: penetration while the body has not moved sideways (1e-4 m),
+  // lateral movement after.
+  constexpr double kSideways = 1e-4;  // m
+  std::vector<std::size_t> pen;
+  double travel = 0.0;  // m, sideways at the end
+  for (std::size_t i = 0; i < n; ++i) {
+    if (std::abs((*dx)[i]) <= kSideways) pen.push_back(i);
+    travel = std::max(travel, std::abs((*dx)[i]));
+  }
+  // The row-to-row force has spikes (stress waves, nodes entering contact):
+  // the penetration peak is that of its mean over one cell of penetration.
+  double peak = -std::numeric_limits<double>::infinity(), depth = 0.0;
+  for (std::size_t i : pen) {
+    double sum = 0.0;
+    int count = 0;
+    for (std::size_t j : pen) {
+      if (std::abs((*dy)[j] - (*dy)[i]) <= 0.5 * spec.grid.cell_size) {
+        sum += (*fy)[j];
+        ++count;
+      }
+    }
+    if (sum / count > peak) {
+      peak = sum / count;
+      depth = -(*dy)[i];
+    }
+  }
+  if (!pen.empty()) {
+    out.emplace_back("penetration_peak_force_N", peak);
+    out.emplace_back("penetration_peak_depth_m", depth);
+  }
+  // The lateral stage's steady forces: medians over the second half of the
+  // sideways travel (the paper's Fig. 21: after a quick rise).
+  std::vector<double> vertical, horizontal;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (std::abs((*dx)[i]) > kSideways && std::abs((*dx)[i]) >= 0.5 * travel) {
+      vertical.push_back((*fy)[i]);
+      horizontal.push_back(std::abs((*fx)[i]));
+    }
+  }
+  if (!vertical.empty()) {
+    out.emplace_back("lateral_vertical_force_N", Median(vertical));
+    out.emplace_back("lateral_horizontal_force_N", Median(horizontal));
+    out.emplace_back("lateral_travel_m", travel);
+  }
+  return out;
+}
+
+absl::StatusOr<Summary> Collapse(const CaseSpec& spec, const Columns& columns) {
+  if (spec.regions.empty())
+    return absl::InvalidArgumentError("the collapse summary needs a region");
+  ASSIGN_OR_RETURN(const std::vector<double>* time, Column(columns, "time"));
+  ASSIGN_OR_RETURN(const std::vector<double>* farthest, Column(columns, "front_x"));
+  // The main deposit's front where the run wrote it (runs before it: the
+  // farthest point).
+  const std::vector<double>* front = farthest;
+  if (columns.contains("deposit_front_x")) {
+    ASSIGN_OR_RETURN(front, Column(columns, "deposit_front_x"));
+  }
+  const MaterialRegion& column = spec.regions.front();
+  const double d0 = column.upper.x() - column.lower.x();  // m
+  // The front columns hold point centres: add the initial half spacing.
+  const double half = 0.5 * InitialPointSpacing(spec);
+  // A front column's last row as a distance from the column's wall, m, and
+  // from when it stayed within 1 % of d0 of it, s.
+  const auto final_distance = [&](const std::vector<double>& x) {
+    return x.back() + half - column.lower.x();
+  };
+  const auto stop_time = [&](const std::vector<double>& x) {
+    return FrontStopTime(*time, x, 0.01 * d0);
+  };
+  const double df = final_distance(*front);
+  const double stop = stop_time(*front);
+  // A front still moving at the end "stops" at the last row: the run-out is
+  // then a lower bound. At rest means unmoved over the last 10 % of the run.
+  const double at_rest = time->empty() || stop <= 0.9 * time->back() ? 1.0 : 0.0;
+  Summary out{{"runout_normalised", (df - d0) / d0},
+              {"final_front_m", df + column.lower.x()},
+              {"farthest_point_m", farthest->back() + half},
+              {"front_stop_time_s", stop},
+              {"front_at_rest", at_rest}};
+  // The same read by mass, and when that front came to rest.
+  for (const int percent : kMassFrontPercents) {
+    const std::string name = MassFrontColumn(percent);
+    if (!columns.contains(name)) continue;
+    ASSIGN_OR_RETURN(const std::vector<double>* x, Column(columns, name));
+    out.emplace_back(absl::StrCat("runout_normalised_mass", percent),
+                     (final_distance(*x) - d0) / d0);
+    out.emplace_back(absl::StrCat("front_stop_time_mass", percent, "_s"), stop_time(*x));
+  }
+  return out;
+}
+
+absl::StatusOr<Summary> Biaxial(const CaseSpec& spec, const Columns& columns) {
+  std::vector<double> stress, strain;  // Pa and [-], compression +
+  if (!spec.bodies.empty() && !spec.regions.empty()) {
+    ASSIGN_OR_RETURN(NominalCurve curve, PlatenCurve(spec, columns));
+    stress = std::move(curve.stress);
+    strain = std::move(curve.strain);
+  } else {
+    ASSIGN_OR_RETURN(const std::vector<double>* syy, Column(columns, "mean_syy"));
+    ASSIGN_OR_RETURN(const std::vector<double>* eyy, Column(columns, "mean_eyy"));
+    stress = *syy;
+    strain = *eyy;
+  }
+  if (stress.size() != strain.size()) {
+    return absl::InvalidArgumentError("stress and strain columns differ in length");
+  }
+  const std::size_t peak = std::max_element(stress.begin(), stress.end()) - stress.begin();
+  return Summary{{"peak_stress_Pa", stress[peak]},
+                 {"peak_strain", strain[peak]},
+                 {"final_stress_Pa", stress.back()},
+                 {"final_strain", strain.back()}};
+}
+
+}  // namespace
+
+absl::StatusOr<NominalCurve> PlatenCurve(const CaseSpec& spec, const Columns& columns) {
+  if (spec.regions.empty()) return absl::InvalidArgumentError("the platen curve needs a region");
+  ASSIGN_OR_RETURN(const std::string body, SummaryBody(spec));
+  ASSIGN_OR_RETURN(const std::vector<double>* fy, Column(columns, body + "_fy"));
+  ASSIGN_OR_RETURN(const std::vector<double>* dy, Column(columns, body + "_dy"));
+  const MaterialRegion& r = spec.regions.front();
+  const double width = r.upper.x() - r.lower.x(), height = r.upper.y() - r.lower.y();
+  NominalCurve curve;
+  for (double f : *fy) curve.stress.push_back(f / (width * spec.solver.thickness));
+  for (double d : *dy) curve.strain.push_back(-d / height);
+  return curve;
+}
+
+double PrandtlNq(double phi) {
+  const double t = std::tan(std::numbers::pi / 4 + phi / 2);
+  return t * t * std::exp(std::numbers::pi * std::tan(phi));
+}
+
+double ReducedNq(double phi) { return PrandtlNq(std::atan(2.0 / 3.0 * std::tan(phi))); }
+
+absl::StatusOr<UltimateLoad> FindUltimateLoad(std::span<const double> settlement,
+                                              std::span<const double> load, double span) {
+  const std::size_t n = load.size();
+  if (n < 3 || settlement.size() != n) {
+    return absl::InvalidArgumentError(absl::StrCat("a load-settlement curve needs >= 3 rows of ",
+                                                   "both columns (", settlement.size(), ", ", n,
+                                                   ")"));
+  }
+  if (!(span >= 0.0)) return absl::InvalidArgumentError("the smoothing span must be >= 0");
+  // A running median of 3 rows removes single-row flicker (a node row
+  // emptying as the surface passes it), then a centred mean of 5 rows.
+  std::vector<double> median(load.begin(), load.end());
+  for (std::size_t i = 1; i + 1 < n; ++i) {
+    median[i] = std::max(std::min(load[i - 1], load[i]),
+                         std::min(std::max(load[i - 1], load[i]), load[i + 1]));
+  }
+  constexpr std::size_t kHalf = 2;
+  std::vector<double> light(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t lo = i >= kHalf ? i - kHalf : 0, hi = std::min(n - 1, i + kHalf);
+    double sum = 0.0;
+    for (std::size_t k = lo; k <= hi; ++k) sum += median[k];
+    light[i] = sum / static_cast<double>(hi - lo + 1);
+  }
+  // The contiguous rows within span/2 of row i's settlement, as many on
+  // each side (a window one row longer on one side would shift the mean).
+  const auto within = [&](std::size_t i) {
+    std::size_t lo = i, hi = i;
+    while (lo > 0 && std::abs(settlement[lo - 1] - settlement[i]) <= 0.5 * span) --lo;
+    while (hi + 1 < n && std::abs(settlement[hi + 1] - settlement[i]) <= 0.5 * span) ++hi;
+    const std::size_t side = std::min(i - lo, hi - i);
+    return std::pair{i - side, i + side};
+  };
+  // Then a centred mean over the span (the load's period as the footing
+  // crosses grid rows), to locate the ultimate load.
+  std::vector<double> smooth(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto [lo, hi] = within(i);
+    double sum = 0.0;
+    for (std::size_t k = lo; k <= hi; ++k) sum += light[k];
+    smooth[i] = sum / static_cast<double>(hi - lo + 1);
+  }
+  // Slopes between rows whose settlement grows, away from the ends where the
+  // means are one-sided.
+  const double first = settlement.front(), last = settlement.back();
+  std::vector<std::pair<std::size_t, double>> slopes;
+  for (std::size_t i = kHalf; i + 1 + kHalf < n; ++i) {
+    const double dd = settlement[i + 1] - settlement[i];
+    if (!(dd > 0.0) || !(settlement[i] > 0.0)) continue;
+    if (settlement[i] - first < 0.5 * span || last - settlement[i + 1] < 0.5 * span) continue;
+    slopes.emplace_back(i, (smooth[i + 1] - smooth[i]) / dd);
+  }
+  if (slopes.empty()) {
+    if (span > 0.0 && last - first < span) {
+      return absl::InvalidArgumentError(absl::StrCat("the curve's settlement (", last - first,
+                                                     " m) is shorter than the smoothing span (",
+                                                     span, " m)"));
+    }
+    return absl::InvalidArgumentError("the settlement never grows");
+  }
+  // The median of the slopes after each one (the steady slope the curve
+  // keeps), by two heaps from the end.
+  std::vector<double> rest(slopes.size(), 0.0);
+  std::priority_queue<double> below;                                       // max-heap
+  std::priority_queue<double, std::vector<double>, std::greater<>> above;  // min-heap
+  for (std::size_t k = slopes.size(); k-- > 0;) {
+    if (!below.empty()) {
+      rest[k] = below.size() > above.size() ? below.top() : 0.5 * (below.top() + above.top());
+    }
+    const double s = slopes[k].second;
+    if (below.empty() || s <= below.top()) {
+      below.push(s);
+    } else {
+      above.push(s);
+    }
+    if (below.size() > above.size() + 1) {
+      above.push(below.top());
+      below.pop();
+    } else if (above.size() > below.size()) {
+      below.push(above.top());
+      above.pop();
+    }
+  }
+  // The first slope at or below zero (a peak) or below the steady slope
+  // after it; the load there is the lightly smoothed curve's largest within
+  // the span, so that the wide mean does not shave a peak.
+  for (std::size_t k = 0; k < slopes.size(); ++k) {
+    const double s = slopes[k].second;
+    if (s > std::max(0.0, rest[k])) continue;
+    const auto [lo, hi] = within(slopes[k].first);
+    std::size_t best = lo;
+    for (std::size_t j = lo; j <= hi; ++j) {
+      if (light[j] > light[best]) best = j;
+    }
+    return UltimateLoad{best, light[best], settlement[best], s <= 0.0};
+  }
+  // Only the last slope can be above every later one's median (0 here).
+  const std::size_t i = slopes.back().first;
+  return UltimateLoad{i, light[i], settlement[i], false};
+}
+
+double InitialPointSpacing(const CaseSpec& spec) {
+  if (spec.regions.empty()) return 0.0;
+  return spec.grid.cell_size / spec.regions.front().points_per_cell_side;
+}
+
+double MainDepositFront(std::span<const Eigen::Vector2d> position,
+                        std::span<const std::uint8_t> skip, double link) {
+  // Points binned on cells of side `link`, sorted by cell (then index): a
+  // point's neighbours within `link` lie in the 3 × 3 cells around its own.
+  using Key = std::pair<std::int64_t, std::int64_t>;
+  std::vector<std::pair<Key, std::size_t>> binned;
+  if (!(link > 0.0) || !std::isfinite(link)) return -std::numeric_limits<double>::infinity();
+  for (std::size_t p = 0; p < position.size(); ++p) {
+    if ((!skip.empty() && skip[p]) || !position[p].allFinite()) continue;
+    binned.push_back({{static_cast<std::int64_t>(std::floor(position[p].x() / link)),
+                       static_cast<std::int64_t>(std::floor(position[p].y() / link))},
+                      p});
+  }
+  if (binned.empty()) return -std::numeric_limits<double>::infinity();
+  std::sort(binned.begin(), binned.end());
+  std::vector<std::size_t> parent(position.size());
+  for (std::size_t p = 0; p < parent.size(); ++p) parent[p] = p;
+  const auto root = [&](std::size_t p) {
+    while (parent[p] != p) p = parent[p] = parent[parent[p]];
+    return p;
+  };
+  for (const auto& [key, p] : binned) {
+    for (std::int64_t dx = -1; dx <= 1; ++dx) {
+      for (std::int64_t dy = -1; dy <= 1; ++dy) {
+        const Key cell{key.first + dx, key.second + dy};
+        auto it =
+            std::lower_bound(binned.begin(), binned.end(), std::make_pair(cell, std::size_t{0}));
+        for (; it != binned.end() && it->first == cell; ++it) {
+          const std::size_t q = it->second;
+          if (q <= p || (position[q] - position[p]).squaredNorm() > link * link) continue;
+          const std::size_t a = root(p), b = root(q);
+          if (a != b) parent[std::max(a, b)] = std::min(a, b);  // the lower index roots
+        }
+      }
+    }
+  }
+  std::vector<std::size_t> size(position.size(), 0);
+  for (const auto& entry : binned) ++size[root(entry.second)];
+  std::size_t main = root(binned.front().second);
+  for (std::size_t r = 0; r < size.size(); ++r) {
+    if (size[r] > size[main] || (size[r] == size[main] && r < main)) main = r;
+  }
+  double front = -std::numeric_limits<double>::infinity();
+  for (const auto& entry : binned) {
+    if (root(entry.second) == main) front = std::max(front, position[entry.second].x());
+  }
+  return front;
+}
+
+double MassFront(std::span<const Eigen::Vector2d> position, std::span<const double> mass,
+                 std::span<const std::uint8_t> skip, double share) {
+  constexpr double kNone = -std::numeric_limits<double>::infinity();
+  if (!(share > 0.0 && share <= 1.0) || mass.size() != position.size()) return kNone;
+  std::vector<std::pair<double, std::size_t>> order;  // (x, index): ties by index
+  for (std::size_t p = 0; p < position.size(); ++p) {
+    if ((!skip.empty() && skip[p]) || !position[p].allFinite() || !std::isfinite(mass[p]) ||
+        !(mass[p] > 0.0)) {
+      continue;
+    }
+    order.push_back({position[p].x(), p});
+  }
+  if (order.empty()) return kNone;
+  std::sort(order.begin(), order.end());
+  // Both sums in x order, so that the points' order does not round them
+  // differently; the last point closes it whatever the rounding.
+  double total = 0.0;  // kg
+  for (const auto& entry : order) total += mass[entry.second];
+  double behind = 0.0;
+  for (std::size_t k = 0; k + 1 < order.size(); ++k) {
+    behind += mass[order[k].second];
+    if (behind >= share * total) return order[k].first;
+  }
+  return order.back().first;
+}
+
+std::string MassFrontColumn(int percent) { return absl::StrCat("mass_front_", percent, "_x"); }
+
+double FrontStopTime(std::span<const double> time, std::span<const double> front,
+                     double tolerance) {
+  if (time.empty() || front.size() != time.size()) return 0.0;
+  std::size_t k = front.size() - 1;
+  while (k > 0 && std::abs(front[k - 1] - front.back()) <= tolerance) --k;
+  return time[k];
+}
+
+std::string SummaryKind(const OutputSpec& out) {
+  if (!out.summary.empty()) return out.summary;
+  if (out.plot == "load-settlement") return "footing";
+  if (out.plot == "stress-strain") return "biaxial";
+  return "none";
+}
+
+absl::StatusOr<Summary> Summarise(const CaseSpec& spec, const Columns& columns) {
+  const std::string kind = SummaryKind(spec.output);
+  if (kind == "footing") return Footing(spec, columns);
+  if (kind == "pipe") return Pipe(spec, columns);
+  if (kind == "collapse") return Collapse(spec, columns);
+  if (kind == "biaxial") return Biaxial(spec, columns);
+  if (kind == "none") return Summary{};
+  return absl::InvalidArgumentError(absl::StrCat("unknown summary kind '", kind, "'"));
+}
+
+absl::Status WriteSummary(const std::string& path, const std::string& case_name,
+                          const Summary& summary) {
+  nlohmann::ordered_json j;
+  j["case"] = case_name;
+  for (const auto& [key, value] : summary) j[key] = value;
+  std::ofstream f(path, std::ios::trunc);
+  f << j.dump(2) << "\n";
+  f.close();
+  if (!f) return absl::InternalError(absl::StrCat("cannot write ", path));
+  return absl::OkStatus();
+}
+
+}  // namespace rvehub::mpm
