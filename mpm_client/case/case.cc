@@ -1,5 +1,5 @@
 // The case reader's driver: the document (parse, overrides), the top level
-// and the sections in order (case_sections.h), the checks across sections,
+// and the sections in order (sections.h), the checks across sections,
 // the memory estimate; and the canonical writer.
 #include "mpm_client/case/case.h"
 

@@ -75,7 +75,7 @@ inline constexpr absl::string_view kAxisName[2] = {"x", "y"};
 extern const Table<int> kAxes;
 absl::string_view AxisName(int axis);
 
-// Grid lines along each axis: x_i = origin + i·h, i in 0..n (case_grid.cc).
+// Grid lines along each axis: x_i = origin + i·h, i in 0..n (grid.cc).
 class GridLines {
  public:
   explicit GridLines(const GridSpec& grid) : grid_(grid) {}
@@ -132,7 +132,7 @@ Field<S> ShakingFrequencyField(double S::*m, bool (*shaken)(const S&)) {
               NumberField("shaking_frequency", m, Need::kRequired, kShakingFrequency));
 }
 
-// Contact kinds of walls and bodies (case_walls.cc).
+// Contact kinds of walls and bodies (walls.cc).
 absl::string_view ContactKindName(ContactKind kind);
 
 // μ: required and > 0 for frictional contact, absent otherwise.

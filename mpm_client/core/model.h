@@ -214,7 +214,7 @@ inline Eigen::Vector2d WallVelocity(const Wall& wall, double t) {
 }
 
 // A rigid body with a prescribed velocity history. It meets the soil at the
-// soil's surface (mpm_client/body_contact.h): the faces of the material
+// soil's surface (mpm_client/core/body_contact.h): the faces of the material
 // points near it may not approach it; rough: no slip while pressing;
 // smooth: no friction; frictional: Coulomb. The soil can separate from it.
 // In a saturated case it is impermeable: the water slides along it but does
@@ -274,7 +274,7 @@ struct OutputSpec {
   std::string plot = "stress-strain";
   std::string plot_body;    // body for load-settlement
   double plot_width = 1.0;  // m, footing width B for load normalisation q = fy/(B·t)
-  // Headline figures written to summary.json (mpm_client/summary.h):
+  // Headline figures written to summary.json (mpm_client/run/summary.h):
   // "footing", "pipe", "collapse", "biaxial", "none"; empty: from `plot`
   // (load-settlement: footing; stress-strain: biaxial; none: none).
   std::string summary;

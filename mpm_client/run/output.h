@@ -57,7 +57,7 @@ absl::StatusOr<std::map<std::string, std::vector<double>>> ReadCsvColumns(const 
 
 // What a finished run (or `mpm_client summarise`) writes from
 // DIR/timeseries.csv, read once: DIR/summary.json with the case's headline
-// figures (mpm_client/summary.h; not written when its kind has none) and
+// figures (mpm_client/run/summary.h; not written when its kind has none) and
 // DIR/plot.png, the case's standard plot (OutputSpec::plot; none for
 // "none"): "stress-strain": the nominal platen curve (with a body) and the
 // points' mean σyy, σxx and εv against εyy; "load-settlement": a footing's
