@@ -1,5 +1,5 @@
 // The sections of a case file (cases/FORMAT.md), one file each
-// (case_<section>.cc), for case.cc's ParseCase and ToJson: each section's
+// (<section>.cc), for case.cc's ParseCase and ToJson: each section's
 // Parse (JSON at a pointer -> its part of the CaseSpec, checked against the
 // sections read before it) and Write (its canonical JSON), both from one
 // field table (toolkit/field_table.h). Internal to the case reader.
