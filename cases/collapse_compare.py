@@ -32,7 +32,7 @@ fitted to its upper edge (per row of points, the rightmost dead point). Needs nu
 and matplotlib (Debian's python3-numpy, python3-h5py, python3-matplotlib).
 
 --points reads instead the points CSVs of a continuum on the same case
-(tests/prandtl_test.cc's DISABLED_MeasureWithMohrCoulomb with RVEHUB_PRANDTL_POINTS_CSV: the
+(tests/mpm_client/run/prandtl_test.cc's DISABLED_MeasureWithMohrCoulomb with RVEHUB_PRANDTL_POINTS_CSV: the
 points' starts x0, y0, their ends x and the largest distance each has been from its start,
 over every step) and prints the same dead zone and where 98 and 99 % of the points lie.
 """

@@ -5,7 +5,7 @@
 
 DIR holds one file or run per column, named KIND_PHASE_FBAR_hCELL, e.g. mc_sat_nodal_h0.05.csv
 or rve_dry_none_h0.1/:
-- KIND `mc`: a Mohr–Coulomb continuum, the CSV that tests/prandtl_test.cc's
+- KIND `mc`: a Mohr–Coulomb continuum, the CSV that tests/mpm_client/run/prandtl_test.cc's
   DISABLED_MeasureWithMohrCoulomb writes with RVEHUB_PRANDTL_ENERGY_CSV (time, kinetic,
   front99); `rve`, `rve-dense`, `rve-loose`: an mpm_client run directory (its
   timeseries.csv: time, kinetic_energy, mass_front_99_x) of the medium, dense or loose

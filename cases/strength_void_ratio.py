@@ -14,7 +14,7 @@ beside the paper's (liang-zhao-mpm-dem Table 2 and §3.3.1: e0 0.1874 and 0.2314
 it was compared with, beside Prandtl's N_q and the paper's footing (14.4 at 28.1 deg), and its
 q/q_s against the settlement (timeseries.csv), coloured by the packing's preparation (its
 compaction pressure and rolling-resistance eta) where the runs' differ, with --curve's other
-curves (CSV rows "settlement m, q/q_s", as tests/prandtl_test.cc's
+curves (CSV rows "settlement m, q/q_s", as tests/mpm_client/run/prandtl_test.cc's
 DISABLED_MeasureWithMohrCoulomb writes them for a Mohr-Coulomb soil). Prints a table of both.
 Needs numpy and matplotlib (Debian's python3-numpy, python3-matplotlib).
 """
