@@ -14,10 +14,8 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
-#include "mpm_client/core/body_contact.h"
 #include "mpm_client/core/elastic.h"
 #include "mpm_client/core/model.h"
-#include "mpm_client/core/nonlocal.h"
 #include "mpm_client/core/shape.h"
 #include "mpm_client/core/solver.h"
 #include "mpm_client/core/solver_checkpoint.h"

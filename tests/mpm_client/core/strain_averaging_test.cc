@@ -20,14 +20,12 @@
 #include "mpm_client/core/nonlocal.h"
 #include "mpm_client/core/shape.h"
 #include "mpm_client/core/solver.h"
-#include "mpm_client/core/solver_checkpoint.h"
 #include "tests/mpm_client/core/solver_test_util.h"
 #include "tests/support/test_util.h"
 
 namespace rvehub::mpm {
 namespace {
 
-using dem::testing_util::ExpectSameBits;
 using Eigen::Matrix2d;
 using Eigen::Matrix3d;
 using Eigen::Vector2d;

@@ -21,7 +21,6 @@
 #include "mpm_client/core/model.h"
 #include "mpm_client/core/mohr_coulomb.h"
 #include "mpm_client/core/solver.h"
-#include "mpm_client/core/solver_checkpoint.h"
 #include "mpm_client/core/two_phase.h"
 #include "tests/mpm_client/core/solver_test_util.h"
 #include "tests/support/test_util.h"
@@ -29,7 +28,6 @@
 namespace rvehub::mpm {
 namespace {
 
-using dem::testing_util::ExpectSameBits;
 using Eigen::Matrix3d;
 using Eigen::Vector2d;
 

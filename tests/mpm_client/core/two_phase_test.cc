@@ -21,7 +21,6 @@
 #include "absl/strings/str_cat.h"
 #include "mpm_client/core/elastic.h"
 #include "mpm_client/core/model.h"
-#include "mpm_client/core/mohr_coulomb.h"
 #include "mpm_client/core/solver.h"
 #include "mpm_client/core/solver_checkpoint.h"
 #include "tests/mpm_client/core/solver_test_util.h"

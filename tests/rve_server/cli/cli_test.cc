@@ -196,25 +196,6 @@ TEST(CliTest, MaterialsListsTheParameterSets) {
   EXPECT_EQ(soft_fields[15], "20");
 }
 
-// Reads the CSV as rows of numbers (header dropped).
-std::vector<std::vector<double>> ParseRows(const std::string& csv) {
-  std::vector<std::vector<double>> rows;
-  const std::vector<std::string> lines = absl::StrSplit(csv, '\n', absl::SkipEmpty());
-  for (std::size_t k = 1; k < lines.size(); ++k) {
-    std::vector<double> row;
-    for (absl::string_view cell : absl::StrSplit(lines[k], ',')) {
-      double v = NAN;
-      EXPECT_TRUE(absl::SimpleAtod(cell, &v)) << "line " << k << ": '" << cell << "'";
-      row.push_back(v);
-    }
-    rows.push_back(std::move(row));
-  }
-  return rows;
-}
-
-// Column indices of the CSV.
-constexpr int kStep = 0, kAxial = 1, kVol = 2, kSyy = 4, kShear = 15, kColumns = 16;
-
 // One real run: prepare SET-dense (seed 3) and compress it oedometrically to
 // 0.2 % axial strain (~2 s; one test so that the run happens once).
 TEST(CliTest, OedometerRunWritesTheCsvAndThePlot) {
