@@ -510,8 +510,8 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(
         Batch& b = batches[k];
         if (b.done || endpoints_[k]->in_process() != in_process) continue;
         ++b.attempts;
-        b.call = endpoints_[k]->StartApply(run_id_, step, b.increments, options_.apply_options,
-                                           deadline);
+        b.call = endpoints_[k]->StartApply(run_id_, step, ApplyMode::kCommit, b.increments,
+                                           options_.apply_options, deadline);
       }
     }
     pending = false;

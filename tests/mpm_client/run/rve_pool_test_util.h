@@ -239,16 +239,17 @@ class FaultyEndpoint final : public client::RveEndpoint {
     return inner_->Create(run, t, ids, initial, controls);
   }
   std::unique_ptr<client::PendingApply> StartApply(absl::string_view run, std::int64_t step,
+                                                   ApplyMode mode,
                                                    std::span<const Increment> increments,
                                                    const dem::ApplyOptions& options,
                                                    absl::Duration deadline) override {
     const int call = ++apply_calls_;
     switch (fault_) {
       case Fault::kNone:
-        return inner_->StartApply(run, step, increments, options, deadline);
+        return inner_->StartApply(run, step, mode, increments, options, deadline);
       case Fault::kLoseFirstReply: {
         absl::StatusOr<std::vector<RveOutcome>> r =
-            inner_->Apply(run, step, increments, options, deadline);
+            inner_->Apply(run, step, mode, increments, options, deadline);
         if (call == 1) return Done(absl::UnavailableError("connection reset by peer"));
         return Done(std::move(r));
       }
