@@ -1,4 +1,4 @@
-#include "mpm_client/run/rve_pool.h"
+#include "rve_server/client/rve_pool.h"
 
 #include <algorithm>
 #include <chrono>
@@ -17,7 +17,7 @@
 #include "absl/time/clock.h"
 #include "rve_server/common/status_macros.h"
 
-namespace rvehub::mpm {
+namespace rvehub::client {
 namespace {
 
 double SecondsSince(std::chrono::steady_clock::time_point start) {
@@ -47,7 +47,7 @@ bool IsTransient(const absl::Status& status) {
   }
 }
 
-RvePool::RvePool(std::vector<std::unique_ptr<client::RveEndpoint>> endpoints, std::string run_id,
+RvePool::RvePool(std::vector<std::unique_ptr<RveEndpoint>> endpoints, std::string run_id,
                  PoolOptions options)
     : endpoints_(std::move(endpoints)),
       run_id_(std::move(run_id)),
@@ -117,7 +117,7 @@ absl::Status RvePool::OnEachEndpoint(const std::function<absl::Status(int)>& fn,
   std::vector<double> seconds(endpoints_.size(), 0.0);
   if (state_call && options_.deadline_factor > 0) {
     const absl::Duration deadline = NextStateCallDeadline();
-    for (const std::unique_ptr<client::RveEndpoint>& e : endpoints_) e->SetCallTimeout(deadline);
+    for (const std::unique_ptr<RveEndpoint>& e : endpoints_) e->SetCallTimeout(deadline);
   }
   const std::function<absl::Status(int)> timed = [&](int k) {
     const auto start = std::chrono::steady_clock::now();
@@ -426,7 +426,7 @@ ApplyStats ApplyStats::Since(const ApplyStats& start) const {
 
 int RvePool::total_workers() const {
   int n = 0;
-  for (const std::unique_ptr<client::RveEndpoint>& e : endpoints_) n += e->workers();
+  for (const std::unique_ptr<RveEndpoint>& e : endpoints_) n += e->workers();
   return std::max(1, n);
 }
 
@@ -487,7 +487,7 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(
   // that doubles per attempt.
   struct Batch {
     std::vector<Increment> increments;
-    std::unique_ptr<client::PendingApply> call;
+    std::unique_ptr<PendingApply> call;
     int attempts = 0;
     bool done = false;
     absl::Status status;
@@ -689,4 +689,4 @@ absl::Status RvePool::Migrate(std::vector<int> endpoint_of_point,
   return SetAssignment(std::move(endpoint_of_point));
 }
 
-}  // namespace rvehub::mpm
+}  // namespace rvehub::client

@@ -1,13 +1,17 @@
-// The RVEs of one MPM run spread over RVE endpoints: material point k has RVE
-// id k and lives on one endpoint. The solver sees only this class: one call
-// per step, one batched COMMIT per endpoint with all endpoints in flight at
-// once, retries of lost replies, results in point order.
+// The RVEs of one run of a continuum client spread over RVE endpoints: point
+// k (a material point of an MPM run, a Gauss point of a FEM run) has RVE id k
+// and lives on one endpoint. A client's solver sees only this class: per step
+// one batched COMMIT per endpoint with all endpoints in flight at once,
+// retries of lost replies, results in point order; and the assignment of
+// points to endpoints, its balancing, and the moves and restores with which
+// a client recovers from a lost endpoint.
 //
 // Results are bit-identical whatever the endpoints and their number: each RVE
 // is advanced on its own by a deterministic engine, and states cross the wire
-// exactly. Not thread-safe: one solver thread calls it.
-#ifndef RVEHUB_MPM_CLIENT_RUN_RVE_POOL_H_
-#define RVEHUB_MPM_CLIENT_RUN_RVE_POOL_H_
+// exactly. Not thread-safe: one solver thread calls it. Errors name point k
+// "material point k", as the servers do (the wire's material-point ids).
+#ifndef RVEHUB_RVE_SERVER_CLIENT_RVE_POOL_H_
+#define RVEHUB_RVE_SERVER_CLIENT_RVE_POOL_H_
 
 #include <Eigen/Dense>
 #include <cstdint>
@@ -28,7 +32,7 @@
 #include "rve_server/values/snapshot.h"
 #include "rve_server/values/state.h"
 
-namespace rvehub::mpm {
+namespace rvehub::client {
 
 // What the increments of a run cost: DEM steps per increment (the
 // quasi-static criterion and min_steps decide them) and the engine's time.
@@ -79,13 +83,13 @@ bool IsTransient(const absl::Status& status);
 
 class RvePool {
  public:
-  RvePool(std::vector<std::unique_ptr<client::RveEndpoint>> endpoints, std::string run_id,
+  RvePool(std::vector<std::unique_ptr<RveEndpoint>> endpoints, std::string run_id,
           PoolOptions options = {});
   RvePool(const RvePool&) = delete;
   RvePool& operator=(const RvePool&) = delete;
 
   int num_endpoints() const { return static_cast<int>(endpoints_.size()); }
-  client::RveEndpoint& endpoint(int k) { return *endpoints_[k]; }
+  RveEndpoint& endpoint(int k) { return *endpoints_[k]; }
   const std::string& run_id() const { return run_id_; }
   const PoolOptions& options() const { return options_; }
   // E.g. to ask for tangents from some step on.
@@ -93,7 +97,7 @@ class RvePool {
   // ApplyOptions::stress_only of the next Applies.
   void set_stress_only(bool stress_only) { options_.apply_options.stress_only = stress_only; }
 
-  // Material points 0..n−1 onto the live endpoints, balancing the summed
+  // Points 0..n−1 onto the live endpoints, balancing the summed
   // cost per worker (any unit, e.g. expected DEM steps or measured engine
   // seconds): greedy longest processing time — points by cost descending
   // (ties: lower index first), each to the endpoint whose cost per worker
@@ -244,7 +248,7 @@ class RvePool {
   absl::Status Collect(int k, std::span<const std::int64_t> ids, std::vector<RveOutcome>& outcomes,
                        absl::string_view what, std::vector<dem::RveState>& out) const;
 
-  std::vector<std::unique_ptr<client::RveEndpoint>> endpoints_;
+  std::vector<std::unique_ptr<RveEndpoint>> endpoints_;
   const std::string run_id_;
   PoolOptions options_;
   std::vector<int> assignment_;                    // point → endpoint
@@ -264,6 +268,6 @@ class RvePool {
   std::vector<double> point_seconds_, point_work_, point_size_, busy_seconds_, engine_seconds_;
 };
 
-}  // namespace rvehub::mpm
+}  // namespace rvehub::client
 
-#endif  // RVEHUB_MPM_CLIENT_RUN_RVE_POOL_H_
+#endif  // RVEHUB_RVE_SERVER_CLIENT_RVE_POOL_H_
