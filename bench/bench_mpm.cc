@@ -144,7 +144,7 @@ int main(int argc, char** argv) {
               "wall ms/st", "RVE incr/s", "DEM st/inc");
   for (const Row& r : rows) {
     const double n = static_cast<double>(std::max<std::int64_t>(1, r.sum.steps));
-    const mpm::ApplyStats& st = r.sum.rve_stats;
+    const rvehub::client::ApplyStats& st = r.sum.rve_stats;
     std::printf("%-52s %8.1f %7lld %9.1f %10.3f %12.0f %9.2f\n", r.name.c_str(), r.setup_s,
                 static_cast<long long>(r.sum.steps), r.sum.wall_s, 1e3 * r.sum.wall_s / n,
                 r.sum.rve_evaluations / std::max(r.sum.wall_s, 1e-12),

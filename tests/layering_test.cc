@@ -220,7 +220,7 @@ TEST(LayeringTest, TheRulesRejectCrossings) {
   EXPECT_TRUE(allowed("mpm_client/run", "rve_server/client/endpoint.h", true));
   EXPECT_FALSE(allowed("mpm_client/core", "rve_server/values/state.h", true));
   EXPECT_FALSE(allowed("mpm_client/core", "store/results.h", true));
-  EXPECT_FALSE(allowed("mpm_client/core", "mpm_client/run/rve_pool.h", true));
+  EXPECT_FALSE(allowed("mpm_client/core", "rve_server/client/rve_pool.h", true));
   EXPECT_FALSE(allowed("mpm_client/case", "mpm_client/run/simulation.h", true));
   EXPECT_FALSE(allowed("mpm_client/run", "rve_server/engine/rve.h", true));
   EXPECT_EQ(LayerOf("mpm_client/core/solver.h")->folder, "mpm_client/core");

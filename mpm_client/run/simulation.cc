@@ -17,14 +17,14 @@
 #include "absl/synchronization/mutex.h"
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
-#include "mpm_client/core/body_contact.h"
 #include "mpm_client/case/case.h"
-#include "mpm_client/run/output.h"
+#include "mpm_client/core/body_contact.h"
 #include "mpm_client/core/shape.h"
 #include "mpm_client/core/solver_checkpoint.h"
+#include "mpm_client/core/two_phase.h"
+#include "mpm_client/run/output.h"
 #include "mpm_client/run/summary.h"
 #include "mpm_client/run/templates.h"
-#include "mpm_client/core/two_phase.h"
 #include "rve_server/client/endpoint.h"
 #include "rve_server/client/remote_server.h"
 #include "rve_server/common/status_macros.h"
@@ -44,7 +44,7 @@ double Seconds(Clock::duration d) { return std::chrono::duration<double>(d).coun
 // The StressModel the solver sees: one batched COMMIT per server per step.
 class RveStressModel : public StressModel {
  public:
-  RveStressModel(RvePool* pool, double* seconds) : pool_(pool), seconds_(seconds) {}
+  RveStressModel(client::RvePool* pool, double* seconds) : pool_(pool), seconds_(seconds) {}
   absl::Status Update(std::int64_t step, std::span<const Eigen::Matrix3d> delta_f,
                       std::span<PointResponse> out) override {
     const Clock::time_point t0 = Clock::now();
@@ -68,7 +68,7 @@ class RveStressModel : public StressModel {
   }
 
  private:
-  RvePool* pool_;
+  client::RvePool* pool_;
   double* seconds_;
 };
 
@@ -176,7 +176,7 @@ absl::Status Simulation::Connect() {
       endpoints.push_back(std::move(e));
     }
   }
-  PoolOptions po;
+  client::PoolOptions po;
   po.apply_deadline = absl::Seconds(options_.apply_timeout_s);
   if (RecoveryOn()) {
     // A failed server is recovered from, not waited for: one retry for a
@@ -185,7 +185,7 @@ absl::Status Simulation::Connect() {
     po.deadline_factor = options_.deadline_factor;
     po.min_apply_deadline = absl::Seconds(options_.min_apply_timeout_s);
   }
-  pool_ = std::make_unique<RvePool>(std::move(endpoints), run_id_, po);
+  pool_ = std::make_unique<client::RvePool>(std::move(endpoints), run_id_, po);
   last_probe_s_.assign(pool_->num_endpoints(), 0.0);
   probe_wait_s_.assign(pool_->num_endpoints(), options_.probe_interval_s);
   return absl::OkStatus();
@@ -507,15 +507,15 @@ std::string FormatTimeSplit(const SimulationSummary& s) {
       "(%.1f %%)",
       s.wall_s, engine, 100 * engine / wall, s.rve_stats.engine_seconds, s.rve_workers, service,
       100 * service / wall, grid, 100 * grid / wall, s.output_s, 100 * s.output_s / wall);
-  const ApplyStats& st = s.rve_stats;
+  const client::ApplyStats& st = s.rve_stats;
   if (st.increments == 0) return out;
   absl::StrAppendFormat(&out, "\nDEM steps per increment: mean %.2f over %d increments;",
                         static_cast<double>(st.dem_steps) / static_cast<double>(st.increments),
                         st.increments);
-  for (int b = 0; b < ApplyStats::kBins; ++b) {
+  for (int b = 0; b < client::ApplyStats::kBins; ++b) {
     if (st.histogram[b] == 0) continue;
-    const std::int64_t upper = ApplyStats::BinUpper(b);
-    const std::int64_t lower = b == 0 ? 0 : ApplyStats::BinUpper(b - 1) + 1;
+    const std::int64_t upper = client::ApplyStats::BinUpper(b);
+    const std::int64_t lower = b == 0 ? 0 : client::ApplyStats::BinUpper(b - 1) + 1;
     const std::string label = upper < 0        ? absl::StrCat(">", lower - 1)
                               : b == 0         ? std::string("<=1")
                               : lower == upper ? absl::StrCat(upper)
@@ -1116,7 +1116,7 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
   const Clock::time_point start = Clock::now();
   const double rve_start = rve_seconds_;
   const std::int64_t evals_start = pool_->evaluations();
-  const ApplyStats stats_start = pool_->apply_stats();
+  const client::ApplyStats stats_start = pool_->apply_stats();
   Clock::time_point row_clock = start;
   std::int64_t row_step = solver_->step();
   Clock::time_point last_progress = start;

@@ -15,9 +15,9 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "mpm_client/core/model.h"
-#include "mpm_client/run/rve_pool.h"
 #include "mpm_client/core/solver.h"
 #include "rve_server/client/channel.h"
+#include "rve_server/client/rve_pool.h"
 #include "store/sim_checkpoint.h"
 
 namespace rvehub::mpm {
@@ -96,7 +96,7 @@ struct SimulationSummary {
   bool finished = false;  // reached the case's end time
   // What the RVE calls cost in this invocation: DEM steps per increment and
   // the engine's time summed over the workers (rve_workers of them).
-  ApplyStats rve_stats;
+  client::ApplyStats rve_stats;
   int rve_workers = 1;
   // Faults and balancing in this invocation.
   int servers_lost = 0;
@@ -131,7 +131,7 @@ class Simulation {
 
   const CaseSpec& spec() const { return spec_; }
   const Solver& solver() const { return *solver_; }
-  RvePool& pool() { return *pool_; }
+  client::RvePool& pool() { return *pool_; }
   // The whole state as a checkpoint would hold it.
   absl::StatusOr<store::SimCheckpoint> Snapshot();
 
@@ -206,7 +206,7 @@ class Simulation {
   SimulationOptions options_;
   std::string run_id_;
   std::vector<TemplateRecord> templates_;
-  std::unique_ptr<RvePool> pool_;
+  std::unique_ptr<client::RvePool> pool_;
   std::unique_ptr<StressModel> model_;
   std::unique_ptr<Solver> solver_;
   struct Outputs;

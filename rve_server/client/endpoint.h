@@ -75,22 +75,46 @@ class RveEndpoint {
       absl::string_view run, absl::string_view template_name, std::span<const std::int64_t> ids,
       std::span<const InitialStress> initial, const std::optional<dem::Controls>& controls) = 0;
 
-  // Starts the COMMIT of step `step` (RVEs at step − 1 go to `step`; a
-  // repeat with the same ΔF returns the stored result) and returns without
-  // blocking the caller on a remote server: its messages go out through
-  // gRPC's callback API, so one thread drives any number of servers. The
-  // embedded endpoint works inside StartApply, on the registry's workers.
+  // Starts an increment of step `step` (≥ 1) for a batch and returns
+  // without blocking the caller on a remote server: its messages go out
+  // through gRPC's callback API, so one thread drives any number of servers.
+  // The embedded endpoint works inside StartApply, on the registry's workers.
   // `deadline`: time the call may take. The spans must outlive Finish().
+  //
+  // kCommit: each RVE at committed step − 1 is deformed by its ΔF and
+  // commits `step`. An RVE already at `step` answers the stored result when
+  // the ΔF is the same bit for bit (a safe retry; it is observed again when
+  // the options ask for more than was stored, e.g. a tangent), and
+  // FailedPrecondition for another ΔF.
+  //
+  // kTrial: each RVE at committed step − 1 computes the same increment on a
+  // copy and returns that state (the tangent when the options ask for it),
+  // with RveOutcome::step the committed step (`step` − 1, unchanged) and
+  // deformation_gradient the trial's F. The RVE is left exactly as it was
+  // (only the server's guess of its next increment's work, which orders a
+  // batch and never a result, follows the trial), so TRIALs of `step` may
+  // repeat any number of times, each computed afresh from the committed
+  // state, and a COMMIT of `step` with the same ΔF and options returns
+  // the state a TRIAL did, bit for bit. There is no stored answer: an RVE
+  // already at `step` (or at any step but `step` − 1) gets
+  // FailedPrecondition ("is at step E; step S needs it at step S − 1").
+  //
+  // In both modes per-RVE failures (that error, a ΔF the engine refuses, an
+  // increment stopped at the deadline) are outcomes and leave that RVE at
+  // its committed step; a malformed batch (bad step, ΔF, options or ids) or
+  // an unknown run or id fails the whole call and changes nothing.
   virtual std::unique_ptr<PendingApply> StartApply(absl::string_view run, std::int64_t step,
+                                                   ApplyMode mode,
                                                    std::span<const Increment> increments,
                                                    const dem::ApplyOptions& options,
                                                    absl::Duration deadline) = 0;
   // StartApply, then Finish.
   absl::StatusOr<std::vector<RveOutcome>> Apply(absl::string_view run, std::int64_t step,
+                                                ApplyMode mode,
                                                 std::span<const Increment> increments,
                                                 const dem::ApplyOptions& options,
                                                 absl::Duration deadline) {
-    return StartApply(run, step, increments, options, deadline)->Finish();
+    return StartApply(run, step, mode, increments, options, deadline)->Finish();
   }
 
   // Current states of `ids` (unknown ids: a NotFound outcome).

@@ -330,6 +330,7 @@ absl::StatusOr<std::vector<RveOutcome>> RemoteServer::Create(
 }
 
 std::unique_ptr<PendingApply> RemoteServer::StartApply(absl::string_view run, std::int64_t step,
+                                                       ApplyMode mode,
                                                        std::span<const Increment> increments,
                                                        const dem::ApplyOptions& options,
                                                        absl::Duration deadline) {
@@ -344,7 +345,7 @@ std::unique_ptr<PendingApply> RemoteServer::StartApply(absl::string_view run, st
     RemoteApply::Message& m = call->Add();
     m.request.set_run_id(std::string(run));
     m.request.set_step(step);
-    m.request.set_mode(v1::APPLY_MODE_COMMIT);
+    m.request.set_mode(wire::ToProto(mode));
     wire::ToProto(options, m.request.mutable_options());
     m.ids.reserve(end - begin);
     for (std::size_t k = begin; k < end; ++k) {

@@ -94,7 +94,7 @@ class RemoteServer final : public RveEndpoint {
       absl::string_view run, absl::string_view template_name, std::span<const std::int64_t> ids,
       std::span<const InitialStress> initial,
       const std::optional<dem::Controls>& controls) override;
-  std::unique_ptr<PendingApply> StartApply(absl::string_view run, std::int64_t step,
+  std::unique_ptr<PendingApply> StartApply(absl::string_view run, std::int64_t step, ApplyMode mode,
                                            std::span<const Increment> increments,
                                            const dem::ApplyOptions& options,
                                            absl::Duration deadline) override;

@@ -52,7 +52,7 @@ class EmbeddedEndpoint final : public RveEndpoint {
     return out;
   }
 
-  std::unique_ptr<PendingApply> StartApply(absl::string_view run, std::int64_t step,
+  std::unique_ptr<PendingApply> StartApply(absl::string_view run, std::int64_t step, ApplyMode mode,
                                            std::span<const Increment> increments,
                                            const dem::ApplyOptions& options,
                                            absl::Duration deadline) override {
@@ -67,7 +67,7 @@ class EmbeddedEndpoint final : public RveEndpoint {
     }
     std::vector<RveOutcome> out(increments.size());
     const absl::Status applied =
-        registry_->ApplyEach(run, step, ApplyMode::kCommit, options, increments, cancelled,
+        registry_->ApplyEach(run, step, mode, options, increments, cancelled,
                              [&out](std::size_t k, RveOutcome&& o) { out[k] = std::move(o); });
     const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
     if (!applied.ok()) return std::make_unique<DoneApply>(Error(applied), seconds);

@@ -319,6 +319,10 @@ dem::ApplyOptions FromProto(const v1::ApplyOptions& o) {
   return out;
 }
 
+v1::ApplyMode ToProto(ApplyMode mode) {
+  return mode == ApplyMode::kTrial ? v1::APPLY_MODE_TRIAL : v1::APPLY_MODE_COMMIT;
+}
+
 absl::StatusOr<ApplyMode> FromProto(v1::ApplyMode mode) {
   switch (mode) {
     case v1::APPLY_MODE_COMMIT:

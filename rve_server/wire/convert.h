@@ -52,6 +52,7 @@ RunInfo FromProto(const v1::RunInfo& r);
 // "the default" on the way back.
 void ToProto(const dem::ApplyOptions& o, v1::ApplyOptions* out);
 dem::ApplyOptions FromProto(const v1::ApplyOptions& o);
+v1::ApplyMode ToProto(ApplyMode mode);
 // InvalidArgument unless COMMIT or TRIAL.
 absl::StatusOr<ApplyMode> FromProto(v1::ApplyMode mode);
 // ΔF of every increment checked (9 finite values), the field named.

@@ -33,10 +33,10 @@
 #include "absl/time/clock.h"
 #include "mpm_client/case/case.h"
 #include "mpm_client/run/output.h"
-#include "mpm_client/run/rve_pool.h"
 #include "mpm_client/run/simulation.h"
 #include "rve_server/client/endpoint.h"
 #include "rve_server/client/remote_server.h"
+#include "rve_server/client/rve_pool.h"
 #include "store/checkpoint.h"
 #include "store/results.h"
 #include "tests/support/process_util.h"
@@ -303,8 +303,9 @@ void ExpectGivenUpAtTheDeadline(const char* what, const absl::Status& s, const s
 
 // A pool over remote endpoints to `servers`; null (with a failure) when one
 // cannot be reached.
-std::unique_ptr<RvePool> PoolOn(const std::vector<std::unique_ptr<ServerProcess>>& servers,
-                                const std::string& run, const PoolOptions& options) {
+std::unique_ptr<client::RvePool> PoolOn(const std::vector<std::unique_ptr<ServerProcess>>& servers,
+                                        const std::string& run,
+                                        const client::PoolOptions& options) {
   std::vector<std::unique_ptr<client::RveEndpoint>> endpoints;
   for (const auto& s : servers) {
     absl::StatusOr<std::unique_ptr<client::RveEndpoint>> e =
@@ -313,7 +314,7 @@ std::unique_ptr<RvePool> PoolOn(const std::vector<std::unique_ptr<ServerProcess>
     if (!e.ok()) return nullptr;
     endpoints.push_back(*std::move(e));
   }
-  return std::make_unique<RvePool>(std::move(endpoints), run, options);
+  return std::make_unique<client::RvePool>(std::move(endpoints), run, options);
 }
 
 // A server stopped while the client takes a recovery point (an export) is
@@ -323,14 +324,14 @@ std::unique_ptr<RvePool> PoolOn(const std::vector<std::unique_ptr<ServerProcess>
 TEST(FaultTest, ServerStoppedDuringAnExportIsFoundAtTheDeadline) {
   const std::string dir = FreshDir("export");
   std::vector<std::unique_ptr<ServerProcess>> servers = StartServers(2, dir);
-  PoolOptions o;
+  client::PoolOptions o;
   o.apply_deadline = absl::Minutes(10);
   o.deadline_factor = 20;
   o.min_apply_deadline = absl::Seconds(2);
   o.max_attempts = 2;
-  std::unique_ptr<RvePool> remote = PoolOn(servers, "export-run", o);
+  std::unique_ptr<client::RvePool> remote = PoolOn(servers, "export-run", o);
   ASSERT_NE(remote, nullptr);
-  RvePool& pool = *remote;
+  client::RvePool& pool = *remote;
   dem::RveSnapshot packing = dem::testing_util::Prepared("SET-dense");
   packing.controls.min_steps = 10;
   const std::vector<TemplateRecord> templates = {{"set-dense", "SET-dense", packing}};
@@ -362,12 +363,12 @@ TEST(FaultTest, ServerStoppedDuringAnExportIsFoundAtTheDeadline) {
 TEST(FaultTest, ServerStoppedDuringCreationEndsItAtTheDeadline) {
   const std::string dir = FreshDir("create");
   std::vector<std::unique_ptr<ServerProcess>> servers = StartServers(1, dir);
-  PoolOptions o;
+  client::PoolOptions o;
   o.deadline_factor = 3;
   o.min_apply_deadline = absl::Seconds(2);
-  std::unique_ptr<RvePool> remote = PoolOn(servers, "create-run", o);
+  std::unique_ptr<client::RvePool> remote = PoolOn(servers, "create-run", o);
   ASSERT_NE(remote, nullptr);
-  RvePool& pool = *remote;
+  client::RvePool& pool = *remote;
   const std::vector<TemplateRecord> templates = {
       {"set-dense", "SET-dense", dem::testing_util::Prepared("SET-dense")}};
   ASSERT_TRUE(pool.UploadTemplates(templates).ok());

@@ -1,13 +1,18 @@
-// The RVEs of one MPM run spread over RVE endpoints: material point k has RVE
-// id k and lives on one endpoint. The solver sees only this class: one call
-// per step, one batched COMMIT per endpoint with all endpoints in flight at
-// once, retries of lost replies, results in point order.
+// The RVEs of one run of a continuum client spread over RVE endpoints: point
+// k (a material point of an MPM run, a Gauss point of a FEM run) has RVE id k
+// and lives on one endpoint. A client's solver sees only this class: per call
+// one batch per endpoint with all endpoints in flight at once (a step's
+// COMMIT, or the TRIALs of an implicit solver's iterations before it),
+// retries of lost replies, results in point order; and the assignment of
+// points to endpoints, its balancing, and the moves and restores with which
+// a client recovers from a lost endpoint.
 //
 // Results are bit-identical whatever the endpoints and their number: each RVE
 // is advanced on its own by a deterministic engine, and states cross the wire
-// exactly. Not thread-safe: one solver thread calls it.
-#ifndef RVEHUB_MPM_CLIENT_RUN_RVE_POOL_H_
-#define RVEHUB_MPM_CLIENT_RUN_RVE_POOL_H_
+// exactly. Not thread-safe: one solver thread calls it. Errors name point k
+// "material point k", as the servers do (the wire's material-point ids).
+#ifndef RVEHUB_RVE_SERVER_CLIENT_RVE_POOL_H_
+#define RVEHUB_RVE_SERVER_CLIENT_RVE_POOL_H_
 
 #include <Eigen/Dense>
 #include <cstdint>
@@ -28,14 +33,15 @@
 #include "rve_server/values/snapshot.h"
 #include "rve_server/values/state.h"
 
-namespace rvehub::mpm {
+namespace rvehub::client {
 
 // What the increments of a run cost: DEM steps per increment (the
 // quasi-static criterion and min_steps decide them) and the engine's time.
+// The pool keeps one for COMMITs and one for TRIALs.
 struct ApplyStats {
   // Histogram bins of DEM steps per increment: upper bounds 1, 2, 4, 8, …, 2^11, then more.
   static constexpr int kBins = 13;
-  std::int64_t increments = 0;  // RVE increments committed
+  std::int64_t increments = 0;  // RVE increments computed (committed or tried)
   std::int64_t dem_steps = 0;   // DEM steps over those increments
   double engine_seconds = 0.0;  // Σ engine wall time per RVE (summed over workers), s
   std::int64_t histogram[kBins] = {};
@@ -52,11 +58,11 @@ struct PoolOptions {
   absl::Duration apply_deadline = absl::Minutes(10);  // per attempt of one endpoint's batch
   int max_attempts = 4;  // tries of a batch that fails transiently, at least 1
   absl::Duration backoff = absl::Milliseconds(200);  // before the 2nd try; doubled after each
-  dem::ApplyOptions apply_options;                   // sent with every Apply
-  // Adaptive deadline of an Apply attempt: `deadline_factor` × the slowest
-  // endpoint batch of the last few steps, at least min_apply_deadline, at
-  // most apply_deadline (which alone applies before the first step and when
-  // the factor is 0). A hung server is then found in seconds, not minutes;
+  dem::ApplyOptions apply_options;                   // sent with every Apply and Trial
+  // Adaptive deadline of an Apply or Trial attempt: `deadline_factor` × the
+  // slowest endpoint batch of the last few of them, at least
+  // min_apply_deadline, at most apply_deadline (which alone applies before
+  // the first step and when the factor is 0). A hung server is then found in seconds, not minutes;
   // a batch that is slow for good reason costs a replay (RelaxDeadline).
   // The calls that move states (Get, ExportAll, ImportAll, DropAll,
   // Migrate, Restore: recovery points, moves, restores) get a deadline by
@@ -71,29 +77,30 @@ struct PoolOptions {
   absl::Duration min_apply_deadline = absl::Seconds(10);
 };
 
-// Worth retrying the same COMMIT: the server may be restarting, the reply
-// was lost, or the deadline passed. The server itself never answers Internal
+// Worth sending the same batch again (a COMMIT is safe by its step numbers,
+// a TRIAL changes nothing): the server may be restarting, the reply was
+// lost, or the deadline passed. The server itself never answers Internal
 // (registry errors are all other codes), so Internal is gRPC reporting a
 // broken stream.
 bool IsTransient(const absl::Status& status);
 
 class RvePool {
  public:
-  RvePool(std::vector<std::unique_ptr<client::RveEndpoint>> endpoints, std::string run_id,
+  RvePool(std::vector<std::unique_ptr<RveEndpoint>> endpoints, std::string run_id,
           PoolOptions options = {});
   RvePool(const RvePool&) = delete;
   RvePool& operator=(const RvePool&) = delete;
 
   int num_endpoints() const { return static_cast<int>(endpoints_.size()); }
-  client::RveEndpoint& endpoint(int k) { return *endpoints_[k]; }
+  RveEndpoint& endpoint(int k) { return *endpoints_[k]; }
   const std::string& run_id() const { return run_id_; }
   const PoolOptions& options() const { return options_; }
   // E.g. to ask for tangents from some step on.
   void set_apply_options(const dem::ApplyOptions& apply) { options_.apply_options = apply; }
-  // ApplyOptions::stress_only of the next Applies.
+  // ApplyOptions::stress_only of the next Applies and Trials.
   void set_stress_only(bool stress_only) { options_.apply_options.stress_only = stress_only; }
 
-  // Material points 0..n−1 onto the live endpoints, balancing the summed
+  // Points 0..n−1 onto the live endpoints, balancing the summed
   // cost per worker (any unit, e.g. expected DEM steps or measured engine
   // seconds): greedy longest processing time — points by cost descending
   // (ties: lower index first), each to the endpoint whose cost per worker
@@ -171,9 +178,26 @@ class RvePool {
   // sent again as it was (the server answers RVEs already committed from
   // memory). The first error by endpoint index, once all have finished; a
   // per-RVE error names the endpoint, the point and why. States in point
-  // order.
+  // order, each with its tangent when `want_tangent` or the apply options
+  // ask for it.
   absl::StatusOr<std::vector<dem::RveState>> Apply(std::int64_t step,
-                                                   std::span<const Eigen::Matrix3d> delta_f);
+                                                   std::span<const Eigen::Matrix3d> delta_f,
+                                                   bool want_tangent = false);
+
+  // TRIALs step `step` with ΔF per point: the state each RVE would reach
+  // from its committed step `step` − 1 (RveEndpoint::StartApply, kTrial),
+  // with its tangent when `want_tangent` (or the apply options ask for it);
+  // no RVE changes. For an implicit client's Newton iterations: any number
+  // of TRIALs of a step, then the COMMIT of the converged ΔF, which returns
+  // the states a TRIAL of that ΔF (and the same options) did, bit for bit.
+  // Sent as Apply sends (one batch per endpoint, all in flight at once, the
+  // same retries: a TRIAL is always safe to send again); an RVE not at
+  // `step` − 1 (one that committed `step` already, or is further behind)
+  // fails with FailedPrecondition naming the endpoint and the point.
+  // States in point order.
+  absl::StatusOr<std::vector<dem::RveState>> Trial(std::int64_t step,
+                                                   std::span<const Eigen::Matrix3d> delta_f,
+                                                   bool want_tangent);
 
   // Current states in point order.
   absl::StatusOr<std::vector<dem::RveState>> Get(bool want_tangent);
@@ -186,15 +210,22 @@ class RvePool {
   // Drops the run on every endpoint (one hosting none is fine).
   absl::Status DropAll();
 
-  // Successful RVE increments since construction.
+  // RVE increments committed by Apply since construction (TRIALs are not
+  // counted here: trial_stats).
   std::int64_t evaluations() const { return evaluations_; }
   // Their DEM steps and engine time since construction.
   const ApplyStats& apply_stats() const { return stats_; }
+  // The same for the RVE increments tried by Trial (increments: one per
+  // point and Trial that succeeded).
+  const ApplyStats& trial_stats() const { return trial_stats_; }
   // Worker threads over all endpoints.
   int total_workers() const;
-  // Wall time of each endpoint's batch in the last Apply (retries included), s.
+  // The measures below count what the servers did, so COMMITs and TRIALs
+  // alike: an implicit client's iterations load them as much as its steps.
+  // Wall time of each endpoint's batch in the last Apply or Trial (retries
+  // included), s.
   const std::vector<double>& last_apply_seconds() const { return last_apply_seconds_; }
-  // Wall time spent inside Apply overall, s.
+  // Wall time spent inside Apply and Trial overall, s.
   double total_apply_seconds() const { return total_apply_seconds_; }
   // Engine seconds per point since construction (measured by the servers).
   const std::vector<double>& point_engine_seconds() const { return point_seconds_; }
@@ -206,8 +237,8 @@ class RvePool {
   const std::vector<double>& point_work() const { return point_work_; }
   // Particles per point (e.g. from the templates or exported records).
   void SetPointSizes(std::vector<double> sizes) { point_size_ = std::move(sizes); }
-  // Per endpoint since construction: wall time of its Apply batches and its
-  // RVEs' engine seconds, s.
+  // Per endpoint since construction: wall time of its Apply and Trial
+  // batches and its RVEs' engine seconds, s.
   const std::vector<double>& endpoint_busy_seconds() const { return busy_seconds_; }
   const std::vector<double>& endpoint_engine_seconds() const { return engine_seconds_; }
 
@@ -227,10 +258,14 @@ class RvePool {
   // AdaptiveDeadline of the slowest of `recent` calls, capped at
   // apply_deadline; apply_deadline alone before any or with the factor 0.
   absl::Duration DeadlineAfter(const std::vector<double>& recent) const;
-  // The result of endpoint k's batch of a step: OK with states into `out`
-  // and counts into `stats`, or the error, `transient` when a retry of the
-  // same batch may cure it.
-  absl::Status Judge(int k, std::int64_t step, absl::StatusOr<std::vector<RveOutcome>>& result,
+  // Apply and Trial: one batch per endpoint, all in flight at once, retried.
+  absl::StatusOr<std::vector<dem::RveState>> ApplyBatches(ApplyMode mode, std::int64_t step,
+                                                          std::span<const Eigen::Matrix3d> delta_f,
+                                                          bool want_tangent);
+  // The result of endpoint k's batch (`what`: "step 3", "trial of step 3"):
+  // OK with states into `out` and counts into `stats`, or the error,
+  // `transient` when a retry of the same batch may cure it.
+  absl::Status Judge(int k, absl::string_view what, absl::StatusOr<std::vector<RveOutcome>>& result,
                      std::vector<dem::RveState>& out, ApplyStats& stats, bool& transient);
   // Notes endpoint k for TakeFailed when `s` is transient.
   void NoteFailure(int k, const absl::Status& s);
@@ -244,13 +279,14 @@ class RvePool {
   absl::Status Collect(int k, std::span<const std::int64_t> ids, std::vector<RveOutcome>& outcomes,
                        absl::string_view what, std::vector<dem::RveState>& out) const;
 
-  std::vector<std::unique_ptr<client::RveEndpoint>> endpoints_;
+  std::vector<std::unique_ptr<RveEndpoint>> endpoints_;
   const std::string run_id_;
   PoolOptions options_;
   std::vector<int> assignment_;                    // point → endpoint
   std::vector<std::vector<std::int64_t>> points_;  // endpoint → points, ascending
   std::int64_t evaluations_ = 0;
   ApplyStats stats_;
+  ApplyStats trial_stats_;
   std::vector<double> last_apply_seconds_;
   double total_apply_seconds_ = 0.0;
   std::vector<bool> lost_;
@@ -264,6 +300,6 @@ class RvePool {
   std::vector<double> point_seconds_, point_work_, point_size_, busy_seconds_, engine_seconds_;
 };
 
-}  // namespace rvehub::mpm
+}  // namespace rvehub::client
 
-#endif  // RVEHUB_MPM_CLIENT_RUN_RVE_POOL_H_
+#endif  // RVEHUB_RVE_SERVER_CLIENT_RVE_POOL_H_

@@ -1,4 +1,4 @@
-#include "mpm_client/run/rve_pool.h"
+#include "rve_server/client/rve_pool.h"
 
 #include <algorithm>
 #include <chrono>
@@ -17,7 +17,7 @@
 #include "absl/time/clock.h"
 #include "rve_server/common/status_macros.h"
 
-namespace rvehub::mpm {
+namespace rvehub::client {
 namespace {
 
 double SecondsSince(std::chrono::steady_clock::time_point start) {
@@ -47,7 +47,7 @@ bool IsTransient(const absl::Status& status) {
   }
 }
 
-RvePool::RvePool(std::vector<std::unique_ptr<client::RveEndpoint>> endpoints, std::string run_id,
+RvePool::RvePool(std::vector<std::unique_ptr<RveEndpoint>> endpoints, std::string run_id,
                  PoolOptions options)
     : endpoints_(std::move(endpoints)),
       run_id_(std::move(run_id)),
@@ -117,7 +117,7 @@ absl::Status RvePool::OnEachEndpoint(const std::function<absl::Status(int)>& fn,
   std::vector<double> seconds(endpoints_.size(), 0.0);
   if (state_call && options_.deadline_factor > 0) {
     const absl::Duration deadline = NextStateCallDeadline();
-    for (const std::unique_ptr<client::RveEndpoint>& e : endpoints_) e->SetCallTimeout(deadline);
+    for (const std::unique_ptr<RveEndpoint>& e : endpoints_) e->SetCallTimeout(deadline);
   }
   const std::function<absl::Status(int)> timed = [&](int k) {
     const auto start = std::chrono::steady_clock::now();
@@ -426,15 +426,14 @@ ApplyStats ApplyStats::Since(const ApplyStats& start) const {
 
 int RvePool::total_workers() const {
   int n = 0;
-  for (const std::unique_ptr<client::RveEndpoint>& e : endpoints_) n += e->workers();
+  for (const std::unique_ptr<RveEndpoint>& e : endpoints_) n += e->workers();
   return std::max(1, n);
 }
 
-absl::Status RvePool::Judge(int k, std::int64_t step,
+absl::Status RvePool::Judge(int k, absl::string_view what,
                             absl::StatusOr<std::vector<RveOutcome>>& result,
                             std::vector<dem::RveState>& out, ApplyStats& stats, bool& transient) {
   const std::vector<std::int64_t>& ids = points_[k];
-  const std::string what = absl::StrCat("step ", step);
   transient = false;
   if (!result.ok()) {
     transient = IsTransient(result.status());
@@ -466,14 +465,32 @@ absl::Status RvePool::Judge(int k, std::int64_t step,
   return absl::OkStatus();
 }
 
-absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(
-    std::int64_t step, std::span<const Eigen::Matrix3d> delta_f) {
+absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(std::int64_t step,
+                                                          std::span<const Eigen::Matrix3d> delta_f,
+                                                          bool want_tangent) {
+  return ApplyBatches(ApplyMode::kCommit, step, delta_f, want_tangent);
+}
+
+absl::StatusOr<std::vector<dem::RveState>> RvePool::Trial(std::int64_t step,
+                                                          std::span<const Eigen::Matrix3d> delta_f,
+                                                          bool want_tangent) {
+  return ApplyBatches(ApplyMode::kTrial, step, delta_f, want_tangent);
+}
+
+absl::StatusOr<std::vector<dem::RveState>> RvePool::ApplyBatches(
+    ApplyMode mode, std::int64_t step, std::span<const Eigen::Matrix3d> delta_f,
+    bool want_tangent) {
+  const bool commit = mode == ApplyMode::kCommit;
+  const std::string what =
+      commit ? absl::StrCat("step ", step) : absl::StrCat("trial of step ", step);
   if (assignment_.empty()) return NoRves();
   const std::size_t n = assignment_.size();
   if (delta_f.size() != n) {
     return absl::InvalidArgumentError(
-        absl::StrCat("step ", step, ": ", delta_f.size(), " ΔF for ", n, " material points"));
+        absl::StrCat(what, ": ", delta_f.size(), " ΔF for ", n, " material points"));
   }
+  dem::ApplyOptions options = options_.apply_options;
+  options.want_tangent = options.want_tangent || want_tangent;
   const auto start = std::chrono::steady_clock::now();
   std::vector<dem::RveState> out(n);
   std::vector<ApplyStats> stats(endpoints_.size());
@@ -483,11 +500,11 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(
   // remote endpoints' calls go out first (gRPC callbacks), then the
   // in-process ones run on their registries' workers, then the caller
   // collects. A batch failing transiently is sent again as it was (the
-  // server answers RVEs already committed from memory), after a backoff
-  // that doubles per attempt.
+  // server answers RVEs already committed from memory; a TRIAL is computed
+  // again), after a backoff that doubles per attempt.
   struct Batch {
     std::vector<Increment> increments;
-    std::unique_ptr<client::PendingApply> call;
+    std::unique_ptr<PendingApply> call;
     int attempts = 0;
     bool done = false;
     absl::Status status;
@@ -510,8 +527,7 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(
         Batch& b = batches[k];
         if (b.done || endpoints_[k]->in_process() != in_process) continue;
         ++b.attempts;
-        b.call = endpoints_[k]->StartApply(run_id_, step, b.increments, options_.apply_options,
-                                           deadline);
+        b.call = endpoints_[k]->StartApply(run_id_, step, mode, b.increments, options, deadline);
       }
     }
     pending = false;
@@ -522,7 +538,7 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(
       last_apply_seconds_[k] += b.call->seconds();
       b.call.reset();
       bool transient = false;
-      b.status = Judge(k, step, result, out, stats[k], transient);
+      b.status = Judge(k, what, result, out, stats[k], transient);
       if (b.status.ok() || !transient) {
         b.done = true;
       } else if (b.attempts >= max_attempts) {
@@ -541,8 +557,12 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(
     }
   }
   for (const ApplyStats& st : stats) {
-    evaluations_ += st.increments;
-    stats_.Add(st);
+    if (commit) {
+      evaluations_ += st.increments;
+      stats_.Add(st);
+    } else {
+      trial_stats_.Add(st);
+    }
   }
   total_apply_seconds_ += SecondsSince(start);
   double slowest = 0.0;
@@ -554,7 +574,7 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::Apply(
   for (const Batch& b : batches) {
     if (!b.status.ok()) return b.status;  // the first error by endpoint index
   }
-  // Successful steps only: a missed deadline must not stretch the next one.
+  // Successful calls only: a missed deadline must not stretch the next one.
   Remember(recent_batch_seconds_, slowest);
   return out;
 }
@@ -689,4 +709,4 @@ absl::Status RvePool::Migrate(std::vector<int> endpoint_of_point,
   return SetAssignment(std::move(endpoint_of_point));
 }
 
-}  // namespace rvehub::mpm
+}  // namespace rvehub::client

@@ -1,7 +1,7 @@
 // Set-ups the RVE pool tests share: templates and increments, embedded and
 // loopback endpoints, an endpoint that fails on purpose, and comparisons.
-#ifndef RVEHUB_TESTS_MPM_CLIENT_RUN_RVE_POOL_TEST_UTIL_H_
-#define RVEHUB_TESTS_MPM_CLIENT_RUN_RVE_POOL_TEST_UTIL_H_
+#ifndef RVEHUB_TESTS_RVE_SERVER_CLIENT_RVE_POOL_TEST_UTIL_H_
+#define RVEHUB_TESTS_RVE_SERVER_CLIENT_RVE_POOL_TEST_UTIL_H_
 
 #include <arpa/inet.h>
 #include <gtest/gtest.h>
@@ -21,15 +21,15 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
-#include "mpm_client/run/rve_pool.h"
 #include "rve_server/client/endpoint.h"
 #include "rve_server/client/remote_server.h"
+#include "rve_server/client/rve_pool.h"
 #include "rve_server/embedded/endpoint.h"
 #include "rve_server/service/log.h"
 #include "rve_server/service/server.h"
 #include "tests/support/test_util.h"
 
-namespace rvehub::mpm::pool_test {
+namespace rvehub::client::pool_test {
 
 using dem::testing_util::ExpectIdenticalPackings;
 using dem::testing_util::ExpectIdenticalStates;
@@ -50,7 +50,7 @@ inline const bool kFastClientPolling = [] {
 }();
 
 inline constexpr int kPoints = 6;
-inline constexpr char kRun[] = "mpm-run";
+inline constexpr char kRun[] = "pool-run";
 
 // SET-dense (400 discs) with few DEM steps per increment, under two names
 // (the second with other controls) so that one endpoint needs a Create per
@@ -121,23 +121,22 @@ class Servers {
   std::vector<std::unique_ptr<service::RveServer>> servers_;
 };
 
-inline std::unique_ptr<client::RveEndpoint> Remote(const std::string& address,
-                                                   const client::RemoteOptions& remote = {}) {
-  absl::StatusOr<std::unique_ptr<client::RveEndpoint>> e =
-      client::RemoteServer::Connect(address, {}, remote);
+inline std::unique_ptr<RveEndpoint> Remote(const std::string& address,
+                                           const RemoteOptions& remote = {}) {
+  absl::StatusOr<std::unique_ptr<RveEndpoint>> e = RemoteServer::Connect(address, {}, remote);
   EXPECT_TRUE(e.ok()) << e.status();
   return e.ok() ? *std::move(e) : nullptr;
 }
 
-inline std::vector<std::unique_ptr<client::RveEndpoint>> RemoteEndpoints(
-    const Servers& servers, const client::RemoteOptions& remote = {}) {
-  std::vector<std::unique_ptr<client::RveEndpoint>> e;
+inline std::vector<std::unique_ptr<RveEndpoint>> RemoteEndpoints(const Servers& servers,
+                                                                 const RemoteOptions& remote = {}) {
+  std::vector<std::unique_ptr<RveEndpoint>> e;
   for (int k = 0; k < servers.size(); ++k) e.push_back(Remote(servers.address(k), remote));
   return e;
 }
 
-inline std::vector<std::unique_ptr<client::RveEndpoint>> EmbeddedEndpoints(int n) {
-  std::vector<std::unique_ptr<client::RveEndpoint>> e;
+inline std::vector<std::unique_ptr<RveEndpoint>> EmbeddedEndpoints(int n) {
+  std::vector<std::unique_ptr<RveEndpoint>> e;
   for (int k = 0; k < n; ++k) e.push_back(embedded::MakeEndpoint(NewRegistry()));
   return e;
 }
@@ -197,7 +196,7 @@ inline int ClosedPort() {
 }
 
 // A finished Apply with a given result.
-class DoneApply final : public client::PendingApply {
+class DoneApply final : public PendingApply {
  public:
   explicit DoneApply(absl::StatusOr<std::vector<RveOutcome>> r) : r_(std::move(r)) {}
   absl::StatusOr<std::vector<RveOutcome>> Finish() override { return std::move(r_); }
@@ -207,12 +206,12 @@ class DoneApply final : public client::PendingApply {
   absl::StatusOr<std::vector<RveOutcome>> r_;
 };
 
-inline std::unique_ptr<client::PendingApply> Done(absl::StatusOr<std::vector<RveOutcome>> r) {
+inline std::unique_ptr<PendingApply> Done(absl::StatusOr<std::vector<RveOutcome>> r) {
   return std::make_unique<DoneApply>(std::move(r));
 }
 
 // Wraps an endpoint and fails Apply calls on purpose.
-class FaultyEndpoint final : public client::RveEndpoint {
+class FaultyEndpoint final : public RveEndpoint {
  public:
   enum class Fault {
     kNone,
@@ -220,7 +219,7 @@ class FaultyEndpoint final : public client::RveEndpoint {
     kAlwaysUnavailable,
     kRefuse,  // InvalidArgument, as for a malformed request
   };
-  FaultyEndpoint(std::unique_ptr<client::RveEndpoint> inner, Fault fault)
+  FaultyEndpoint(std::unique_ptr<RveEndpoint> inner, Fault fault)
       : inner_(std::move(inner)), fault_(fault) {}
 
   int apply_calls() const { return apply_calls_; }
@@ -238,17 +237,17 @@ class FaultyEndpoint final : public client::RveEndpoint {
       const std::optional<dem::Controls>& controls) override {
     return inner_->Create(run, t, ids, initial, controls);
   }
-  std::unique_ptr<client::PendingApply> StartApply(absl::string_view run, std::int64_t step,
-                                                   std::span<const Increment> increments,
-                                                   const dem::ApplyOptions& options,
-                                                   absl::Duration deadline) override {
+  std::unique_ptr<PendingApply> StartApply(absl::string_view run, std::int64_t step, ApplyMode mode,
+                                           std::span<const Increment> increments,
+                                           const dem::ApplyOptions& options,
+                                           absl::Duration deadline) override {
     const int call = ++apply_calls_;
     switch (fault_) {
       case Fault::kNone:
-        return inner_->StartApply(run, step, increments, options, deadline);
+        return inner_->StartApply(run, step, mode, increments, options, deadline);
       case Fault::kLoseFirstReply: {
         absl::StatusOr<std::vector<RveOutcome>> r =
-            inner_->Apply(run, step, increments, options, deadline);
+            inner_->Apply(run, step, mode, increments, options, deadline);
         if (call == 1) return Done(absl::UnavailableError("connection reset by peer"));
         return Done(std::move(r));
       }
@@ -265,7 +264,7 @@ class FaultyEndpoint final : public client::RveEndpoint {
     return inner_->Get(run, ids, want_tangent);
   }
   absl::Status Export(absl::string_view run, std::span<const std::int64_t> ids,
-                      const client::RecordSink& sink) override {
+                      const RecordSink& sink) override {
     return inner_->Export(run, ids, sink);
   }
   absl::Status Import(std::vector<RveRecord> records) override {
@@ -279,13 +278,13 @@ class FaultyEndpoint final : public client::RveEndpoint {
   void SetCreateTimeout(absl::Duration timeout) override { create_timeout_ = timeout; }
 
  private:
-  std::unique_ptr<client::RveEndpoint> inner_;
+  std::unique_ptr<RveEndpoint> inner_;
   const Fault fault_;
   std::atomic<int> apply_calls_{0};
   absl::Duration call_timeout_ = absl::InfiniteDuration();
   absl::Duration create_timeout_ = absl::InfiniteDuration();
 };
 
-}  // namespace rvehub::mpm::pool_test
+}  // namespace rvehub::client::pool_test
 
-#endif  // RVEHUB_TESTS_MPM_CLIENT_RUN_RVE_POOL_TEST_UTIL_H_
+#endif  // RVEHUB_TESTS_RVE_SERVER_CLIENT_RVE_POOL_TEST_UTIL_H_

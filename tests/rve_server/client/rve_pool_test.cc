@@ -1,8 +1,8 @@
-// The MPM client's RVE backend: embedded and remote endpoints, and the pool
-// over them — bit-identical results whatever the endpoints, cost balancing,
-// retries of lost replies, errors naming the endpoint and point, and
-// export/import onto another set of endpoints.
-#include "mpm_client/run/rve_pool.h"
+// The RVE pool over embedded and remote endpoints: bit-identical results
+// whatever the endpoints, cost balancing, retries of lost replies, errors
+// naming the endpoint and point, and export/import onto another set of
+// endpoints.
+#include "rve_server/client/rve_pool.h"
 
 #include <arpa/inet.h>
 #include <gtest/gtest.h>
@@ -27,10 +27,10 @@
 #include "rve_server/embedded/endpoint.h"
 #include "rve_server/service/log.h"
 #include "rve_server/service/server.h"
-#include "tests/mpm_client/run/rve_pool_test_util.h"
+#include "tests/rve_server/client/rve_pool_test_util.h"
 #include "tests/support/test_util.h"
 
-namespace rvehub::mpm::pool_test {
+namespace rvehub::client::pool_test {
 namespace {
 
 TEST(RvePoolTest, EmbeddedAndRemotePoolsAgreeBitForBit) {
@@ -91,7 +91,7 @@ TEST(RvePoolTest, EmbeddedAndRemotePoolsAgreeBitForBit) {
 TEST(RvePoolTest, GeostaticStartsInSmallMessagesAgreeBitForBit) {
   Servers servers(2);
   ASSERT_EQ(servers.size(), 2);
-  client::RemoteOptions small;
+  RemoteOptions small;
   small.max_batch = 2;  // 3 points per server: two messages per call
   RvePool embedded(EmbeddedEndpoints(1), kRun);
   RvePool remote(RemoteEndpoints(servers, small), kRun);
@@ -151,7 +151,7 @@ TEST(RvePoolTest, AssignmentIsGreedyLongestProcessingTime) {
 
 TEST(RvePoolTest, RetriesALostReplyButNotABadRequest) {
   RvePool plain(EmbeddedEndpoints(1), kRun);
-  std::vector<std::unique_ptr<client::RveEndpoint>> faulty_endpoints;
+  std::vector<std::unique_ptr<RveEndpoint>> faulty_endpoints;
   auto faulty = std::make_unique<FaultyEndpoint>(embedded::MakeEndpoint(NewRegistry()),
                                                  FaultyEndpoint::Fault::kLoseFirstReply);
   FaultyEndpoint* lossy = faulty.get();
@@ -168,7 +168,7 @@ TEST(RvePoolTest, RetriesALostReplyButNotABadRequest) {
   for (auto [fault, code, calls] :
        {std::tuple{FaultyEndpoint::Fault::kRefuse, absl::StatusCode::kInvalidArgument, 1},
         std::tuple{FaultyEndpoint::Fault::kAlwaysUnavailable, absl::StatusCode::kUnavailable, 4}}) {
-    std::vector<std::unique_ptr<client::RveEndpoint>> e;
+    std::vector<std::unique_ptr<RveEndpoint>> e;
     auto f = std::make_unique<FaultyEndpoint>(embedded::MakeEndpoint(NewRegistry()), fault);
     FaultyEndpoint* raw = f.get();
     e.push_back(std::move(f));
@@ -188,7 +188,7 @@ TEST(RvePoolTest, RetriesALostReplyButNotABadRequest) {
 TEST(RvePoolTest, AnEndpointThatGaveUpIsReportedAndTheRunRestoredOnTheOthers) {
   RvePool reference(EmbeddedEndpoints(1), kRun);
   Start(reference);
-  std::vector<std::unique_ptr<client::RveEndpoint>> e = EmbeddedEndpoints(1);
+  std::vector<std::unique_ptr<RveEndpoint>> e = EmbeddedEndpoints(1);
   auto faulty = std::make_unique<FaultyEndpoint>(embedded::MakeEndpoint(NewRegistry()),
                                                  FaultyEndpoint::Fault::kAlwaysUnavailable);
   FaultyEndpoint* dead = faulty.get();
@@ -225,7 +225,7 @@ TEST(RvePoolTest, AnEndpointThatGaveUpIsReportedAndTheRunRestoredOnTheOthers) {
   EXPECT_TRUE(pool.TakeFailed().empty());
 
   // A refusal is final but no loss.
-  std::vector<std::unique_ptr<client::RveEndpoint>> r;
+  std::vector<std::unique_ptr<RveEndpoint>> r;
   r.push_back(std::make_unique<FaultyEndpoint>(embedded::MakeEndpoint(NewRegistry()),
                                                FaultyEndpoint::Fault::kRefuse));
   RvePool refusing(std::move(r), kRun, QuickRetries());
@@ -268,10 +268,9 @@ TEST(RvePoolTest, MigrationMovesRvesBetweenEndpointsBitIdentically) {
 
 TEST(RvePoolTest, UnreachableServerIsUnavailableNamingTheAddress) {
   const std::string address = absl::StrCat("127.0.0.1:", ClosedPort());
-  client::RemoteOptions remote;
+  RemoteOptions remote;
   remote.connect_timeout = absl::Seconds(2);
-  absl::StatusOr<std::unique_ptr<client::RveEndpoint>> e =
-      client::RemoteServer::Connect(address, {}, remote);
+  absl::StatusOr<std::unique_ptr<RveEndpoint>> e = RemoteServer::Connect(address, {}, remote);
   ASSERT_FALSE(e.ok());
   EXPECT_TRUE(absl::IsUnavailable(e.status())) << e.status();
   ExpectContains(e.status().message(), absl::StrCat("RVE server ", address, " is unreachable"));
@@ -319,7 +318,7 @@ TEST(RvePoolTest, ExportImportOntoOtherEndpointsContinuesBitIdentically) {
   ASSERT_EQ(saved->size(), static_cast<std::size_t>(kPoints));
 
   // Three endpoints, one remote, uneven costs, another run id.
-  std::vector<std::unique_ptr<client::RveEndpoint>> endpoints = EmbeddedEndpoints(2);
+  std::vector<std::unique_ptr<RveEndpoint>> endpoints = EmbeddedEndpoints(2);
   endpoints.push_back(Remote(servers.address(0)));
   RvePool resumed(std::move(endpoints), "resumed-run");
   resumed.Assign(std::vector<double>{1, 2, 3, 4, 5, 6});
@@ -440,4 +439,4 @@ TEST(RvePoolTest, PointsWithTheSameInitialStressGetIdenticalRves) {
 }
 
 }  // namespace
-}  // namespace rvehub::mpm::pool_test
+}  // namespace rvehub::client::pool_test

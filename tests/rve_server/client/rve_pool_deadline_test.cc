@@ -19,16 +19,16 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
-#include "mpm_client/run/rve_pool.h"
 #include "rve_server/client/endpoint.h"
 #include "rve_server/client/remote_server.h"
+#include "rve_server/client/rve_pool.h"
 #include "rve_server/embedded/endpoint.h"
 #include "rve_server/service/log.h"
 #include "rve_server/service/server.h"
-#include "tests/mpm_client/run/rve_pool_test_util.h"
+#include "tests/rve_server/client/rve_pool_test_util.h"
 #include "tests/support/test_util.h"
 
-namespace rvehub::mpm::pool_test {
+namespace rvehub::client::pool_test {
 namespace {
 
 TEST(RvePoolTest, ApplyDeadlineFollowsTheMeasuredBatches) {
@@ -66,8 +66,8 @@ TEST(RvePoolTest, StateCallDeadlineFollowsTheMeasuredCalls) {
   o.deadline_factor = 20;
   o.min_apply_deadline = absl::Seconds(3);
   std::vector<FaultyEndpoint*> faulty;
-  std::vector<std::unique_ptr<client::RveEndpoint>> endpoints;
-  for (std::unique_ptr<client::RveEndpoint>& e : EmbeddedEndpoints(2)) {
+  std::vector<std::unique_ptr<RveEndpoint>> endpoints;
+  for (std::unique_ptr<RveEndpoint>& e : EmbeddedEndpoints(2)) {
     auto f = std::make_unique<FaultyEndpoint>(std::move(e), FaultyEndpoint::Fault::kNone);
     faulty.push_back(f.get());
     endpoints.push_back(std::move(f));
@@ -98,7 +98,7 @@ TEST(RvePoolTest, StateCallDeadlineFollowsTheMeasuredCalls) {
   auto only = std::make_unique<FaultyEndpoint>(embedded::MakeEndpoint(NewRegistry()),
                                                FaultyEndpoint::Fault::kNone);
   FaultyEndpoint* fixed_endpoint = only.get();
-  std::vector<std::unique_ptr<client::RveEndpoint>> one;
+  std::vector<std::unique_ptr<RveEndpoint>> one;
   one.push_back(std::move(only));
   RvePool fixed(std::move(one), kRun);  // deadline_factor 0
   Start(fixed);
@@ -125,7 +125,7 @@ TEST(RvePoolTest, CreateDeadlineFollowsTheFirstConsolidations) {
     auto only = std::make_unique<FaultyEndpoint>(embedded::MakeEndpoint(NewRegistry()),
                                                  FaultyEndpoint::Fault::kNone);
     FaultyEndpoint* endpoint = only.get();
-    std::vector<std::unique_ptr<client::RveEndpoint>> one;
+    std::vector<std::unique_ptr<RveEndpoint>> one;
     one.push_back(std::move(only));
     RvePool pool(std::move(one), kRun, o);
     ASSERT_TRUE(pool.UploadTemplates(Templates()).ok());
@@ -249,4 +249,4 @@ TEST(RvePoolTest, RvesSkippedAtTheDeadlineAreRetried) {
 }
 
 }  // namespace
-}  // namespace rvehub::mpm::pool_test
+}  // namespace rvehub::client::pool_test

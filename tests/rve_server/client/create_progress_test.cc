@@ -9,12 +9,12 @@
 #include <utility>
 #include <vector>
 
-#include "mpm_client/run/rve_pool.h"
 #include "rve_server/client/endpoint.h"
+#include "rve_server/client/rve_pool.h"
 #include "rve_server/embedded/endpoint.h"
 #include "tests/support/test_util.h"
 
-namespace rvehub::mpm {
+namespace rvehub::client {
 namespace {
 
 using dem::testing_util::SameBits;
@@ -34,7 +34,7 @@ TEST(CreateProgressTest, ReportsEachCallAndMatchesOneCall) {
   }
   embedded::EmbeddedOptions options;
   options.threads = 1;
-  std::vector<std::unique_ptr<client::RveEndpoint>> endpoints;
+  std::vector<std::unique_ptr<RveEndpoint>> endpoints;
   endpoints.push_back(embedded::MakeEndpoint(options));
   RvePool pool(std::move(endpoints), "run");
   ASSERT_TRUE(pool.UploadTemplates(std::vector<TemplateRecord>{record}).ok());
@@ -47,7 +47,7 @@ TEST(CreateProgressTest, ReportsEachCallAndMatchesOneCall) {
                          {0, 9}, {2, 9}, {4, 9}, {6, 9}, {8, 9}, {9, 9}}));
 
   // The same RVEs created in one call.
-  std::unique_ptr<client::RveEndpoint> single = embedded::MakeEndpoint(options);
+  std::unique_ptr<RveEndpoint> single = embedded::MakeEndpoint(options);
   ASSERT_TRUE(single->PutTemplate(record).ok());
   absl::StatusOr<std::vector<RveOutcome>> one =
       single->Create("run", "t", ids, initial, std::nullopt);
@@ -63,4 +63,4 @@ TEST(CreateProgressTest, ReportsEachCallAndMatchesOneCall) {
 }
 
 }  // namespace
-}  // namespace rvehub::mpm
+}  // namespace rvehub::client
