@@ -104,9 +104,9 @@ absl::StatusOr<PointGeometry> EvaluatePoint(ElementType type, const ElementCoord
         ": det J = ", det, " (its nodes are collinear or coincide)"));
   }
   if (det < 0.0) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("element ", element, " (", ElementName(type), ") is inverted at Gauss point ",
-                     point, ": det J = ", det, " < 0 (its nodes must go counter-clockwise)"));
+    return absl::InvalidArgumentError(absl::StrCat("element ", element, " (", ElementName(type),
+                                                   ") is inverted at Gauss point ", point,
+                                                   ": det J = ", det, " < 0"));
   }
   PointGeometry g;
   // ∂N/∂x = ∂N/∂ξ · J⁻¹.

@@ -34,7 +34,8 @@ absl::Status ValidateMesh(const Mesh& mesh) {
     const ElementCoordinates x = ElementPositions(mesh, e, mesh.nodes);
     for (int p = 0; p < GaussPointCount(element.type); ++p) {
       if (absl::StatusOr<PointGeometry> g = EvaluatePoint(element.type, x, p, e); !g.ok()) {
-        return g.status();
+        return absl::InvalidArgumentError(
+            absl::StrCat(g.status().message(), " (an element's nodes go counter-clockwise)"));
       }
     }
   }

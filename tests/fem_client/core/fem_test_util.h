@@ -4,8 +4,14 @@
 #define RVEHUB_TESTS_FEM_CLIENT_CORE_FEM_TEST_UTIL_H_
 
 #include <Eigen/Dense>
+#include <functional>
+#include <span>
+#include <utility>
 #include <vector>
 
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "fem_client/core/material.h"
 #include "fem_client/core/mesh.h"
 
 namespace rvehub::fem::testing {
@@ -67,6 +73,40 @@ inline Eigen::Matrix3d Prestress() {
   s(2, 2) = -1.5e5;
   return s;
 }
+
+// Forwards to a material, counting the calls and keeping the last committed
+// ΔF; `fail` (when set) may refuse a Trial, and `drop_tangents` strips them.
+class SpyMaterial : public GaussPointMaterial {
+ public:
+  explicit SpyMaterial(GaussPointMaterial* inner) : inner_(inner) {}
+
+  absl::StatusOr<std::vector<PointResponse>> Trial(std::span<const Eigen::Matrix3d> delta_f,
+                                                   bool want_tangent) override {
+    ++trials;
+    tangent_trials += want_tangent;
+    if (fail) {
+      if (absl::Status s = fail(delta_f); !s.ok()) return s;
+    }
+    absl::StatusOr<std::vector<PointResponse>> r = inner_->Trial(delta_f, want_tangent);
+    if (r.ok() && drop_tangents) {
+      for (PointResponse& p : *r) p.tangent.reset();
+    }
+    return r;
+  }
+  absl::Status Commit(std::span<const Eigen::Matrix3d> delta_f) override {
+    ++commits;
+    last_commit.assign(delta_f.begin(), delta_f.end());
+    return inner_->Commit(delta_f);
+  }
+
+  std::function<absl::Status(std::span<const Eigen::Matrix3d>)> fail;
+  bool drop_tangents = false;
+  int trials = 0, tangent_trials = 0, commits = 0;
+  std::vector<Eigen::Matrix3d> last_commit;
+
+ private:
+  GaussPointMaterial* inner_;
+};
 
 }  // namespace rvehub::fem::testing
 
