@@ -76,9 +76,11 @@ absl::StatusOr<Mesh> StructuredRectangle(const RectangleSpec& spec) {
     return absl::InvalidArgumentError(absl::StrCat("rectangle: width ", spec.width, " m, height ",
                                                    spec.height, " m must be positive and finite"));
   }
-  if (spec.nx < 1 || spec.ny < 1 || spec.nx > 10000 || spec.ny > 10000) {
-    return absl::InvalidArgumentError(absl::StrCat("rectangle: ", spec.nx, " × ", spec.ny,
-                                                   " elements, each must be in [1, 10000]"));
+  if (spec.nx < 1 || spec.ny < 1 || spec.nx > 10000 || spec.ny > 10000 ||
+      spec.nx * spec.ny > 1000000) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("rectangle: ", spec.nx, " × ", spec.ny,
+                     " elements, each must be in [1, 10000] and their product at most 1e6"));
   }
   // Grid positions (i, j); Q8 uses a grid twice as fine without the centres.
   const int m = spec.type == ElementType::kQ8 ? 2 : 1;

@@ -56,7 +56,7 @@ struct RectangleSpec {
 // the vertical edges' midsides). Node sets "left", "right", "bottom", "top"
 // (sorted along the face, corners in both faces) and edge sets of the same
 // names. InvalidArgument for sizes that are not positive and finite, or
-// nx, ny outside [1, 10000].
+// nx, ny outside [1, 10000] or nx·ny over 1e6.
 absl::StatusOr<Mesh> StructuredRectangle(const RectangleSpec& spec);
 
 // The nodes of element e at the positions `x` (one per mesh node).

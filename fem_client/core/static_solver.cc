@@ -223,7 +223,7 @@ bool StaticSolver::Evaluate(const Eigen::VectorXd& du, int iteration, Evaluation
   ev.responses = *std::move(responses);
   if (want_tangent && options_.tangent == TangentOperator::kInitialElastic) {
     for (std::size_t p = 0; p < ev.responses.size(); ++p) {
-      if (!ev.responses[p].tangent.has_value()) break;
+      if (!ev.responses[p].tangent.has_value() || !ev.responses[p].tangent->allFinite()) break;
       initial_tangents_.push_back(*ev.responses[p].tangent);
     }
   }
