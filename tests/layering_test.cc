@@ -106,6 +106,11 @@ const std::vector<Layer>& Layers() {
       {"mpm_client",
        {"mpm_client/", "rve_server/client/", "rve_server/common/", "absl/", "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
+      // The RVE-free FEM: neither engine nor store nor client, and no I/O.
+      {"fem_client/core",
+       {"fem_client/core/", "rve_server/common/", "absl/"},
+       {"Eigen/"},
+       /*standard_io=*/false},
   };
   return *layers;
 }
@@ -133,7 +138,7 @@ bool IsSource(const fs::directory_entry& entry) {
 // cannot slip past the order.
 TEST(LayeringTest, EveryFolderHasALayer) {
   const fs::path root(RVEHUB_SOURCE_DIR);
-  for (const char* top : {"rve_server", "store", "toolkit", "mpm_client"}) {
+  for (const char* top : {"rve_server", "store", "toolkit", "mpm_client", "fem_client"}) {
     for (const fs::directory_entry& entry : fs::recursive_directory_iterator(root / top)) {
       if (!IsSource(entry)) continue;
       const std::string name = fs::relative(entry.path(), root).string();
@@ -227,6 +232,13 @@ TEST(LayeringTest, TheRulesRejectCrossings) {
   EXPECT_EQ(LayerOf("mpm_client/mpm_client_main.cc")->folder, "mpm_client");
   EXPECT_EQ(LayerOf("bench/bench_dem.cc"), nullptr);
   EXPECT_TRUE(allowed("mpm_client/case", "toolkit/field_table.h", true));
+  EXPECT_FALSE(allowed("fem_client/core", "rve_server/client/endpoint.h", true));
+  EXPECT_FALSE(allowed("fem_client/core", "rve_server/engine/rve.h", true));
+  EXPECT_FALSE(allowed("fem_client/core", "store/results.h", true));
+  EXPECT_FALSE(allowed("fem_client/core", "mpm_client/core/elastic.h", true));
+  EXPECT_FALSE(allowed("fem_client/core", "fstream", false));
+  EXPECT_TRUE(allowed("fem_client/core", "Eigen/Sparse", false));
+  EXPECT_EQ(LayerOf("fem_client/core/static_solver.h")->folder, "fem_client/core");
 }
 
 }  // namespace

@@ -1,0 +1,110 @@
+// Boundary conditions: prescribed displacement increments per load step
+// (fixed, rollers, platens), periodic node pairs, constant pressures on
+// boundary edges; and their elimination from the unknowns (DofMap).
+// Degrees of freedom: 2 per node, dof 2a + i for node a along axis i.
+#ifndef RVEHUB_FEM_CLIENT_CORE_BOUNDARY_H_
+#define RVEHUB_FEM_CLIENT_CORE_BOUNDARY_H_
+
+#include <Eigen/Dense>
+#include <Eigen/Sparse>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "fem_client/core/mesh.h"
+
+namespace rvehub::fem {
+
+// Δu of one dof over each load step (0: held fixed), m.
+struct Prescribed {
+  int node = 0;
+  int dof = 0;  // 0: x, 1: y
+  double increment = 0.0;
+};
+
+// u_slave − u_master = the periodic offset (e.g. a right-side node and the
+// left-side node at the same height). A prescribed dof of the slave keeps
+// its prescription and drops the pair's constraint for that dof (the corner
+// of a box held by the platens at both sides).
+struct PeriodicPair {
+  int master = 0;
+  int slave = 0;
+};
+
+// A constant pressure on boundary edges, normal to them in the current
+// configuration (a follower load).
+struct PressureLoad {
+  std::vector<Edge> edges;
+  double pressure = 0.0;  // Pa, compression positive
+};
+
+struct Boundary {
+  std::vector<Prescribed> prescribed;  // at most one per (node, dof)
+  std::vector<PeriodicPair> periodic;
+  // Δ(u_slave − u_master) over each load step, m.
+  Eigen::Vector2d periodic_offset_increment = Eigen::Vector2d::Zero();
+  std::vector<PressureLoad> pressures;
+};
+
+// Appends: both dofs held.
+void AddFixed(std::span<const int> nodes, Boundary& boundary);
+// Appends: one dof held (a roller along the other axis).
+void AddRoller(std::span<const int> nodes, int dof, Boundary& boundary);
+// A platen moving by `increment` (m per load step) along `normal_dof`:
+// smooth, only the normal dof prescribed; rough, the tangential one held too.
+enum class Platen { kSmooth, kRough };
+void AddPlaten(std::span<const int> nodes, int normal_dof, double increment, Platen platen,
+               Boundary& boundary);
+
+// Pairs each slave with the master at the same position along `along` (0: x,
+// 1: y) to 1e-9 of the mesh's size (left and right sides: along = 1).
+// InvalidArgument naming a node with no partner.
+absl::StatusOr<std::vector<PeriodicPair>> MatchPeriodicPairs(const Mesh& mesh,
+                                                             std::span<const int> masters,
+                                                             std::span<const int> slaves,
+                                                             int along);
+
+// The master–slave elimination of the constraints: every dof u = T q + g,
+// with q the independent (free) unknowns, T a 0/1 matrix (a slave takes its
+// master's unknown) and g the prescribed part (prescribed increments, the
+// periodic offsets), so that the reduced system is Tᵀ K T δq = −Tᵀ R.
+class DofMap {
+ public:
+  // InvalidArgument for a node or dof out of range, a (node, dof)
+  // prescribed twice, a non-finite increment or offset, a pair of a node
+  // with itself, a slave with two masters, a cycle of pairs, or a pressure
+  // that is not finite or on an edge of other than 2 or 3 nodes in range.
+  static absl::StatusOr<DofMap> Create(int nodes, const Boundary& boundary);
+
+  int dofs() const { return static_cast<int>(unknown_.size()); }
+  int unknowns() const { return unknowns_; }
+  const Eigen::SparseMatrix<double>& expand() const { return t_; }  // T, dofs × unknowns
+  // g for a step scaled by `factor` (a cut-back part of a step, a reversed
+  // cycle), m.
+  Eigen::VectorXd Prescribed(double factor) const;
+  bool IsPrescribed(int dof) const { return unknown_[dof] < 0; }
+  // The dof an unknown stands for (a master's or a free node's own), and a
+  // dof's unknown (−1 when prescribed, also through its master).
+  int DofOf(int unknown) const { return dof_of_[unknown]; }
+  int UnknownOf(int dof) const { return unknown_[dof]; }
+
+ private:
+  std::vector<int> unknown_;   // each dof's unknown, −1 when prescribed
+  std::vector<double> value_;  // each dof's g for factor 1, m
+  std::vector<int> dof_of_;
+  int unknowns_ = 0;
+  Eigen::SparseMatrix<double> t_;
+};
+
+// FailedPrecondition "the mesh has no supports against rigid-body motion
+// ..." (naming a free motion: a translation or a rotation about a point)
+// when some connected part of the mesh (periodic pairs connect) can move
+// rigidly without violating the constraints; its stiffness would be
+// singular.
+absl::Status CheckSupports(const Mesh& mesh, const DofMap& dofs);
+
+}  // namespace rvehub::fem
+
+#endif  // RVEHUB_FEM_CLIENT_CORE_BOUNDARY_H_

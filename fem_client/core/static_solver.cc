@@ -1,0 +1,308 @@
+#include "fem_client/core/static_solver.h"
+
+#include <Eigen/SparseLU>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+
+namespace rvehub::fem {
+
+struct StaticSolver::Failure {
+  absl::Status status;  // what went wrong, without the step
+  bool retry = true;    // whether a smaller step may cure it
+};
+
+namespace {
+
+// `status` with `message` in front, its code and payloads (the failed point) kept.
+absl::Status Prefixed(const absl::Status& status, absl::string_view message) {
+  absl::Status out(status.code(), absl::StrCat(message, status.message()));
+  status.ForEachPayload(
+      [&out](absl::string_view url, const absl::Cord& payload) { out.SetPayload(url, payload); });
+  return out;
+}
+
+const char* AxisName(int dof) { return dof == 0 ? "x" : "y"; }
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<StaticSolver>> StaticSolver::Create(Mesh mesh, Boundary boundary,
+                                                                   SolverOptions options,
+                                                                   GaussPointMaterial* material) {
+  if (material == nullptr) return absl::InvalidArgumentError("the solver needs a material");
+  const SolverOptions& o = options;
+  if (!(o.displacement_tolerance > 0.0 && std::isfinite(o.displacement_tolerance)) ||
+      !(o.force_tolerance >= 0.0 && std::isfinite(o.force_tolerance)) || o.max_iterations < 1 ||
+      o.max_iterations > 1000 || o.max_cutbacks < 0 || o.max_cutbacks > 30 ||
+      !(o.perturbation > 0.0 && o.perturbation < 0.1)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("solver options: displacement tolerance ", o.displacement_tolerance,
+                     " must be positive, force tolerance ", o.force_tolerance,
+                     " non-negative, iterations ", o.max_iterations, " in [1, 1000], cut-backs ",
+                     o.max_cutbacks, " in [0, 30], perturbation ", o.perturbation, " in (0, 0.1)"));
+  }
+  if (absl::Status s = ValidateMesh(mesh); !s.ok()) return s;
+  absl::StatusOr<DofMap> dofs = DofMap::Create(static_cast<int>(mesh.nodes.size()), boundary);
+  if (!dofs.ok()) return dofs.status();
+  if (absl::Status s = CheckSupports(mesh, *dofs); !s.ok()) return s;
+  absl::StatusOr<std::vector<PointGeometry>> reference = EvaluateGeometry(mesh, mesh.nodes);
+  if (!reference.ok()) return reference.status();
+  return std::unique_ptr<StaticSolver>(new StaticSolver(std::move(mesh), std::move(boundary),
+                                                        options, material, *std::move(dofs),
+                                                        *std::move(reference)));
+}
+
+StaticSolver::StaticSolver(Mesh mesh, Boundary boundary, SolverOptions options,
+                           GaussPointMaterial* material, DofMap dofs,
+                           std::vector<PointGeometry> reference)
+    : mesh_(std::move(mesh)),
+      boundary_(std::move(boundary)),
+      options_(options),
+      material_(material),
+      dofs_(std::move(dofs)),
+      reference_(std::move(reference)),
+      displacement_(Eigen::VectorXd::Zero(2 * static_cast<Eigen::Index>(mesh_.nodes.size()))) {}
+
+absl::StatusOr<StepReport> StaticSolver::Step(double factor) {
+  if (!std::isfinite(factor)) return absl::InvalidArgumentError("the step factor is not finite");
+  StepReport report;
+  report.step = steps_ + 1;
+  trials_ = 0;
+  // (1) The RVEs' initial state: their stresses and tangents at ΔF = I.
+  if (committed_.responses.empty()) {
+    Failure failure;
+    if (!Evaluate(Eigen::VectorXd::Zero(displacement_.size()), 0, committed_, failure)) {
+      committed_.responses.clear();
+      return Prefixed(failure.status, absl::StrCat("load step ", report.step, ", "));
+    }
+    forces_ = NodeSetForces(committed_);
+  }
+  // (3) March on: the load step in parts, halved on failure.
+  double done = 0.0, size = 1.0;  // powers of 2: their sums are exact
+  while (done < 1.0) {
+    const double part = std::min(size, 1.0 - done);
+    SubStepReport sub{part, {}};
+    Failure failure;
+    if (TrySubStep(factor * part, sub, failure)) {
+      report.substeps.push_back(std::move(sub));
+      done += part;
+      continue;
+    }
+    if (!failure.retry || report.cutbacks == options_.max_cutbacks) {
+      report.trials = trials_;
+      return Prefixed(failure.status,
+                      absl::StrFormat("load step %d (a part of %g of it, after %d cut-backs), ",
+                                      report.step, part, report.cutbacks));
+    }
+    size = part / 2.0;
+    ++report.cutbacks;
+  }
+  ++steps_;
+  report.trials = trials_;
+  report.forces = forces_;
+  return report;
+}
+
+bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& failure) {
+  const Eigen::SparseMatrix<double>& t = dofs_.expand();
+  // (2) Apply the loading step on ∂Ω: the prescribed increments g enter
+  // the first solve, linearised on the committed state (the step starts
+  // from Δu⁰ = 0, so the first E_d is 1).
+  const Eigen::VectorXd g = dofs_.Prescribed(factor);
+  Eigen::VectorXd du = Eigen::VectorXd::Zero(g.size());
+  const Evaluation* at = &committed_;
+  Evaluation ev;
+  for (int j = 1; j <= options_.max_iterations; ++j) {
+    // (2a) The tangent operator of every Gauss point.
+    std::vector<Tangent> d;
+    if (!Tangents(*at, j, d, failure)) return false;
+    // (2b) Assemble K_t (eq. 3, with the geometric terms) and solve
+    // Tᵀ K T δq = −Tᵀ (R + K g) (g only in the first) for the correction.
+    Eigen::VectorXd delta = j == 1 ? g : Eigen::VectorXd::Zero(g.size());
+    if (dofs_.unknowns() > 0) {
+      const Eigen::SparseMatrix<double> k = TangentStiffness(
+          mesh_, reference_, at->current, at->responses, d, boundary_.pressures, at->x);
+      const Eigen::VectorXd rhs = j == 1 ? Eigen::VectorXd(at->residual + k * g) : at->residual;
+      const Eigen::SparseMatrix<double> kr = t.transpose() * k * t;
+      Eigen::SparseLU<Eigen::SparseMatrix<double>> lu;
+      lu.compute(kr);
+      Eigen::VectorXd dq;
+      if (lu.info() == Eigen::Success) dq = lu.solve(-(t.transpose() * rhs));
+      if (lu.info() != Eigen::Success || !dq.allFinite()) {
+        failure.status = absl::AbortedError(absl::StrCat(
+            "iteration ", j, ": the tangent stiffness (", OperatorName(options_.tangent),
+            " operator) is singular: ", lu.lastErrorMessage()));
+        return false;
+      }
+      delta += t * dq;
+    }
+    du += delta;
+    IterationReport it;
+    it.displacement_error = delta.norm() == 0.0 ? 0.0 : delta.norm() / du.norm();
+    // (2c–d) Deform the RVEs by the new Δu and take the residual (eq. 4).
+    if (!Evaluate(du, j, ev, failure)) return false;
+    at = &ev;
+    const Eigen::VectorXd reduced = t.transpose() * ev.residual;
+    it.force_error = ForceError(ev, reduced);
+    report.iterations.push_back(it);
+    // (2e) Converged (eq. 21): commit the RVEs and the configuration.
+    if (it.displacement_error < options_.displacement_tolerance &&
+        (options_.force_tolerance == 0.0 || it.force_error < options_.force_tolerance)) {
+      if (absl::Status s = material_->Commit(ev.delta_f); !s.ok()) {
+        failure = {Prefixed(s, "the material's Commit failed: "), false};
+        return false;
+      }
+      forces_ = NodeSetForces(ev);
+      mesh_.nodes = ev.x;
+      displacement_ += du;
+      reference_ = ev.current;
+      committed_ = std::move(ev);
+      // The next step starts here: its ΔF are measured from this state.
+      std::fill(committed_.delta_f.begin(), committed_.delta_f.end(), Eigen::Matrix3d::Identity());
+      return true;
+    }
+    if (j == options_.max_iterations) {
+      Eigen::Index worst = 0;
+      const double largest = reduced.size() > 0 ? reduced.cwiseAbs().maxCoeff(&worst) : 0.0;
+      const int dof = reduced.size() > 0 ? dofs_.DofOf(static_cast<int>(worst)) : 0;
+      failure.status = absl::AbortedError(absl::StrFormat(
+          "iteration %d: Newton did not converge (E_d = %.3g, tolerance %.3g; E_f = %.3g); the "
+          "largest residual, %.4g N/m, is at node %d (%.6g, %.6g) m along %s",
+          j, it.displacement_error, options_.displacement_tolerance, it.force_error, largest,
+          dof / 2, ev.x[dof / 2].x(), ev.x[dof / 2].y(), AxisName(dof % 2)));
+    }
+  }
+  return false;
+}
+
+bool StaticSolver::Evaluate(const Eigen::VectorXd& du, int iteration, Evaluation& ev,
+                            Failure& failure) {
+  const std::string where = absl::StrCat("iteration ", iteration, ": ");
+  ev.x = Moved(mesh_.nodes, du);
+  absl::StatusOr<std::vector<PointGeometry>> current = EvaluateGeometry(mesh_, ev.x);
+  if (!current.ok()) {
+    failure.status = absl::AbortedError(
+        absl::StrCat(where, current.status().message(), " (the iterate deforms it too far)"));
+    return false;
+  }
+  ev.current = *std::move(current);
+  // (2c) The deformation of each Gauss point, stretch and rotation (eqs. 10–11).
+  ev.delta_f = DeformationIncrements(mesh_, reference_, du);
+  const bool want_tangent =
+      options_.tangent == TangentOperator::kContact ||
+      (options_.tangent == TangentOperator::kInitialElastic && initial_tangents_.empty());
+  ++trials_;
+  absl::StatusOr<std::vector<PointResponse>> responses = material_->Trial(ev.delta_f, want_tangent);
+  if (!responses.ok()) {
+    const std::optional<int> point = FailedPoint(responses.status());
+    failure.status = Prefixed(
+        responses.status(),
+        absl::StrCat(where, "the material failed",
+                     point ? absl::StrCat(" at ", DescribeGaussPoint(mesh_, *point)) : "", ": "));
+    return false;
+  }
+  if (responses->size() != ev.delta_f.size()) {
+    failure = {
+        absl::InternalError(absl::StrCat(where, "the material returned ", responses->size(),
+                                         " responses for ", ev.delta_f.size(), " Gauss points")),
+        false};
+    return false;
+  }
+  for (std::size_t p = 0; p < responses->size(); ++p) {
+    if (!(*responses)[p].stress.allFinite()) {
+      failure.status = PointFailure(
+          absl::AbortedError(absl::StrCat(where, "the material returned a stress not finite at ",
+                                          DescribeGaussPoint(mesh_, static_cast<int>(p)))),
+          static_cast<int>(p));
+      return false;
+    }
+  }
+  ev.responses = *std::move(responses);
+  if (want_tangent && options_.tangent == TangentOperator::kInitialElastic) {
+    for (std::size_t p = 0; p < ev.responses.size(); ++p) {
+      if (!ev.responses[p].tangent.has_value() || !ev.responses[p].tangent->allFinite()) break;
+      initial_tangents_.push_back(*ev.responses[p].tangent);
+    }
+  }
+  // (2d) The residual (eq. 4) on the current configuration.
+  ev.f_int = InternalForces(mesh_, ev.current, ev.responses);
+  ev.f_ext = PressureForces(static_cast<int>(du.size()), boundary_.pressures, ev.x);
+  ev.residual = ev.f_int - ev.f_ext;
+  return true;
+}
+
+bool StaticSolver::Tangents(const Evaluation& ev, int iteration, std::vector<Tangent>& d,
+                            Failure& failure) {
+  const std::string where = absl::StrCat("iteration ", iteration, ": ");
+  switch (options_.tangent) {
+    case TangentOperator::kPerturbation: {
+      trials_ += 4;
+      absl::StatusOr<std::vector<Tangent>> dp =
+          PerturbationTangents(*material_, ev.delta_f, ev.responses, options_.perturbation);
+      if (!dp.ok()) {
+        const std::optional<int> point = FailedPoint(dp.status());
+        failure.status = Prefixed(
+            dp.status(),
+            absl::StrCat(where, "the material failed in a perturbation",
+                         point ? absl::StrCat(" at ", DescribeGaussPoint(mesh_, *point)) : "",
+                         ": "));
+        return false;
+      }
+      d = *std::move(dp);
+      return true;
+    }
+    case TangentOperator::kInitialElastic:
+      if (initial_tangents_.size() == ev.responses.size()) {
+        d = initial_tangents_;
+        return true;
+      }
+      initial_tangents_.clear();  // the first Trial lacked one: ask again next time
+      break;
+    case TangentOperator::kContact:
+      break;
+  }
+  d.resize(ev.responses.size());
+  for (std::size_t p = 0; p < ev.responses.size(); ++p) {
+    const std::optional<Tangent>& tangent = ev.responses[p].tangent;
+    if (!tangent.has_value() || !tangent->allFinite()) {
+      failure = {absl::FailedPreconditionError(
+                     absl::StrCat(where, "the material gave no finite tangent at ",
+                                  DescribeGaussPoint(mesh_, static_cast<int>(p)), ", which the ",
+                                  OperatorName(options_.tangent), " operator needs")),
+                 false};
+      return false;
+    }
+    d[p] = *tangent;
+  }
+  return true;
+}
+
+double StaticSolver::ForceError(const Evaluation& ev, const Eigen::VectorXd& reduced) const {
+  // f: the external forces where the dofs are free, the forces that hold the
+  // prescribed dofs (f_int = f_ext + reaction) where they are prescribed.
+  double f2 = 0.0;
+  for (int dof = 0; dof < dofs_.dofs(); ++dof) {
+    const double f = dofs_.IsPrescribed(dof) ? ev.f_int[dof] : ev.f_ext[dof];
+    f2 += f * f;
+  }
+  const double r = reduced.norm();
+  if (r == 0.0) return 0.0;
+  return f2 > 0.0 ? r / std::sqrt(f2) : std::numeric_limits<double>::infinity();
+}
+
+std::map<std::string, SetForces> StaticSolver::NodeSetForces(const Evaluation& ev) const {
+  std::map<std::string, SetForces> out;
+  for (const auto& [name, nodes] : mesh_.node_sets) {
+    SetForces& f = out[name];
+    for (int a : nodes) {
+      f.reaction += ev.residual.segment<2>(2 * a);
+      f.internal += ev.f_int.segment<2>(2 * a);
+    }
+  }
+  return out;
+}
+
+}  // namespace rvehub::fem

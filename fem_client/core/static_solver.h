@@ -1,0 +1,147 @@
+// The implicit quasi-static FEM solver of the FEM×DEM scheme (Guo & Zhao
+// 2014, §2.3): load steps, each solved by Newton–Raphson iterations whose
+// stresses and tangents come from a GaussPointMaterial (the RVEs, or a
+// stand-in), updated Lagrangian (assembly.h). Plane strain, SI units,
+// forces per metre of thickness. Single-threaded and deterministic.
+#ifndef RVEHUB_FEM_CLIENT_CORE_STATIC_SOLVER_H_
+#define RVEHUB_FEM_CLIENT_CORE_STATIC_SOLVER_H_
+
+#include <Eigen/Dense>
+#include <map>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "fem_client/core/assembly.h"
+#include "fem_client/core/boundary.h"
+#include "fem_client/core/material.h"
+#include "fem_client/core/mesh.h"
+#include "fem_client/core/tangent_operator.h"
+
+namespace rvehub::fem {
+
+struct SolverOptions {
+  TangentOperator tangent = TangentOperator::kContact;
+  // Converged when E_d = ‖Δu^j − Δu^{j−1}‖₂/‖Δu^j‖₂ < this (G&Z eq. 21;
+  // their 0.01), over all dofs.
+  double displacement_tolerance = 0.01;
+  // When > 0, E_f = ‖R^j‖₂/‖f‖₂ < this is also required (0: E_f is only
+  // reported, as in G&Z).
+  double force_tolerance = 0.0;
+  int max_iterations = 25;     // per (sub-)step, [1, 1000]
+  int max_cutbacks = 6;        // halvings of one load step, [0, 30]
+  double perturbation = 5e-5;  // ξ of kPerturbation (G&Z §3.3), (0, 0.1)
+};
+
+// One Newton iteration: a solve, then the Trial of the new Δu^j.
+struct IterationReport {
+  double displacement_error = 0.0;  // E_d
+  // E_f = ‖R^j‖₂/‖f‖₂ over the unknowns, with f the external forces plus
+  // the reactions of the prescribed dofs (f_int there): 0 when R^j = 0,
+  // infinite when R^j ≠ 0 but f = 0.
+  double force_error = 0.0;
+};
+
+struct SubStepReport {
+  double fraction = 1.0;  // of the load step: 1, or 1/2^k after k cut-backs
+  std::vector<IterationReport> iterations;
+};
+
+// The nodal forces on a node set at the end of a step, N/m.
+struct SetForces {
+  Eigen::Vector2d reaction = Eigen::Vector2d::Zero();  // Σ (f_int − f_ext): by the supports
+  Eigen::Vector2d internal = Eigen::Vector2d::Zero();  // Σ f_int: the body's on the set
+};
+
+struct StepReport {
+  int step = 0;                         // 1-based
+  int cutbacks = 0;                     // halvings this step needed
+  int trials = 0;                       // Trial calls, failed attempts and perturbations included
+  std::vector<SubStepReport> substeps;  // the converged ones, in order
+  std::map<std::string, SetForces> forces;  // per node set of the mesh
+};
+
+class StaticSolver {
+ public:
+  // Checks the mesh (ValidateMesh), the boundary (DofMap::Create), the
+  // supports (CheckSupports: FailedPrecondition "the mesh has no supports
+  // ...") and the options (InvalidArgument). `material` (not owned) has one
+  // point per Gauss point of the mesh, in mesh order, and must outlive the
+  // solver.
+  static absl::StatusOr<std::unique_ptr<StaticSolver>> Create(Mesh mesh, Boundary boundary,
+                                                              SolverOptions options,
+                                                              GaussPointMaterial* material);
+
+  // One load step: the prescribed increments and the periodic offset
+  // increment times `factor` (e.g. −1 to reverse a cycle). The first step
+  // starts with a Trial of every point at ΔF = I (iteration 0: the initial
+  // stresses, and kInitialElastic's tangents). Each step starts from Δu⁰ =
+  // 0 on the committed state: the first solve uses its tangent and
+  // residual with the increments imposed (E_d = 1 then, so at least two
+  // iterations), each later one the last Trial's. A sub-step that does not
+  // converge in max_iterations, whose Trial fails, or whose iterate
+  // inverts an element or meets a singular tangent is halved, at most
+  // max_cutbacks times; a converged sub-step is committed and the rest of
+  // the step goes on at that size. Errors start "load step N (a part of f
+  // of it, after k cut-backs), iteration j: " and name the worst point: a
+  // Trial's own status (code, message and PointFailure kept) naming the
+  // failing Gauss point; Aborted for no convergence (naming the node with
+  // the largest residual), an inverted element or a singular tangent;
+  // FailedPrecondition when the material gives no tangent the operator
+  // needs. After an error the solver keeps its last committed state.
+  absl::StatusOr<StepReport> Step(double factor = 1.0);
+
+  // The committed configuration: node positions after the last step.
+  const Mesh& mesh() const { return mesh_; }
+  // Total displacement since Create, 2 per node, m.
+  const Eigen::VectorXd& displacement() const { return displacement_; }
+  // The responses of the last committed Trial (empty before the first step).
+  std::span<const PointResponse> responses() const { return committed_.responses; }
+  int steps() const { return steps_; }
+
+ private:
+  // A Trial of every Gauss point at Δu and what follows from it.
+  struct Evaluation {
+    std::vector<Eigen::Vector2d> x;      // node positions X + Δu, m
+    std::vector<PointGeometry> current;  // the Gauss points on x
+    std::vector<Eigen::Matrix3d> delta_f;
+    std::vector<PointResponse> responses;
+    Eigen::VectorXd f_int, f_ext, residual;  // all dofs, N/m
+  };
+  struct Failure;
+
+  StaticSolver(Mesh mesh, Boundary boundary, SolverOptions options, GaussPointMaterial* material,
+               DofMap dofs, std::vector<PointGeometry> reference);
+
+  // One attempt at `factor` of the prescribed increments: Newton to
+  // convergence and Commit (true), or a Failure.
+  bool TrySubStep(double factor, SubStepReport& report, Failure& failure);
+  // Trial and residual at Δu = du.
+  bool Evaluate(const Eigen::VectorXd& du, int iteration, Evaluation& ev, Failure& failure);
+  // D for K_t by the chosen operator.
+  bool Tangents(const Evaluation& ev, int iteration, std::vector<Tangent>& d, Failure& failure);
+  double ForceError(const Evaluation& ev, const Eigen::VectorXd& reduced_residual) const;
+  std::map<std::string, SetForces> NodeSetForces(const Evaluation& ev) const;
+
+  Mesh mesh_;
+  Boundary boundary_;
+  SolverOptions options_;
+  GaussPointMaterial* material_;
+  DofMap dofs_;
+  std::vector<PointGeometry> reference_;  // the Gauss points on the committed configuration
+  Eigen::VectorXd displacement_;
+  // The last converged Trial on the committed configuration (before the
+  // first step: the Trial at ΔF = I): where every step starts.
+  Evaluation committed_;
+  std::vector<Tangent> initial_tangents_;    // kInitialElastic's
+  std::map<std::string, SetForces> forces_;  // at the last commit
+  int steps_ = 0;
+  int trials_ = 0;  // in the current step
+};
+
+}  // namespace rvehub::fem
+
+#endif  // RVEHUB_FEM_CLIENT_CORE_STATIC_SOLVER_H_
