@@ -54,8 +54,9 @@ const std::vector<Layer>& Layers() {
       // The values every layer shares: plain types, their ranges and checks.
       {"rve_server/values", {"rve_server/values/", "absl/"}, {"Eigen/"}, /*standard_io=*/false},
       // What every binary shares: Abseil and the standard library (the
-      // long-running binaries' heap settings: glibc's malloc.h).
-      {"rve_server/common", {"rve_server/common/", "absl/"}, {"malloc.h"}},
+      // long-running binaries' heap settings: glibc's malloc.h; Eigen for the
+      // elasticity formulas the clients' stand-in materials share).
+      {"rve_server/common", {"rve_server/common/", "absl/"}, {"malloc.h", "Eigen/"}},
       // The engine: Eigen, Abseil, the standard library; no I/O.
       {"rve_server/engine",
        {"rve_server/engine/", "rve_server/values/", "rve_server/common/", "absl/"},

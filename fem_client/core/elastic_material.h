@@ -12,19 +12,17 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "fem_client/core/material.h"
+#include "rve_server/common/elasticity.h"
 
 namespace rvehub::fem {
 
-// Lamé's λ = Eν/((1 + ν)(1 − 2ν)) and the shear modulus G = E/(2(1 + ν)), Pa.
-double LameLambda(double youngs, double poisson);
-double ShearModulus(double youngs, double poisson);
+using ::rvehub::LameLambda;
+using ::rvehub::PolarRotation;
+using ::rvehub::ShearModulus;
 
 // C_ijkl = λ δ_ij δ_kl + G (δ_ik δ_jl + δ_il δ_jk), Pa: isotropic, with the
 // minor symmetries.
 Tangent IsotropicTangent(double lambda, double shear);
-
-// R of the polar decomposition F = R·U of an in-plane F with det F > 0.
-Eigen::Matrix2d PolarRotation(const Eigen::Matrix2d& f);
 
 // σ = R σ_n Rᵀ + C : (V − I), Pa: ΔF = V·R (polar, in-plane), the
 // increment's strain measured by its left stretch V so that a rigid

@@ -6,26 +6,6 @@
 
 namespace rvehub::mpm {
 
-Eigen::Matrix2d PolarRotation(const Eigen::Matrix2d& f) {
-  // For F = R(θ)·U with U symmetric positive definite: F10 − F01 = sin θ·tr U
-  // and F00 + F11 = cos θ·tr U.
-  const double theta = std::atan2(f(1, 0) - f(0, 1), f(0, 0) + f(1, 1));
-  const double c = std::cos(theta), s = std::sin(theta);
-  Eigen::Matrix2d r;
-  r << c, -s, s, c;
-  return r;
-}
-
-double PWaveModulus(double youngs, double poisson) {
-  return youngs * (1.0 - poisson) / ((1.0 + poisson) * (1.0 - 2.0 * poisson));
-}
-
-double LameLambda(double youngs, double poisson) {
-  return youngs * poisson / ((1.0 + poisson) * (1.0 - 2.0 * poisson));
-}
-
-double ShearModulus(double youngs, double poisson) { return youngs / (2.0 * (1.0 + poisson)); }
-
 Eigen::Matrix3d ElasticStressUpdate(const Eigen::Matrix3d& stress, const Eigen::Matrix3d& delta_f,
                                     double lambda, double shear) {
   Eigen::Matrix3d r = Eigen::Matrix3d::Identity();

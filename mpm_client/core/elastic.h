@@ -10,17 +10,15 @@
 
 #include "absl/status/status.h"
 #include "mpm_client/core/solver.h"
+#include "rve_server/common/elasticity.h"
 
 namespace rvehub::mpm {
 
-// R of the polar decomposition F = R·U of an in-plane F with det F > 0.
-Eigen::Matrix2d PolarRotation(const Eigen::Matrix2d& f);
-
-// P-wave (constrained) modulus M = E(1 − ν)/((1 + ν)(1 − 2ν)), Pa.
-double PWaveModulus(double youngs, double poisson);
-// Lamé's λ = Eν/((1 + ν)(1 − 2ν)) and the shear modulus G = E/(2(1 + ν)), Pa.
-double LameLambda(double youngs, double poisson);
-double ShearModulus(double youngs, double poisson);
+// PolarRotation, PWaveModulus, LameLambda, ShearModulus.
+using ::rvehub::LameLambda;
+using ::rvehub::PolarRotation;
+using ::rvehub::PWaveModulus;
+using ::rvehub::ShearModulus;
 
 // σ ← R σ Rᵀ + λ tr(Δε) I + 2G Δε with Δε = sym(ΔF − I) and R the rotation
 // of ΔF (3×3 plane strain, ΔF_zz = 1): Pa, tension +.
