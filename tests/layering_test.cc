@@ -112,6 +112,13 @@ const std::vector<Layer>& Layers() {
        {"fem_client/core/", "rve_server/common/", "absl/"},
        {"Eigen/"},
        /*standard_io=*/false},
+      // Running an FEM case on RVEs: the core, the client library (the RVE
+      // pool), the embedded endpoint, the store and the client programs'
+      // toolkit.
+      {"fem_client/run",
+       {"fem_client/run/", "fem_client/core/", "rve_server/client/", "rve_server/embedded/",
+        "rve_server/values/", "rve_server/common/", "store/", "toolkit/", "absl/", "nlohmann/"},
+       {"Eigen/", "nlohmann/"}},
   };
   return *layers;
 }
