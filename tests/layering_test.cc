@@ -91,10 +91,22 @@ const std::vector<Layer>& Layers() {
        {"rve_server/cli/", "rve_server/client/", "rve_server/embedded/", "rve_server/values/",
         "rve_server/common/", "store/", "toolkit/", "absl/", "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
+      // What the continuum clients' cases hold alike, as plain data: the
+      // standard library only, so an RVE-free core may hold it.
+      {"client_case/spec", {"client_case/spec/"}, {}, /*standard_io=*/false},
+      // The case sections every continuum client reads alike (templates, rve)
+      // and --set overrides: field tables over the values' parameter sets; no
+      // client's own model.
+      {"client_case",
+       {"client_case/", "toolkit/", "rve_server/values/", "rve_server/common/", "absl/",
+        "nlohmann/"},
+       {"Eigen/", "nlohmann/"}},
       // The RVE-free MPM: neither engine nor store nor client.
-      {"mpm_client/core", {"mpm_client/core/", "rve_server/common/", "absl/"}, {"Eigen/"}},
+      {"mpm_client/core",
+       {"mpm_client/core/", "client_case/spec/", "rve_server/common/", "absl/"},
+       {"Eigen/"}},
       {"mpm_client/case",
-       {"mpm_client/case/", "mpm_client/core/", "toolkit/", "rve_server/values/",
+       {"mpm_client/case/", "mpm_client/core/", "client_case/", "toolkit/", "rve_server/values/",
         "rve_server/common/", "absl/", "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
       {"mpm_client/run",
@@ -133,7 +145,7 @@ bool IsSource(const fs::directory_entry& entry) {
 // cannot slip past the order.
 TEST(LayeringTest, EveryFolderHasALayer) {
   const fs::path root(RVEHUB_SOURCE_DIR);
-  for (const char* top : {"rve_server", "store", "toolkit", "mpm_client"}) {
+  for (const char* top : {"rve_server", "store", "toolkit", "client_case", "mpm_client"}) {
     for (const fs::directory_entry& entry : fs::recursive_directory_iterator(root / top)) {
       if (!IsSource(entry)) continue;
       const std::string name = fs::relative(entry.path(), root).string();
@@ -227,6 +239,15 @@ TEST(LayeringTest, TheRulesRejectCrossings) {
   EXPECT_EQ(LayerOf("mpm_client/mpm_client_main.cc")->folder, "mpm_client");
   EXPECT_EQ(LayerOf("bench/bench_dem.cc"), nullptr);
   EXPECT_TRUE(allowed("mpm_client/case", "toolkit/field_table.h", true));
+  // The shared case sections serve the clients and depend on none.
+  EXPECT_TRUE(allowed("mpm_client/case", "client_case/sections.h", true));
+  EXPECT_TRUE(allowed("mpm_client/core", "client_case/spec/rve_spec.h", true));
+  EXPECT_FALSE(allowed("mpm_client/core", "client_case/sections.h", true));
+  EXPECT_FALSE(allowed("client_case", "mpm_client/core/model.h", true));
+  EXPECT_FALSE(allowed("client_case", "rve_server/client/endpoint.h", true));
+  EXPECT_FALSE(allowed("client_case/spec", "rve_server/values/material.h", true));
+  EXPECT_FALSE(allowed("client_case/spec", "Eigen/Dense", false));
+  EXPECT_EQ(LayerOf("client_case/spec/rve_spec.h")->folder, "client_case/spec");
 }
 
 }  // namespace
