@@ -118,6 +118,11 @@ const std::vector<Layer>& Layers() {
       {"mpm_client",
        {"mpm_client/", "rve_server/client/", "rve_server/common/", "absl/", "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
+      // fem_client's case files: the shared sections, never mpm_client's.
+      {"fem_client/case",
+       {"fem_client/case/", "fem_client/core/", "client_case/", "toolkit/", "rve_server/values/",
+        "rve_server/common/", "absl/", "nlohmann/"},
+       {"Eigen/", "nlohmann/"}},
   };
   return *layers;
 }
@@ -145,7 +150,8 @@ bool IsSource(const fs::directory_entry& entry) {
 // cannot slip past the order.
 TEST(LayeringTest, EveryFolderHasALayer) {
   const fs::path root(RVEHUB_SOURCE_DIR);
-  for (const char* top : {"rve_server", "store", "toolkit", "client_case", "mpm_client"}) {
+  for (const char* top :
+       {"rve_server", "store", "toolkit", "client_case", "mpm_client", "fem_client"}) {
     for (const fs::directory_entry& entry : fs::recursive_directory_iterator(root / top)) {
       if (!IsSource(entry)) continue;
       const std::string name = fs::relative(entry.path(), root).string();
@@ -239,15 +245,22 @@ TEST(LayeringTest, TheRulesRejectCrossings) {
   EXPECT_EQ(LayerOf("mpm_client/mpm_client_main.cc")->folder, "mpm_client");
   EXPECT_EQ(LayerOf("bench/bench_dem.cc"), nullptr);
   EXPECT_TRUE(allowed("mpm_client/case", "toolkit/field_table.h", true));
-  // The shared case sections serve the clients and depend on none.
+  // The shared case sections serve both clients and depend on neither; the
+  // clients' case readers do not reach into each other.
   EXPECT_TRUE(allowed("mpm_client/case", "client_case/sections.h", true));
+  EXPECT_TRUE(allowed("fem_client/case", "client_case/sections.h", true));
   EXPECT_TRUE(allowed("mpm_client/core", "client_case/spec/rve_spec.h", true));
   EXPECT_FALSE(allowed("mpm_client/core", "client_case/sections.h", true));
   EXPECT_FALSE(allowed("client_case", "mpm_client/core/model.h", true));
+  EXPECT_FALSE(allowed("client_case", "fem_client/case/fem_case.h", true));
   EXPECT_FALSE(allowed("client_case", "rve_server/client/endpoint.h", true));
   EXPECT_FALSE(allowed("client_case/spec", "rve_server/values/material.h", true));
   EXPECT_FALSE(allowed("client_case/spec", "Eigen/Dense", false));
+  EXPECT_FALSE(allowed("fem_client/case", "mpm_client/case/case.h", true));
+  EXPECT_FALSE(allowed("fem_client/case", "mpm_client/core/model.h", true));
+  EXPECT_FALSE(allowed("mpm_client/case", "fem_client/case/case.h", true));
   EXPECT_EQ(LayerOf("client_case/spec/rve_spec.h")->folder, "client_case/spec");
+  EXPECT_EQ(LayerOf("fem_client/case/case.cc")->folder, "fem_client/case");
 }
 
 }  // namespace
