@@ -6,7 +6,7 @@
   python3 bench/output_digests.py --rehash WORK   (digests.json again from WORK's outputs)
 
 The first form runs, with the build's binaries:
-  - every reduced case (cases/*-ci.json) and the default case, single-element-biaxial;
+  - every reduced MPM case (cases/*-ci.json but fem-*) and the default case, single-element-biaxial;
   - the default case stopped after 40 steps and resumed from its checkpoint;
   - the element tests of cases/element_tests.sh;
 and writes WORK/digests.json: for each run, a SHA-256 of timeseries.csv, of every dataset
@@ -157,7 +157,9 @@ def collect(args):
     os.makedirs(os.path.join(work, "element-tests"), exist_ok=True)
     # Templates are prepared once, before the cases that share them run in parallel.
     mpm_case(build, work, cache, "cases/single-element-biaxial.json")
-    cases = sorted(glob.glob(os.path.join(ROOT, "cases", "*-ci.json")))
+    # fem-*.json are fem_client's cases, not mpm_client's.
+    cases = sorted(c for c in glob.glob(os.path.join(ROOT, "cases", "*-ci.json"))
+                   if not os.path.basename(c).startswith("fem-"))
     cases.append(os.path.join(ROOT, "cases", "single-element-biaxial.json"))
     jobs = []
     with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:

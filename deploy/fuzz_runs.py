@@ -83,7 +83,9 @@ def main():
                     help="scratch directory (default build/fuzz-runs)")
     args = ap.parse_args()
 
-    cases = sorted(glob.glob(os.path.join(ROOT, "cases", "*-ci.json")))
+    # fem-*.json are fem_client's cases, not mpm_client's.
+    cases = sorted(c for c in glob.glob(os.path.join(ROOT, "cases", "*-ci.json"))
+                   if not os.path.basename(c).startswith("fem-"))
     os.makedirs(args.work, exist_ok=True)
     # Cases name reference curves relative to themselves.
     ref = os.path.join(args.work, "reference")

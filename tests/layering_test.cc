@@ -92,10 +92,22 @@ const std::vector<Layer>& Layers() {
        {"rve_server/cli/", "rve_server/client/", "rve_server/embedded/", "rve_server/values/",
         "rve_server/common/", "store/", "toolkit/", "absl/", "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
+      // What the continuum clients' cases hold alike, as plain data: the
+      // standard library only, so an RVE-free core may hold it.
+      {"client_case/spec", {"client_case/spec/"}, {}, /*standard_io=*/false},
+      // The case sections every continuum client reads alike (templates, rve)
+      // and --set overrides: field tables over the values' parameter sets; no
+      // client's own model.
+      {"client_case",
+       {"client_case/", "toolkit/", "rve_server/values/", "rve_server/common/", "absl/",
+        "nlohmann/"},
+       {"Eigen/", "nlohmann/"}},
       // The RVE-free MPM: neither engine nor store nor client.
-      {"mpm_client/core", {"mpm_client/core/", "rve_server/common/", "absl/"}, {"Eigen/"}},
+      {"mpm_client/core",
+       {"mpm_client/core/", "client_case/spec/", "rve_server/common/", "absl/"},
+       {"Eigen/"}},
       {"mpm_client/case",
-       {"mpm_client/case/", "mpm_client/core/", "toolkit/", "rve_server/values/",
+       {"mpm_client/case/", "mpm_client/core/", "client_case/", "toolkit/", "rve_server/values/",
         "rve_server/common/", "absl/", "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
       {"mpm_client/run",
@@ -107,17 +119,23 @@ const std::vector<Layer>& Layers() {
       {"mpm_client",
        {"mpm_client/", "rve_server/client/", "rve_server/common/", "absl/", "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
+      // fem_client's case files: the shared sections, never mpm_client's.
+      {"fem_client/case",
+       {"fem_client/case/", "fem_client/core/", "client_case/", "toolkit/", "rve_server/values/",
+        "rve_server/common/", "absl/", "nlohmann/"},
+       {"Eigen/", "nlohmann/"}},
       // The RVE-free FEM: neither engine nor store nor client, and no I/O.
       {"fem_client/core",
        {"fem_client/core/", "rve_server/common/", "absl/"},
        {"Eigen/"},
        /*standard_io=*/false},
-      // Running an FEM case on RVEs: the core, the client library (the RVE
-      // pool), the embedded endpoint, the store and the client programs'
-      // toolkit.
+      // Running an FEM case on RVEs: the core, the case, the client library
+      // (the RVE pool), the embedded endpoint, the store and the client
+      // programs' toolkit.
       {"fem_client/run",
-       {"fem_client/run/", "fem_client/core/", "rve_server/client/", "rve_server/embedded/",
-        "rve_server/values/", "rve_server/common/", "store/", "toolkit/", "absl/", "nlohmann/"},
+       {"fem_client/run/", "fem_client/case/", "fem_client/core/", "client_case/",
+        "rve_server/client/", "rve_server/embedded/", "rve_server/values/", "rve_server/common/",
+        "store/", "toolkit/", "absl/", "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
   };
   return *layers;
@@ -146,7 +164,8 @@ bool IsSource(const fs::directory_entry& entry) {
 // cannot slip past the order.
 TEST(LayeringTest, EveryFolderHasALayer) {
   const fs::path root(RVEHUB_SOURCE_DIR);
-  for (const char* top : {"rve_server", "store", "toolkit", "mpm_client", "fem_client"}) {
+  for (const char* top :
+       {"rve_server", "store", "toolkit", "client_case", "mpm_client", "fem_client"}) {
     for (const fs::directory_entry& entry : fs::recursive_directory_iterator(root / top)) {
       if (!IsSource(entry)) continue;
       const std::string name = fs::relative(entry.path(), root).string();
@@ -247,6 +266,22 @@ TEST(LayeringTest, TheRulesRejectCrossings) {
   EXPECT_FALSE(allowed("fem_client/core", "fstream", false));
   EXPECT_TRUE(allowed("fem_client/core", "Eigen/Sparse", false));
   EXPECT_EQ(LayerOf("fem_client/core/static_solver.h")->folder, "fem_client/core");
+  // The shared case sections serve both clients and depend on neither; the
+  // clients' case readers do not reach into each other.
+  EXPECT_TRUE(allowed("mpm_client/case", "client_case/sections.h", true));
+  EXPECT_TRUE(allowed("fem_client/case", "client_case/sections.h", true));
+  EXPECT_TRUE(allowed("mpm_client/core", "client_case/spec/rve_spec.h", true));
+  EXPECT_FALSE(allowed("mpm_client/core", "client_case/sections.h", true));
+  EXPECT_FALSE(allowed("client_case", "mpm_client/core/model.h", true));
+  EXPECT_FALSE(allowed("client_case", "fem_client/case/fem_case.h", true));
+  EXPECT_FALSE(allowed("client_case", "rve_server/client/endpoint.h", true));
+  EXPECT_FALSE(allowed("client_case/spec", "rve_server/values/material.h", true));
+  EXPECT_FALSE(allowed("client_case/spec", "Eigen/Dense", false));
+  EXPECT_FALSE(allowed("fem_client/case", "mpm_client/case/case.h", true));
+  EXPECT_FALSE(allowed("fem_client/case", "mpm_client/core/model.h", true));
+  EXPECT_FALSE(allowed("mpm_client/case", "fem_client/case/case.h", true));
+  EXPECT_EQ(LayerOf("client_case/spec/rve_spec.h")->folder, "client_case/spec");
+  EXPECT_EQ(LayerOf("fem_client/case/case.cc")->folder, "fem_client/case");
 }
 
 }  // namespace

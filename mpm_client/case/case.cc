@@ -24,6 +24,9 @@ namespace rvehub::mpm {
 namespace case_internal {
 namespace {
 
+// The explicit step takes every key of the shared "rve" section.
+constexpr client_case::RveKeys kRveKeys;
+
 // The case in `doc`, a section at a time: each is read after those it
 // refers to (regions after templates, tractions after regions, ...).
 absl::StatusOr<CaseSpec> ReadCase(const Json& doc, const std::string& base_dir) {
@@ -75,7 +78,7 @@ absl::StatusOr<CaseSpec> ReadCase(const Json& doc, const std::string& base_dir) 
                           }));
 
   if (const Json* rve = root.Get("rve")) {
-    RETURN_IF_ERROR(ParseRve(*rve, root.At("rve"), &spec.rve));
+    RETURN_IF_ERROR(ParseRve(*rve, root.At("rve"), kRveKeys, &spec.rve));
   }
   if (const Json* phases = root.Get("phases")) {
     // A wall shaken on its fixed grid line draws the soil off the line by
@@ -185,7 +188,7 @@ OrderedJson WriteCase(const CaseSpec& spec) {
     tractions.push_back(WriteTraction(t));
   }
 
-  doc["rve"] = WriteRve(spec.rve);
+  doc["rve"] = WriteRve(spec.rve, kRveKeys);
   if (spec.phases.saturated) doc["phases"] = WritePhases(spec.phases);
   doc["output"] = WriteOutput(spec.output);
   return doc;
@@ -214,12 +217,6 @@ CaseSize EstimateSize(const CaseSpec& spec) {
   return size;
 }
 
-absl::StatusOr<CaseOverride> ParseOverride(absl::string_view text) {
-  ASSIGN_OR_RETURN(fields::Override o,
-                   fields::ParseOverride(text, "--set=/rve/min_steps=4 or --set=rve.min_steps=4"));
-  return CaseOverride{std::move(o.pointer), std::move(o.value)};
-}
-
 absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::string& base_dir) {
   return ParseCase(json_text, base_dir, {});
 }
@@ -227,9 +224,7 @@ absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::strin
 absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::string& base_dir,
                                    std::span<const CaseOverride> overrides) {
   ASSIGN_OR_RETURN(fields::Json doc, fields::ParseJson(json_text));
-  for (const CaseOverride& o : overrides) {
-    RETURN_IF_ERROR(fields::ApplyOverride(o.pointer, o.value, doc));
-  }
+  RETURN_IF_ERROR(client_case::ApplyOverrides(overrides, doc));
   return case_internal::ReadCase(doc, base_dir);
 }
 

@@ -9,6 +9,8 @@
 
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
+#include "client_case/overrides.h"
+#include "client_case/sections.h"
 #include "mpm_client/core/model.h"
 
 namespace rvehub::mpm {
@@ -24,23 +26,16 @@ namespace rvehub::mpm {
 absl::StatusOr<CaseSpec> ParseCase(absl::string_view json_text, const std::string& base_dir);
 
 // One field of a case set from outside the file (mpm_client --set), so that a
-// parameter sweep needs no copied case files.
-struct CaseOverride {
-  std::string pointer;  // JSON pointer of the field, e.g. "/rve/min_steps"
-  std::string value;    // JSON text, e.g. "4", "[1, 2]", "\"gimp\""
-};
+// parameter sweep needs no copied case files; ParseOverride reads
+// "PATH=VALUE" (client_case/overrides.h).
+using client_case::CaseOverride;
+using client_case::ParseOverride;
 
 // solver.f_bar's names ("none", "nodal"), for mpm_client resume --f-bar.
 // FBarFromName is InvalidArgument "must be one of none, nodal, got \"x\"" for
 // any other name.
 absl::string_view FBarName(FBar f);
 absl::StatusOr<FBar> FBarFromName(absl::string_view name);
-
-// "PATH=VALUE": PATH a JSON pointer ("/rve/min_steps", "/regions/0/density")
-// or the same with dots ("rve.min_steps", "regions.0.density"); VALUE JSON, or
-// a string when it does not parse as JSON (--set name=sweep-3). InvalidArgument
-// for a text without "=" or with an empty path.
-absl::StatusOr<CaseOverride> ParseOverride(absl::string_view text);
 
 // ParseCase with `overrides` applied in order to the parsed JSON before it is
 // validated, so an override is checked exactly like the file. An override
@@ -61,7 +56,7 @@ struct CaseSize {
 };
 inline constexpr double kBytesPerNode = 56.0;
 inline constexpr double kBytesPerPoint = 1024.0;
-inline constexpr double kRveBytesPerDisc = 140.0;
+inline constexpr double kRveBytesPerDisc = client_case::kRveBytesPerDisc;
 inline constexpr double kMaxCaseBytes = 32.0 * (1 << 30);  // 32 GiB
 CaseSize EstimateSize(const CaseSpec& spec);
 

@@ -13,6 +13,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
+#include "client_case/sections.h"
 #include "mpm_client/core/model.h"
 #include "rve_server/common/status_macros.h"
 #include "toolkit/field_table.h"
@@ -153,20 +154,18 @@ Field<S> FrictionField(absl::string_view kind_key) {
 // ---------------------------------------------------------------- sections
 // Each Parse reads the section's JSON `j` at pointer `ptr`; each Write gives
 // the section's canonical JSON (ParseX(WriteX(x)) reads back x).
+// "templates" and "rve" are every continuum client's (client_case/).
+using client_case::EstimatedDiscs;
+using client_case::ParseRve;
+using client_case::ParseTemplate;
+using client_case::WriteRve;
+using client_case::WriteTemplate;
 
 absl::Status ParseGrid(const Json& j, const std::string& ptr, GridSpec* grid);
 OrderedJson WriteGrid(const GridSpec& grid);
 
 absl::Status ParseSolver(const Json& j, const std::string& ptr, SolverSpec* solver);
 OrderedJson WriteSolver(const SolverSpec& solver);
-
-// `base_dir`: the case file's directory, for relative template files.
-absl::Status ParseTemplate(const Json& j, const std::string& ptr, const std::string& base_dir,
-                           TemplateSpec* t);
-OrderedJson WriteTemplate(const TemplateSpec& t);
-// The discs of one of the template's RVEs, for EstimateSize: the parameter
-// set's (or "particles") when prepared, 400 for a file (not read here).
-int EstimatedDiscs(const TemplateSpec& t);
 
 // Corners snapped onto `lines` (their cells into `box`), the template one
 // of `templates`, the initial stress checked against the solver's gravity.
@@ -191,9 +190,6 @@ absl::Status ParseTraction(const Json& j, const std::string& ptr,
                            const std::vector<CellBox>& boxes, const std::string& regions_ptr,
                            SurfaceTraction* t);
 OrderedJson WriteTraction(const SurfaceTraction& t);
-
-absl::Status ParseRve(const Json& j, const std::string& ptr, RveSpec* rve);
-OrderedJson WriteRve(const RveSpec& rve);
 
 // Sets phases->saturated; drained boundaries on `lines` where a region
 // reaches, monitors inside a region.

@@ -37,12 +37,14 @@ void CollectPointers(const Json& j, const Json::json_pointer& at,
   }
 }
 
-// The shipped case files in `dir` whose names end with `suffix`, by name.
+// The shipped MPM case files in `dir` whose names end with `suffix`, by name
+// (fem-*.json are fem_client's).
 std::vector<std::pair<std::string, Json>> ShippedCases(const fs::path& dir,
                                                        const std::string& suffix) {
   std::vector<std::pair<std::string, Json>> cases;
   for (const fs::directory_entry& entry : fs::directory_iterator(dir)) {
     if (!entry.path().filename().string().ends_with(suffix)) continue;
+    if (entry.path().filename().string().starts_with("fem-")) continue;
     std::ifstream in(entry.path());
     cases.emplace_back(entry.path().filename().string(), Json::parse(in));
   }

@@ -1,17 +1,37 @@
-// The case's "templates" section: packings prepared from a parameter set or
-// read from a file.
+// The "templates" section: packings prepared from a parameter set or read
+// from a file.
 #include <cstdint>
 #include <string>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/str_join.h"
-#include "mpm_client/case/sections.h"
+#include "client_case/sections.h"
+#include "rve_server/common/status_macros.h"
 #include "rve_server/values/material.h"
 #include "rve_server/values/snapshot.h"
+#include "toolkit/field_table.h"
 
-namespace rvehub::mpm::case_internal {
+namespace rvehub::client_case {
 namespace {
+
+using fields::Bad;
+using fields::Fields;
+using fields::Forbid;
+using fields::GetFile;
+using fields::GetInteger;
+using fields::GetNumber;
+using fields::GetString;
+using fields::Json;
+using fields::NameField;
+using fields::Need;
+using fields::Object;
+using fields::OrderedJson;
+using fields::Quote;
+using fields::Range;
+using fields::ReadFields;
+using fields::ReadSeed;
+using fields::WriteFields;
 
 bool FromSet(const TemplateSpec& t) { return t.file.empty(); }
 
@@ -139,4 +159,4 @@ int EstimatedDiscs(const TemplateSpec& t) {
   return discs;
 }
 
-}  // namespace rvehub::mpm::case_internal
+}  // namespace rvehub::client_case

@@ -1,0 +1,54 @@
+// The case's "solver" section: the tangent and the Newton iterations of a
+// load step (G&Z §2.2, §3.3.2).
+#include <string>
+
+#include "absl/status/status.h"
+#include "fem_client/case/sections.h"
+
+namespace rvehub::fem::case_internal {
+namespace {
+
+constexpr Table<TangentKind> kTangents = {{"contact", TangentKind::kContact},
+                                          {"perturbation", TangentKind::kPerturbation},
+                                          {"initial-elastic", TangentKind::kInitialElastic}};
+
+absl::string_view TangentName(TangentKind kind) {
+  switch (kind) {
+    case TangentKind::kContact:
+      break;
+    case TangentKind::kPerturbation:
+      return "perturbation";
+    case TangentKind::kInitialElastic:
+      return "initial-elastic";
+  }
+  return "contact";
+}
+
+bool Perturbation(const SolverSpec& s) { return s.tangent == TangentKind::kPerturbation; }
+
+Fields<SolverSpec> SolverFields() {
+  // ξ: a perturbing strain above 1 % is no derivative. E_d is a relative
+  // norm: at 1 nothing would ever iterate. Each cutback halves the step:
+  // 20 of them are a millionth of it.
+  return {
+      EnumField("tangent", &SolverSpec::tangent, Need::kOptional, "tangent", kTangents,
+                &TangentName),
+      Only(&Perturbation, "only for tangent \"perturbation\"",
+           NumberField("perturbation", &SolverSpec::perturbation, Need::kOptional,
+                       Range{0.0, 0.01, true, false})),
+      NumberField("tolerance", &SolverSpec::tolerance, Need::kOptional,
+                  Range{0.0, 1.0, true, true}),
+      IntField("max_iterations", &SolverSpec::max_iterations, 1, 1000),
+      IntField("max_cutbacks", &SolverSpec::max_cutbacks, 0, 20),
+  };
+}
+
+}  // namespace
+
+absl::Status ParseSolver(const Json& j, const std::string& ptr, SolverSpec* solver) {
+  return ReadFields(j, ptr, SolverFields(), solver).status();
+}
+
+OrderedJson WriteSolver(const SolverSpec& solver) { return WriteFields(SolverFields(), solver); }
+
+}  // namespace rvehub::fem::case_internal
