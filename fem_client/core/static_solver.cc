@@ -17,6 +17,27 @@ struct StaticSolver::Failure {
 
 namespace {
 
+// Whether a smaller load step may cure a material's failure: a packing that
+// cannot follow an increment (its limits, a point's own error) may follow a
+// smaller one; a lost or refusing server, a missing RVE or a broken call
+// fails the same way at any step size.
+bool SmallerStepMayCure(const absl::Status& status) {
+  switch (status.code()) {
+    case absl::StatusCode::kUnavailable:
+    case absl::StatusCode::kDeadlineExceeded:
+    case absl::StatusCode::kCancelled:
+    case absl::StatusCode::kUnauthenticated:
+    case absl::StatusCode::kPermissionDenied:
+    case absl::StatusCode::kNotFound:
+    case absl::StatusCode::kUnimplemented:
+    case absl::StatusCode::kInternal:
+    case absl::StatusCode::kDataLoss:
+      return false;
+    default:
+      return true;
+  }
+}
+
 // `status` with `message` in front, its code and payloads (the failed point) kept.
 absl::Status Prefixed(const absl::Status& status, absl::string_view message) {
   absl::Status out(status.code(), absl::StrCat(message, status.message()));
@@ -202,6 +223,7 @@ bool StaticSolver::Evaluate(const Eigen::VectorXd& du, int iteration, Evaluation
         responses.status(),
         absl::StrCat(where, "the material failed",
                      point ? absl::StrCat(" at ", DescribeGaussPoint(mesh_, *point)) : "", ": "));
+    failure.retry = SmallerStepMayCure(responses.status());
     return false;
   }
   if (responses->size() != ev.delta_f.size()) {
@@ -249,6 +271,7 @@ bool StaticSolver::Tangents(const Evaluation& ev, int iteration, std::vector<Tan
             absl::StrCat(where, "the material failed in a perturbation",
                          point ? absl::StrCat(" at ", DescribeGaussPoint(mesh_, *point)) : "",
                          ": "));
+        failure.retry = SmallerStepMayCure(dp.status());
         return false;
       }
       d = *std::move(dp);

@@ -93,6 +93,26 @@ TEST(StaticSolverErrorsTest, ATrialFailureCutsTheStepBackThenItSucceeds) {
 // With one cut-back allowed the run stops, keeping the Trial's code and
 // its failed point, naming the step, the iteration and the Gauss point;
 // the solver keeps its committed state and goes on with a smaller step.
+// A lost server fails the same way at any step size: no cut-back, one
+// Trial, the server's code and message kept.
+TEST(StaticSolverErrorsTest, ALostServerEndsTheStepWithoutCutBacks) {
+  const Mesh mesh = Rectangle(1.0, 2.0, 1, 1);
+  auto inner = LinearElasticMaterial::Create(kE, kNu, Consolidated(mesh));
+  ASSERT_TRUE(inner.ok());
+  SpyMaterial spy(inner->get());
+  int calls = 0;
+  spy.fail = [&calls](std::span<const Eigen::Matrix3d>) {
+    return ++calls == 1 ? absl::OkStatus()  // the initial stresses
+                        : absl::UnavailableError("RVE server 127.0.0.1:1: connection refused");
+  };
+  auto solver = StaticSolver::Create(mesh, Biaxial(mesh, -0.002), SolverOptions(), &spy);
+  ASSERT_TRUE(solver.ok()) << solver.status();
+  const absl::StatusOr<StepReport> report = (*solver)->Step();
+  ExpectError(report.status(), absl::StatusCode::kUnavailable, "after 0 cut-backs");
+  ExpectError(report.status(), absl::StatusCode::kUnavailable, "connection refused");
+  EXPECT_EQ(calls, 2);
+}
+
 TEST(StaticSolverErrorsTest, TooManyCutBacksEndTheStepNamingTheFailingPoint) {
   const Mesh mesh = Rectangle(1.0, 2.0, 1, 1);
   auto inner = LinearElasticMaterial::Create(kE, kNu, Consolidated(mesh));
