@@ -109,6 +109,36 @@ absl::Status SyntaxError(const Json::exception& e, absl::string_view text) {
   return absl::InvalidArgumentError(what);
 }
 
+// InvalidArgument at the first bracket deeper than kMaxJsonDepth, found
+// before parsing: a document nested 100,000 deep would otherwise be copied
+// and walked recursively (stack overflow) after parsing.
+absl::Status CheckNesting(absl::string_view text) {
+  int depth = 0;
+  bool in_string = false, escaped = false;
+  for (size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (in_string) {
+      if (escaped) {
+        escaped = false;
+      } else if (c == '\\') {
+        escaped = true;
+      } else if (c == '"') {
+        in_string = false;
+      }
+    } else if (c == '"') {
+      in_string = true;
+    } else if (c == '[' || c == '{') {
+      if (++depth > kMaxJsonDepth) {
+        return absl::InvalidArgumentError(absl::StrCat(Position(text, i), ": nested deeper than ",
+                                                       kMaxJsonDepth, " arrays and objects"));
+      }
+    } else if (c == ']' || c == '}') {
+      --depth;
+    }
+  }
+  return absl::OkStatus();
+}
+
 std::string Dump(const OrderedJson& j) {
   return j.dump(-1, ' ', false, OrderedJson::error_handler_t::replace);
 }
@@ -147,6 +177,7 @@ void Write(const OrderedJson& j, int indent, std::string* out) {
 }  // namespace
 
 absl::StatusOr<Json> ParseJson(absl::string_view text) {
+  if (absl::Status s = CheckNesting(text); !s.ok()) return s;
   Json doc;
   DuplicateKeys duplicates;
   try {

@@ -12,7 +12,13 @@
 
 namespace rvehub::fields {
 
-// Parses `text`. A syntax error is InvalidArgument "line L, column C:
+// Arrays and objects nested deeper than this are refused before parsing (an
+// input file needs a handful of levels).
+inline constexpr int kMaxJsonDepth = 64;
+
+// Parses `text`. A document nested deeper than kMaxJsonDepth is
+// InvalidArgument "line L, column C: nested deeper than 64 arrays and
+// objects" at the first bracket too deep. A syntax error is InvalidArgument "line L, column C:
 // <parser message>" (1-based, at the last non-blank character the parser
 // read; a number out of range, "line L, column C: number overflow parsing
 // '1e400'", at the number). A key repeated within one object, which JSON

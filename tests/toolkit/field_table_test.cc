@@ -391,6 +391,23 @@ TEST(FieldTableDocument, SyntaxErrorsNameLineAndColumn) {
   EXPECT_EQ(Message(ParseJson("").status()).substr(0, 31), "line 1, column 1: syntax error ");
 }
 
+// 64 levels are read; the 65th bracket is refused before parsing, however
+// deep the rest goes (100,000 nested arrays in a typed field once overflowed
+// the stack); brackets inside strings do not count.
+TEST(FieldTableDocument, NestingIsBounded) {
+  const std::string ok = std::string(kMaxJsonDepth, '[') + std::string(kMaxJsonDepth, ']');
+  EXPECT_TRUE(ParseJson(ok).ok()) << ParseJson(ok).status();
+  for (int depth : {kMaxJsonDepth + 1, 100'000}) {
+    const std::string deep =
+        absl::StrCat("{\"grid\": {\"cell_size\": ", std::string(depth - 2, '['), "1",
+                     std::string(depth - 2, ']'), "}}");
+    EXPECT_EQ(Message(ParseJson(deep).status()),
+              "line 1, column 86: nested deeper than 64 arrays and objects");
+  }
+  const std::string mixed = absl::StrCat("{\"", std::string(100, '['), "\\\"\": 1}");
+  EXPECT_TRUE(ParseJson(mixed).ok()) << ParseJson(mixed).status();
+}
+
 TEST(FieldTableDocument, DuplicateKeysAreRefused) {
   EXPECT_EQ(Message(ParseJson(R"({"a": [{"b": 1}, {"c": 1, "c": 2}]})").status()),
             "/a/1/c: duplicate key (an object holds each key once)");
