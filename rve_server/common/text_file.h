@@ -19,8 +19,9 @@ namespace rvehub {
 inline constexpr std::size_t kMaxTextFileBytes = std::size_t{16} << 20;
 
 // The whole file. NotFound / PermissionDenied naming `what` and the path
-// when it cannot be opened; InvalidArgument for a directory or a file of
-// more than kMaxTextFileBytes; DataLoss when reading fails midway.
+// when it cannot be opened; InvalidArgument for a directory, a FIFO or a
+// socket (which would block) or a file of more than kMaxTextFileBytes;
+// DataLoss when reading fails midway.
 absl::StatusOr<std::string> ReadTextFile(const std::string& path, absl::string_view what = "file");
 
 // Whether `path` exists. Any other failure to find out (a name too long, a
@@ -28,8 +29,14 @@ absl::StatusOr<std::string> ReadTextFile(const std::string& path, absl::string_v
 // PermissionDenied or InvalidArgument.
 absl::StatusOr<bool> PathExists(const std::string& path);
 
-// A bearer token: the file without surrounding whitespace; an empty token is
-// InvalidArgument.
+// The longest token ReadTokenFile takes, bytes (a bearer token is a few
+// dozen; each call sends it).
+inline constexpr std::size_t kMaxTokenBytes = 4096;
+
+// A bearer token: the file without surrounding whitespace, 1 to
+// kMaxTokenBytes visible ASCII characters (0x21–0x7e), else InvalidArgument
+// naming the file (and the first bad byte). A file other users may read or
+// write is taken with a warning on stderr.
 absl::StatusOr<std::string> ReadTokenFile(const std::string& path);
 
 }  // namespace rvehub

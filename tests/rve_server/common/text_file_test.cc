@@ -6,10 +6,13 @@
 #include "rve_server/common/text_file.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "absl/strings/match.h"
 
@@ -61,6 +64,46 @@ TEST_F(TextFileTest, MisusedPathsAreErrorsNamingThem) {
   const std::string empty = Path("empty");
   std::ofstream(empty) << " \n";
   EXPECT_EQ(ReadTokenFile(empty).status().code(), absl::StatusCode::kInvalidArgument);
+}
+
+// A token goes into a gRPC header: a newline, a NUL or a non-ASCII byte
+// inside it, or a megabyte of it, is refused where the file is read, naming
+// the byte; a FIFO is refused instead of waiting for a writer forever.
+TEST_F(TextFileTest, ATokenIsOneLineOfVisibleAscii) {
+  const std::string path = Path("token");
+  for (const auto& [content, says] : std::vector<std::pair<std::string, std::string>>{
+           {"abc\ndef", "byte 4 of the token is 0x0a"},
+           {std::string("ab\0cd", 5), "byte 3 of the token is 0x00"},
+           {"caf\xc3\xa9", "byte 4 of the token is 0xc3"},
+           {"two words", "byte 4 of the token is 0x20"},
+           {std::string(1 << 20, 'a'), "holds 1048576 bytes; a token has at most 4096"}}) {
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << content;
+    const absl::Status s = ReadTokenFile(path).status();
+    EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument) << says;
+    EXPECT_TRUE(absl::StrContains(s.message(), says)) << s;
+  }
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << std::string(4096, '~');
+  EXPECT_TRUE(ReadTokenFile(path).ok());
+
+  const std::string fifo = Path("fifo");
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  EXPECT_EQ(ReadTokenFile(fifo).status().message(),
+            "token file '" + fifo + "' is a FIFO, not a file");
+}
+
+// Others may read a token file only by mistake: taken, with a warning.
+TEST_F(TextFileTest, AWorldReadableTokenFileIsTakenWithAWarning) {
+  const std::string path = Path("token");
+  std::ofstream(path) << "s3cret\n";
+  fs::permissions(path, fs::perms::owner_read | fs::perms::owner_write);
+  ::testing::internal::CaptureStderr();
+  EXPECT_TRUE(ReadTokenFile(path).ok());
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+  fs::permissions(path, fs::perms::others_read, fs::perm_options::add);
+  ::testing::internal::CaptureStderr();
+  EXPECT_TRUE(ReadTokenFile(path).ok());
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(),
+            "warning: token file '" + path + "' is readable by every user; chmod 600 it\n");
 }
 
 TEST_F(TextFileTest, PathExistsSaysYesNoOrWhyItCannotTell) {
