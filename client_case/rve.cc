@@ -4,6 +4,7 @@
 #include "absl/status/status.h"
 #include "client_case/sections.h"
 #include "rve_server/common/status_macros.h"
+#include "rve_server/values/snapshot.h"
 #include "toolkit/field_table.h"
 
 namespace rvehub::client_case {
@@ -49,6 +50,12 @@ absl::Status ParseRve(const Json& j, const std::string& ptr, const RveKeys& keys
   if (rve->max_void_ratio > 0.0 && rve->max_void_ratio < 0.1) {
     return Bad(ptr + "/max_void_ratio", "must be 0 (no cap) or in [0.1, 10], got ",
                Num(rve->max_void_ratio));
+  }
+  // The RVE's own bound (dem::Controls): below 1e-6 a packing would take
+  // without end to follow any increment, and the run would refuse it.
+  if (rve->max_inertial_number > 0.0 && rve->max_inertial_number < dem::kMinInertialNumber) {
+    return Bad(ptr + "/max_inertial_number", "must be 0 (the template's) or in [",
+               Num(dem::kMinInertialNumber), ", 0.1], got ", Num(rve->max_inertial_number));
   }
   // A stretch of more than half in one step is a broken continuum, not an
   // increment; below 0.01 nearly every flow would stop.

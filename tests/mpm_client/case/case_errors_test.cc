@@ -49,6 +49,9 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
       // Unbounded DEM work per increment.
       {"/rve/min_steps", 1e15, "/rve/min_steps: must be an integer in 0..100000"},
       {"/rve/max_inertial_number", 0.5, "/rve/max_inertial_number: must be in [0, 0.1], got 0.5"},
+      // What check took and run refused.
+      {"/rve/max_inertial_number", 1e-300,
+       "/rve/max_inertial_number: must be 0 (the template's) or in [1e-06, 0.1], got 1e-300"},
       {"/solver/end_time", 0, "/solver/end_time: must be in (0, 1000000], got 0"},
       {"/solver/gravity", Json::array({0, -1e13}),
        "/solver/gravity/1: must be at most 1e+12 in magnitude, got -1e+13"},
