@@ -471,7 +471,15 @@ absl::Status Registry::ApplyEach(absl::string_view run_id, std::int64_t step, Ap
       return std::chrono::duration<double>(std::chrono::steady_clock::now() - engine_start).count();
     };
     if (mode == ApplyMode::kTrial) {
-      dem::Rve trial = e.rve;  // the committed state stays as it is
+      // The committed state stays as it is; the trial runs on a copy held by
+      // this worker thread, whose buffers the next trial's copy reuses.
+      thread_local std::optional<dem::Rve> scratch;
+      if (scratch.has_value()) {
+        *scratch = e.rve;
+      } else {
+        scratch.emplace(e.rve);
+      }
+      dem::Rve& trial = *scratch;
       absl::StatusOr<dem::RveState> s = trial.Apply(inc.delta_f, options, interrupt);
       o.engine_seconds = engine_seconds();
       if (!s.ok()) {
