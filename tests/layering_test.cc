@@ -139,10 +139,10 @@ const std::vector<Layer>& Layers() {
        {"Eigen/"},
        /*standard_io=*/false},
       // Running an FEM case on RVEs: the core, the case, the client library
-      // (the RVE pool), the embedded endpoint, the store and the client
-      // programs' toolkit.
+      // (the RVE pool), the embedded endpoint, the store, the client
+      // programs' toolkit and the clients' shared run layer.
       {"fem_client/run",
-       {"fem_client/run/", "fem_client/case/", "fem_client/core/", "client_case/",
+       {"fem_client/run/", "fem_client/case/", "fem_client/core/", "client_case/", "client_run/",
         "rve_server/client/", "rve_server/embedded/", "rve_server/values/", "rve_server/common/",
         "store/", "toolkit/", "absl/", "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
@@ -291,8 +291,10 @@ TEST(LayeringTest, TheRulesRejectCrossings) {
   EXPECT_FALSE(allowed("mpm_client/case", "fem_client/case/case.h", true));
   EXPECT_EQ(LayerOf("client_case/spec/rve_spec.h")->folder, "client_case/spec");
   EXPECT_EQ(LayerOf("fem_client/case/case.cc")->folder, "fem_client/case");
-  // The clients' shared run layer depends on no client.
+  // The clients' shared run layer serves both and depends on neither; the
+  // clients' run layers do not reach into each other.
   EXPECT_TRUE(allowed("mpm_client/run", "client_run/templates.h", true));
+  EXPECT_TRUE(allowed("fem_client/run", "client_run/templates.h", true));
   EXPECT_TRUE(allowed("client_run", "store/checkpoint.h", true));
   EXPECT_TRUE(allowed("client_run", "rve_server/embedded/packings.h", true));
   EXPECT_FALSE(allowed("client_run", "mpm_client/core/model.h", true));
@@ -300,6 +302,9 @@ TEST(LayeringTest, TheRulesRejectCrossings) {
   EXPECT_FALSE(allowed("client_run", "client_case/sections.h", true));
   EXPECT_FALSE(allowed("client_run", "rve_server/service/registry.h", true));
   EXPECT_FALSE(allowed("client_run", "rve_server/engine/rve.h", true));
+  EXPECT_FALSE(allowed("fem_client/run", "mpm_client/run/output.h", true));
+  EXPECT_FALSE(allowed("mpm_client/run", "fem_client/run/simulation.h", true));
+  EXPECT_EQ(LayerOf("fem_client/run/simulation.cc")->folder, "fem_client/run");
   EXPECT_EQ(LayerOf("client_run/templates.cc")->folder, "client_run");
 }
 
