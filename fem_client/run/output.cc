@@ -171,8 +171,9 @@ absl::Status WritePlot(const FemCase& c, const Columns& columns, const std::stri
                       "tau (kPa)",
                       {{"FEM x DEM", Scaled(*gamma, 100.0), tau}}};
     if (!out.reference_curve.empty()) {
+      // The element test's sxy is compression + (−σxy); τ is σxy.
       ASSIGN_OR_RETURN(plot::Series s,
-                       ReferenceSeries(out.reference_curve, "shear_strain", "sxy", 1e-3));
+                       ReferenceSeries(out.reference_curve, "shear_strain", "sxy", -1e-3));
       loops.series.push_back(std::move(s));
     }
     panels.push_back(std::move(loops));

@@ -76,8 +76,8 @@ absl::StatusOr<Summary> SummariseFem(const FemCase& c,
 // Fig. 6), with the case's reference curve (an rve_cli element-test CSV:
 // its syy and vol_strain against axial_strain) as "DEM element test", and
 // the Newton iterations per step; "simple-shear": τ against γ (with the
-// reference's sxy against shear_strain) and τ against the mean p (G&Z
-// Figs. 20, 22); "none": no plot. Returns the figures.
+// reference's −sxy, its σxy, against shear_strain) and τ against the mean p
+// (G&Z Figs. 20, 22); "none": no plot. Returns the figures.
 absl::StatusOr<Summary> WriteFemRunOutputs(const FemCase& c, const std::string& dir);
 
 }  // namespace rvehub::fem

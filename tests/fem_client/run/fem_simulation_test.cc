@@ -278,6 +278,28 @@ TEST(FemSimulationTest, StrainControlledCyclicShearReversesAtTheQuarters) {
   }
   EXPECT_GT(ts.at("platen_force_per_width_Pa")[2], 1e3);   // τ > 0 at +γ_a
   EXPECT_LT(ts.at("platen_force_per_width_Pa")[6], -1e3);  // τ < 0 at −γ_a
+  // The specimen is uniform: at +γ_a its τ and p are those of the DEM cyclic
+  // simple shear element test on the same template (measured: +1.0 %, −0.1 %).
+  absl::StatusOr<std::vector<TemplateRecord>> templates =
+      client_run::ResolveTemplates(c.templates, TemplateCache());
+  ASSERT_TRUE(templates.ok()) << templates.status();
+  dem::ElementTestSpec spec;
+  spec.kind = dem::ElementTestKind::kCyclicSimpleShear;
+  spec.cyclic_control = dem::CyclicControl::kStrain;
+  spec.amplitude = 0.01;
+  spec.cycles = 1;
+  spec.max_strain = 0.1;
+  spec.confining = 1e5;
+  absl::StatusOr<std::vector<dem::ElementTestRow>> rows =
+      embedded::RunElementTest(templates->front().packing, spec);
+  ASSERT_TRUE(rows.ok()) << rows.status();
+  const dem::ElementTestRow& at_amplitude = *std::max_element(
+      rows->begin(), rows->end(),
+      [](const auto& a, const auto& b) { return a.shear_strain < b.shear_strain; });
+  EXPECT_NEAR(at_amplitude.shear_strain, 0.01, 5e-4);
+  const double tau = -at_amplitude.sxy_comp;  // σxy, Pa
+  EXPECT_NEAR(ts.at("platen_force_per_width_Pa")[2], tau, 0.03 * tau);
+  EXPECT_NEAR(ts.at("mean_p_Pa")[2], at_amplitude.p_comp, 0.02 * at_amplitude.p_comp);
   const nlohmann::json summary = ReadJson(out + "/summary.json");
   ASSERT_TRUE(summary.is_object());
   EXPECT_EQ(summary["peak_shear_stress_Pa"].get<double>(), ts.at("platen_force_per_width_Pa")[2]);
