@@ -146,6 +146,11 @@ const std::vector<Layer>& Layers() {
         "rve_server/client/", "rve_server/embedded/", "rve_server/values/", "rve_server/common/",
         "store/", "toolkit/", "absl/", "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
+      // The binary: commands and flags over the run layer.
+      {"fem_client",
+       {"fem_client/", "client_run/", "rve_server/client/", "rve_server/common/", "absl/",
+        "nlohmann/"},
+       {"Eigen/", "nlohmann/"}},
   };
   return *layers;
 }
@@ -305,6 +310,11 @@ TEST(LayeringTest, TheRulesRejectCrossings) {
   EXPECT_FALSE(allowed("fem_client/run", "mpm_client/run/output.h", true));
   EXPECT_FALSE(allowed("mpm_client/run", "fem_client/run/simulation.h", true));
   EXPECT_EQ(LayerOf("fem_client/run/simulation.cc")->folder, "fem_client/run");
+  EXPECT_TRUE(allowed("fem_client", "client_run/run_record.h", true));
+  EXPECT_FALSE(allowed("fem_client", "rve_server/engine/rve.h", true));
+  EXPECT_FALSE(allowed("fem_client", "rve_server/embedded/endpoint.h", true));
+  EXPECT_FALSE(allowed("fem_client", "mpm_client/run/simulation.h", true));
+  EXPECT_EQ(LayerOf("fem_client/fem_client_main.cc")->folder, "fem_client");
   EXPECT_EQ(LayerOf("client_run/templates.cc")->folder, "client_run");
 }
 
