@@ -5,7 +5,6 @@
 //   mpm_client run CASE --out=DIR --servers=host1:50051,host2:50051
 //   mpm_client resume out/se/checkpoint.h5
 //   mpm_client check CASE
-#include <unistd.h>
 
 #include <cstdio>
 #include <cstdlib>
@@ -22,8 +21,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
-#include "absl/time/clock.h"
-#include "absl/time/time.h"
+#include "client_run/run_record.h"
 #include "mpm_client/case/case.h"
 #include "mpm_client/run/output.h"
 #include "mpm_client/run/simulation.h"
@@ -34,8 +32,6 @@
 #include "rve_server/common/flags.h"
 #include "rve_server/common/process.h"
 #include "rve_server/common/status_macros.h"
-#include "rve_server/common/text_file.h"
-#include "rve_server/common/version.h"
 
 // The options (kUsage documents them); cli::ParseArgs reads them with
 // hyphens (--stop-after).
@@ -334,89 +330,6 @@ int Fail(const absl::Status& s, int code) {
   return code;
 }
 
-std::string Now() {
-  return absl::FormatTime("%Y-%m-%dT%H:%M:%E3SZ", absl::Now(), absl::UTCTimeZone());
-}
-
-std::string HostName() {
-  char name[256] = {};
-  if (gethostname(name, sizeof(name) - 1) != 0) return "";
-  return name;
-}
-
-// DIR/run.json: what ran, where and when, so that an output directory says
-// how it was made. Written when the run starts (outcome "running") and again
-// at its end; a resume keeps the records before it under "previous".
-class RunRecord {
- public:
-  RunRecord(int argc, char** argv, const std::string& command) {
-    json_["program"] = "mpm_client";
-    json_["version"] = RVEHUB_GIT_DESCRIBE;
-    json_["api_version"] = kVersion;
-    json_["command_line"] = std::vector<std::string>(argv, argv + argc);
-    json_["command"] = command;
-    json_["host"] = HostName();
-    std::error_code ec;
-    json_["working_directory"] = std::filesystem::current_path(ec).string();
-    json_["start"] = Now();
-    json_["end"] = nullptr;
-    json_["outcome"] = "running";
-  }
-
-  // The case as run (canonical, after --set) and where the outputs go.
-  void Started(const std::string& dir, const CaseSpec& spec, bool resumed) {
-    dir_ = dir;
-    json_["case"] = Json::parse(ToJson(spec));
-    if (resumed) {
-      // The run this one continues, and any it continued.
-      if (absl::StatusOr<std::string> old = ReadTextFile(Path(), "run record"); old.ok()) {
-        Json previous = Json::parse(*old, nullptr, /*allow_exceptions=*/false);
-        if (!previous.is_discarded()) {
-          Json chain = previous.contains("previous") ? previous["previous"] : Json::array();
-          previous.erase("previous");
-          chain.push_back(std::move(previous));
-          json_["previous"] = std::move(chain);
-        }
-      }
-    }
-    Write();
-  }
-
-  void Finished(const absl::StatusOr<SimulationSummary>& summary) {
-    json_["end"] = Now();
-    if (!summary.ok()) {
-      json_["outcome"] = "failed";
-      json_["error"] = std::string(summary.status().message());
-    } else {
-      json_["outcome"] = summary->finished ? "finished" : "stopped";
-      json_["final_step"] = summary->final_step;
-      json_["final_time"] = summary->final_time;
-      json_["wall_s"] = summary->wall_s;
-    }
-    Write();
-  }
-
- private:
-  using Json = nlohmann::ordered_json;
-  std::string Path() const { return dir_ + "/run.json"; }
-  // A record that cannot be written is reported, not fatal: the results are.
-  void Write() const {
-    if (dir_.empty()) return;
-    const std::string tmp = Path() + ".tmp";
-    std::FILE* f = std::fopen(tmp.c_str(), "w");
-    const std::string text = json_.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
-    const bool ok = f != nullptr && std::fwrite(text.data(), 1, text.size(), f) == text.size();
-    const bool closed = f != nullptr && std::fclose(f) == 0;
-    if (!ok || !closed || std::rename(tmp.c_str(), Path().c_str()) != 0) {
-      std::remove(tmp.c_str());
-      std::fprintf(stderr, "mpm_client: cannot write %s\n", Path().c_str());
-    }
-  }
-
-  Json json_;
-  std::string dir_;
-};
-
 int Main(int argc, char** argv) {
   SetUpLongRunningProcess();
   absl::StatusOr<Command> command = Parse(argc, argv);
@@ -449,7 +362,7 @@ int Main(int argc, char** argv) {
   absl::StatusOr<client::ClientOptions> client_options = LoadClientOptions();
   if (!client_options.ok()) return Fail(client_options.status(), 1);
   options->client = *std::move(client_options);
-  RunRecord record(argc, argv, command->name);
+  client_run::RunRecord record("mpm_client", RVEHUB_GIT_DESCRIBE, argc, argv, command->name);
   absl::StatusOr<std::unique_ptr<Simulation>> sim;
   if (command->name == "run") {
     absl::StatusOr<CaseSpec> spec = LoadCase(command->target, *overrides);
@@ -464,10 +377,15 @@ int Main(int argc, char** argv) {
     sim = Simulation::Resume(command->target, *options);
   }
   if (!sim.ok()) return Fail(sim.status(), 1);
-  record.Started(options->out_dir, (*sim)->spec(), command->name == "resume");
+  record.Started(options->out_dir, ToJson((*sim)->spec()), command->name == "resume");
   absl::StatusOr<SimulationSummary> summary = (*sim)->StepToEnd();
-  record.Finished(summary);
-  if (!summary.ok()) return Fail(summary.status(), 1);
+  if (!summary.ok()) {
+    record.Failed(std::string(summary.status().message()));
+    return Fail(summary.status(), 1);
+  }
+  record.Finished(summary->finished ? "finished" : "stopped", {{"final_step", summary->final_step},
+                                                               {"final_time", summary->final_time},
+                                                               {"wall_s", summary->wall_s}});
   std::fprintf(stderr,
                "mpm_client: %s at step %lld, t = %.6g s; %lld steps in %.1f s wall (RVE calls "
                "%.1f s, %.1f %%), %lld RVE evaluations\n",

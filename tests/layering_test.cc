@@ -102,6 +102,14 @@ const std::vector<Layer>& Layers() {
        {"client_case/", "toolkit/", "rve_server/values/", "rve_server/common/", "absl/",
         "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
+      // What the continuum clients' run layers share: the case templates
+      // (prepared on the embedded packings, cached in the store), the RVE
+      // endpoints, timeseries.csv, summary.json, run.json and the time split.
+      // No client's own model or case reader.
+      {"client_run",
+       {"client_run/", "client_case/spec/", "rve_server/client/", "rve_server/embedded/",
+        "rve_server/values/", "rve_server/common/", "store/", "absl/", "nlohmann/"},
+       {"Eigen/", "nlohmann/"}},
       // The RVE-free MPM: neither engine nor store nor client.
       {"mpm_client/core",
        {"mpm_client/core/", "client_case/spec/", "rve_server/common/", "absl/"},
@@ -111,13 +119,14 @@ const std::vector<Layer>& Layers() {
         "rve_server/common/", "absl/", "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
       {"mpm_client/run",
-       {"mpm_client/run/", "mpm_client/case/", "mpm_client/core/", "rve_server/client/",
-        "rve_server/embedded/", "rve_server/values/", "rve_server/common/", "store/", "toolkit/",
-        "absl/", "nlohmann/"},
+       {"mpm_client/run/", "mpm_client/case/", "mpm_client/core/", "client_run/",
+        "rve_server/client/", "rve_server/embedded/", "rve_server/values/", "rve_server/common/",
+        "store/", "toolkit/", "absl/", "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
       // The binary.
       {"mpm_client",
-       {"mpm_client/", "rve_server/client/", "rve_server/common/", "absl/", "nlohmann/"},
+       {"mpm_client/", "client_run/", "rve_server/client/", "rve_server/common/", "absl/",
+        "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
       // fem_client's case files: the shared sections, never mpm_client's.
       {"fem_client/case",
@@ -130,12 +139,17 @@ const std::vector<Layer>& Layers() {
        {"Eigen/"},
        /*standard_io=*/false},
       // Running an FEM case on RVEs: the core, the case, the client library
-      // (the RVE pool), the embedded endpoint, the store and the client
-      // programs' toolkit.
+      // (the RVE pool), the embedded endpoint, the store, the client
+      // programs' toolkit and the clients' shared run layer.
       {"fem_client/run",
-       {"fem_client/run/", "fem_client/case/", "fem_client/core/", "client_case/",
+       {"fem_client/run/", "fem_client/case/", "fem_client/core/", "client_case/", "client_run/",
         "rve_server/client/", "rve_server/embedded/", "rve_server/values/", "rve_server/common/",
         "store/", "toolkit/", "absl/", "nlohmann/"},
+       {"Eigen/", "nlohmann/"}},
+      // The binary: commands and flags over the run layer.
+      {"fem_client",
+       {"fem_client/", "client_run/", "rve_server/client/", "rve_server/common/", "absl/",
+        "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
   };
   return *layers;
@@ -164,8 +178,8 @@ bool IsSource(const fs::directory_entry& entry) {
 // cannot slip past the order.
 TEST(LayeringTest, EveryFolderHasALayer) {
   const fs::path root(RVEHUB_SOURCE_DIR);
-  for (const char* top :
-       {"rve_server", "store", "toolkit", "client_case", "mpm_client", "fem_client"}) {
+  for (const char* top : {"rve_server", "store", "toolkit", "client_case", "client_run",
+                          "mpm_client", "fem_client"}) {
     for (const fs::directory_entry& entry : fs::recursive_directory_iterator(root / top)) {
       if (!IsSource(entry)) continue;
       const std::string name = fs::relative(entry.path(), root).string();
@@ -282,6 +296,26 @@ TEST(LayeringTest, TheRulesRejectCrossings) {
   EXPECT_FALSE(allowed("mpm_client/case", "fem_client/case/case.h", true));
   EXPECT_EQ(LayerOf("client_case/spec/rve_spec.h")->folder, "client_case/spec");
   EXPECT_EQ(LayerOf("fem_client/case/case.cc")->folder, "fem_client/case");
+  // The clients' shared run layer serves both and depends on neither; the
+  // clients' run layers do not reach into each other.
+  EXPECT_TRUE(allowed("mpm_client/run", "client_run/templates.h", true));
+  EXPECT_TRUE(allowed("fem_client/run", "client_run/templates.h", true));
+  EXPECT_TRUE(allowed("client_run", "store/checkpoint.h", true));
+  EXPECT_TRUE(allowed("client_run", "rve_server/embedded/packings.h", true));
+  EXPECT_FALSE(allowed("client_run", "mpm_client/core/model.h", true));
+  EXPECT_FALSE(allowed("client_run", "fem_client/core/mesh.h", true));
+  EXPECT_FALSE(allowed("client_run", "client_case/sections.h", true));
+  EXPECT_FALSE(allowed("client_run", "rve_server/service/registry.h", true));
+  EXPECT_FALSE(allowed("client_run", "rve_server/engine/rve.h", true));
+  EXPECT_FALSE(allowed("fem_client/run", "mpm_client/run/output.h", true));
+  EXPECT_FALSE(allowed("mpm_client/run", "fem_client/run/simulation.h", true));
+  EXPECT_EQ(LayerOf("fem_client/run/simulation.cc")->folder, "fem_client/run");
+  EXPECT_TRUE(allowed("fem_client", "client_run/run_record.h", true));
+  EXPECT_FALSE(allowed("fem_client", "rve_server/engine/rve.h", true));
+  EXPECT_FALSE(allowed("fem_client", "rve_server/embedded/endpoint.h", true));
+  EXPECT_FALSE(allowed("fem_client", "mpm_client/run/simulation.h", true));
+  EXPECT_EQ(LayerOf("fem_client/fem_client_main.cc")->folder, "fem_client");
+  EXPECT_EQ(LayerOf("client_run/templates.cc")->folder, "client_run");
 }
 
 }  // namespace

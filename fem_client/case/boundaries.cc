@@ -40,9 +40,9 @@ absl::string_view PinName(Pin pin) {
   return "none";
 }
 
-bool IsPlaten(const Boundary& b) { return b.kind == BoundaryKind::kPlaten; }
-bool IsPressure(const Boundary& b) { return b.kind == BoundaryKind::kPressure; }
-bool IsRoller(const Boundary& b) { return b.kind == BoundaryKind::kRoller; }
+bool IsPlaten(const BoundarySpec& b) { return b.kind == BoundaryKind::kPlaten; }
+bool IsPressure(const BoundarySpec& b) { return b.kind == BoundaryKind::kPressure; }
+bool IsRoller(const BoundarySpec& b) { return b.kind == BoundaryKind::kRoller; }
 
 // The axis normal to a face: 0 (x) for left and right, 1 (y) for bottom and top.
 int NormalAxis(Face face) { return face == Face::kLeft || face == Face::kRight ? 0 : 1; }
@@ -62,7 +62,7 @@ Face Opposite(Face face) {
 }
 
 // Which displacements a boundary holds (prescribed or zero), x and y.
-std::array<bool, 2> Holds(const Boundary& b) {
+std::array<bool, 2> Holds(const BoundarySpec& b) {
   const int n = NormalAxis(b.face);
   std::array<bool, 2> held = {false, false};
   switch (b.kind) {
@@ -86,12 +86,12 @@ std::array<bool, 2> Holds(const Boundary& b) {
 }
 
 // `mesh`: for the pin's node (null when only writing).
-Fields<Boundary> BoundaryFields(const MeshSpec* mesh) {
+Fields<BoundarySpec> BoundaryFields(const MeshSpec* mesh) {
   return {
-      NameField<Boundary>(),
-      EnumField("face", &Boundary::face, Need::kRequired, "face", kFaces, &FaceName),
+      NameField<BoundarySpec>(),
+      EnumField("face", &BoundarySpec::face, Need::kRequired, "face", kFaces, &FaceName),
       {"kind",
-       [](const Object& o, Boundary* b) -> absl::Status {
+       [](const Object& o, BoundarySpec* b) -> absl::Status {
          RETURN_IF_ERROR(GetEnum(o, "kind", Need::kRequired, "boundary kind", kKinds, &b->kind));
          // Periodicity pairs the side faces; the simple-shear platen is the
          // top, over a fixed base (G&Z §5).
@@ -105,15 +105,15 @@ Fields<Boundary> BoundaryFields(const MeshSpec* mesh) {
          }
          return absl::OkStatus();
        },
-       [](const Boundary& b, OrderedJson& j) { j["kind"] = BoundaryKindName(b.kind); }},
+       [](const BoundarySpec& b, OrderedJson& j) { j["kind"] = BoundaryKindName(b.kind); }},
       Only(&IsPlaten, "only for kind \"platen\"",
-           EnumField("contact", &Boundary::contact, Need::kRequired, "contact", kContacts,
+           EnumField("contact", &BoundarySpec::contact, Need::kRequired, "contact", kContacts,
                      &ContactName)),
       Only(&IsPressure, "only for kind \"pressure\"",
-           NumberField("pressure", &Boundary::pressure, Need::kRequired, kPackingStress)),
+           NumberField("pressure", &BoundarySpec::pressure, Need::kRequired, kPackingStress)),
       Only(&IsRoller, "only for kind \"roller\"",
            {"pin",
-            [mesh](const Object& o, Boundary* b) -> absl::Status {
+            [mesh](const Object& o, BoundarySpec* b) -> absl::Status {
               RETURN_IF_ERROR(GetEnum(o, "pin", Need::kOptional, "pin", kPins, &b->pin));
               const int nodes = NodesAlongFace(*mesh, b->face);
               if (b->pin == Pin::kMiddle && nodes % 2 == 0) {
@@ -125,7 +125,7 @@ Fields<Boundary> BoundaryFields(const MeshSpec* mesh) {
               }
               return absl::OkStatus();
             },
-            [](const Boundary& b, OrderedJson& j) {
+            [](const BoundarySpec& b, OrderedJson& j) {
               if (b.pin != Pin::kNone) j["pin"] = PinName(b.pin);
             }}),
   };
@@ -166,13 +166,13 @@ absl::string_view BoundaryKindName(BoundaryKind kind) {
 }
 
 absl::Status ParseBoundary(const Json& j, const std::string& ptr, const MeshSpec& mesh,
-                           Boundary* b) {
+                           BoundarySpec* b) {
   return ReadFields(j, ptr, BoundaryFields(&mesh), b).status();
 }
 
-OrderedJson WriteBoundary(const Boundary& b) { return WriteFields(BoundaryFields(nullptr), b); }
+OrderedJson WriteBoundary(const BoundarySpec& b) { return WriteFields(BoundaryFields(nullptr), b); }
 
-absl::Status CheckBoundaries(const std::vector<Boundary>& boundaries, const std::string& ptr) {
+absl::Status CheckBoundaries(const std::vector<BoundarySpec>& boundaries, const std::string& ptr) {
   // The boundary on each face (its index), -1 where the face is free.
   std::array<int, 4> on_face = {-1, -1, -1, -1};
   const auto at = [&](int i, absl::string_view key = "") {
@@ -231,7 +231,7 @@ absl::Status CheckBoundaries(const std::vector<Boundary>& boundaries, const std:
                "no boundary drives the specimen: give a \"platen\" (compression) or the top's "
                "\"shear\" platen (simple shear)");
   }
-  const Boundary& d = boundaries[driven];
+  const BoundarySpec& d = boundaries[driven];
   if (d.kind == BoundaryKind::kPlaten) {
     const std::optional<BoundaryKind> across = kind_on(Opposite(d.face));
     if (across != BoundaryKind::kFixed && across != BoundaryKind::kRoller) {
@@ -257,7 +257,7 @@ absl::Status CheckBoundaries(const std::vector<Boundary>& boundaries, const std:
   // Without a support in x or in y the specimen can move as a rigid body and
   // the stiffness matrix is singular.
   std::array<bool, 2> held = {false, false};
-  for (const Boundary& b : boundaries) {
+  for (const BoundarySpec& b : boundaries) {
     const std::array<bool, 2> h = Holds(b);
     held[0] = held[0] || h[0];
     held[1] = held[1] || h[1];

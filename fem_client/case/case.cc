@@ -58,7 +58,7 @@ absl::StatusOr<FemCase> ReadCase(const Json& doc, const std::string& base_dir) {
   }
 
   RETURN_IF_ERROR(GetList(root, "boundaries", Need::kRequired, "boundary", &c.boundaries,
-                          [&](const Json& j, const std::string& ptr, size_t, Boundary* b) {
+                          [&](const Json& j, const std::string& ptr, size_t, BoundarySpec* b) {
                             return ParseBoundary(j, ptr, c.mesh, b);
                           }));
   RETURN_IF_ERROR(CheckBoundaries(c.boundaries, root.At("boundaries")));
@@ -100,7 +100,7 @@ OrderedJson WriteCase(const FemCase& c) {
   doc["material"] = WriteMaterial(c.material);
   doc["rve"] = client_case::WriteRve(c.rve, kRveKeys);
   OrderedJson& boundaries = doc["boundaries"] = OrderedJson::array();
-  for (const Boundary& b : c.boundaries) boundaries.push_back(WriteBoundary(b));
+  for (const BoundarySpec& b : c.boundaries) boundaries.push_back(WriteBoundary(b));
   doc["loading"] = WriteLoading(c.loading);
   doc["solver"] = WriteSolver(c.solver);
   doc["output"] = WriteOutput(c.output);

@@ -80,7 +80,7 @@ enum class Contact { kSmooth, kRough };
 enum class Pin { kNone, kStart, kMiddle, kEnd };
 
 // A condition on one face of the mesh; a face without one is traction-free.
-struct Boundary {
+struct BoundarySpec {
   std::string name;
   Face face = Face::kLeft;
   BoundaryKind kind = BoundaryKind::kFixed;
@@ -166,7 +166,7 @@ struct FemCase {
   std::vector<TemplateSpec> templates;
   MaterialSpec material;
   RveSpec rve;
-  std::vector<Boundary> boundaries;
+  std::vector<BoundarySpec> boundaries;
   LoadingSpec loading;
   SolverSpec solver;
   OutputSpec output;

@@ -178,7 +178,7 @@ absl::string_view LoadingKindName(LoadingKind kind) {
 }
 
 absl::Status ParseLoading(const Json& j, const std::string& ptr,
-                          const std::vector<Boundary>& boundaries,
+                          const std::vector<BoundarySpec>& boundaries,
                           const std::string& boundaries_ptr, LoadingSpec* loading) {
   ASSIGN_OR_RETURN(Object o, ReadFields(j, ptr, LoadingFields(), loading));
   // The loading drives the one driven boundary (CheckBoundaries found it).

@@ -101,18 +101,18 @@ OrderedJson WriteMaterial(const MaterialSpec& material);
 // One boundary, checked alone against the mesh (its face for the kind, a
 // pin's node).
 absl::Status ParseBoundary(const Json& j, const std::string& ptr, const MeshSpec& mesh,
-                           Boundary* b);
-OrderedJson WriteBoundary(const Boundary& b);
+                           BoundarySpec* b);
+OrderedJson WriteBoundary(const BoundarySpec& b);
 // The boundaries together (their list at `ptr`): one per face, periodic
 // faces in pairs, exactly one driven face (a platen or the shear platen)
 // with the face across it held, and the specimen held in x and in y.
-absl::Status CheckBoundaries(const std::vector<Boundary>& boundaries, const std::string& ptr);
+absl::Status CheckBoundaries(const std::vector<BoundarySpec>& boundaries, const std::string& ptr);
 
 // Checked against the driven boundary of `boundaries` (their list at
 // `boundaries_ptr`): compression for a platen, shear or cyclic shear for the
 // shear platen.
 absl::Status ParseLoading(const Json& j, const std::string& ptr,
-                          const std::vector<Boundary>& boundaries,
+                          const std::vector<BoundarySpec>& boundaries,
                           const std::string& boundaries_ptr, LoadingSpec* loading);
 OrderedJson WriteLoading(const LoadingSpec& loading);
 

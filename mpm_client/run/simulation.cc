@@ -1,7 +1,5 @@
 #include "mpm_client/run/simulation.h"
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -17,6 +15,9 @@
 #include "absl/synchronization/mutex.h"
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
+#include "client_run/endpoints.h"
+#include "client_run/templates.h"
+#include "client_run/time_split.h"
 #include "mpm_client/case/case.h"
 #include "mpm_client/core/body_contact.h"
 #include "mpm_client/core/shape.h"
@@ -24,17 +25,17 @@
 #include "mpm_client/core/two_phase.h"
 #include "mpm_client/run/output.h"
 #include "mpm_client/run/summary.h"
-#include "mpm_client/run/templates.h"
 #include "rve_server/client/endpoint.h"
-#include "rve_server/client/remote_server.h"
 #include "rve_server/common/status_macros.h"
 #include "rve_server/common/text_file.h"
-#include "rve_server/embedded/endpoint.h"
 #include "rve_server/values/preparation.h"
 #include "rve_server/values/state.h"
 #include "store/results.h"
 
 namespace rvehub::mpm {
+
+using client_run::BulkDensity;
+
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -71,20 +72,6 @@ class RveStressModel : public StressModel {
   client::RvePool* pool_;
   double* seconds_;
 };
-
-// A run id unique among the runs a shared server hosts: case name, time and
-// process id. It names the RVEs on the servers only; results never depend on it.
-std::string MakeRunId(const std::string& case_name) {
-  std::string name;
-  for (char c : case_name) {
-    name +=
-        (std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '-' || c == '_') ? c : '_';
-  }
-  if (name.size() > 64) name.resize(64);
-  return absl::StrCat(name.empty() ? "run" : name, "-",
-                      absl::FormatTime("%Y%m%dT%H%M%S", absl::Now(), absl::UTCTimeZone()), "-",
-                      getpid());
-}
 
 // Nominal in-plane strain of a total F, compression +: ε = I − sym(F), so
 // εyy = 1 − F_yy is the element tests' axial strain (timeseries.csv). Not
@@ -162,20 +149,8 @@ absl::Status Simulation::UploadTemplates() {
 }
 
 absl::Status Simulation::Connect() {
-  std::vector<std::unique_ptr<client::RveEndpoint>> endpoints;
-  if (options_.servers.empty()) {
-    embedded::EmbeddedOptions embedded;
-    embedded.threads = options_.threads > 0
-                           ? options_.threads
-                           : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-    endpoints.push_back(embedded::MakeEndpoint(embedded));
-  } else {
-    for (const std::string& address : options_.servers) {
-      ASSIGN_OR_RETURN(std::unique_ptr<client::RveEndpoint> e,
-                       client::RemoteServer::Connect(address, options_.client));
-      endpoints.push_back(std::move(e));
-    }
-  }
+  ASSIGN_OR_RETURN(std::vector<std::unique_ptr<client::RveEndpoint>> endpoints,
+                   client_run::MakeEndpoints(options_.servers, options_.threads, options_.client));
   client::PoolOptions po;
   po.apply_deadline = absl::Seconds(options_.apply_timeout_s);
   if (RecoveryOn()) {
@@ -497,34 +472,8 @@ absl::Status Simulation::WriteCheckpoint() {
 }
 
 std::string FormatTimeSplit(const SimulationSummary& s) {
-  const double wall = std::max(s.wall_s, 1e-12);
-  const double engine = std::min(s.rve_s, s.rve_stats.engine_seconds / std::max(1, s.rve_workers));
-  const double service = s.rve_s - engine;
-  const double grid = std::max(0.0, s.wall_s - s.rve_s - s.output_s);
-  std::string out = absl::StrFormat(
-      "time split (wall %.1f s): DEM engine %.1f s (%.1f %%; %.1f core-s over %d workers), "
-      "service, transport and idle workers %.1f s (%.1f %%), grid %.1f s (%.1f %%), output %.1f s "
-      "(%.1f %%)",
-      s.wall_s, engine, 100 * engine / wall, s.rve_stats.engine_seconds, s.rve_workers, service,
-      100 * service / wall, grid, 100 * grid / wall, s.output_s, 100 * s.output_s / wall);
-  const client::ApplyStats& st = s.rve_stats;
-  if (st.increments == 0) return out;
-  absl::StrAppendFormat(&out, "\nDEM steps per increment: mean %.2f over %d increments;",
-                        static_cast<double>(st.dem_steps) / static_cast<double>(st.increments),
-                        st.increments);
-  for (int b = 0; b < client::ApplyStats::kBins; ++b) {
-    if (st.histogram[b] == 0) continue;
-    const std::int64_t upper = client::ApplyStats::BinUpper(b);
-    const std::int64_t lower = b == 0 ? 0 : client::ApplyStats::BinUpper(b - 1) + 1;
-    const std::string label = upper < 0        ? absl::StrCat(">", lower - 1)
-                              : b == 0         ? std::string("<=1")
-                              : lower == upper ? absl::StrCat(upper)
-                                               : absl::StrCat(lower, "-", upper);
-    absl::StrAppendFormat(
-        &out, " %s: %.1f %%", label,
-        100.0 * static_cast<double>(st.histogram[b]) / static_cast<double>(st.increments));
-  }
-  return out;
+  return client_run::FormatTimeSplit({s.wall_s, s.rve_s, s.output_s, s.rve_stats, s.rve_workers},
+                                     "grid");
 }
 
 absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& spec,
@@ -533,7 +482,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
   sim->spec_ = spec;
   sim->case_json_ = ToJson(spec);
   sim->options_ = options;
-  sim->run_id_ = MakeRunId(spec.name);
+  sim->run_id_ = client_run::MakeRunId(spec.name);
   RETURN_IF_ERROR(MakeOutputDir(options.out_dir));
   RETURN_IF_ERROR(sim->ResolveCaseTemplates());
   RETURN_IF_ERROR(sim->Connect());
@@ -554,10 +503,11 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Start(const CaseSpec& sp
 }
 
 absl::Status Simulation::ResolveCaseTemplates() {
-  const std::string cache = options_.template_cache_dir.empty() ? options_.out_dir + "/templates"
-                                                                : options_.template_cache_dir;
-  ASSIGN_OR_RETURN(templates_,
-                   ResolveTemplates(spec_.templates, cache, [&](const std::string& l) { Log(l); }));
+  const std::string cache =
+      client_run::TemplateCacheDir(options_.template_cache_dir, options_.out_dir);
+  ASSIGN_OR_RETURN(
+      templates_, client_run::ResolveTemplates(
+                      spec_.templates, cache, [&](const std::string& l) { Log(l); }, "mpm_client"));
   return absl::OkStatus();
 }
 
@@ -831,7 +781,7 @@ absl::StatusOr<std::unique_ptr<Simulation>> Simulation::Resume(const std::string
   sim->spec_ = *std::move(spec);
   sim->case_json_ = std::move(case_json);
   sim->options_ = options;
-  sim->run_id_ = MakeRunId(sim->spec_.name);
+  sim->run_id_ = client_run::MakeRunId(sim->spec_.name);
   sim->templates_ = std::move(c.templates);
   RETURN_IF_ERROR(sim->Connect());
   RETURN_IF_ERROR(sim->UploadTemplates());

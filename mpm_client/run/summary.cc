@@ -2,13 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <limits>
 #include <numbers>
 #include <queue>
 
 #include "absl/strings/str_cat.h"
-#include "nlohmann/json.hpp"
+#include "client_run/summary.h"
 #include "rve_server/common/status_macros.h"
 
 namespace rvehub::mpm {
@@ -193,14 +192,8 @@ absl::StatusOr<Summary> Biaxial(const CaseSpec& spec, const Columns& columns) {
     stress = *syy;
     strain = *eyy;
   }
-  if (stress.size() != strain.size()) {
-    return absl::InvalidArgumentError("stress and strain columns differ in length");
-  }
-  const std::size_t peak = std::max_element(stress.begin(), stress.end()) - stress.begin();
-  return Summary{{"peak_stress_Pa", stress[peak]},
-                 {"peak_strain", strain[peak]},
-                 {"final_stress_Pa", stress.back()},
-                 {"final_strain", strain.back()}};
+  // The peak as every client reads a nominal curve (client_run/summary.h).
+  return client_run::PeakSummary(strain, stress);
 }
 
 }  // namespace
@@ -431,18 +424,6 @@ absl::StatusOr<Summary> Summarise(const CaseSpec& spec, const Columns& columns) 
   if (kind == "biaxial") return Biaxial(spec, columns);
   if (kind == "none") return Summary{};
   return absl::InvalidArgumentError(absl::StrCat("unknown summary kind '", kind, "'"));
-}
-
-absl::Status WriteSummary(const std::string& path, const std::string& case_name,
-                          const Summary& summary) {
-  nlohmann::ordered_json j;
-  j["case"] = case_name;
-  for (const auto& [key, value] : summary) j[key] = value;
-  std::ofstream f(path, std::ios::trunc);
-  f << j.dump(2) << "\n";
-  f.close();
-  if (!f) return absl::InternalError(absl::StrCat("cannot write ", path));
-  return absl::OkStatus();
 }
 
 }  // namespace rvehub::mpm

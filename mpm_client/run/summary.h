@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "client_run/summary.h"
 #include "mpm_client/core/model.h"
 
 namespace rvehub::mpm {
@@ -92,8 +93,10 @@ struct NominalCurve {
 absl::StatusOr<NominalCurve> PlatenCurve(const CaseSpec& spec,
                                          const std::map<std::string, std::vector<double>>& columns);
 
-// Named figures in the order summary.json lists them (SI units in the names).
-using Summary = std::vector<std::pair<std::string, double>>;
+// Named figures in the order summary.json lists them (SI units in the names),
+// and summary.json itself: shared with the other clients.
+using client_run::Summary;
+using client_run::WriteSummary;
 
 // The figures of a case's kind from its timeseries columns (by header):
 // footing: N_q, ultimate_load_Pa, settlement_at_ultimate_m, phi_deg and
@@ -120,10 +123,6 @@ using Summary = std::vector<std::pair<std::string, double>>;
 // final_strain. Empty for "none".
 absl::StatusOr<Summary> Summarise(const CaseSpec& spec,
                                   const std::map<std::string, std::vector<double>>& columns);
-
-// summary.json: {"case": name, then the figures as plain keys}.
-absl::Status WriteSummary(const std::string& path, const std::string& case_name,
-                          const Summary& summary);
 
 }  // namespace rvehub::mpm
 

@@ -59,7 +59,7 @@ TEST_F(FemCaseTest, FullCaseParsesIntoExpectedCase) {
   EXPECT_TRUE(c->rve.full_state_every_step);
 
   ASSERT_EQ(c->boundaries.size(), 4u);
-  const Boundary& base = c->boundaries[0];
+  const BoundarySpec& base = c->boundaries[0];
   EXPECT_EQ(base.name, "base");
   EXPECT_EQ(base.face, Face::kBottom);
   EXPECT_EQ(base.kind, BoundaryKind::kRoller);

@@ -18,10 +18,10 @@
 #include "absl/strings/match.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/string_view.h"
+#include "client_run/templates.h"
 #include "mpm_client/case/case.h"
 #include "mpm_client/core/two_phase.h"
 #include "mpm_client/run/output.h"
-#include "mpm_client/run/templates.h"
 #include "rve_server/common/status_macros.h"
 #include "rve_server/engine/element_test.h"
 #include "rve_server/service/server.h"
@@ -31,6 +31,8 @@
 
 namespace rvehub::mpm::sim_test {
 namespace {
+
+using client_run::ResolveTemplates;
 
 // §3.1: four material points with identical RVEs under the element's
 // boundary conditions reproduce the DEM element test on one RVE, the whole

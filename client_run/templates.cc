@@ -1,4 +1,4 @@
-#include "mpm_client/run/templates.h"
+#include "client_run/templates.h"
 
 #include <cmath>
 #include <filesystem>
@@ -13,7 +13,7 @@
 #include "rve_server/values/snapshot.h"
 #include "store/checkpoint.h"
 
-namespace rvehub::mpm {
+namespace rvehub::client_run {
 namespace {
 
 // The record of a template file: the one named `name`, or its only one.
@@ -39,7 +39,8 @@ absl::StatusOr<TemplateRecord> FromFile(const TemplateSpec& spec) {
 }
 
 absl::StatusOr<TemplateRecord> Prepared(const TemplateSpec& spec, const std::string& cache_dir,
-                                        const std::function<void(const std::string&)>& log) {
+                                        const std::function<void(const std::string&)>& log,
+                                        const std::string& created_by) {
   const dem::TemplateVariant variant{.pressure = spec.pressure,
                                      .void_ratio = spec.void_ratio,
                                      .num_particles = spec.particles,
@@ -73,7 +74,7 @@ absl::StatusOr<TemplateRecord> Prepared(const TemplateSpec& spec, const std::str
   std::error_code ec;
   std::filesystem::create_directories(cache_dir, ec);
   store::FileInfo info;
-  info.created_by = "mpm_client";
+  info.created_by = created_by;
   // The cache only saves time: a failure to write it is not an error.
   if (absl::Status s =
           store::WriteTemplates(path, std::span<const TemplateRecord>(&record, 1), info);
@@ -87,16 +88,21 @@ absl::StatusOr<TemplateRecord> Prepared(const TemplateSpec& spec, const std::str
 
 absl::StatusOr<std::vector<TemplateRecord>> ResolveTemplates(
     const std::vector<TemplateSpec>& specs, const std::string& cache_dir,
-    const std::function<void(const std::string&)>& log) {
+    const std::function<void(const std::string&)>& log, const std::string& created_by) {
   std::vector<TemplateRecord> out;
   out.reserve(specs.size());
   for (const TemplateSpec& spec : specs) {
-    ASSIGN_OR_RETURN(TemplateRecord r,
-                     spec.file.empty() ? Prepared(spec, cache_dir, log) : FromFile(spec));
+    ASSIGN_OR_RETURN(TemplateRecord r, spec.file.empty()
+                                           ? Prepared(spec, cache_dir, log, created_by)
+                                           : FromFile(spec));
     r.name = spec.name;
     out.push_back(std::move(r));
   }
   return out;
+}
+
+std::string TemplateCacheDir(const std::string& cache_dir, const std::string& out_dir) {
+  return cache_dir.empty() ? out_dir + "/templates" : cache_dir;
 }
 
 double BulkDensity(const dem::RveSnapshot& packing) {
@@ -104,4 +110,4 @@ double BulkDensity(const dem::RveSnapshot& packing) {
   return packing.material.density * dem::SolidArea(packing.radius) / cell_area;
 }
 
-}  // namespace rvehub::mpm
+}  // namespace rvehub::client_run

@@ -1,0 +1,274 @@
+// fem_client: runs an implicit FEM×DEM case (Guo & Zhao 2014) on RVE
+// servers (an embedded one by default).
+//
+//   fem_client run cases/fem-single-element.json --out=out/fem-se
+//   fem_client run CASE --out=DIR --servers=host1:50051,host2:50051
+//   fem_client check CASE
+//   fem_client summarise CASE --out=DIR
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "absl/flags/flag.h"
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
+#include "client_run/run_record.h"
+#include "fem_client/case/case.h"
+#include "fem_client/run/output.h"
+#include "fem_client/run/simulation.h"
+#include "rve_server/client/channel.h"
+#include "rve_server/common/address.h"
+#include "rve_server/common/flags.h"
+#include "rve_server/common/process.h"
+#include "rve_server/common/status_macros.h"
+
+// The options (kUsage documents them); cli::ParseArgs reads them with
+// hyphens (--stop-after).
+ABSL_FLAG(std::string, out, "", "output directory");
+ABSL_FLAG(std::string, servers, "", "RVE servers, HOST:PORT,...");
+ABSL_FLAG(int, threads, 0, "workers of the embedded server");
+ABSL_FLAG(std::string, token_file, "", "bearer token file");
+ABSL_FLAG(std::string, tls_ca, "", "CA certificate (PEM)");
+ABSL_FLAG(double, timeout, 600, "deadline of one batched RVE call, s");
+ABSL_FLAG(std::string, template_cache, "", "template cache directory");
+ABSL_FLAG(int64_t, stop_after, 0, "stop after N load steps");
+ABSL_FLAG(bool, quiet, false, "no progress lines");
+// Repeatable: cli::ParseArgs keeps each occurrence as typed (Args::repeated).
+ABSL_FLAG(std::vector<std::string>, set, {}, "case overrides PATH=VALUE");
+
+namespace rvehub::fem {
+namespace {
+
+constexpr char kUsage[] =
+    R"(fem_client — implicit FEM×DEM simulations (Guo & Zhao 2014) on RVE servers
+
+Usage:
+  fem_client run CASE.json --out=DIR [options]   run a case (cases/FEM_FORMAT.md)
+  fem_client check CASE.json [--set=...]         validate a case file and print it in full
+  fem_client summarise CASE.json --out=DIR       (re)write DIR/summary.json and plot.png from
+                                                 DIR/timeseries.csv
+  fem_client --help
+
+Options (run):
+  --out=DIR            output directory (required). Written there: timeseries.csv (a row per
+                       load step: strains, the platen's and lateral stresses, Newton
+                       iterations and errors, monitored Gauss points), summary.json (peak,
+                       iterations per step, wall time), plot.png, results.h5 + results.xdmf
+                       (every Gauss point's fields per frame; open results.xdmf in ParaView),
+                       packings-STEP.h5 (the RVEs of output.packings per frame), run.json
+                       (the run record: case, version, command line, host, start and end)
+  --servers=H:P,...    RVE servers to use (rve_server). Default: one embedded server in
+                       this process, no network
+  --threads=N          workers of the embedded server (default: all cores)
+  --token-file=FILE    bearer token for the servers
+  --tls-ca=FILE        CA certificate (PEM) to verify TLS servers
+  --timeout=SECONDS    deadline of one batched RVE call (a Newton iteration's TRIALs, a
+                       step's COMMITs) at most (default 600)
+  --template-cache=DIR where prepared RVE templates are cached (default DIR/templates)
+  --stop-after=N       stop after N load steps (no checkpoint: fem_client cannot resume yet)
+  --quiet              no progress lines
+
+Option (run, check, summarise):
+  --set=PATH=VALUE     override one case field before the case is validated; repeatable.
+                       PATH is a JSON pointer or dotted: --set=/mesh/elements=[10,15],
+                       --set=loading.axial_strain_step=5e-4, --set=solver.tangent=perturbation
+
+Not supported yet: stress-controlled cyclic shear (the run refuses it), resuming a run.
+
+Exit status: 0 done, 1 failure (message on stderr), 2 usage error.
+)";
+
+using cli::Args;
+
+constexpr char kThreadsRule[] = "must be an integer in 1..1024";
+constexpr char kTimeoutRule[] = "must be a number of seconds in (0, 1e7]";
+constexpr char kStopAfterRule[] = "must be a positive integer";
+
+struct Command {
+  std::string name;    // run, check, summarise, help
+  std::string target;  // the case file
+  Args args;
+};
+
+absl::StatusOr<Command> Parse(int argc, char** argv) {
+  Command c;
+  // --help wins over anything else on the line.
+  if (cli::WantsHelp(argc, argv, 1)) {
+    c.name = "help";
+    return c;
+  }
+  cli::ArgSpec spec;
+  spec.allowed = {"out",     "servers",        "threads",    "token-file", "tls-ca",
+                  "timeout", "template-cache", "stop-after", "quiet",      "set"};
+  spec.repeatable = {"set"};
+  spec.bare = {"quiet"};
+  spec.rules = {
+      {"threads", kThreadsRule}, {"timeout", kTimeoutRule}, {"stop-after", kStopAfterRule}};
+  ASSIGN_OR_RETURN(Args args, cli::ParseArgs(argc, argv, 1, spec));
+  c.args = std::move(args);
+  std::vector<std::string>& positional = c.args.positional;
+  if (positional.size() > 2) {
+    return absl::InvalidArgumentError(absl::StrCat("unexpected argument '", positional[2], "'"));
+  }
+  if (positional.empty()) return absl::InvalidArgumentError("no command (see --help)");
+  c.name = positional[0];
+  if (c.name == "resume") {
+    return absl::InvalidArgumentError(
+        "resume is not supported yet: fem_client writes no checkpoints (run the case again)");
+  }
+  if (c.name != "run" && c.name != "check" && c.name != "summarise") {
+    return absl::InvalidArgumentError(absl::StrCat("unknown command '", c.name, "'"));
+  }
+  if (positional.size() < 2) {
+    return absl::InvalidArgumentError(absl::StrCat(c.name, " needs a case file"));
+  }
+  c.target = positional[1];
+  if (c.name == "check") {
+    for (const auto& [key, value] : c.args.text) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("check takes no options (got --", key, "), only --set"));
+    }
+  }
+  if (c.name == "summarise") {
+    for (const auto& [key, value] : c.args.text) {
+      if (key != "out") {
+        return absl::InvalidArgumentError(
+            absl::StrCat("summarise takes only --out and --set (got --", key, ")"));
+      }
+    }
+    if (!c.args.contains("out")) return absl::InvalidArgumentError("summarise needs --out=DIR");
+  }
+  if (c.name == "run" && !c.args.contains("out")) {
+    return absl::InvalidArgumentError("--out=DIR is required");
+  }
+  return c;
+}
+
+// The case overrides of --set, in the order given.
+absl::StatusOr<std::vector<CaseOverride>> Overrides(const Args& a) {
+  std::vector<CaseOverride> out;
+  auto it = a.repeated.find("set");
+  if (it == a.repeated.end()) return out;
+  for (const std::string& text : it->second) {
+    ASSIGN_OR_RETURN(CaseOverride o, ParseOverride(text));
+    out.push_back(std::move(o));
+  }
+  return out;
+}
+
+// The run options from the flags; usage errors only (files are read later).
+absl::StatusOr<FemSimulationOptions> Options(const Args& a) {
+  FemSimulationOptions o;
+  o.out_dir = absl::GetFlag(FLAGS_out);
+  if (o.out_dir.empty()) return absl::InvalidArgumentError("--out=DIR needs a directory");
+  if (a.contains("servers")) {
+    for (absl::string_view s :
+         absl::StrSplit(absl::GetFlag(FLAGS_servers), ',', absl::SkipWhitespace())) {
+      RETURN_IF_ERROR(ValidateAddress("--servers", s, PortZero::kRefused));
+      o.servers.emplace_back(s);
+    }
+    if (o.servers.empty()) return absl::InvalidArgumentError("--servers lists no server");
+  }
+  if (a.contains("threads")) {
+    o.threads = absl::GetFlag(FLAGS_threads);
+    if (o.threads < 1 || o.threads > 1024) {
+      return absl::InvalidArgumentError(absl::StrCat("--threads ", kThreadsRule));
+    }
+  }
+  if (a.contains("timeout")) {
+    o.apply_timeout_s = absl::GetFlag(FLAGS_timeout);
+    if (!(o.apply_timeout_s > 0) || o.apply_timeout_s > 1e7) {
+      return absl::InvalidArgumentError(absl::StrCat("--timeout ", kTimeoutRule));
+    }
+  }
+  if (a.contains("stop-after")) {
+    o.stop_after_steps = absl::GetFlag(FLAGS_stop_after);
+    if (o.stop_after_steps < 1) {
+      return absl::InvalidArgumentError(absl::StrCat("--stop-after ", kStopAfterRule));
+    }
+  }
+  if (a.contains("template-cache")) o.template_cache_dir = absl::GetFlag(FLAGS_template_cache);
+  o.progress = !a.contains("quiet");
+  return o;
+}
+
+int Fail(const absl::Status& s, int code) {
+  std::fprintf(stderr, "fem_client: %s\n", std::string(s.message()).c_str());
+  return code;
+}
+
+int Main(int argc, char** argv) {
+  SetUpLongRunningProcess();
+  absl::StatusOr<Command> command = Parse(argc, argv);
+  if (!command.ok()) return Fail(command.status(), 2);
+  for (const std::string& warning : command->args.warnings) {
+    std::fprintf(stderr, "fem_client: warning: %s\n", warning.c_str());
+  }
+  if (command->name == "help") {
+    std::fputs(kUsage, stdout);
+    return 0;
+  }
+  absl::StatusOr<std::vector<CaseOverride>> overrides = Overrides(command->args);
+  if (!overrides.ok()) return Fail(overrides.status(), 2);
+  absl::StatusOr<FemCase> spec = LoadFemCase(command->target, *overrides);
+  if (command->name == "check") {
+    if (!spec.ok()) return Fail(spec.status(), 1);
+    std::printf("%s\n", ToJson(*spec).c_str());
+    return 0;
+  }
+  if (command->name == "summarise") {
+    if (!spec.ok()) return Fail(spec.status(), 1);
+    absl::StatusOr<Summary> summary = WriteFemRunOutputs(*spec, command->args.text.at("out"));
+    if (!summary.ok()) return Fail(summary.status(), 1);
+    for (const auto& [key, value] : *summary) {
+      std::printf("summary: %s = %.6g\n", key.c_str(), value);
+    }
+    return 0;
+  }
+  absl::StatusOr<FemSimulationOptions> options = Options(command->args);
+  if (!options.ok()) return Fail(options.status(), 2);
+  if (!spec.ok()) return Fail(spec.status(), 1);
+  // An unreadable token or CA file is a failure, not a usage error.
+  absl::StatusOr<client::ClientOptions> client_options =
+      client::ClientOptionsFromFiles(absl::GetFlag(FLAGS_token_file), absl::GetFlag(FLAGS_tls_ca));
+  if (!client_options.ok()) return Fail(client_options.status(), 1);
+  options->client = *std::move(client_options);
+  client_run::RunRecord record("fem_client", RVEHUB_GIT_DESCRIBE, argc, argv, command->name);
+  absl::StatusOr<std::unique_ptr<FemSimulation>> sim = FemSimulation::Start(*spec, *options);
+  if (!sim.ok()) return Fail(sim.status(), 1);
+  record.Started(options->out_dir, ToJson(*spec), /*resumed=*/false);
+  absl::StatusOr<FemRunSummary> summary = (*sim)->StepToEnd();
+  if (!summary.ok()) {
+    record.Failed(std::string(summary.status().message()));
+    return Fail(summary.status(), 1);
+  }
+  const client_run::TimeSplit& split = summary->split;
+  record.Finished(summary->finished ? "finished" : "stopped",
+                  {{"final_step", summary->final_step},
+                   {"total_steps", summary->total_steps},
+                   {"iterations", summary->iterations},
+                   {"cutbacks", summary->cutbacks},
+                   {"wall_s", split.wall_s}});
+  std::fprintf(
+      stderr,
+      "fem_client: %s at load step %lld of %lld; %lld Newton iterations (%.2f per step), "
+      "%lld cut-backs, %lld TRIALs in %.1f s wall (RVE calls %.1f s, %.1f %%)\n",
+      summary->finished ? "finished" : "stopped", static_cast<long long>(summary->final_step),
+      static_cast<long long>(summary->total_steps), static_cast<long long>(summary->iterations),
+      summary->steps > 0
+          ? static_cast<double>(summary->iterations) / static_cast<double>(summary->steps)
+          : 0.0,
+      static_cast<long long>(summary->cutbacks), static_cast<long long>(summary->trials),
+      split.wall_s, split.rve_s, split.wall_s > 0 ? 100.0 * split.rve_s / split.wall_s : 0.0);
+  std::fprintf(stderr, "fem_client: %s\n",
+               client_run::FormatTimeSplit(split, "FEM (assembly, solves)").c_str());
+  std::fprintf(stderr, "fem_client: outputs in %s\n", options->out_dir.c_str());
+  return 0;
+}
+
+}  // namespace
+}  // namespace rvehub::fem
+
+int main(int argc, char** argv) { return rvehub::fem::Main(argc, argv); }

@@ -1,0 +1,127 @@
+// A FEM×DEM run (G&Z §2.3): the implicit solver of a FemCase (core/) with
+// an RVE at every Gauss point, hosted by RVE servers (embedded in this
+// process by default, or remote), plus the outputs in one directory:
+// timeseries.csv, summary.json and plot.png (output.h), results.h5 +
+// results.xdmf (every Gauss point as a point of its own every
+// output.frame_every steps and at the last: its Cauchy stress, tension + as
+// the RVE gives it; p and q, compression +; ε_q and ε_v of G&Z eqs. 12–13
+// from the total displacement, compression +; void ratio, coordination,
+// fabric anisotropy and its id; a frame's time is its load step) and
+// packings-<step>.h5 (the RVEs of output.packings at those frames).
+#ifndef RVEHUB_FEM_CLIENT_RUN_SIMULATION_H_
+#define RVEHUB_FEM_CLIENT_RUN_SIMULATION_H_
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "client_run/time_split.h"
+#include "fem_client/case/fem_case.h"
+#include "fem_client/core/static_solver.h"
+#include "fem_client/run/problem.h"
+#include "fem_client/run/rve_material.h"
+#include "rve_server/client/channel.h"
+#include "rve_server/client/rve_pool.h"
+#include "rve_server/values/record.h"
+
+namespace rvehub::fem {
+
+struct FemSimulationOptions {
+  std::string out_dir = "out";
+  std::vector<std::string> servers;  // HOST:PORT each; empty: one embedded server
+  int threads = 0;                   // embedded server's workers; 0: all cores
+  client::ClientOptions client;      // token, TLS, message size for remote servers
+  double apply_timeout_s = 600;      // deadline of one batched TRIAL or COMMIT at most, s
+  // Prepared templates are cached here; empty: <out_dir>/templates.
+  std::string template_cache_dir;
+  // Stop after this many load steps (0: run to the end). There is no
+  // checkpoint to resume from yet: a stopped run's outputs end there.
+  std::int64_t stop_after_steps = 0;
+  bool progress = true;  // progress lines
+  // A progress line also comes when this much wall time has passed since the
+  // last one, s (a late load step may take minutes).
+  double progress_interval_s = 60.0;
+  std::function<void(const std::string&)> log;  // default: stderr
+};
+
+struct FemRunSummary {
+  std::int64_t steps = 0;        // load steps taken in this run
+  std::int64_t final_step = 0;   // the last load step done
+  std::int64_t total_steps = 0;  // the case's
+  bool finished = false;         // all the case's load steps done
+  std::int64_t iterations = 0;   // Newton iterations over the steps
+  std::int64_t cutbacks = 0;
+  std::int64_t trials = 0;  // TRIAL calls over every RVE
+  // Where the wall time went: the stepping loop, the RVE calls (TRIALs and
+  // COMMITs), the outputs; the increments' DEM steps and engine time.
+  client_run::TimeSplit split;
+};
+
+class FemSimulation {
+ public:
+  // Sets the case up, in stages: the problem (mesh, boundaries, load steps:
+  // a case the run layer cannot run fails here, before anything is
+  // written), the output directory, the templates (prepared and cached, or
+  // read), the endpoints, the templates uploaded, one RVE per Gauss point
+  // (id = the Gauss point's, consolidated to material.initial_stress), the
+  // solver, and the outputs with row and frame 0.
+  static absl::StatusOr<std::unique_ptr<FemSimulation>> Start(const FemCase& c,
+                                                              const FemSimulationOptions& options);
+  ~FemSimulation();
+
+  // Steps to the case's last load step (or FemSimulationOptions::
+  // stop_after_steps). A step that fails for good (no convergence after
+  // the cut-backs, a lost server) ends the run with the solver's error,
+  // the outputs kept up to the step before; summary.json and plot.png are
+  // written when the run finishes.
+  absl::StatusOr<FemRunSummary> StepToEnd();
+
+  const FemCase& spec() const { return case_; }
+  const StaticSolver& solver() const { return *solver_; }
+  const Problem& problem() const { return problem_; }
+  client::RvePool& pool() { return *pool_; }
+
+ private:
+  FemSimulation() = default;
+
+  // Start's stages after the problem, in order.
+  absl::Status ResolveCaseTemplates();
+  absl::Status Connect();
+  absl::Status UploadTemplates();
+  absl::Status CreateRves();
+  absl::Status CreateSolver();
+  absl::Status OpenOutputs();
+
+  // The row of the current state (after load step `step`; its report when
+  // there was one) and the frame of every Gauss point.
+  struct StepFigures;
+  absl::Status WriteRow(const StepFigures& figures);
+  absl::Status WriteFrame();
+  // The RVE states of the current state: those of the last COMMIT, or the
+  // created ones before the first step.
+  const std::vector<dem::RveState>& States() const;
+  void Log(const std::string& line) const;
+
+  FemCase case_;
+  FemSimulationOptions options_;
+  Problem problem_;
+  std::string run_id_;
+  std::vector<TemplateRecord> templates_;
+  std::unique_ptr<client::RvePool> pool_;
+  std::vector<dem::RveState> created_;  // the RVEs' states after creation
+  std::unique_ptr<RveMaterial> material_;
+  std::unique_ptr<StaticSolver> solver_;
+  Mesh mesh0_;  // the mesh as created: the reference of the total strains
+  std::vector<PointGeometry> geometry0_;
+  double area0_ = 0.0;  // m², the mesh's initial area (per m of thickness)
+  struct Outputs;
+  std::unique_ptr<Outputs> out_;
+};
+
+}  // namespace rvehub::fem
+
+#endif  // RVEHUB_FEM_CLIENT_RUN_SIMULATION_H_

@@ -1,0 +1,255 @@
+// The fem_client binary as a child process: its help and usage errors,
+// check, run on the embedded server with every output, the same run on two
+// loopback rve_servers giving the same timeseries bit for bit, summarise
+// writing the run's summary again, and cases it refuses (a run it cannot do,
+// a bad file) failing with a clear message and no misleading outputs.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "absl/strings/match.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "absl/strings/str_split.h"
+#include "nlohmann/json.hpp"
+#include "tests/support/process_util.h"
+
+namespace rvehub::fem {
+namespace {
+
+namespace fs = std::filesystem;
+using Json = nlohmann::json;
+using testing_util::ReadFile;
+
+// This process's scratch directory, created afresh on first use and removed
+// at the end when every test passed.
+const std::string& ScratchDir() {
+  static const std::string* const dir = [] {
+    const fs::path d = fs::path(testing::TempDir()) / absl::StrCat("fem_cli_test_", getpid());
+    fs::remove_all(d);
+    fs::create_directories(d);
+    return new std::string(d.string());
+  }();
+  return *dir;
+}
+
+class ScratchCleanup : public testing::Environment {
+ public:
+  void TearDown() override {
+    if (testing::UnitTest::GetInstance()->Passed()) fs::remove_all(ScratchDir());
+  }
+};
+[[maybe_unused]] testing::Environment* const kCleanup =
+    testing::AddGlobalTestEnvironment(new ScratchCleanup);
+
+std::string TempPath(const std::string& name) { return ScratchDir() + "/" + name; }
+
+std::string Quote(const std::string& s) { return absl::StrCat("'", s, "'"); }
+
+std::string Case(const std::string& name) {
+  return absl::StrCat(RVEHUB_SOURCE_DIR "/cases/", name, ".json");
+}
+
+// The embedded server's workers and the template cache the fem tests share.
+std::string CommonFlags() {
+  return absl::StrCat(" --threads=2 --template-cache=",
+                      Quote((fs::path(testing::TempDir()) / "fem_test_templates").string()));
+}
+
+struct Result {
+  int exit_code = -1;
+  std::string out;  // stdout
+  std::string err;  // stderr
+};
+
+std::ostream& operator<<(std::ostream& os, const Result& r) {
+  return os << "exit " << r.exit_code << "\n--- stdout:\n" << r.out << "--- stderr:\n" << r.err;
+}
+
+Result RunClient(const std::string& args) {
+  static int count = 0;
+  const std::string err_path = TempPath(absl::StrCat("stderr", ++count, ".txt"));
+  testing_util::CommandResult run = testing_util::RunCommand(
+      absl::StrCat(Quote(FEM_CLIENT_PATH), " ", args, " 2>", Quote(err_path)));
+  Result r{run.exit_code, std::move(run.out), ReadFile(err_path)};
+  std::remove(err_path.c_str());
+  return r;
+}
+
+// timeseries.csv as text without its wall_step_s column (wall-clock time,
+// the one column that differs between runs of the same case).
+std::string WithoutWallTime(const std::string& text) {
+  std::vector<std::vector<std::string>> rows;
+  for (absl::string_view line : absl::StrSplit(text, '\n', absl::SkipEmpty())) {
+    rows.push_back(absl::StrSplit(line, ','));
+  }
+  if (rows.empty()) return "";
+  std::size_t k = 0;
+  while (k < rows[0].size() && rows[0][k] != "wall_step_s") ++k;
+  EXPECT_LT(k, rows[0].size()) << "no wall_step_s column";
+  std::string out;
+  for (std::vector<std::string>& row : rows) {
+    if (k < row.size()) row.erase(row.begin() + k);
+    absl::StrAppend(&out, absl::StrJoin(row, ","), "\n");
+  }
+  return out;
+}
+
+Json ReadJson(const std::string& path) {
+  return Json::parse(ReadFile(path), nullptr, /*allow_exceptions=*/false);
+}
+
+// summary.json without its wall time.
+Json WithoutWall(Json summary) {
+  summary.erase("wall_s");
+  return summary;
+}
+
+TEST(FemCliTest, HelpDocumentsEveryCommandAndOption) {
+  const Result r = RunClient("--help");
+  ASSERT_EQ(r.exit_code, 0) << r;
+  for (const char* word :
+       {"run", "check", "summarise", "--out", "--servers", "--threads", "--token-file", "--tls-ca",
+        "--timeout", "--template-cache", "--stop-after", "--quiet", "--set", "Not supported yet"}) {
+    EXPECT_TRUE(absl::StrContains(r.out, word)) << word;
+  }
+}
+
+TEST(FemCliTest, UsageErrorsExitTwoWithAMessage) {
+  const std::string c = Quote(Case("fem-single-element-ci"));
+  for (const auto& [args, message] : std::vector<std::pair<std::string, std::string>>{
+           {"", "no command"},
+           {"frobnicate " + c, "unknown command 'frobnicate'"},
+           {"run", "run needs a case file"},
+           {"run " + c, "--out=DIR is required"},
+           {"run " + c + " --out=x --threads=0", "--threads must be an integer in 1..1024"},
+           {"run " + c + " --out=x --stop-after=0", "--stop-after must be a positive integer"},
+           {"run " + c + " --out=x --servers=nohost", "--servers"},
+           {"run " + c + " --out=x --bogus=1", "bogus"},
+           {"resume x/checkpoint.h5", "resume is not supported yet"},
+           {"check " + c + " --out=x", "check takes no options"},
+           {"summarise " + c, "summarise needs --out=DIR"}}) {
+    SCOPED_TRACE(args);
+    const Result r = RunClient(args);
+    EXPECT_EQ(r.exit_code, 2) << r;
+    EXPECT_TRUE(absl::StrContains(r.err, message)) << r.err;
+  }
+  EXPECT_FALSE(fs::exists("x"));
+}
+
+TEST(FemCliTest, CheckPrintsTheCaseInCanonicalForm) {
+  const Result r = RunClient(absl::StrCat("check ", Quote(Case("fem-biaxial-coarse-ci")),
+                                          " --set=solver.tolerance=0.005"));
+  ASSERT_EQ(r.exit_code, 0) << r;
+  const Json j = Json::parse(r.out, nullptr, /*allow_exceptions=*/false);
+  ASSERT_TRUE(j.is_object()) << r.out;
+  EXPECT_EQ(j["name"], "fem-biaxial-coarse-ci");
+  EXPECT_EQ(j["solver"]["tolerance"], 0.005);
+  EXPECT_EQ(j["loading"]["steps"], 5);  // the canonical form's step count
+  const Result bad = RunClient(
+      absl::StrCat("check ", Quote(Case("fem-single-element-ci")), " --set=/mesh/elements=[0,1]"));
+  EXPECT_EQ(bad.exit_code, 1) << bad;
+  EXPECT_TRUE(absl::StrContains(bad.err, "/mesh/elements/0: must be an integer")) << bad.err;
+}
+
+// The run's outputs, then summarise writing summary.json again from the
+// timeseries alone.
+TEST(FemCliTest, RunWritesEveryOutputAndSummariseWritesTheSummaryAgain) {
+  const std::string dir = TempPath("run");
+  const Result r = RunClient(absl::StrCat("run ", Quote(Case("fem-single-element-ci")),
+                                          " --out=", Quote(dir), CommonFlags()));
+  ASSERT_EQ(r.exit_code, 0) << r;
+  for (const char* line :
+       {"load step 5/5", "summary: peak_stress_Pa", "fem_client: finished at", "time split",
+        "DEM engine", "FEM (assembly, solves)", "DEM steps per increment"}) {
+    EXPECT_TRUE(absl::StrContains(r.err, line)) << line;
+  }
+  for (const char* file :
+       {"timeseries.csv", "summary.json", "plot.png", "results.h5", "results.xdmf", "run.json"}) {
+    EXPECT_TRUE(fs::exists(fs::path(dir) / file)) << file;
+  }
+  const Json run = ReadJson(dir + "/run.json");
+  ASSERT_TRUE(run.is_object());
+  EXPECT_EQ(run["program"], "fem_client");
+  EXPECT_EQ(run["command"], "run");
+  EXPECT_EQ(run["outcome"], "finished");
+  EXPECT_EQ(run["final_step"], 5);
+  EXPECT_EQ(run["case"]["name"], "fem-single-element-ci");
+  EXPECT_FALSE(run["end"].is_null());
+  const Json summary = ReadJson(dir + "/summary.json");
+  ASSERT_TRUE(summary.is_object());
+  EXPECT_GT(summary["peak_stress_Pa"].get<double>(), 2e5);
+  EXPECT_EQ(summary["peak_strain"], 0.01);
+
+  fs::remove(dir + "/summary.json");
+  fs::remove(dir + "/plot.png");
+  const Result again = RunClient(
+      absl::StrCat("summarise ", Quote(Case("fem-single-element-ci")), " --out=", Quote(dir)));
+  ASSERT_EQ(again.exit_code, 0) << again;
+  EXPECT_TRUE(absl::StrContains(again.out, "summary: peak_stress_Pa")) << again.out;
+  EXPECT_EQ(ReadJson(dir + "/summary.json"), summary);
+  EXPECT_TRUE(fs::exists(dir + "/plot.png"));
+}
+
+// Two rve_server processes share the RVEs of the coarse biaxial specimen;
+// the results are the embedded server's, bit for bit.
+TEST(FemCliTest, RemoteServersGiveTheEmbeddedResult) {
+  const std::string embedded = TempPath("embedded");
+  const Result e = RunClient(absl::StrCat("run ", Quote(Case("fem-biaxial-coarse-ci")),
+                                          " --out=", Quote(embedded), " --quiet", CommonFlags()));
+  ASSERT_EQ(e.exit_code, 0) << e;
+  // From here gRPC polls briefly, so that the child notices a closed channel quickly.
+  setenv("GRPC_CLIENT_CHANNEL_BACKUP_POLL_INTERVAL_MS", "50", 1);
+  testing_util::ServerProcess a(RVE_SERVER_PATH, TempPath("server-a.log"));
+  testing_util::ServerProcess b(RVE_SERVER_PATH, TempPath("server-b.log"));
+  ASSERT_FALSE(a.address().empty()) << a.Log();
+  ASSERT_FALSE(b.address().empty()) << b.Log();
+  EXPECT_TRUE(absl::StartsWith(a.address(), "127.0.0.1:")) << a.address();
+  const std::string remote = TempPath("remote");
+  const Result r = RunClient(absl::StrCat("run ", Quote(Case("fem-biaxial-coarse-ci")),
+                                          " --out=", Quote(remote), " --servers=", a.address(), ",",
+                                          b.address(), " --quiet", CommonFlags()));
+  ASSERT_EQ(r.exit_code, 0) << r << "\nserver logs:\n" << a.Log() << b.Log();
+  EXPECT_TRUE(absl::StrContains(r.err, "creating 32 RVEs (one per Gauss point) on 2 server(s)"))
+      << r.err;
+  const std::string expected = WithoutWallTime(ReadFile(embedded + "/timeseries.csv"));
+  ASSERT_FALSE(expected.empty());
+  EXPECT_EQ(WithoutWallTime(ReadFile(remote + "/timeseries.csv")), expected);
+  EXPECT_EQ(WithoutWall(ReadJson(remote + "/summary.json")),
+            WithoutWall(ReadJson(embedded + "/summary.json")));
+  EXPECT_EQ(a.Stop(), 0) << a.Log();
+  EXPECT_EQ(b.Stop(), 0) << b.Log();
+}
+
+// A case the run layer cannot do: a clear error, and no output directory,
+// run record or results that would pass for a run.
+TEST(FemCliTest, ARefusedCaseFailsClearlyAndWritesNothing) {
+  const std::string dir = TempPath("refused");
+  const Result r = RunClient(absl::StrCat("run ", Quote(Case("fem-simple-shear-stress-ci")),
+                                          " --out=", Quote(dir), CommonFlags()));
+  EXPECT_EQ(r.exit_code, 1) << r;
+  EXPECT_TRUE(absl::StrContains(r.err, "stress-controlled cyclic shear is not supported yet"))
+      << r.err;
+  EXPECT_FALSE(fs::exists(dir));
+  // A case file that does not parse: named, nothing written.
+  const std::string bad = TempPath("bad.json");
+  std::ofstream(bad) << R"({"name": "bad", "mesh": {"size": [1, 1]}})";
+  const Result b = RunClient(absl::StrCat("run ", Quote(bad), " --out=", Quote(dir)));
+  EXPECT_EQ(b.exit_code, 1) << b;
+  EXPECT_TRUE(absl::StrContains(b.err, bad)) << b.err;
+  EXPECT_FALSE(fs::exists(dir));
+  // summarise of a directory without a run: the missing timeseries named.
+  const Result s = RunClient(
+      absl::StrCat("summarise ", Quote(Case("fem-single-element-ci")), " --out=", Quote(dir)));
+  EXPECT_EQ(s.exit_code, 1) << s;
+  EXPECT_TRUE(absl::StrContains(s.err, "timeseries.csv")) << s.err;
+}
+
+}  // namespace
+}  // namespace rvehub::fem
