@@ -57,6 +57,11 @@ void AddPlaten(std::span<const int> nodes, int normal_dof, double increment, Pla
   if (platen == Platen::kRough) AddRoller(nodes, 1 - normal_dof, boundary);
 }
 
+void AddForcedPlaten(std::span<const int> nodes, int dof, double force_increment,
+                     Boundary& boundary) {
+  boundary.forced.push_back({std::vector<int>(nodes.begin(), nodes.end()), dof, force_increment});
+}
+
 absl::StatusOr<std::vector<PeriodicPair>> MatchPeriodicPairs(const Mesh& mesh,
                                                              std::span<const int> masters,
                                                              std::span<const int> slaves,
@@ -121,8 +126,42 @@ absl::StatusOr<DofMap> DofMap::Create(int nodes, const Boundary& boundary) {
     prescribed[d] = true;
     increment[d] = p.increment;
   }
-  // master[d]: the dof a slave dof follows, −1 when none.
+  // master[d]: the dof a slave dof follows, −1 when none; periodic[d]:
+  // whether that link adds the periodic offset (a platen's tie adds none).
   std::vector<int> master(dofs, -1);
+  std::vector<bool> periodic(dofs, false);
+  // The forced platen each dof is in, −1 when none.
+  std::vector<int> platen(dofs, -1);
+  for (std::size_t k = 0; k < boundary.forced.size(); ++k) {
+    const ForcedPlaten& f = boundary.forced[k];
+    if (f.nodes.empty() || (f.dof != 0 && f.dof != 1)) {
+      return absl::InvalidArgumentError(absl::StrCat("forced platen ", k, " is invalid (",
+                                                     f.nodes.size(), " nodes, dof ", f.dof, ")"));
+    }
+    if (!std::isfinite(f.force_increment)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("forced platen ", k, ": the force increment is not finite"));
+    }
+    for (int node : f.nodes) {
+      if (node < 0 || node >= nodes) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("forced platen ", k, " names node ", node, ", outside [0, ", nodes, ")"));
+      }
+      const int d = 2 * node + f.dof;
+      if (prescribed[d]) {
+        return absl::InvalidArgumentError(absl::StrCat("node ", node, " dof ", AxisName(f.dof),
+                                                       " is both prescribed and in forced platen ",
+                                                       k, " (a forced dof must be free)"));
+      }
+      if (platen[d] >= 0) {
+        return absl::InvalidArgumentError(absl::StrCat("node ", node, " dof ", AxisName(f.dof),
+                                                       " is in forced platen ", platen[d],
+                                                       " and in forced platen ", k));
+      }
+      platen[d] = static_cast<int>(k);
+      if (node != f.nodes[0]) master[d] = 2 * f.nodes[0] + f.dof;
+    }
+  }
   for (const PeriodicPair& pair : boundary.periodic) {
     if (pair.master < 0 || pair.master >= nodes || pair.slave < 0 || pair.slave >= nodes ||
         pair.master == pair.slave) {
@@ -133,23 +172,40 @@ absl::StatusOr<DofMap> DofMap::Create(int nodes, const Boundary& boundary) {
     for (int i : {0, 1}) {
       const int d = 2 * pair.slave + i;
       if (prescribed[d]) continue;
+      if (const int k = platen[d]; k >= 0) {
+        // Both in the platen: its tie already moves them as one.
+        if (platen[2 * pair.master + i] != k) {
+          return absl::InvalidArgumentError(
+              absl::StrCat("node ", pair.slave, " of forced platen ", k,
+                           " is the periodic slave of node ", pair.master, " outside it along ",
+                           AxisName(i), " (list the platen on the masters' side)"));
+        }
+        if (boundary.periodic_offset_increment[i] != 0.0) {
+          return absl::InvalidArgumentError(absl::StrCat(
+              "the periodic offset increment along ", AxisName(i), " would stretch forced platen ",
+              k, " (pair (", pair.master, ", ", pair.slave, "))"));
+        }
+        continue;
+      }
       if (master[d] >= 0) {
         return absl::InvalidArgumentError(
             absl::StrCat("node ", pair.slave, " is the slave of two periodic pairs"));
       }
       master[d] = 2 * pair.master + i;
+      periodic[d] = true;
     }
   }
   DofMap map;
   map.unknown_.assign(dofs, -1);
   map.value_.assign(dofs, 0.0);
-  // Follow each dof to its root; every link adds the offset.
+  // Follow each dof to its root; every periodic link adds the offset.
   std::vector<int> root(dofs), links(dofs, 0);
   for (int d = 0; d < dofs; ++d) {
     int r = d;
-    while (master[r] >= 0) {
+    for (int steps = 1; master[r] >= 0; ++steps) {
+      links[d] += periodic[r];
       r = master[r];
-      if (++links[d] > dofs) {
+      if (steps > dofs) {
         return absl::InvalidArgumentError(
             absl::StrCat("the periodic pairs of node ", d / 2, " form a cycle"));
       }

@@ -1,6 +1,7 @@
 // Boundary conditions: prescribed displacement increments per load step
-// (fixed, rollers, platens), periodic node pairs, constant pressures on
-// boundary edges; and their elimination from the unknowns (DofMap).
+// (fixed, rollers, platens), periodic node pairs, rigid platens under force
+// control, constant pressures on boundary edges; and their elimination from
+// the unknowns (DofMap).
 // Degrees of freedom: 2 per node, dof 2a + i for node a along axis i.
 #ifndef RVEHUB_FEM_CLIENT_CORE_BOUNDARY_H_
 #define RVEHUB_FEM_CLIENT_CORE_BOUNDARY_H_
@@ -40,11 +41,35 @@ struct PressureLoad {
   double pressure = 0.0;  // Pa, compression positive
 };
 
+// A rigid platen under force control (a stress-controlled shear: Guo & Zhao
+// 2014 §5.2): the nodes' dof `dof` moves as one, each node's tied to the
+// first node's (the master) by the master–slave elimination, and the total
+// external force on that dof, a dead load starting from 0, grows by
+// `force_increment` over each load step. The nodes' other dof may be
+// prescribed (a platen whose height is held) or free. With periodic pairs:
+// - a pair of two nodes of the platen (the top corners of a periodic
+//   specimen) is implied along `dof` by the tie and dropped there; it is
+//   kept along the other dof. The periodic offset increment along `dof`
+//   must then be 0 (it would stretch the rigid platen);
+// - a node of the platen may be a pair's master: its slave follows the
+//   platen (and is loaded with it: the force acts on all that moves as
+//   one);
+// - a node of the platen must not be the slave of a node outside it (the
+//   platen would follow that node: list the platen on the masters' side).
+// No node's `dof` may be prescribed (the force would go to a support), and
+// a dof is in one forced platen at most.
+struct ForcedPlaten {
+  std::vector<int> nodes;        // the first is the master
+  int dof = 0;                   // 0: x, 1: y
+  double force_increment = 0.0;  // along dof, per load step, N/m (per metre of thickness)
+};
+
 struct Boundary {
   std::vector<Prescribed> prescribed;  // at most one per (node, dof)
   std::vector<PeriodicPair> periodic;
   // Δ(u_slave − u_master) over each load step, m.
   Eigen::Vector2d periodic_offset_increment = Eigen::Vector2d::Zero();
+  std::vector<ForcedPlaten> forced;
   std::vector<PressureLoad> pressures;
 };
 
@@ -57,6 +82,11 @@ void AddRoller(std::span<const int> nodes, int dof, Boundary& boundary);
 enum class Platen { kSmooth, kRough };
 void AddPlaten(std::span<const int> nodes, int normal_dof, double increment, Platen platen,
                Boundary& boundary);
+// Appends a rigid platen of `nodes` (the first its master) under force
+// control along `dof`: `force_increment` N/m per load step. Hold or move its
+// other dof with AddRoller or Prescribed entries.
+void AddForcedPlaten(std::span<const int> nodes, int dof, double force_increment,
+                     Boundary& boundary);
 
 // Pairs each slave with the master at the same position along `along` (0: x,
 // 1: y) to 1e-9 of the mesh's size (left and right sides: along = 1).
@@ -68,14 +98,20 @@ absl::StatusOr<std::vector<PeriodicPair>> MatchPeriodicPairs(const Mesh& mesh,
 
 // The master–slave elimination of the constraints: every dof u = T q + g,
 // with q the independent (free) unknowns, T a 0/1 matrix (a slave takes its
-// master's unknown) and g the prescribed part (prescribed increments, the
-// periodic offsets), so that the reduced system is Tᵀ K T δq = −Tᵀ R.
+// master's unknown: periodic pairs, and the ties of forced platens) and g
+// the prescribed part (prescribed increments, the periodic offsets), so
+// that the reduced system is Tᵀ K T δq = −Tᵀ R. A forced platen's master
+// dof stays an unknown, its force a load on it (assembled by the solver).
 class DofMap {
  public:
   // InvalidArgument for a node or dof out of range, a (node, dof)
   // prescribed twice, a non-finite increment or offset, a pair of a node
-  // with itself, a slave with two masters, a cycle of pairs, or a pressure
-  // that is not finite or on an edge of other than 2 or 3 nodes in range.
+  // with itself, a slave with two masters, a cycle of pairs, a pressure
+  // that is not finite or on an edge of other than 2 or 3 nodes in range,
+  // or a forced platen that is empty, has a non-finite force increment,
+  // shares a dof with another one, holds a prescribed dof (naming the
+  // node), holds the slave of a pair whose master is outside it, or would
+  // be stretched by the periodic offset (see ForcedPlaten).
   static absl::StatusOr<DofMap> Create(int nodes, const Boundary& boundary);
 
   int dofs() const { return static_cast<int>(unknown_.size()); }
@@ -100,9 +136,9 @@ class DofMap {
 
 // FailedPrecondition "the mesh has no supports against rigid-body motion
 // ..." (naming a free motion: a translation or a rotation about a point)
-// when some connected part of the mesh (periodic pairs connect) can move
-// rigidly without violating the constraints; its stiffness would be
-// singular.
+// when some connected part of the mesh (periodic pairs and forced platens
+// connect) can move rigidly without violating the constraints; its
+// stiffness would be singular. A forced platen's dof is free: no support.
 absl::Status CheckSupports(const Mesh& mesh, const DofMap& dofs);
 
 }  // namespace rvehub::fem

@@ -85,7 +85,8 @@ StaticSolver::StaticSolver(Mesh mesh, Boundary boundary, SolverOptions options,
       material_(material),
       dofs_(std::move(dofs)),
       reference_(std::move(reference)),
-      displacement_(Eigen::VectorXd::Zero(2 * static_cast<Eigen::Index>(mesh_.nodes.size()))) {}
+      displacement_(Eigen::VectorXd::Zero(2 * static_cast<Eigen::Index>(mesh_.nodes.size()))),
+      platens_(boundary_.forced.size()) {}
 
 absl::StatusOr<StepReport> StaticSolver::Step(double factor) {
   if (!std::isfinite(factor)) return absl::InvalidArgumentError("the step factor is not finite");
@@ -95,11 +96,13 @@ absl::StatusOr<StepReport> StaticSolver::Step(double factor) {
   // (1) The RVEs' initial state: their stresses and tangents at ΔF = I.
   if (committed_.responses.empty()) {
     Failure failure;
-    if (!Evaluate(Eigen::VectorXd::Zero(displacement_.size()), 0, committed_, failure)) {
+    const std::vector<double> unloaded(boundary_.forced.size(), 0.0);
+    if (!Evaluate(Eigen::VectorXd::Zero(displacement_.size()), 0, unloaded, committed_, failure)) {
       committed_.responses.clear();
       return Prefixed(failure.status, absl::StrCat("load step ", report.step, ", "));
     }
     forces_ = NodeSetForces(committed_);
+    platens_ = PlatenStates(committed_);
   }
   // (3) March on: the load step in parts, halved on failure.
   double done = 0.0, size = 1.0;  // powers of 2: their sums are exact
@@ -124,6 +127,7 @@ absl::StatusOr<StepReport> StaticSolver::Step(double factor) {
   ++steps_;
   report.trials = trials_;
   report.forces = forces_;
+  report.platens = platens_;
   return report;
 }
 
@@ -133,6 +137,13 @@ bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& fai
   // the first solve, linearised on the committed state (the step starts
   // from Δu⁰ = 0, so the first E_d is 1).
   const Eigen::VectorXd g = dofs_.Prescribed(factor);
+  // The forced platens' loads at the end of this part, and their change
+  // (dead loads: a change of f_ext alone, the tangent as it was).
+  std::vector<double> force_increment, platen_force;
+  for (std::size_t k = 0; k < boundary_.forced.size(); ++k) {
+    force_increment.push_back(factor * boundary_.forced[k].force_increment);
+    platen_force.push_back(committed_.platen_force[k] + force_increment.back());
+  }
   Eigen::VectorXd du = Eigen::VectorXd::Zero(g.size());
   const Evaluation* at = &committed_;
   Evaluation ev;
@@ -141,12 +152,15 @@ bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& fai
     std::vector<Tangent> d;
     if (!Tangents(*at, j, d, failure)) return false;
     // (2b) Assemble K_t (eq. 3, with the geometric terms) and solve
-    // Tᵀ K T δq = −Tᵀ (R + K g) (g only in the first) for the correction.
+    // Tᵀ K T δq = −Tᵀ (R + K g − Δf) (g and the platens' Δf only in the
+    // first) for the correction.
     Eigen::VectorXd delta = j == 1 ? g : Eigen::VectorXd::Zero(g.size());
     if (dofs_.unknowns() > 0) {
       const Eigen::SparseMatrix<double> k = TangentStiffness(
           mesh_, reference_, at->current, at->responses, d, boundary_.pressures, at->x);
-      const Eigen::VectorXd rhs = j == 1 ? Eigen::VectorXd(at->residual + k * g) : at->residual;
+      const Eigen::VectorXd rhs =
+          j == 1 ? Eigen::VectorXd(at->residual + k * g - PlatenLoads(force_increment))
+                 : at->residual;
       const Eigen::SparseMatrix<double> kr = t.transpose() * k * t;
       Eigen::SparseLU<Eigen::SparseMatrix<double>> lu;
       lu.compute(kr);
@@ -164,7 +178,7 @@ bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& fai
     IterationReport it;
     it.displacement_error = delta.norm() == 0.0 ? 0.0 : delta.norm() / du.norm();
     // (2c–d) Deform the RVEs by the new Δu and take the residual (eq. 4).
-    if (!Evaluate(du, j, ev, failure)) return false;
+    if (!Evaluate(du, j, platen_force, ev, failure)) return false;
     at = &ev;
     const Eigen::VectorXd reduced = t.transpose() * ev.residual;
     it.force_error = ForceError(ev, reduced);
@@ -179,6 +193,7 @@ bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& fai
       forces_ = NodeSetForces(ev);
       mesh_.nodes = ev.x;
       displacement_ += du;
+      platens_ = PlatenStates(ev);
       reference_ = ev.current;
       committed_ = std::move(ev);
       // The next step starts here: its ΔF are measured from this state.
@@ -199,7 +214,8 @@ bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& fai
   return false;
 }
 
-bool StaticSolver::Evaluate(const Eigen::VectorXd& du, int iteration, Evaluation& ev,
+bool StaticSolver::Evaluate(const Eigen::VectorXd& du, int iteration,
+                            std::span<const double> platen_force, Evaluation& ev,
                             Failure& failure) {
   const std::string where = absl::StrCat("iteration ", iteration, ": ");
   ev.x = Moved(mesh_.nodes, du);
@@ -251,7 +267,9 @@ bool StaticSolver::Evaluate(const Eigen::VectorXd& du, int iteration, Evaluation
   }
   // (2d) The residual (eq. 4) on the current configuration.
   ev.f_int = InternalForces(mesh_, ev.current, ev.responses);
-  ev.f_ext = PressureForces(static_cast<int>(du.size()), boundary_.pressures, ev.x);
+  ev.f_ext = PressureForces(static_cast<int>(du.size()), boundary_.pressures, ev.x) +
+             PlatenLoads(platen_force);
+  ev.platen_force.assign(platen_force.begin(), platen_force.end());
   ev.residual = ev.f_int - ev.f_ext;
   return true;
 }
@@ -314,6 +332,32 @@ double StaticSolver::ForceError(const Evaluation& ev, const Eigen::VectorXd& red
   const double r = reduced.norm();
   if (r == 0.0) return 0.0;
   return f2 > 0.0 ? r / std::sqrt(f2) : std::numeric_limits<double>::infinity();
+}
+
+Eigen::VectorXd StaticSolver::PlatenLoads(std::span<const double> force) const {
+  // On the master's dof alone: Tᵀ gathers it into the platen's unknown,
+  // which is all a rigid platen's load acts on.
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(dofs_.dofs());
+  for (std::size_t k = 0; k < boundary_.forced.size(); ++k) {
+    const ForcedPlaten& p = boundary_.forced[k];
+    f[2 * p.nodes[0] + p.dof] += force[k];
+  }
+  return f;
+}
+
+std::vector<PlatenState> StaticSolver::PlatenStates(const Evaluation& ev) const {
+  std::vector<PlatenState> out;
+  for (std::size_t k = 0; k < boundary_.forced.size(); ++k) {
+    const ForcedPlaten& p = boundary_.forced[k];
+    const int master = 2 * p.nodes[0] + p.dof;
+    // The residual of the platen's unknown is the load's imbalance.
+    PlatenState state{ev.platen_force[k], ev.platen_force[k], displacement_[master]};
+    for (int d = 0; d < dofs_.dofs(); ++d) {
+      if (dofs_.UnknownOf(d) == dofs_.UnknownOf(master)) state.resistance += ev.residual[d];
+    }
+    out.push_back(state);
+  }
+  return out;
 }
 
 std::map<std::string, SetForces> StaticSolver::NodeSetForces(const Evaluation& ev) const {

@@ -39,9 +39,9 @@ struct SolverOptions {
 // One Newton iteration: a solve, then the Trial of the new Δu^j.
 struct IterationReport {
   double displacement_error = 0.0;  // E_d
-  // E_f = ‖R^j‖₂/‖f‖₂ over the unknowns, with f the external forces plus
-  // the reactions of the prescribed dofs (f_int there): 0 when R^j = 0,
-  // infinite when R^j ≠ 0 but f = 0.
+  // E_f = ‖R^j‖₂/‖f‖₂ over the unknowns, with f the external forces
+  // (pressures, forced platens' loads) plus the reactions of the prescribed
+  // dofs (f_int there): 0 when R^j = 0, infinite when R^j ≠ 0 but f = 0.
   double force_error = 0.0;
 };
 
@@ -56,12 +56,24 @@ struct SetForces {
   Eigen::Vector2d internal = Eigen::Vector2d::Zero();  // Σ f_int: the body's on the set
 };
 
+// A forced platen (Boundary::forced) after a step.
+struct PlatenState {
+  double force = 0.0;  // the load: the sum of the increments applied so far, N/m
+  // What resists it: Σ (f_int − the other external forces, e.g. pressures
+  // on its nodes) along its dof over all that moves with it (its nodes,
+  // periodic slaves that follow them); the load to the convergence
+  // tolerance (E_d alone may leave a residual force), N/m.
+  double resistance = 0.0;
+  double displacement = 0.0;  // its master's along its dof since Create, m
+};
+
 struct StepReport {
   int step = 0;                         // 1-based
   int cutbacks = 0;                     // halvings this step needed
   int trials = 0;                       // Trial calls, failed attempts and perturbations included
   std::vector<SubStepReport> substeps;  // the converged ones, in order
   std::map<std::string, SetForces> forces;  // per node set of the mesh
+  std::vector<PlatenState> platens;         // per forced platen, in Boundary::forced order
 };
 
 class StaticSolver {
@@ -75,18 +87,19 @@ class StaticSolver {
                                                               SolverOptions options,
                                                               GaussPointMaterial* material);
 
-  // One load step: the prescribed increments and the periodic offset
-  // increment times `factor` (e.g. −1 to reverse a cycle). The first step
-  // starts with a Trial of every point at ΔF = I (iteration 0: the initial
-  // stresses, and kInitialElastic's tangents). Each step starts from Δu⁰ =
-  // 0 on the committed state: the first solve uses its tangent and
-  // residual with the increments imposed (E_d = 1 then, so at least two
-  // iterations), each later one the last Trial's. A sub-step that does not
-  // converge in max_iterations, whose Trial fails, or whose iterate
-  // inverts an element or meets a singular tangent is halved, at most
-  // max_cutbacks times; a converged sub-step is committed and the rest of
-  // the step goes on at that size. Errors start "load step N (a part of f
-  // of it, after k cut-backs), iteration j: " and name the worst point: a
+  // One load step: the prescribed increments, the periodic offset increment
+  // and the forced platens' force increments times `factor` (e.g. −1 to
+  // reverse a cycle; a cut-back part of the step applies its part of each).
+  // The first step starts with a Trial of every point at ΔF = I (iteration
+  // 0: the initial stresses, and kInitialElastic's tangents). Each step
+  // starts from Δu⁰ = 0 on the committed state: the first solve uses its
+  // tangent and residual with the increments imposed (E_d = 1 then, so at
+  // least two iterations), each later one the last Trial's. A sub-step that
+  // does not converge in max_iterations, whose Trial fails, or whose
+  // iterate inverts an element or meets a singular tangent is halved, at
+  // most max_cutbacks times; a converged sub-step is committed and the rest
+  // of the step goes on at that size. Errors start "load step N (a part of
+  // f of it, after k cut-backs), iteration j: " and name the worst point: a
   // Trial's own status (code, message and PointFailure kept) naming the
   // failing Gauss point; Aborted for no convergence (naming the node with
   // the largest residual), an inverted element or a singular tangent;
@@ -98,6 +111,8 @@ class StaticSolver {
   const Mesh& mesh() const { return mesh_; }
   // Total displacement since Create, 2 per node, m.
   const Eigen::VectorXd& displacement() const { return displacement_; }
+  // The forced platens after the last step (force 0 before the first).
+  std::span<const PlatenState> platens() const { return platens_; }
   // The responses of the last committed Trial (empty before the first step).
   std::span<const PointResponse> responses() const { return committed_.responses; }
   int steps() const { return steps_; }
@@ -110,17 +125,23 @@ class StaticSolver {
     std::vector<Eigen::Matrix3d> delta_f;
     std::vector<PointResponse> responses;
     Eigen::VectorXd f_int, f_ext, residual;  // all dofs, N/m
+    std::vector<double> platen_force;        // each forced platen's load, N/m
   };
   struct Failure;
 
   StaticSolver(Mesh mesh, Boundary boundary, SolverOptions options, GaussPointMaterial* material,
                DofMap dofs, std::vector<PointGeometry> reference);
 
-  // One attempt at `factor` of the prescribed increments: Newton to
+  // One attempt at `factor` of the step's increments: Newton to
   // convergence and Commit (true), or a Failure.
   bool TrySubStep(double factor, SubStepReport& report, Failure& failure);
-  // Trial and residual at Δu = du.
-  bool Evaluate(const Eigen::VectorXd& du, int iteration, Evaluation& ev, Failure& failure);
+  // Trial and residual at Δu = du, the forced platens loaded by
+  // `platen_force` (N/m each).
+  bool Evaluate(const Eigen::VectorXd& du, int iteration, std::span<const double> platen_force,
+                Evaluation& ev, Failure& failure);
+  // `force` (N/m, one per forced platen) on the platens' master dofs: f_ext.
+  Eigen::VectorXd PlatenLoads(std::span<const double> force) const;
+  std::vector<PlatenState> PlatenStates(const Evaluation& ev) const;
   // D for K_t by the chosen operator.
   bool Tangents(const Evaluation& ev, int iteration, std::vector<Tangent>& d, Failure& failure);
   double ForceError(const Evaluation& ev, const Eigen::VectorXd& reduced_residual) const;
@@ -138,6 +159,7 @@ class StaticSolver {
   Evaluation committed_;
   std::vector<Tangent> initial_tangents_;    // kInitialElastic's
   std::map<std::string, SetForces> forces_;  // at the last commit
+  std::vector<PlatenState> platens_;         // at the last commit
   int steps_ = 0;
   int trials_ = 0;  // in the current step
 };

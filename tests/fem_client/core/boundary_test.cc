@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -98,6 +100,114 @@ TEST(BoundaryTest, InconsistentConstraintsAreNamed) {
   b.periodic.clear();
   b.pressures = {{{Edge{{0, 9}}}, 1e5}};
   ExpectError(create(b), absl::StatusCode::kInvalidArgument, "pressure 0 names node 9");
+}
+
+// G&Z §5.2's simple shear on 3 × 3 nodes: bottom fixed, sides periodic,
+// the top a rough platen whose height is held and whose x is under force
+// control. Every top x shares the platen master's unknown; the top corners'
+// pair is implied along x by the tie (whichever corner is the master) and
+// kept along y (held there); node 5 follows node 3. A forced dof is no
+// support, yet this set-up holds the mesh.
+TEST(BoundaryTest, AForcedPlatenTiesItsNodesToItsMaster) {
+  const Mesh mesh = Square();
+  for (bool reversed : {false, true}) {
+    std::vector<int> top = mesh.node_sets.at("top");  // 6, 7, 8
+    if (reversed) std::reverse(top.begin(), top.end());
+    Boundary b;
+    AddFixed(mesh.node_sets.at("bottom"), b);
+    AddRoller(top, 1, b);
+    AddForcedPlaten(top, 0, 3e3, b);
+    ASSERT_EQ(b.forced.size(), 1u);
+    EXPECT_EQ(b.forced[0].nodes, top);
+    EXPECT_EQ(b.forced[0].dof, 0);
+    EXPECT_EQ(b.forced[0].force_increment, 3e3);
+    b.periodic =
+        *MatchPeriodicPairs(mesh, mesh.node_sets.at("left"), mesh.node_sets.at("right"), 1);
+    const absl::StatusOr<DofMap> map = DofMap::Create(9, b);
+    ASSERT_TRUE(map.ok()) << map.status();
+    EXPECT_EQ(map->unknowns(), 5);  // nodes 3 and 4 (x, y), the platen's x
+    const int master = 2 * top[0];
+    EXPECT_EQ(map->DofOf(map->UnknownOf(master)), master);
+    for (int a : top) {
+      EXPECT_EQ(map->UnknownOf(2 * a), map->UnknownOf(master)) << a;
+      EXPECT_TRUE(map->IsPrescribed(2 * a + 1)) << a;
+    }
+    EXPECT_EQ(map->UnknownOf(10), map->UnknownOf(6));
+    EXPECT_EQ(map->Prescribed(1.0), Eigen::VectorXd::Zero(18));
+    EXPECT_TRUE(CheckSupports(mesh, *map).ok());
+  }
+}
+
+// A periodic slave outside a platen follows it, with the offset; the
+// platen's other dof keeps its pairs.
+TEST(BoundaryTest, APeriodicSlaveOfAPlatenNodeFollowsThePlaten) {
+  Boundary b;
+  AddForcedPlaten(std::vector<int>{0, 1}, 0, -2e3, b);
+  b.periodic = {{1, 2}};
+  b.periodic_offset_increment = Eigen::Vector2d(1e-3, 2e-3);
+  const absl::StatusOr<DofMap> map = DofMap::Create(3, b);
+  ASSERT_TRUE(map.ok()) << map.status();
+  EXPECT_EQ(map->unknowns(), 3);  // the platen's x, node 0's and node 1's y
+  EXPECT_EQ(map->UnknownOf(2), map->UnknownOf(0));
+  EXPECT_EQ(map->UnknownOf(4), map->UnknownOf(0));
+  EXPECT_EQ(map->UnknownOf(5), map->UnknownOf(3));
+  const Eigen::VectorXd g = map->Prescribed(1.0);
+  EXPECT_EQ(g, (Eigen::VectorXd(6) << 0, 0, 0, 0, 1e-3, 2e-3).finished());  // the tie adds none
+}
+
+TEST(BoundaryTest, ForcedPlatensThatConflictAreNamed) {
+  const Mesh mesh = Square();
+  const std::vector<int>& top = mesh.node_sets.at("top");
+  const std::vector<PeriodicPair> sides =
+      *MatchPeriodicPairs(mesh, mesh.node_sets.at("left"), mesh.node_sets.at("right"), 1);
+  const auto create = [](const Boundary& b) { return DofMap::Create(9, b).status(); };
+  Boundary b;
+  AddForcedPlaten(top, 0, 1e3, b);
+  AddRoller(std::vector<int>{7}, 0, b);
+  ExpectError(create(b), absl::StatusCode::kInvalidArgument,
+              "node 7 dof x is both prescribed and in forced platen 0");
+  b = {};
+  AddForcedPlaten(top, 0, 1e3, b);
+  AddForcedPlaten(std::vector<int>{8, 5}, 0, 1e3, b);
+  ExpectError(create(b), absl::StatusCode::kInvalidArgument,
+              "node 8 dof x is in forced platen 0 and in forced platen 1");
+  b.forced = {{{}, 0, 1e3}};
+  ExpectError(create(b), absl::StatusCode::kInvalidArgument, "forced platen 0 is invalid (0 nodes");
+  b.forced = {{{1}, 2, 1e3}};
+  ExpectError(create(b), absl::StatusCode::kInvalidArgument, "forced platen 0 is invalid");
+  b.forced = {{{9}, 0, 1e3}};
+  ExpectError(create(b), absl::StatusCode::kInvalidArgument, "forced platen 0 names node 9");
+  b.forced = {{{1}, 0, std::nan("")}};
+  ExpectError(create(b), absl::StatusCode::kInvalidArgument, "force increment is not finite");
+  // The right side under force while periodic slaves of the left one.
+  b = {};
+  AddForcedPlaten(mesh.node_sets.at("right"), 0, 1e3, b);
+  b.periodic = sides;
+  ExpectError(create(b), absl::StatusCode::kInvalidArgument,
+              "node 2 of forced platen 0 is the periodic slave of node 0 outside it along x");
+  // A periodic offset along the platen's dof between two of its nodes.
+  b = {};
+  AddForcedPlaten(top, 0, 1e3, b);
+  b.periodic = sides;
+  b.periodic_offset_increment = Eigen::Vector2d(1e-3, 0.0);
+  ExpectError(create(b), absl::StatusCode::kInvalidArgument,
+              "the periodic offset increment along x would stretch forced platen 0");
+  b.periodic_offset_increment = Eigen::Vector2d(0.0, 1e-3);  // along y: the pair holds there
+  EXPECT_TRUE(create(b).ok()) << create(b);
+}
+
+// The force does not hold the platen: with the bottom on rollers and the
+// top's height held, the mesh slides along x.
+TEST(BoundaryTest, AForcedDofIsNoSupport) {
+  const Mesh mesh = Square();
+  Boundary b;
+  AddRoller(mesh.node_sets.at("bottom"), 1, b);
+  AddRoller(mesh.node_sets.at("top"), 1, b);
+  AddForcedPlaten(mesh.node_sets.at("top"), 0, 1e3, b);
+  const absl::StatusOr<DofMap> map = DofMap::Create(9, b);
+  ASSERT_TRUE(map.ok()) << map.status();
+  ExpectError(CheckSupports(mesh, *map), absl::StatusCode::kFailedPrecondition,
+              "can translate along (");
 }
 
 TEST(BoundaryTest, PeriodicPairsMatchNodesAtTheSameHeight) {
