@@ -130,9 +130,9 @@ Eigen::Vector2d FaceTangent(Face face) {
 absl::Status CheckRunnable(const FemCase& c) {
   if (c.loading.kind == LoadingKind::kCyclicShear && c.loading.control == CyclicControl::kStress) {
     return absl::UnimplementedError(
-        "/loading: stress-controlled cyclic shear is not supported yet: fem_client's solver "
-        "prescribes displacements and pressures, not the shear platen's horizontal force "
-        "(strain-controlled cycles run: cases/fem-simple-shear-strain.json)");
+        "/loading: stress-controlled cyclic shear is not supported yet: the run layer does not "
+        "yet drive the shear platen by its force (the solver's ForcedPlaten); strain-controlled "
+        "cycles run: cases/fem-simple-shear-strain.json");
   }
   return absl::OkStatus();
 }

@@ -54,8 +54,8 @@ struct Problem {
 };
 
 // Unimplemented for what the run layer cannot do yet: stress-controlled
-// cyclic shear (the solver prescribes displacements and pressures, not the
-// shear platen's horizontal force). OK otherwise.
+// cyclic shear (the solver's ForcedPlaten is not yet driven from the case).
+// OK otherwise.
 absl::Status CheckRunnable(const FemCase& c);
 
 // The problem of a case ParseFemCase accepted: its mesh (StructuredRectangle),
