@@ -84,8 +84,9 @@ std::vector<double> LoadFactors(const LoadingSpec& loading) {
   return factors;
 }
 
-// The strain of one load step at factor 1: the axial strain (compression),
-// the shear strain γ (shear, strain-controlled cycles), [-].
+// The load of one step at factor 1: the axial strain (compression), the
+// shear strain γ (shear, strain-controlled cycles), [-]; the shear stress τ
+// (stress-controlled cycles), Pa.
 double StepStrain(const LoadingSpec& loading) {
   if (loading.kind == LoadingKind::kCyclicShear) {
     return 4.0 * loading.amplitude / static_cast<double>(loading.steps_per_cycle);
@@ -127,18 +128,7 @@ Eigen::Vector2d FaceTangent(Face face) {
   return NormalDof(face) == 0 ? Eigen::Vector2d(0.0, 1.0) : Eigen::Vector2d(1.0, 0.0);
 }
 
-absl::Status CheckRunnable(const FemCase& c) {
-  if (c.loading.kind == LoadingKind::kCyclicShear && c.loading.control == CyclicControl::kStress) {
-    return absl::UnimplementedError(
-        "/loading: stress-controlled cyclic shear is not supported yet: the run layer does not "
-        "yet drive the shear platen by its force (the solver's ForcedPlaten); strain-controlled "
-        "cycles run: cases/fem-simple-shear-strain.json");
-  }
-  return absl::OkStatus();
-}
-
 absl::StatusOr<Problem> BuildProblem(const FemCase& c) {
-  RETURN_IF_ERROR(CheckRunnable(c));
   Problem p;
   RectangleSpec rect;
   rect.origin = c.mesh.origin;
@@ -159,6 +149,8 @@ absl::StatusOr<Problem> BuildProblem(const FemCase& c) {
   }
   p.driven = driven->face;
   p.shear = driven->kind == BoundaryKind::kShear;
+  p.forced =
+      c.loading.kind == LoadingKind::kCyclicShear && c.loading.control == CyclicControl::kStress;
   p.length_across = NormalDof(p.driven) == 1 ? c.mesh.size.y() : c.mesh.size.x();
   p.lateral = p.shear ? p.driven : (NormalDof(p.driven) == 1 ? Face::kRight : Face::kTop);
   p.factors = LoadFactors(c.loading);
@@ -167,7 +159,12 @@ absl::StatusOr<Problem> BuildProblem(const FemCase& c) {
   const double strain = StepStrain(c.loading);  // [-] per step at factor 1
   {
     const std::vector<int>& nodes = mesh.node_sets.at(FaceSetName(p.driven));
-    if (p.shear) {
+    if (p.shear && p.forced) {
+      // Stress control: the platen's horizontal force τ·W per step (W the
+      // initial width), its nodes moving together; the height held.
+      AddForcedPlaten(nodes, 0, strain * c.mesh.size.x(), p.boundary);
+      for (int node : nodes) prescribed.Add(node, 1, 0.0, driven->name);
+    } else if (p.shear) {
       // Towards +x by γ·H, the height held.
       for (int node : nodes) {
         prescribed.Add(node, 0, strain * p.length_across, driven->name);

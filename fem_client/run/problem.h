@@ -46,17 +46,15 @@ struct Problem {
   // shear platen itself (its normal stress σyy).
   Face lateral = Face::kRight;
   bool shear = false;  // the loading moves the shear platen (τ, γ), not a platen (σ, ε)
+  // The shear platen driven by its force (stress-controlled cycles:
+  // Boundary::forced[0]), not by its displacement.
+  bool forced = false;
   // The load factor of every step, in order (Step(factor)): 1 for
   // monotonic loadings; ±1 by the quarter for strain-controlled cycles.
   std::vector<double> factors;
   // Set-up facts worth a log line (a corner two boundaries claim).
   std::vector<std::string> notes;
 };
-
-// Unimplemented for what the run layer cannot do yet: stress-controlled
-// cyclic shear (the solver's ForcedPlaten is not yet driven from the case).
-// OK otherwise.
-absl::Status CheckRunnable(const FemCase& c);
 
 // The problem of a case ParseFemCase accepted: its mesh (StructuredRectangle),
 // boundary and load steps, checked as the solver will check them (the

@@ -261,7 +261,10 @@ absl::Status FemSimulation::WriteRow(const StepFigures& f) {
     const SetForces& at_platen = f.report->forces.at(FaceSetName(p.driven));
     const SetForces& at_side = f.report->forces.at(FaceSetName(p.lateral));
     const double length = FaceLength(mesh, p.driven);
-    platen = p.shear ? at_platen.reaction.dot(t) / length : -at_platen.reaction.dot(n) / length;
+    // τ: the body's own force on the shear platen (with the platen under
+    // force control, the load it balances; under displacement control, the
+    // reaction, the top carrying no other load).
+    platen = p.shear ? at_platen.internal.dot(t) / length : -at_platen.reaction.dot(n) / length;
     lateral = -at_side.internal.dot(n_lateral) / FaceLength(mesh, p.lateral);
   } else {
     // Before any step: the mean stress's tractions on those faces.
@@ -361,7 +364,10 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
   Clock::time_point row_clock = start, last_progress = start;
   std::int64_t row_step = solver_->steps();
   auto output_time = Clock::duration::zero();
-  while (solver_->steps() < total) {
+  // Stress-controlled cycles end early once |γ| reaches the case's end
+  // shear strain (G&Z §5.2: 5 % accumulated).
+  bool reached_end_strain = false;
+  while (solver_->steps() < total && !reached_end_strain) {
     if (options_.stop_after_steps > 0 && sum.steps >= options_.stop_after_steps) break;
     const std::int64_t step = solver_->steps() + 1;
     const bool last = step == total ||
@@ -380,6 +386,10 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
     sum.cutbacks += report->cutbacks;
     sum.trials += report->trials;
     const client::ApplyStats tried = pool_->trial_stats().Since(trials_before);
+    if (problem_.forced) {
+      const Strains strains = NominalStrains(solver_->mesh(), solver_->displacement(), problem_);
+      reached_end_strain = std::abs(strains.shear) >= case_.loading.end_strain;
+    }
     const Clock::time_point t_out = Clock::now();
     StepFigures figures;
     figures.step = step;
@@ -387,7 +397,7 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
     figures.dem_steps_per_trial = tried.increments > 0 ? static_cast<double>(tried.dem_steps) /
                                                              static_cast<double>(tried.increments)
                                                        : 0.0;
-    if (step % o.timeseries_every == 0 || last) {
+    if (step % o.timeseries_every == 0 || last || reached_end_strain) {
       figures.wall_step_s = Seconds(t_out - row_clock) / static_cast<double>(step - row_step);
       RETURN_IF_ERROR(WriteRow(figures));
       row_clock = t_out;
@@ -396,7 +406,7 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
     if (frame) RETURN_IF_ERROR(WriteFrame());
     output_time += Clock::now() - t_out;
     if (options_.progress &&
-        (step % o.progress_every == 0 || last ||
+        (step % o.progress_every == 0 || last || reached_end_strain ||
          Seconds(Clock::now() - last_progress) >= options_.progress_interval_s)) {
       last_progress = Clock::now();
       const double wall = Seconds(Clock::now() - start);
@@ -408,7 +418,7 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
       const std::string state =
           problem_.shear
               ? absl::StrFormat("gamma %.3f %%  tau %.2f kPa", 100 * strains.shear,
-                                1e-3 * at.reaction.dot(t) / length)
+                                1e-3 * at.internal.dot(t) / length)
               : absl::StrFormat("axial strain %.3f %%  stress %.1f kPa", 100 * strains.axial,
                                 -1e-3 * at.reaction.dot(n) / length);
       int iterations = 0;
@@ -423,7 +433,11 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
     }
   }
   sum.final_step = solver_->steps();
-  sum.finished = sum.final_step >= total;
+  sum.finished = sum.final_step >= total || reached_end_strain;
+  if (reached_end_strain) {
+    Log(absl::StrFormat("shear strain reached %g (loading.end_shear_strain) at load step %d",
+                        case_.loading.end_strain, sum.final_step));
+  }
   client_run::TimeSplit& split = sum.split;
   split.wall_s = Seconds(Clock::now() - start);
   split.rve_s = pool_->total_apply_seconds() - rve_start;

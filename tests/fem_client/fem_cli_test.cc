@@ -227,14 +227,19 @@ TEST(FemCliTest, RemoteServersGiveTheEmbeddedResult) {
   EXPECT_EQ(b.Stop(), 0) << b.Log();
 }
 
-// A case the run layer cannot do: a clear error, and no output directory,
-// run record or results that would pass for a run.
+// A case that cannot run: a clear error, and no output directory, run
+// record or results that would pass for a run.
 TEST(FemCliTest, ARefusedCaseFailsClearlyAndWritesNothing) {
   const std::string dir = TempPath("refused");
-  const Result r = RunClient(absl::StrCat("run ", Quote(Case("fem-simple-shear-stress-ci")),
-                                          " --out=", Quote(dir), CommonFlags()));
+  // A pin at the middle of a face with no node there (two along it): the
+  // case is refused as it is read.
+  const Result r =
+      RunClient(absl::StrCat("run ", Quote(Case("fem-single-element-ci")),
+                             " --set=/boundaries/0/pin=middle --out=", Quote(dir), CommonFlags()));
   EXPECT_EQ(r.exit_code, 1) << r;
-  EXPECT_TRUE(absl::StrContains(r.err, "stress-controlled cyclic shear is not supported yet"))
+  EXPECT_TRUE(absl::StrContains(r.err,
+                                "/boundaries/0/pin: the left face has 2 nodes, none at its "
+                                "middle"))
       << r.err;
   EXPECT_FALSE(fs::exists(dir));
   // A case file that does not parse: named, nothing written.
