@@ -438,6 +438,10 @@ absl::Status Registry::ApplyEach(absl::string_view run_id, std::int64_t step, Ap
       if (e.last_result.has_value() && e.last_stress_only == options.stress_only &&
           (!options.want_tangent || e.last_result->tangent.has_value())) {
         o.state = *e.last_result;
+        // Only what this request asked for: a tangent stored by a first
+        // COMMIT that asked for it would make the reply larger than the
+        // service sized it (and the retry unanswerable).
+        if (!options.want_tangent) o.state.tangent.reset();
       } else {  // after a restore, or asked otherwise: the committed state observed again
         o.state = options.stress_only ? e.rve.ObserveStress(options.want_tangent)
                                       : e.rve.Observe(options.want_tangent);

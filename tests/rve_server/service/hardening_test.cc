@@ -1,7 +1,8 @@
 // Requests that once knocked the server over, each kept as a test:
 // a huge cell, unbounded work, amplification by repeated ids, malformed
-// import streams, unanswerable commits, unguarded health Watch, long ids,
-// and what Stop says about the RVEs it drops. A real server on loopback.
+// import streams, unanswerable commits (retries included), unguarded health
+// Watch, long ids, and what Stop says about the RVEs it drops. A real server
+// on loopback.
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
@@ -48,6 +49,45 @@ v1::RveRecord Record(const std::string& run, std::int64_t id, const v1::Packing&
   for (double v : {1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0}) r.add_last_delta_f(v);
   *r.mutable_packing() = packing;
   return r;
+}
+
+// A small template (a lattice of `cols` × `rows` 0.5 mm discs 2 mm apart,
+// 10 DEM steps per increment): as large a state as any packing's at a
+// fraction of the memory and time, for tests that need many RVEs.
+grpc::Status UploadLattice(Harness& h, const std::string& name, int cols = 4, int rows = 4) {
+  dem::RveSnapshot p;
+  constexpr double kSpacing = 2e-3;  // m
+  p.cell << cols * kSpacing, 0, 0, rows * kSpacing;
+  p.reference_cell = p.cell;
+  for (int y = 0; y < rows; ++y) {
+    for (int x = 0; x < cols; ++x) {
+      p.radius.push_back(0.5e-3);
+      p.sx.push_back((x + 0.5) / cols);
+      p.sy.push_back((y + 0.5) / rows);
+    }
+  }
+  p.vx = p.vy = p.omega = p.theta = std::vector<double>(p.radius.size(), 0.0);
+  p.controls.min_steps = 10;
+  v1::UploadTemplateRequest req;
+  req.mutable_entry()->set_name(name);
+  ToProto(p, req.mutable_entry()->mutable_packing());
+  v1::TemplateInfo info;
+  return h.stub().UploadTemplate(h.Context().get(), req, &info);
+}
+
+// The most RVEs per Apply the server's reply size allows (from its refusal
+// of a batch far too large, which changes nothing).
+std::int64_t MaxReplyCount(Harness& h, bool tangent) {
+  std::vector<std::int64_t> ids(5000);  // a request within the limit, a reply not
+  for (std::size_t k = 0; k < ids.size(); ++k) ids[k] = static_cast<std::int64_t>(k);
+  v1::ApplyRequest req = Harness::Commit("none", 1, ids, Compress(1e-4));
+  req.mutable_options()->set_want_tangent(tangent);
+  v1::ApplyResponse resp;
+  const grpc::Status s = h.stub().Apply(h.Context().get(), req, &resp);
+  const std::string& m = s.error_message();
+  const std::size_t at = m.find("ask for at most ");
+  EXPECT_NE(at, std::string::npos) << m;
+  return at == std::string::npos ? 0 : std::stoll(m.substr(at + 16));
 }
 
 class HardeningTest : public ::testing::Test {
@@ -358,6 +398,64 @@ TEST(HardeningReplySize, OversizedReplyIsRefusedBeforeCommitting) {
   req.mutable_options()->set_want_tangent(true);
   ASSERT_TRUE(h.stub().Apply(h.Context().get(), req, &resp).ok());
   EXPECT_EQ(resp.failed(), 0);
+}
+
+// 9. A retried COMMIT answers what it asks for: a batch without tangents
+// that repeats RVEs first committed with tangents was sized without them,
+// and returning the stored tangents made it unanswerable (every retry
+// RESOURCE_EXHAUSTED) after the rest of the batch had committed.
+TEST(HardeningReplySize, RetryWithoutTangentOfACommitWithTangentsIsAnswered) {
+  ServerConfig config;
+  config.max_message_bytes = 1 << 20;
+  Harness h(config);
+  ASSERT_TRUE(UploadLattice(h, "lattice").ok());
+  const std::int64_t with_tangent = MaxReplyCount(h, true);
+  const std::int64_t without = MaxReplyCount(h, false);
+  ASSERT_GT(with_tangent, 100);
+  ASSERT_GT(without, 2 * with_tangent) << "a tangent doubles a result at least";
+  std::vector<std::int64_t> all(static_cast<std::size_t>(without));
+  for (std::size_t k = 0; k < all.size(); ++k) all[k] = static_cast<std::int64_t>(k);
+  const std::vector<std::int64_t> first(all.begin(), all.begin() + with_tangent);
+  v1::CreateRvesRequest create;
+  create.set_run_id("r");
+  create.set_template_name("lattice");
+  for (std::int64_t id : all) create.add_ids(id);
+  v1::CreateRvesResponse created;
+  ASSERT_TRUE(h.stub().CreateRves(h.Context().get(), create, &created).ok());
+
+  v1::ApplyResponse tangents;
+  ASSERT_TRUE(h.Apply("r", 1, v1::APPLY_MODE_COMMIT, first, Compress(1e-4), &tangents, true).ok());
+  ASSERT_EQ(tangents.failed(), 0);
+  ASSERT_EQ(tangents.results(0).state().tangent_size(), 81);
+  v1::ApplyResponse resp;
+  const grpc::Status s = h.Apply("r", 1, v1::APPLY_MODE_COMMIT, all, Compress(1e-4), &resp);
+  ASSERT_TRUE(s.ok()) << s.error_code() << " " << s.error_message();
+  ASSERT_EQ(resp.results_size(), without);
+  EXPECT_EQ(resp.failed(), 0);
+  // The retried ones: the stored results bit for bit, without the tangent
+  // this call did not ask for.
+  for (std::int64_t k = 0; k < with_tangent; ++k) {
+    v1::RveResult expected = tangents.results(static_cast<int>(k));
+    expected.mutable_state()->clear_tangent();
+    expected.set_engine_seconds(resp.results(static_cast<int>(k)).engine_seconds());
+    ASSERT_EQ(resp.results(static_cast<int>(k)).SerializeAsString(), expected.SerializeAsString())
+        << "id " << k;
+  }
+  // Retried again, the whole batch answers the same.
+  v1::ApplyResponse again;
+  ASSERT_TRUE(h.Apply("r", 1, v1::APPLY_MODE_COMMIT, all, Compress(1e-4), &again).ok());
+  EXPECT_EQ(again.failed(), 0);
+  for (int k = 0; k < again.results_size(); ++k) {
+    v1::RveResult a = again.results(k), b = resp.results(k);
+    a.set_engine_seconds(0);
+    b.set_engine_seconds(0);
+    ASSERT_EQ(a.SerializeAsString(), b.SerializeAsString()) << "id " << k;
+  }
+  // Asked for the tangent again, the retry returns the stored one.
+  v1::ApplyResponse stored;
+  ASSERT_TRUE(h.Apply("r", 1, v1::APPLY_MODE_COMMIT, {0}, Compress(1e-4), &stored, true).ok());
+  EXPECT_EQ(stored.results(0).state().SerializeAsString(),
+            tangents.results(0).state().SerializeAsString());
 }
 
 // 6. health.Watch needs the token as Check does.
