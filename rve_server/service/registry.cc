@@ -299,23 +299,26 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
     }
   }
 
+  // Made before the registry's lock is taken: an entry's lock is only ever
+  // taken before it (Apply accounts a doubled cell under both).
   std::vector<RveOutcome> out(ids.size());
+  std::vector<EntryPtr> entries(ids.size());
+  for (std::size_t k = 0; k < ids.size(); ++k) {
+    entries[k] = std::make_shared<Entry>(*consolidated[unique_of[k]]);
+    entries[k]->memory_bytes = bytes_each;
+    out[k].id = ids[k];
+    if (want_state) {
+      absl::MutexLock entry_lock(&entries[k]->mu);
+      out[k].state = entries[k]->rve.Observe();
+    }
+  }
   {
     absl::MutexLock lock(&mu_);
     // Another call may have created some of these ids or used the capacity
     // while this one consolidated.
     RETURN_IF_ERROR(CheckRoom(run_id, ids, n * bytes_each));
     Run& run = runs_[std::string(run_id)];
-    for (std::size_t k = 0; k < ids.size(); ++k) {
-      auto entry = std::make_shared<Entry>(*consolidated[unique_of[k]]);
-      entry->memory_bytes = bytes_each;
-      out[k].id = ids[k];
-      if (want_state) {
-        absl::MutexLock entry_lock(&entry->mu);
-        out[k].state = entry->rve.Observe();
-      }
-      run.emplace(ids[k], std::move(entry));
-    }
+    for (std::size_t k = 0; k < ids.size(); ++k) run.emplace(ids[k], std::move(entries[k]));
     num_rves_ += n;
     memory_bytes_ += n * bytes_each;
   }
@@ -459,6 +462,24 @@ absl::Status Registry::ApplyEach(absl::string_view run_id, std::int64_t step, Ap
       o.status = c;
       return;
     }
+    std::int64_t reserved = 0;
+    if (absl::Status room =
+            ReserveGrowth(e, inc.id, inc.delta_f, mode == ApplyMode::kCommit, reserved);
+        !room.ok()) {
+      o.status = room;
+      return;
+    }
+    // The account follows a committed RVE's size however this ends (an
+    // allocation failure included); before e.mu is let go.
+    struct Settle {
+      Registry* registry;
+      Entry* entry;
+      const std::int64_t* reserved;
+      bool commit;
+      ~Settle() {
+        if (commit) registry->Reaccount(*entry, *reserved);
+      }
+    } settle{this, &e, &reserved, mode == ApplyMode::kCommit};
     // Asked between DEM steps of a long increment; the engine undoes it.
     dem::Interrupt interrupt;
     if (cancelled) {
@@ -524,6 +545,42 @@ absl::Status Registry::ApplyEach(absl::string_view run_id, std::int64_t step, Ap
       },
       cost);
   return failed;
+}
+
+absl::Status Registry::ReserveGrowth(Entry& e, std::int64_t id, const Eigen::Matrix3d& delta_f,
+                                     bool reserve, std::int64_t& reserved) {
+  const std::int64_t particles = e.rve.num_particles();
+  const std::int64_t after = e.rve.ParticlesAfterApply(delta_f);
+  if (after <= particles) return absl::OkStatus();
+  // Everything an RVE holds is per particle or per contact, and doubles
+  // with the cell.
+  const std::int64_t growth =
+      static_cast<std::int64_t>(e.rve.MemoryBytes()) * (after / particles - 1);
+  absl::MutexLock lock(&mu_);
+  if (memory_bytes_ + growth > options_.max_memory_bytes) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat("material point ", id,
+                     ": ΔF squeezes its cell thinner than twice the pair cutoff, and "
+                     "doubling it (",
+                     particles, " to ", after, " particles, about ", growth,
+                     " more bytes) would take the server's memory account from ", memory_bytes_,
+                     " to ", memory_bytes_ + growth, " bytes, over its limit of ",
+                     options_.max_memory_bytes, " bytes; the RVE stays at its committed step"));
+  }
+  if (reserve) {
+    memory_bytes_ += growth;
+    reserved = growth;
+  }
+  return absl::OkStatus();
+}
+
+void Registry::Reaccount(Entry& e, std::int64_t reserved) {
+  const std::int64_t bytes = static_cast<std::int64_t>(e.rve.MemoryBytes());
+  if (reserved == 0 && bytes == e.memory_bytes) return;  // the usual increment: no lock
+  absl::MutexLock lock(&mu_);
+  memory_bytes_ -= reserved;
+  if (e.hosted) memory_bytes_ += bytes - e.memory_bytes;  // a dropped RVE left the account
+  e.memory_bytes = bytes;
 }
 
 absl::StatusOr<std::vector<RveOutcome>> Registry::Get(absl::string_view run_id,
@@ -647,6 +704,15 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<RveRecord> records) {
     bytes += static_cast<std::int64_t>(made[k]->MemoryBytes());
   }
   const std::int64_t n = static_cast<std::int64_t>(records.size());
+  // Made before the registry's lock is taken (see Create).
+  std::vector<EntryPtr> entries(records.size());
+  for (std::size_t k = 0; k < records.size(); ++k) {
+    entries[k] = std::make_shared<Entry>(std::move(*made[k]));
+    absl::MutexLock entry_lock(&entries[k]->mu);
+    entries[k]->memory_bytes = static_cast<std::int64_t>(entries[k]->rve.MemoryBytes());
+    entries[k]->step = records[k].step;
+    entries[k]->last_delta_f = records[k].last_delta_f;
+  }
   absl::MutexLock lock(&mu_);
   for (const RveRecord& r : records) {
     auto run = runs_.find(r.run_id);
@@ -657,16 +723,8 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<RveRecord> records) {
     }
   }
   RETURN_IF_ERROR(CheckCapacity(n, bytes));
-  for (std::size_t k = 0; k < records.size(); ++k) {
-    auto entry = std::make_shared<Entry>(std::move(*made[k]));
-    entry->memory_bytes = static_cast<std::int64_t>(entry->rve.MemoryBytes());
-    {
-      absl::MutexLock entry_lock(&entry->mu);
-      entry->step = records[k].step;
-      entry->last_delta_f = records[k].last_delta_f;
-    }
-    runs_[records[k].run_id].emplace(records[k].id, std::move(entry));
-  }
+  for (std::size_t k = 0; k < records.size(); ++k)
+    runs_[records[k].run_id].emplace(records[k].id, std::move(entries[k]));
   num_rves_ += n;
   memory_bytes_ += bytes;
   return n;
@@ -691,6 +749,7 @@ absl::StatusOr<std::int64_t> Registry::Drop(absl::string_view run_id,
   std::int64_t dropped = 0;
   auto drop = [&](Run::iterator it) {
     memory_bytes_ -= it->second->memory_bytes;
+    it->second->hosted = false;  // an increment in flight no longer accounts it
     --num_rves_;
     ++dropped;
     return run->second.erase(it);

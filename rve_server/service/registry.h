@@ -146,7 +146,11 @@ class Registry {
     // Result of the last COMMIT, returned again for a retry of that step.
     std::optional<dem::RveState> last_result ABSL_GUARDED_BY(mu);
     bool last_stress_only ABSL_GUARDED_BY(mu) = false;  // last_result has the stress alone
-    std::int64_t memory_bytes = 0;                      // fixed at creation
+    // Bytes of this RVE in the registry's memory account, followed after
+    // every COMMIT that changes them (a doubled cell). Written under both
+    // `mu` and the registry's lock, so read under either.
+    std::int64_t memory_bytes = 0;
+    bool hosted = true;  // false once dropped (under the registry's lock)
     // Work of the last increment, (DEM steps + 1) × particles: the guess for
     // the next one, by which Apply hands out the longest first. Read without
     // the lock; it orders the work only, never a result.
@@ -163,6 +167,15 @@ class Registry {
       absl::string_view run_id, std::span<const std::int64_t> ids) const;
   absl::Status CheckCapacity(std::int64_t count, std::int64_t bytes) const
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // An increment of `e` by ΔF that would double its cell (rve.h) grows it
+  // about as many times: OK when the growth fits the memory limit, reserved
+  // in the account when `reserve` (a COMMIT; a TRIAL's copy only checks),
+  // else ResourceExhausted naming the point and the limit (nothing changed).
+  absl::Status ReserveGrowth(Entry& e, std::int64_t id, const Eigen::Matrix3d& delta_f,
+                             bool reserve, std::int64_t& reserved);
+  // Sets e's bytes in the account to its RVE's own, giving back `reserved`
+  // (e.mu held).
+  void Reaccount(Entry& e, std::int64_t reserved);
   // AlreadyExists naming ids the run has, else CheckCapacity for them.
   absl::Status CheckRoom(absl::string_view run_id, std::span<const std::int64_t> ids,
                          std::int64_t bytes) const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);

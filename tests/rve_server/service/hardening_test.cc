@@ -458,6 +458,95 @@ TEST(HardeningReplySize, RetryWithoutTangentOfACommitWithTangentsIsAnswered) {
             tangents.results(0).state().SerializeAsString());
 }
 
+// The server's memory account, bytes.
+std::int64_t MemoryBytes(Harness& h) {
+  v1::ServerInfo info;
+  EXPECT_TRUE(h.stub().GetServerInfo(h.Context().get(), {}, &info).ok());
+  return info.memory_bytes();
+}
+
+// 10. A ΔF that squeezes a cell thinner than twice the pair cutoff doubles
+// the RVE: the memory account follows it, and a doubling past the limit is
+// refused as a creation would be (it went unaccounted, and the limit no
+// longer held).
+TEST(HardeningMemory, CellDoublingIsAccountedAndRefusedPastTheLimit) {
+  // 64 discs in one row, the cell 2.3 mm high (twice the cutoff is 2.25
+  // mm): a 4 % squeeze doubles it. Few DEM steps (duration).
+  v1::ApplyRequest squeeze = Harness::Commit("r", 1, {1}, Compress(0.04));
+  squeeze.mutable_options()->set_duration(1e-6);
+  auto upload = [](Harness& h) {
+    dem::RveSnapshot p;
+    p.cell << 64 * 2e-3, 0, 0, 2.3e-3;
+    p.reference_cell = p.cell;
+    for (int x = 0; x < 64; ++x) {
+      p.radius.push_back(0.5e-3);
+      p.sx.push_back((x + 0.5) / 64);
+      p.sy.push_back(0.5);
+    }
+    p.vx = p.vy = p.omega = p.theta = std::vector<double>(p.radius.size(), 0.0);
+    p.controls.min_steps = 10;
+    v1::UploadTemplateRequest req;
+    req.mutable_entry()->set_name(kTemplate);
+    ToProto(p, req.mutable_entry()->mutable_packing());
+    v1::TemplateInfo info;
+    return h.stub().UploadTemplate(h.Context().get(), req, &info);
+  };
+  // Sizes measured on a server without a limit: the template's account, an
+  // RVE's, and the doubled RVE's.
+  std::int64_t base = 0, single = 0, doubled = 0;
+  {
+    Harness probe;
+    ASSERT_TRUE(upload(probe).ok());
+    base = MemoryBytes(probe);
+    ASSERT_TRUE(probe.Create("r", {1}).ok());
+    single = MemoryBytes(probe) - base;
+    v1::ApplyResponse resp;
+    ASSERT_TRUE(probe.stub().Apply(probe.Context().get(), squeeze, &resp).ok());
+    ASSERT_EQ(resp.failed(), 0) << resp.results(0).message();
+    ASSERT_EQ(probe.SnapshotOf("r", 1).radius.size(), 128u) << "the squeeze doubles the cell";
+    doubled = MemoryBytes(probe) - base;
+    ASSERT_GT(doubled, single + single / 2) << "the account follows the doubling";
+  }
+  // Room for two RVEs and one doubling, not for a third RVE besides.
+  ServerConfig config;
+  config.registry.max_memory_bytes = base + single + doubled + single / 2;
+  Harness h(config);
+  ASSERT_TRUE(upload(h).ok());
+  ASSERT_TRUE(h.Create("r", {1, 2}).ok());
+  v1::ApplyResponse resp;
+  ASSERT_TRUE(h.stub().Apply(h.Context().get(), squeeze, &resp).ok());
+  ASSERT_EQ(resp.failed(), 0) << resp.results(0).message();
+  EXPECT_EQ(MemoryBytes(h), base + single + doubled);
+  ExpectError(h.Create("r", {3}), grpc::StatusCode::RESOURCE_EXHAUSTED, "memory limit");
+  // RVE 2's doubling would pass the limit: refused, the RVE as it was.
+  const std::string before = h.ExportBytes("r", 2);
+  squeeze.mutable_increments(0)->set_id(2);
+  for (v1::ApplyMode mode : {v1::APPLY_MODE_TRIAL, v1::APPLY_MODE_COMMIT}) {
+    squeeze.set_mode(mode);
+    ASSERT_TRUE(h.stub().Apply(h.Context().get(), squeeze, &resp).ok());
+    EXPECT_EQ(resp.failed(), 1);
+    EXPECT_EQ(resp.results(0).code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+    EXPECT_EQ(resp.results(0).step(), 0);
+    for (const char* words : {"material point 2", "doubling it (64 to 128 particles",
+                              "over its limit of", "stays at its committed step"}) {
+      EXPECT_NE(resp.results(0).message().find(words), std::string::npos)
+          << resp.results(0).message();
+    }
+  }
+  EXPECT_EQ(h.ExportBytes("r", 2), before);
+  EXPECT_EQ(MemoryBytes(h), base + single + doubled);
+  // Dropping the doubled RVE gives its bytes back; then RVE 2 may double.
+  v1::DropRequest drop;
+  drop.set_run_id("r");
+  drop.add_ids(1);
+  v1::DropResponse dropped;
+  ASSERT_TRUE(h.stub().Drop(h.Context().get(), drop, &dropped).ok());
+  EXPECT_EQ(MemoryBytes(h), base + single);
+  ASSERT_TRUE(h.stub().Apply(h.Context().get(), squeeze, &resp).ok());
+  EXPECT_EQ(resp.failed(), 0) << resp.results(0).message();
+  EXPECT_EQ(MemoryBytes(h), base + doubled);
+}
+
 // 6. health.Watch needs the token as Check does.
 TEST(HardeningAuth, HealthWatchNeedsTheToken) {
   ServerConfig config;
