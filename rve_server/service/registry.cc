@@ -90,6 +90,18 @@ absl::Status CheckCancelled(const CancelFn& cancelled) {
                                              "committed step"));
 }
 
+// Bytes a hosted template holds: its record (the packing's arrays) and its
+// summary's strings.
+std::int64_t TemplateBytes(const TemplateRecord& t, const TemplateInfo& summary) {
+  auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+  const dem::RveSnapshot& p = t.packing;
+  return static_cast<std::int64_t>(
+      sizeof(TemplateRecord) + sizeof(TemplateInfo) + t.name.capacity() + t.description.capacity() +
+      p.material.name.capacity() + bytes(p.radius) + bytes(p.sx) + bytes(p.sy) + bytes(p.vx) +
+      bytes(p.vy) + bytes(p.omega) + bytes(p.theta) + bytes(p.contacts) + summary.name.capacity() +
+      summary.description.capacity() + summary.material_name.capacity());
+}
+
 TemplateInfo Summarise(const TemplateRecord& t, const dem::RveState& s) {
   return {t.name,
           t.description,
@@ -124,13 +136,31 @@ absl::StatusOr<TemplateInfo> Registry::PutTemplate(TemplateRecord record, bool r
         absl::StrCat("template ", QuotedName(record.name), ": ", rve.status().message()));
   }
   const TemplateInfo summary = Summarise(record, rve->Observe());
+  const std::int64_t bytes = TemplateBytes(record, summary);
   absl::MutexLock lock(&mu_);
-  if (!replace && templates_.contains(record.name)) {
+  auto existing = templates_.find(record.name);
+  if (!replace && existing != templates_.end()) {
     return absl::AlreadyExistsError(absl::StrCat("template ", QuotedName(record.name),
                                                  " exists; upload with replace to overwrite it"));
   }
+  if (existing == templates_.end() &&
+      static_cast<std::int64_t>(templates_.size()) >= options_.max_templates) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat("template ", QuotedName(record.name), ": the server hosts ", templates_.size(),
+                     " templates, its limit; replace one (upload with ",
+                     "replace) or start the server with a higher limit"));
+  }
+  const std::int64_t replaced = existing == templates_.end() ? 0 : existing->second.bytes;
+  if (memory_bytes_ - replaced + bytes > options_.max_memory_bytes) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat("template ", QuotedName(record.name), " (", bytes,
+                     " bytes) would take the server's memory account from ", memory_bytes_, " to ",
+                     memory_bytes_ - replaced + bytes, " bytes, over its limit of ",
+                     options_.max_memory_bytes, " bytes"));
+  }
+  memory_bytes_ += bytes - replaced;
   std::string name = record.name;
-  templates_.insert_or_assign(std::move(name), Template{std::move(record), summary});
+  templates_.insert_or_assign(std::move(name), Template{std::move(record), summary, bytes});
   return summary;
 }
 

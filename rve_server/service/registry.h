@@ -36,10 +36,12 @@ namespace rvehub::service {
 inline constexpr int kMaxThreads = 1024;
 
 struct RegistryOptions {
-  int threads = 1;                             // workers evaluating a batch, 1..kMaxThreads
-  std::int64_t max_rves = 1'000'000;           // hosted RVEs at most
-  std::int64_t max_memory_bytes = 16LL << 30;  // resident estimate of all RVEs at most
-  std::int64_t max_batch = 100'000;            // RVEs per call at most
+  int threads = 1;                    // workers evaluating a batch, 1..kMaxThreads
+  std::int64_t max_rves = 1'000'000;  // hosted RVEs at most
+  // Resident estimate of all RVEs and templates at most, bytes.
+  std::int64_t max_memory_bytes = 16LL << 30;
+  std::int64_t max_templates = 1000;  // templates hosted at most
+  std::int64_t max_batch = 100'000;   // RVEs per call at most
 };
 
 // A batch call's values (values/increment.h), the client endpoints' too.
@@ -74,7 +76,9 @@ class Registry {
   const RegistryOptions& options() const { return options_; }
 
   // Templates. InvalidArgument for a bad name or packing, AlreadyExists
-  // unless `replace`.
+  // unless `replace`, ResourceExhausted for a new one past max_templates or
+  // one whose bytes would take the memory account past its limit (templates
+  // count in it as RVEs do).
   absl::StatusOr<TemplateInfo> PutTemplate(TemplateRecord record, bool replace);
   std::vector<TemplateInfo> ListTemplates() const;
   std::vector<TemplateRecord> AllTemplates() const;
@@ -186,11 +190,12 @@ class Registry {
   std::map<std::string, Run, std::less<>> runs_ ABSL_GUARDED_BY(mu_);
   struct Template {
     TemplateRecord record;
-    TemplateInfo summary;  // computed once, on upload
+    TemplateInfo summary;    // computed once, on upload
+    std::int64_t bytes = 0;  // in the memory account
   };
   std::map<std::string, Template, std::less<>> templates_ ABSL_GUARDED_BY(mu_);
   std::int64_t num_rves_ ABSL_GUARDED_BY(mu_) = 0;
-  std::int64_t memory_bytes_ ABSL_GUARDED_BY(mu_) = 0;
+  std::int64_t memory_bytes_ ABSL_GUARDED_BY(mu_) = 0;  // RVEs' and templates'
 };
 
 }  // namespace rvehub::service

@@ -546,6 +546,7 @@ grpc::Status RveServiceImpl::GetServerInfo(grpc::ServerContext* ctx, const v1::S
   resp->set_max_memory_bytes(o.max_memory_bytes);
   resp->set_num_runs(s.num_runs);
   resp->set_num_templates(s.num_templates);
+  resp->set_max_templates(o.max_templates);
   resp->set_max_batch(o.max_batch);
   resp->set_max_message_bytes(options_.max_message_bytes);
   resp->set_uptime_seconds(

@@ -547,6 +547,70 @@ TEST(HardeningMemory, CellDoublingIsAccountedAndRefusedPastTheLimit) {
   EXPECT_EQ(MemoryBytes(h), base + doubled);
 }
 
+// 11. Templates count in the memory account and their number is capped:
+// 1,500 were taken under a 16 MiB limit (RSS 21 → 96 MB).
+TEST(HardeningMemory, TemplatesCountInTheMemoryAccountAndAreCapped) {
+  ServerConfig config;
+  config.registry.max_memory_bytes = 16 << 20;
+  Harness h(config);
+  v1::UploadTemplateRequest req;
+  *req.mutable_entry() = MakeTemplate();
+  req.mutable_entry()->set_description(std::string(4096, 'd'));
+  v1::TemplateInfo info;
+  grpc::Status s;
+  int uploaded = 0;
+  for (; uploaded < 1500; ++uploaded) {
+    req.mutable_entry()->set_name(absl::StrCat("t", uploaded));
+    s = h.stub().UploadTemplate(h.Context().get(), req, &info);
+    if (!s.ok()) break;
+  }
+  ExpectError(s, grpc::StatusCode::RESOURCE_EXHAUSTED, "over its limit of 16777216 bytes");
+  EXPECT_NE(s.error_message().find(absl::StrCat("template \"t", uploaded, "\"")), std::string::npos)
+      << s.error_message();
+  EXPECT_GT(uploaded, 10);
+  v1::ServerInfo server;
+  ASSERT_TRUE(h.stub().GetServerInfo(h.Context().get(), {}, &server).ok());
+  EXPECT_EQ(server.num_templates(), uploaded);
+  EXPECT_LE(server.memory_bytes(), server.max_memory_bytes());
+  EXPECT_GT(server.memory_bytes(),
+            server.max_memory_bytes() - 2 * (server.memory_bytes() / uploaded))
+      << "each template's bytes are in the account";
+  v1::CreateRvesRequest create;
+  create.set_run_id("r");
+  create.set_template_name("t0");
+  create.add_ids(1);
+  v1::CreateRvesResponse created;
+  ExpectError(h.stub().CreateRves(h.Context().get(), create, &created),
+              grpc::StatusCode::RESOURCE_EXHAUSTED, "memory limit");
+  // Replacing one takes its bytes out first: the same template fits again.
+  req.mutable_entry()->set_name("t0");
+  req.set_replace(true);
+  EXPECT_TRUE(h.stub().UploadTemplate(h.Context().get(), req, &info).ok());
+  v1::ServerInfo replaced;
+  ASSERT_TRUE(h.stub().GetServerInfo(h.Context().get(), {}, &replaced).ok());
+  EXPECT_EQ(replaced.memory_bytes(), server.memory_bytes());
+
+  // The number is capped too (max_templates), whatever their size.
+  config.registry.max_memory_bytes = 1LL << 30;
+  config.registry.max_templates = 3;
+  Harness few(config);
+  req.set_replace(false);
+  for (int k = 0; k < 3; ++k) {
+    req.mutable_entry()->set_name(absl::StrCat("t", k));
+    ASSERT_TRUE(few.stub().UploadTemplate(few.Context().get(), req, &info).ok());
+  }
+  req.mutable_entry()->set_name("t3");
+  ExpectError(few.stub().UploadTemplate(few.Context().get(), req, &info),
+              grpc::StatusCode::RESOURCE_EXHAUSTED, "hosts 3 templates, its limit");
+  req.mutable_entry()->set_name("t1");
+  req.set_replace(true);
+  EXPECT_TRUE(few.stub().UploadTemplate(few.Context().get(), req, &info).ok())
+      << "replacing one stays within the limit";
+  ASSERT_TRUE(few.stub().GetServerInfo(few.Context().get(), {}, &server).ok());
+  EXPECT_EQ(server.num_templates(), 3);
+  EXPECT_EQ(server.max_templates(), 3);
+}
+
 // 6. health.Watch needs the token as Check does.
 TEST(HardeningAuth, HealthWatchNeedsTheToken) {
   ServerConfig config;
