@@ -611,6 +611,89 @@ TEST(HardeningMemory, TemplatesCountInTheMemoryAccountAndAreCapped) {
   EXPECT_EQ(server.max_templates(), 3);
 }
 
+// 12. The bytes held by unfinished Import streams are bounded together:
+// six streams, each below the memory limit alone, held 381 MB under
+// --max-memory-mb=64.
+TEST(HardeningMemory, ImportStreamsShareOneBudget) {
+  ServerConfig config;
+  config.registry.max_memory_bytes = 4 << 20;
+  config.max_message_bytes = 1 << 20;
+  Harness h(config);
+  ASSERT_TRUE(h.Upload().ok());
+  ASSERT_TRUE(h.Create("keep", {1}).ok());
+  v1::RveChunk one;
+  ASSERT_TRUE(one.ParseFromString(h.ExportBytes("keep", 1)));
+  // A chunk of about 0.9 MiB; each stream declares more records than it
+  // sends, and stays open.
+  v1::RveChunk chunk;
+  chunk.set_total_records(1000);
+  for (int k = 0; chunk.ByteSizeLong() < (9 << 20) / 10; ++k) {
+    v1::RveRecord* r = chunk.add_records();
+    *r = one.records(0);
+    r->set_run_id("imp");
+    r->set_id(k);
+  }
+  const std::string bytes = chunk.SerializeAsString();
+  const auto size = static_cast<std::int64_t>(bytes.size());
+  auto server_info = [&] {
+    v1::ServerInfo info;
+    EXPECT_TRUE(h.stub().GetServerInfo(h.Context().get(), {}, &info).ok());
+    return info;
+  };
+  const v1::ServerInfo before = server_info();
+  const std::int64_t budget = before.max_memory_bytes() - before.memory_bytes();
+  const std::int64_t fit = budget / size;
+  ASSERT_GE(fit, 2);
+  ASSERT_LT(fit, 6);
+  struct Stream {
+    std::unique_ptr<grpc::ClientContext> ctx;
+    grpc::ByteBuffer response;
+    std::unique_ptr<grpc::ClientWriter<grpc::ByteBuffer>> writer;
+  };
+  std::vector<Stream> streams(6);
+  for (std::int64_t k = 0; k < 6; ++k) {
+    Stream& s = streams[static_cast<std::size_t>(k)];
+    s.ctx = h.Context();
+    s.writer.reset(grpc::internal::ClientWriterFactory<grpc::ByteBuffer>::Create(
+        h.channel().get(),
+        grpc::internal::RpcMethod("/rvehub.v1.RveService/Import",
+                                  grpc::internal::RpcMethod::CLIENT_STREAMING),
+        s.ctx.get(), &s.response));
+    grpc::Slice slice(bytes);
+    (void)s.writer->Write(grpc::ByteBuffer(&slice, 1));
+    if (k < fit) {  // held: wait until the server has read it
+      const auto until = Clock::now() + std::chrono::seconds(30);
+      while (server_info().import_bytes() < (k + 1) * size && Clock::now() < until) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      }
+      ASSERT_EQ(server_info().import_bytes(), (k + 1) * size);
+    } else {  // past the budget: refused, what the others hold unchanged
+      s.writer->WritesDone();
+      ExpectError(s.writer->Finish(), grpc::StatusCode::RESOURCE_EXHAUSTED,
+                  absl::StrCat("at most the room left under the server's memory limit, ", budget,
+                               " bytes"));
+      EXPECT_EQ(server_info().import_bytes(), fit * size);
+    }
+  }
+  // Ended, the held streams give their bytes back; an import then fits.
+  for (std::int64_t k = 0; k < fit; ++k) {
+    Stream& s = streams[static_cast<std::size_t>(k)];
+    s.ctx->TryCancel();
+    EXPECT_FALSE(s.writer->Finish().ok());
+  }
+  const auto until = Clock::now() + std::chrono::seconds(30);
+  while (server_info().import_bytes() != 0 && Clock::now() < until) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  EXPECT_EQ(server_info().import_bytes(), 0);
+  v1::RveChunk small;
+  small.set_total_records(1);
+  *small.add_records() = chunk.records(0);
+  v1::ImportResponse imported;
+  ASSERT_TRUE(RawImport(*h.channel(), *h.Context(), {small.SerializeAsString()}, &imported).ok());
+  EXPECT_EQ(imported.imported(), 1);
+}
+
 // 6. health.Watch needs the token as Check does.
 TEST(HardeningAuth, HealthWatchNeedsTheToken) {
   ServerConfig config;
