@@ -41,6 +41,7 @@ class ServerInfo:
     uptime_seconds: float
     auth_required: bool
     tls: bool
+    max_templates: int = 0   #: templates hosted at most (0: not said)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -730,8 +730,12 @@ absl::Status InfoCommand(const Flags& flags) {
               static_cast<long long>(info.num_runs));
   std::printf("memory     %s of at most %s\n", Mib(info.memory_bytes).c_str(),
               Mib(info.max_memory_bytes).c_str());
-  std::printf("limits     %lld RVEs per call, %s per message\n",
+  std::printf("limits     %lld RVEs per call, %s per message",
               static_cast<long long>(info.max_batch), Mib(info.max_message_bytes).c_str());
+  if (info.max_templates > 0) {
+    std::printf(", %lld templates", static_cast<long long>(info.max_templates));
+  }
+  std::printf("\n");
   std::printf("security   authentication %s, TLS %s\n", info.auth_required ? "on" : "off",
               info.tls ? "on" : "off");
 

@@ -47,6 +47,7 @@ ServerInfo ServerInfoFromProto(const v1::ServerInfo& i) {
   out.max_memory_bytes = i.max_memory_bytes();
   out.num_runs = i.num_runs();
   out.num_templates = i.num_templates();
+  out.max_templates = i.max_templates();
   out.max_batch = i.max_batch();
   out.max_message_bytes = i.max_message_bytes();
   out.uptime_seconds = i.uptime_seconds();

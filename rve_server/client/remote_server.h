@@ -52,11 +52,12 @@ struct ServerInfo {
   int threads = 0;          // worker threads
   std::int64_t num_rves = 0;
   std::int64_t max_rves = 0;
-  std::int64_t memory_bytes = 0;  // resident estimate of all RVEs, bytes
+  std::int64_t memory_bytes = 0;  // resident estimate of all RVEs and templates, bytes
   std::int64_t max_memory_bytes = 0;
   std::int64_t num_runs = 0;
   std::int64_t num_templates = 0;
-  std::int64_t max_batch = 0;  // RVEs per call at most
+  std::int64_t max_templates = 0;  // 0 from a server that does not say
+  std::int64_t max_batch = 0;      // RVEs per call at most
   std::int64_t max_message_bytes = 0;
   double uptime_seconds = 0.0;  // s
   bool auth_required = false;

@@ -28,6 +28,27 @@ double Rve::QuasiStaticStrainRate(double inertial_number, double pressure) const
   return inertial_number / (2.0 * radius_mean_ * std::sqrt(rho / p));  // I = γ̇ d sqrt(ρ/p)
 }
 
+Eigen::Matrix2d Rve::PlanDoublings(const Eigen::Matrix2d& f, int (&axes)[2]) const {
+  Eigen::Matrix2d target = f * p_.cell;
+  axes[0] = axes[1] = -1;
+  for (int& axis : axes) {
+    const Eigen::Vector2d heights = CellHeights(target);
+    if (heights.minCoeff() > 2.0 * Cutoff()) break;
+    axis = heights.x() <= heights.y() ? 0 : 1;
+    target.col(axis) *= 2.0;
+  }
+  return target;
+}
+
+std::int64_t Rve::ParticlesAfterApply(const Eigen::Matrix3d& delta_f) const {
+  std::int64_t particles = num_particles();
+  if (!delta_f.allFinite()) return particles;
+  int axes[2];
+  PlanDoublings(delta_f.topLeftCorner<2, 2>(), axes);
+  for (int axis : axes) particles *= axis >= 0 ? 2 : 1;
+  return particles;
+}
+
 absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyOptions& options,
                                     const Interrupt& interrupt) {
   RETURN_IF_ERROR(ValidateDeltaF(delta_f));
@@ -50,16 +71,10 @@ absl::StatusOr<RveState> Rve::Apply(const Eigen::Matrix3d& delta_f, const ApplyO
   // A cell that ΔF would squeeze thinner than the minimum image allows is
   // first doubled along the thin direction (at most twice: ΔF's stretch is
   // bounded by max_stretch); the checks below see the doubled cell.
-  Eigen::Matrix2d target = f * p_.cell;
-  std::size_t particles = p_.radius.size();
   int doublings[2] = {-1, -1};
-  for (int& axis : doublings) {
-    const Eigen::Vector2d heights = CellHeights(target);
-    if (heights.minCoeff() > 2.0 * Cutoff()) break;
-    axis = heights.x() <= heights.y() ? 0 : 1;
-    target.col(axis) *= 2.0;
-    particles *= 2;
-  }
+  const Eigen::Matrix2d target = PlanDoublings(f, doublings);
+  std::size_t particles = p_.radius.size();
+  for (int axis : doublings) particles *= axis >= 0 ? 2 : 1;
   if (CellHeights(target).minCoeff() <= 2.0 * Cutoff()) {
     return absl::FailedPreconditionError(
         "ΔF would make the periodic cell thinner than twice the pair cutoff");

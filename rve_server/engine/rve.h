@@ -147,6 +147,10 @@ class Rve {
   // cell squeezed flat (a point under a footing) goes on this way.
   // FailedPrecondition (nothing changed) past kMaxParticles.
   absl::Status DoubleCell(int axis);
+  // Particles after Apply(delta_f): num_particles() times 2 per doubling of
+  // the cell that ΔF's squeeze would take first (the plan Apply follows), so
+  // that a caller can account the memory before the increment.
+  std::int64_t ParticlesAfterApply(const Eigen::Matrix3d& delta_f) const;
 
   // Changes the friction μ of every contact and clamps the stored tangential
   // forces to the new Coulomb limit. InvalidArgument (nothing changed) for
@@ -214,6 +218,9 @@ class Rve {
   void MaybeRebuild();
   void Rebuild(const std::vector<ContactHistory>& history);
   void MaybeFlip();
+  // The cell doublings Apply makes before ΔF = f (the axis of each, −1 for
+  // none; at most two: ΔF's stretch is bounded), and the cell f·h they lead to.
+  Eigen::Matrix2d PlanDoublings(const Eigen::Matrix2d& f, int (&axes)[2]) const;
   void ApplyRigidRotation(double angle);
   std::vector<ContactHistory> CollectHistory() const;
   double Cutoff() const;  // m, pair distance beyond which discs are not listed

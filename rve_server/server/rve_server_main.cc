@@ -26,7 +26,8 @@ ABSL_FLAG(std::string, listen, "127.0.0.1:50051", "HOST:PORT to listen on (port 
 ABSL_FLAG(int, threads, 0, "worker threads evaluating RVEs (0: all cores)");
 ABSL_FLAG(int64_t, max_rves, 1000000, "RVEs hosted at most (beyond: RESOURCE_EXHAUSTED)");
 ABSL_FLAG(int64_t, max_memory_mb, 16384,
-          "resident RVE memory at most, MiB (beyond: RESOURCE_EXHAUSTED)");
+          "resident memory of RVEs and templates at most, MiB (beyond: RESOURCE_EXHAUSTED)");
+ABSL_FLAG(int64_t, max_templates, 1000, "templates hosted at most (beyond: RESOURCE_EXHAUSTED)");
 ABSL_FLAG(int64_t, max_batch, 100000, "RVEs per call at most");
 ABSL_FLAG(int64_t, max_message_mb, 64, "gRPC message size limit, MiB, both ways");
 ABSL_FLAG(std::string, auth_token_file, "",
@@ -136,6 +137,7 @@ int main(int argc, char** argv) {
   config.registry.max_rves = absl::GetFlag(FLAGS_max_rves);
   config.registry.max_memory_bytes = absl::GetFlag(FLAGS_max_memory_mb) << 20;
   config.registry.max_batch = absl::GetFlag(FLAGS_max_batch);
+  config.registry.max_templates = absl::GetFlag(FLAGS_max_templates);
   config.max_message_bytes = absl::GetFlag(FLAGS_max_message_mb) << 20;
   config.checkpoint_dir = absl::GetFlag(FLAGS_checkpoint_dir);
   if (const std::string f = absl::GetFlag(FLAGS_auth_token_file); !f.empty()) {

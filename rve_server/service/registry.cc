@@ -90,6 +90,18 @@ absl::Status CheckCancelled(const CancelFn& cancelled) {
                                              "committed step"));
 }
 
+// Bytes a hosted template holds: its record (the packing's arrays) and its
+// summary's strings.
+std::int64_t TemplateBytes(const TemplateRecord& t, const TemplateInfo& summary) {
+  auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+  const dem::RveSnapshot& p = t.packing;
+  return static_cast<std::int64_t>(
+      sizeof(TemplateRecord) + sizeof(TemplateInfo) + t.name.capacity() + t.description.capacity() +
+      p.material.name.capacity() + bytes(p.radius) + bytes(p.sx) + bytes(p.sy) + bytes(p.vx) +
+      bytes(p.vy) + bytes(p.omega) + bytes(p.theta) + bytes(p.contacts) + summary.name.capacity() +
+      summary.description.capacity() + summary.material_name.capacity());
+}
+
 TemplateInfo Summarise(const TemplateRecord& t, const dem::RveState& s) {
   return {t.name,
           t.description,
@@ -124,13 +136,31 @@ absl::StatusOr<TemplateInfo> Registry::PutTemplate(TemplateRecord record, bool r
         absl::StrCat("template ", QuotedName(record.name), ": ", rve.status().message()));
   }
   const TemplateInfo summary = Summarise(record, rve->Observe());
+  const std::int64_t bytes = TemplateBytes(record, summary);
   absl::MutexLock lock(&mu_);
-  if (!replace && templates_.contains(record.name)) {
+  auto existing = templates_.find(record.name);
+  if (!replace && existing != templates_.end()) {
     return absl::AlreadyExistsError(absl::StrCat("template ", QuotedName(record.name),
                                                  " exists; upload with replace to overwrite it"));
   }
+  if (existing == templates_.end() &&
+      static_cast<std::int64_t>(templates_.size()) >= options_.max_templates) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat("template ", QuotedName(record.name), ": the server hosts ", templates_.size(),
+                     " templates, its limit; replace one (upload with ",
+                     "replace) or start the server with a higher limit"));
+  }
+  const std::int64_t replaced = existing == templates_.end() ? 0 : existing->second.bytes;
+  if (memory_bytes_ - replaced + bytes > options_.max_memory_bytes) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat("template ", QuotedName(record.name), " (", bytes,
+                     " bytes) would take the server's memory account from ", memory_bytes_, " to ",
+                     memory_bytes_ - replaced + bytes, " bytes, over its limit of ",
+                     options_.max_memory_bytes, " bytes"));
+  }
+  memory_bytes_ += bytes - replaced;
   std::string name = record.name;
-  templates_.insert_or_assign(std::move(name), Template{std::move(record), summary});
+  templates_.insert_or_assign(std::move(name), Template{std::move(record), summary, bytes});
   return summary;
 }
 
@@ -299,23 +329,26 @@ absl::StatusOr<std::vector<RveOutcome>> Registry::Create(
     }
   }
 
+  // Made before the registry's lock is taken: an entry's lock is only ever
+  // taken before it (Apply accounts a doubled cell under both).
   std::vector<RveOutcome> out(ids.size());
+  std::vector<EntryPtr> entries(ids.size());
+  for (std::size_t k = 0; k < ids.size(); ++k) {
+    entries[k] = std::make_shared<Entry>(*consolidated[unique_of[k]]);
+    entries[k]->memory_bytes = bytes_each;
+    out[k].id = ids[k];
+    if (want_state) {
+      absl::MutexLock entry_lock(&entries[k]->mu);
+      out[k].state = entries[k]->rve.Observe();
+    }
+  }
   {
     absl::MutexLock lock(&mu_);
     // Another call may have created some of these ids or used the capacity
     // while this one consolidated.
     RETURN_IF_ERROR(CheckRoom(run_id, ids, n * bytes_each));
     Run& run = runs_[std::string(run_id)];
-    for (std::size_t k = 0; k < ids.size(); ++k) {
-      auto entry = std::make_shared<Entry>(*consolidated[unique_of[k]]);
-      entry->memory_bytes = bytes_each;
-      out[k].id = ids[k];
-      if (want_state) {
-        absl::MutexLock entry_lock(&entry->mu);
-        out[k].state = entry->rve.Observe();
-      }
-      run.emplace(ids[k], std::move(entry));
-    }
+    for (std::size_t k = 0; k < ids.size(); ++k) run.emplace(ids[k], std::move(entries[k]));
     num_rves_ += n;
     memory_bytes_ += n * bytes_each;
   }
@@ -438,6 +471,10 @@ absl::Status Registry::ApplyEach(absl::string_view run_id, std::int64_t step, Ap
       if (e.last_result.has_value() && e.last_stress_only == options.stress_only &&
           (!options.want_tangent || e.last_result->tangent.has_value())) {
         o.state = *e.last_result;
+        // Only what this request asked for: a tangent stored by a first
+        // COMMIT that asked for it would make the reply larger than the
+        // service sized it (and the retry unanswerable).
+        if (!options.want_tangent) o.state.tangent.reset();
       } else {  // after a restore, or asked otherwise: the committed state observed again
         o.state = options.stress_only ? e.rve.ObserveStress(options.want_tangent)
                                       : e.rve.Observe(options.want_tangent);
@@ -455,6 +492,24 @@ absl::Status Registry::ApplyEach(absl::string_view run_id, std::int64_t step, Ap
       o.status = c;
       return;
     }
+    std::int64_t reserved = 0;
+    if (absl::Status room =
+            ReserveGrowth(e, inc.id, inc.delta_f, mode == ApplyMode::kCommit, reserved);
+        !room.ok()) {
+      o.status = room;
+      return;
+    }
+    // The account follows a committed RVE's size however this ends (an
+    // allocation failure included); before e.mu is let go.
+    struct Settle {
+      Registry* registry;
+      Entry* entry;
+      const std::int64_t* reserved;
+      bool commit;
+      ~Settle() {
+        if (commit) registry->Reaccount(*entry, *reserved);
+      }
+    } settle{this, &e, &reserved, mode == ApplyMode::kCommit};
     // Asked between DEM steps of a long increment; the engine undoes it.
     dem::Interrupt interrupt;
     if (cancelled) {
@@ -528,6 +583,42 @@ absl::Status Registry::ApplyEach(absl::string_view run_id, std::int64_t step, Ap
       },
       cost);
   return failed;
+}
+
+absl::Status Registry::ReserveGrowth(Entry& e, std::int64_t id, const Eigen::Matrix3d& delta_f,
+                                     bool reserve, std::int64_t& reserved) {
+  const std::int64_t particles = e.rve.num_particles();
+  const std::int64_t after = e.rve.ParticlesAfterApply(delta_f);
+  if (after <= particles) return absl::OkStatus();
+  // Everything an RVE holds is per particle or per contact, and doubles
+  // with the cell.
+  const std::int64_t growth =
+      static_cast<std::int64_t>(e.rve.MemoryBytes()) * (after / particles - 1);
+  absl::MutexLock lock(&mu_);
+  if (memory_bytes_ + growth > options_.max_memory_bytes) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat("material point ", id,
+                     ": ΔF squeezes its cell thinner than twice the pair cutoff, and "
+                     "doubling it (",
+                     particles, " to ", after, " particles, about ", growth,
+                     " more bytes) would take the server's memory account from ", memory_bytes_,
+                     " to ", memory_bytes_ + growth, " bytes, over its limit of ",
+                     options_.max_memory_bytes, " bytes; the RVE stays at its committed step"));
+  }
+  if (reserve) {
+    memory_bytes_ += growth;
+    reserved = growth;
+  }
+  return absl::OkStatus();
+}
+
+void Registry::Reaccount(Entry& e, std::int64_t reserved) {
+  const std::int64_t bytes = static_cast<std::int64_t>(e.rve.MemoryBytes());
+  if (reserved == 0 && bytes == e.memory_bytes) return;  // the usual increment: no lock
+  absl::MutexLock lock(&mu_);
+  memory_bytes_ -= reserved;
+  if (e.hosted) memory_bytes_ += bytes - e.memory_bytes;  // a dropped RVE left the account
+  e.memory_bytes = bytes;
 }
 
 absl::StatusOr<std::vector<RveOutcome>> Registry::Get(absl::string_view run_id,
@@ -651,6 +742,15 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<RveRecord> records) {
     bytes += static_cast<std::int64_t>(made[k]->MemoryBytes());
   }
   const std::int64_t n = static_cast<std::int64_t>(records.size());
+  // Made before the registry's lock is taken (see Create).
+  std::vector<EntryPtr> entries(records.size());
+  for (std::size_t k = 0; k < records.size(); ++k) {
+    entries[k] = std::make_shared<Entry>(std::move(*made[k]));
+    absl::MutexLock entry_lock(&entries[k]->mu);
+    entries[k]->memory_bytes = static_cast<std::int64_t>(entries[k]->rve.MemoryBytes());
+    entries[k]->step = records[k].step;
+    entries[k]->last_delta_f = records[k].last_delta_f;
+  }
   absl::MutexLock lock(&mu_);
   for (const RveRecord& r : records) {
     auto run = runs_.find(r.run_id);
@@ -661,16 +761,8 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<RveRecord> records) {
     }
   }
   RETURN_IF_ERROR(CheckCapacity(n, bytes));
-  for (std::size_t k = 0; k < records.size(); ++k) {
-    auto entry = std::make_shared<Entry>(std::move(*made[k]));
-    entry->memory_bytes = static_cast<std::int64_t>(entry->rve.MemoryBytes());
-    {
-      absl::MutexLock entry_lock(&entry->mu);
-      entry->step = records[k].step;
-      entry->last_delta_f = records[k].last_delta_f;
-    }
-    runs_[records[k].run_id].emplace(records[k].id, std::move(entry));
-  }
+  for (std::size_t k = 0; k < records.size(); ++k)
+    runs_[records[k].run_id].emplace(records[k].id, std::move(entries[k]));
   num_rves_ += n;
   memory_bytes_ += bytes;
   return n;
@@ -695,6 +787,7 @@ absl::StatusOr<std::int64_t> Registry::Drop(absl::string_view run_id,
   std::int64_t dropped = 0;
   auto drop = [&](Run::iterator it) {
     memory_bytes_ -= it->second->memory_bytes;
+    it->second->hosted = false;  // an increment in flight no longer accounts it
     --num_rves_;
     ++dropped;
     return run->second.erase(it);

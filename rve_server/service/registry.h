@@ -36,10 +36,12 @@ namespace rvehub::service {
 inline constexpr int kMaxThreads = 1024;
 
 struct RegistryOptions {
-  int threads = 1;                             // workers evaluating a batch, 1..kMaxThreads
-  std::int64_t max_rves = 1'000'000;           // hosted RVEs at most
-  std::int64_t max_memory_bytes = 16LL << 30;  // resident estimate of all RVEs at most
-  std::int64_t max_batch = 100'000;            // RVEs per call at most
+  int threads = 1;                    // workers evaluating a batch, 1..kMaxThreads
+  std::int64_t max_rves = 1'000'000;  // hosted RVEs at most
+  // Resident estimate of all RVEs and templates at most, bytes.
+  std::int64_t max_memory_bytes = 16LL << 30;
+  std::int64_t max_templates = 1000;  // templates hosted at most
+  std::int64_t max_batch = 100'000;   // RVEs per call at most
 };
 
 // A batch call's values (values/increment.h), the client endpoints' too.
@@ -74,7 +76,9 @@ class Registry {
   const RegistryOptions& options() const { return options_; }
 
   // Templates. InvalidArgument for a bad name or packing, AlreadyExists
-  // unless `replace`.
+  // unless `replace`, ResourceExhausted for a new one past max_templates or
+  // one whose bytes would take the memory account past its limit (templates
+  // count in it as RVEs do).
   absl::StatusOr<TemplateInfo> PutTemplate(TemplateRecord record, bool replace);
   std::vector<TemplateInfo> ListTemplates() const;
   std::vector<TemplateRecord> AllTemplates() const;
@@ -146,7 +150,11 @@ class Registry {
     // Result of the last COMMIT, returned again for a retry of that step.
     std::optional<dem::RveState> last_result ABSL_GUARDED_BY(mu);
     bool last_stress_only ABSL_GUARDED_BY(mu) = false;  // last_result has the stress alone
-    std::int64_t memory_bytes = 0;                      // fixed at creation
+    // Bytes of this RVE in the registry's memory account, followed after
+    // every COMMIT that changes them (a doubled cell). Written under both
+    // `mu` and the registry's lock, so read under either.
+    std::int64_t memory_bytes = 0;
+    bool hosted = true;  // false once dropped (under the registry's lock)
     // Work of the last increment, (DEM steps + 1) × particles: the guess for
     // the next one, by which Apply hands out the longest first. Read without
     // the lock; it orders the work only, never a result.
@@ -163,6 +171,15 @@ class Registry {
       absl::string_view run_id, std::span<const std::int64_t> ids) const;
   absl::Status CheckCapacity(std::int64_t count, std::int64_t bytes) const
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // An increment of `e` by ΔF that would double its cell (rve.h) grows it
+  // about as many times: OK when the growth fits the memory limit, reserved
+  // in the account when `reserve` (a COMMIT; a TRIAL's copy only checks),
+  // else ResourceExhausted naming the point and the limit (nothing changed).
+  absl::Status ReserveGrowth(Entry& e, std::int64_t id, const Eigen::Matrix3d& delta_f,
+                             bool reserve, std::int64_t& reserved);
+  // Sets e's bytes in the account to its RVE's own, giving back `reserved`
+  // (e.mu held).
+  void Reaccount(Entry& e, std::int64_t reserved);
   // AlreadyExists naming ids the run has, else CheckCapacity for them.
   absl::Status CheckRoom(absl::string_view run_id, std::span<const std::int64_t> ids,
                          std::int64_t bytes) const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
@@ -173,11 +190,12 @@ class Registry {
   std::map<std::string, Run, std::less<>> runs_ ABSL_GUARDED_BY(mu_);
   struct Template {
     TemplateRecord record;
-    TemplateInfo summary;  // computed once, on upload
+    TemplateInfo summary;    // computed once, on upload
+    std::int64_t bytes = 0;  // in the memory account
   };
   std::map<std::string, Template, std::less<>> templates_ ABSL_GUARDED_BY(mu_);
   std::int64_t num_rves_ ABSL_GUARDED_BY(mu_) = 0;
-  std::int64_t memory_bytes_ ABSL_GUARDED_BY(mu_) = 0;
+  std::int64_t memory_bytes_ ABSL_GUARDED_BY(mu_) = 0;  // RVEs' and templates'
 };
 
 }  // namespace rvehub::service

@@ -457,15 +457,18 @@ grpc::Status RveServiceImpl::ImportBytes(grpc::ServerContext* ctx,
   std::int64_t declared = 0;
   int chunks = 0;
   // What the stream has carried, bytes: held until the end (all or nothing),
-  // so bounded by the server's memory limit for RVEs.
-  std::int64_t received = 0;
-  const std::int64_t max_bytes = registry_.options().max_memory_bytes;
+  // in the budget all streams share (each alone once held six times the
+  // memory limit together).
+  std::int64_t held = 0;
+  struct Release {
+    RveServiceImpl* service;
+    const std::int64_t* held;
+    ~Release() { service->ReleaseImportBytes(*held); }
+  } release{this, &held};
   while (reader->Read(&bytes)) {
-    received += static_cast<std::int64_t>(bytes.Length());
-    if (received > max_bytes) {
-      return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                          absl::StrCat("the import stream exceeds the server's memory limit of ",
-                                       max_bytes, " bytes; nothing imported"));
+    if (grpc::Status r = ReserveImportBytes(static_cast<std::int64_t>(bytes.Length()), held);
+        !r.ok()) {
+      return r;
     }
     v1::RveChunk chunk;
     if (!grpc::SerializationTraits<v1::RveChunk>::Deserialize(&bytes, &chunk).ok()) {
@@ -514,6 +517,35 @@ grpc::Status RveServiceImpl::ImportBytes(grpc::ServerContext* ctx,
   return grpc::Status::OK;
 }
 
+grpc::Status RveServiceImpl::ReserveImportBytes(std::int64_t bytes, std::int64_t& held) {
+  const std::int64_t limit = registry_.options().max_memory_bytes;
+  const std::int64_t hosted = registry_.Stats().memory_bytes;
+  const std::int64_t budget = std::max<std::int64_t>(0, limit - hosted);
+  absl::MutexLock lock(&import_mu_);
+  if (import_bytes_ + bytes > budget) {
+    return grpc::Status(
+        grpc::StatusCode::RESOURCE_EXHAUSTED,
+        absl::StrCat("import streams in flight may hold together at most the room left under the "
+                     "server's memory limit, ",
+                     budget, " bytes (", limit, " less ", hosted, " hosted); this stream's ",
+                     held + bytes, " bytes with the others' ", import_bytes_ - held,
+                     " would pass it; nothing imported"));
+  }
+  import_bytes_ += bytes;
+  held += bytes;
+  return grpc::Status::OK;
+}
+
+void RveServiceImpl::ReleaseImportBytes(std::int64_t held) {
+  absl::MutexLock lock(&import_mu_);
+  import_bytes_ -= held;
+}
+
+std::int64_t RveServiceImpl::import_bytes() const {
+  absl::MutexLock lock(&import_mu_);
+  return import_bytes_;
+}
+
 grpc::Status RveServiceImpl::DoDrop(grpc::ServerContext* ctx, const v1::DropRequest* req,
                                     v1::DropResponse* resp) {
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
@@ -546,6 +578,8 @@ grpc::Status RveServiceImpl::GetServerInfo(grpc::ServerContext* ctx, const v1::S
   resp->set_max_memory_bytes(o.max_memory_bytes);
   resp->set_num_runs(s.num_runs);
   resp->set_num_templates(s.num_templates);
+  resp->set_max_templates(o.max_templates);
+  resp->set_import_bytes(import_bytes());
   resp->set_max_batch(o.max_batch);
   resp->set_max_message_bytes(options_.max_message_bytes);
   resp->set_uptime_seconds(

@@ -9,7 +9,9 @@
 #include <chrono>
 #include <string>
 
+#include "absl/base/thread_annotations.h"
 #include "absl/status/status.h"
+#include "absl/synchronization/mutex.h"
 #include "rve_server/service/registry.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
 
@@ -97,10 +99,21 @@ class RveServiceImpl final : public v1::RveService::Service {
   // UNAUTHENTICATED unless the call carries the token (when one is set).
   grpc::Status CheckAuth(grpc::ServerContext* ctx) const;
 
+  // The bytes Import streams in flight hold (each keeps its records until
+  // its end: all or nothing), shared by all: together at most the room left
+  // in the registry's memory account. Reserve adds `bytes` to what a stream
+  // holds (`held`), or is RESOURCE_EXHAUSTED naming the budget (nothing
+  // added); Release gives a stream's back.
+  grpc::Status ReserveImportBytes(std::int64_t bytes, std::int64_t& held);
+  void ReleaseImportBytes(std::int64_t held);
+  std::int64_t import_bytes() const;
+
   Registry& registry_;
   const ServiceOptions options_;
   const std::chrono::steady_clock::time_point started_;
   std::atomic<bool> cancel_all_{false};
+  mutable absl::Mutex import_mu_;
+  std::int64_t import_bytes_ ABSL_GUARDED_BY(import_mu_) = 0;
 };
 
 }  // namespace rvehub::service

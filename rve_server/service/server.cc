@@ -189,11 +189,12 @@ absl::StatusOr<std::unique_ptr<RveServer>> RveServer::Start(const ServerConfig& 
         absl::StrCat("threads = ", config.registry.threads, " must lie in 1..", kMaxThreads));
   }
   if (config.registry.max_rves < 1 || config.registry.max_memory_bytes < 1 ||
-      config.registry.max_batch < 1 || config.max_message_bytes < (1 << 20) ||
+      config.registry.max_batch < 1 || config.registry.max_templates < 1 ||
+      config.max_message_bytes < (1 << 20) ||
       config.max_message_bytes > std::numeric_limits<int>::max()) {
     return absl::InvalidArgumentError(
-        "max RVEs, max memory and max batch must be >= 1 and the max message size between "
-        "1 MiB and 2 GiB - 1 byte (gRPC's limit)");
+        "max RVEs, max memory, max batch and max templates must be >= 1 and the max message "
+        "size between 1 MiB and 2 GiB - 1 byte (gRPC's limit)");
   }
   if (config.tls_cert_pem.empty() != config.tls_key_pem.empty()) {
     return absl::InvalidArgumentError("TLS needs both a certificate and a key");

@@ -39,7 +39,7 @@ class RveServer {
   // Loads the checkpoint directory's files when present, then listens.
   // InvalidArgument for a listen address that is not HOST:PORT with a port in
   // 0..65535 (ValidateAddress), threads outside 1..kMaxThreads, a max RVEs,
-  // memory or batch below 1, a message size outside its range, or one of the
+  // memory, batch or templates below 1, a message size outside its range, or one of the
   // TLS certificate and key without the other; PermissionDenied for a
   // checkpoint directory that cannot be made or written into.
   static absl::StatusOr<std::unique_ptr<RveServer>> Start(const ServerConfig& config);

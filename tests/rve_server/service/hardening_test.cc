@@ -1,7 +1,8 @@
 // Requests that once knocked the server over, each kept as a test:
 // a huge cell, unbounded work, amplification by repeated ids, malformed
-// import streams, unanswerable commits, unguarded health Watch, long ids,
-// and what Stop says about the RVEs it drops. A real server on loopback.
+// import streams, unanswerable commits (retries included), unguarded health
+// Watch, long ids, and what Stop says about the RVEs it drops. A real server
+// on loopback.
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
@@ -48,6 +49,45 @@ v1::RveRecord Record(const std::string& run, std::int64_t id, const v1::Packing&
   for (double v : {1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0}) r.add_last_delta_f(v);
   *r.mutable_packing() = packing;
   return r;
+}
+
+// A small template (a lattice of `cols` × `rows` 0.5 mm discs 2 mm apart,
+// 10 DEM steps per increment): as large a state as any packing's at a
+// fraction of the memory and time, for tests that need many RVEs.
+grpc::Status UploadLattice(Harness& h, const std::string& name, int cols = 4, int rows = 4) {
+  dem::RveSnapshot p;
+  constexpr double kSpacing = 2e-3;  // m
+  p.cell << cols * kSpacing, 0, 0, rows * kSpacing;
+  p.reference_cell = p.cell;
+  for (int y = 0; y < rows; ++y) {
+    for (int x = 0; x < cols; ++x) {
+      p.radius.push_back(0.5e-3);
+      p.sx.push_back((x + 0.5) / cols);
+      p.sy.push_back((y + 0.5) / rows);
+    }
+  }
+  p.vx = p.vy = p.omega = p.theta = std::vector<double>(p.radius.size(), 0.0);
+  p.controls.min_steps = 10;
+  v1::UploadTemplateRequest req;
+  req.mutable_entry()->set_name(name);
+  ToProto(p, req.mutable_entry()->mutable_packing());
+  v1::TemplateInfo info;
+  return h.stub().UploadTemplate(h.Context().get(), req, &info);
+}
+
+// The most RVEs per Apply the server's reply size allows (from its refusal
+// of a batch far too large, which changes nothing).
+std::int64_t MaxReplyCount(Harness& h, bool tangent) {
+  std::vector<std::int64_t> ids(5000);  // a request within the limit, a reply not
+  for (std::size_t k = 0; k < ids.size(); ++k) ids[k] = static_cast<std::int64_t>(k);
+  v1::ApplyRequest req = Harness::Commit("none", 1, ids, Compress(1e-4));
+  req.mutable_options()->set_want_tangent(tangent);
+  v1::ApplyResponse resp;
+  const grpc::Status s = h.stub().Apply(h.Context().get(), req, &resp);
+  const std::string& m = s.error_message();
+  const std::size_t at = m.find("ask for at most ");
+  EXPECT_NE(at, std::string::npos) << m;
+  return at == std::string::npos ? 0 : std::stoll(m.substr(at + 16));
 }
 
 class HardeningTest : public ::testing::Test {
@@ -358,6 +398,300 @@ TEST(HardeningReplySize, OversizedReplyIsRefusedBeforeCommitting) {
   req.mutable_options()->set_want_tangent(true);
   ASSERT_TRUE(h.stub().Apply(h.Context().get(), req, &resp).ok());
   EXPECT_EQ(resp.failed(), 0);
+}
+
+// 9. A retried COMMIT answers what it asks for: a batch without tangents
+// that repeats RVEs first committed with tangents was sized without them,
+// and returning the stored tangents made it unanswerable (every retry
+// RESOURCE_EXHAUSTED) after the rest of the batch had committed.
+TEST(HardeningReplySize, RetryWithoutTangentOfACommitWithTangentsIsAnswered) {
+  ServerConfig config;
+  config.max_message_bytes = 1 << 20;
+  Harness h(config);
+  ASSERT_TRUE(UploadLattice(h, "lattice").ok());
+  const std::int64_t with_tangent = MaxReplyCount(h, true);
+  const std::int64_t without = MaxReplyCount(h, false);
+  ASSERT_GT(with_tangent, 100);
+  ASSERT_GT(without, 2 * with_tangent) << "a tangent doubles a result at least";
+  std::vector<std::int64_t> all(static_cast<std::size_t>(without));
+  for (std::size_t k = 0; k < all.size(); ++k) all[k] = static_cast<std::int64_t>(k);
+  const std::vector<std::int64_t> first(all.begin(), all.begin() + with_tangent);
+  v1::CreateRvesRequest create;
+  create.set_run_id("r");
+  create.set_template_name("lattice");
+  for (std::int64_t id : all) create.add_ids(id);
+  v1::CreateRvesResponse created;
+  ASSERT_TRUE(h.stub().CreateRves(h.Context().get(), create, &created).ok());
+
+  v1::ApplyResponse tangents;
+  ASSERT_TRUE(h.Apply("r", 1, v1::APPLY_MODE_COMMIT, first, Compress(1e-4), &tangents, true).ok());
+  ASSERT_EQ(tangents.failed(), 0);
+  ASSERT_EQ(tangents.results(0).state().tangent_size(), 81);
+  v1::ApplyResponse resp;
+  const grpc::Status s = h.Apply("r", 1, v1::APPLY_MODE_COMMIT, all, Compress(1e-4), &resp);
+  ASSERT_TRUE(s.ok()) << s.error_code() << " " << s.error_message();
+  ASSERT_EQ(resp.results_size(), without);
+  EXPECT_EQ(resp.failed(), 0);
+  // The retried ones: the stored results bit for bit, without the tangent
+  // this call did not ask for.
+  for (std::int64_t k = 0; k < with_tangent; ++k) {
+    v1::RveResult expected = tangents.results(static_cast<int>(k));
+    expected.mutable_state()->clear_tangent();
+    expected.set_engine_seconds(resp.results(static_cast<int>(k)).engine_seconds());
+    ASSERT_EQ(resp.results(static_cast<int>(k)).SerializeAsString(), expected.SerializeAsString())
+        << "id " << k;
+  }
+  // Retried again, the whole batch answers the same.
+  v1::ApplyResponse again;
+  ASSERT_TRUE(h.Apply("r", 1, v1::APPLY_MODE_COMMIT, all, Compress(1e-4), &again).ok());
+  EXPECT_EQ(again.failed(), 0);
+  for (int k = 0; k < again.results_size(); ++k) {
+    v1::RveResult a = again.results(k), b = resp.results(k);
+    a.set_engine_seconds(0);
+    b.set_engine_seconds(0);
+    ASSERT_EQ(a.SerializeAsString(), b.SerializeAsString()) << "id " << k;
+  }
+  // Asked for the tangent again, the retry returns the stored one.
+  v1::ApplyResponse stored;
+  ASSERT_TRUE(h.Apply("r", 1, v1::APPLY_MODE_COMMIT, {0}, Compress(1e-4), &stored, true).ok());
+  EXPECT_EQ(stored.results(0).state().SerializeAsString(),
+            tangents.results(0).state().SerializeAsString());
+}
+
+// The server's memory account, bytes.
+std::int64_t MemoryBytes(Harness& h) {
+  v1::ServerInfo info;
+  EXPECT_TRUE(h.stub().GetServerInfo(h.Context().get(), {}, &info).ok());
+  return info.memory_bytes();
+}
+
+// 10. A ΔF that squeezes a cell thinner than twice the pair cutoff doubles
+// the RVE: the memory account follows it, and a doubling past the limit is
+// refused as a creation would be (it went unaccounted, and the limit no
+// longer held).
+TEST(HardeningMemory, CellDoublingIsAccountedAndRefusedPastTheLimit) {
+  // 64 discs in one row, the cell 2.3 mm high (twice the cutoff is 2.25
+  // mm): a 4 % squeeze doubles it. Few DEM steps (duration).
+  v1::ApplyRequest squeeze = Harness::Commit("r", 1, {1}, Compress(0.04));
+  squeeze.mutable_options()->set_duration(1e-6);
+  auto upload = [](Harness& h) {
+    dem::RveSnapshot p;
+    p.cell << 64 * 2e-3, 0, 0, 2.3e-3;
+    p.reference_cell = p.cell;
+    for (int x = 0; x < 64; ++x) {
+      p.radius.push_back(0.5e-3);
+      p.sx.push_back((x + 0.5) / 64);
+      p.sy.push_back(0.5);
+    }
+    p.vx = p.vy = p.omega = p.theta = std::vector<double>(p.radius.size(), 0.0);
+    p.controls.min_steps = 10;
+    v1::UploadTemplateRequest req;
+    req.mutable_entry()->set_name(kTemplate);
+    ToProto(p, req.mutable_entry()->mutable_packing());
+    v1::TemplateInfo info;
+    return h.stub().UploadTemplate(h.Context().get(), req, &info);
+  };
+  // Sizes measured on a server without a limit: the template's account, an
+  // RVE's, and the doubled RVE's.
+  std::int64_t base = 0, single = 0, doubled = 0;
+  {
+    Harness probe;
+    ASSERT_TRUE(upload(probe).ok());
+    base = MemoryBytes(probe);
+    ASSERT_TRUE(probe.Create("r", {1}).ok());
+    single = MemoryBytes(probe) - base;
+    v1::ApplyResponse resp;
+    ASSERT_TRUE(probe.stub().Apply(probe.Context().get(), squeeze, &resp).ok());
+    ASSERT_EQ(resp.failed(), 0) << resp.results(0).message();
+    ASSERT_EQ(probe.SnapshotOf("r", 1).radius.size(), 128u) << "the squeeze doubles the cell";
+    doubled = MemoryBytes(probe) - base;
+    ASSERT_GT(doubled, single + single / 2) << "the account follows the doubling";
+  }
+  // Room for two RVEs and one doubling, not for a third RVE besides.
+  ServerConfig config;
+  config.registry.max_memory_bytes = base + single + doubled + single / 2;
+  Harness h(config);
+  ASSERT_TRUE(upload(h).ok());
+  ASSERT_TRUE(h.Create("r", {1, 2}).ok());
+  v1::ApplyResponse resp;
+  ASSERT_TRUE(h.stub().Apply(h.Context().get(), squeeze, &resp).ok());
+  ASSERT_EQ(resp.failed(), 0) << resp.results(0).message();
+  EXPECT_EQ(MemoryBytes(h), base + single + doubled);
+  ExpectError(h.Create("r", {3}), grpc::StatusCode::RESOURCE_EXHAUSTED, "memory limit");
+  // RVE 2's doubling would pass the limit: refused, the RVE as it was.
+  const std::string before = h.ExportBytes("r", 2);
+  squeeze.mutable_increments(0)->set_id(2);
+  for (v1::ApplyMode mode : {v1::APPLY_MODE_TRIAL, v1::APPLY_MODE_COMMIT}) {
+    squeeze.set_mode(mode);
+    ASSERT_TRUE(h.stub().Apply(h.Context().get(), squeeze, &resp).ok());
+    EXPECT_EQ(resp.failed(), 1);
+    EXPECT_EQ(resp.results(0).code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+    EXPECT_EQ(resp.results(0).step(), 0);
+    for (const char* words : {"material point 2", "doubling it (64 to 128 particles",
+                              "over its limit of", "stays at its committed step"}) {
+      EXPECT_NE(resp.results(0).message().find(words), std::string::npos)
+          << resp.results(0).message();
+    }
+  }
+  EXPECT_EQ(h.ExportBytes("r", 2), before);
+  EXPECT_EQ(MemoryBytes(h), base + single + doubled);
+  // Dropping the doubled RVE gives its bytes back; then RVE 2 may double.
+  v1::DropRequest drop;
+  drop.set_run_id("r");
+  drop.add_ids(1);
+  v1::DropResponse dropped;
+  ASSERT_TRUE(h.stub().Drop(h.Context().get(), drop, &dropped).ok());
+  EXPECT_EQ(MemoryBytes(h), base + single);
+  ASSERT_TRUE(h.stub().Apply(h.Context().get(), squeeze, &resp).ok());
+  EXPECT_EQ(resp.failed(), 0) << resp.results(0).message();
+  EXPECT_EQ(MemoryBytes(h), base + doubled);
+}
+
+// 11. Templates count in the memory account and their number is capped:
+// 1,500 were taken under a 16 MiB limit (RSS 21 → 96 MB).
+TEST(HardeningMemory, TemplatesCountInTheMemoryAccountAndAreCapped) {
+  ServerConfig config;
+  config.registry.max_memory_bytes = 16 << 20;
+  Harness h(config);
+  v1::UploadTemplateRequest req;
+  *req.mutable_entry() = MakeTemplate();
+  req.mutable_entry()->set_description(std::string(4096, 'd'));
+  v1::TemplateInfo info;
+  grpc::Status s;
+  int uploaded = 0;
+  for (; uploaded < 1500; ++uploaded) {
+    req.mutable_entry()->set_name(absl::StrCat("t", uploaded));
+    s = h.stub().UploadTemplate(h.Context().get(), req, &info);
+    if (!s.ok()) break;
+  }
+  ExpectError(s, grpc::StatusCode::RESOURCE_EXHAUSTED, "over its limit of 16777216 bytes");
+  EXPECT_NE(s.error_message().find(absl::StrCat("template \"t", uploaded, "\"")), std::string::npos)
+      << s.error_message();
+  EXPECT_GT(uploaded, 10);
+  v1::ServerInfo server;
+  ASSERT_TRUE(h.stub().GetServerInfo(h.Context().get(), {}, &server).ok());
+  EXPECT_EQ(server.num_templates(), uploaded);
+  EXPECT_LE(server.memory_bytes(), server.max_memory_bytes());
+  EXPECT_GT(server.memory_bytes(),
+            server.max_memory_bytes() - 2 * (server.memory_bytes() / uploaded))
+      << "each template's bytes are in the account";
+  v1::CreateRvesRequest create;
+  create.set_run_id("r");
+  create.set_template_name("t0");
+  create.add_ids(1);
+  v1::CreateRvesResponse created;
+  ExpectError(h.stub().CreateRves(h.Context().get(), create, &created),
+              grpc::StatusCode::RESOURCE_EXHAUSTED, "memory limit");
+  // Replacing one takes its bytes out first: the same template fits again.
+  req.mutable_entry()->set_name("t0");
+  req.set_replace(true);
+  EXPECT_TRUE(h.stub().UploadTemplate(h.Context().get(), req, &info).ok());
+  v1::ServerInfo replaced;
+  ASSERT_TRUE(h.stub().GetServerInfo(h.Context().get(), {}, &replaced).ok());
+  EXPECT_EQ(replaced.memory_bytes(), server.memory_bytes());
+
+  // The number is capped too (max_templates), whatever their size.
+  config.registry.max_memory_bytes = 1LL << 30;
+  config.registry.max_templates = 3;
+  Harness few(config);
+  req.set_replace(false);
+  for (int k = 0; k < 3; ++k) {
+    req.mutable_entry()->set_name(absl::StrCat("t", k));
+    ASSERT_TRUE(few.stub().UploadTemplate(few.Context().get(), req, &info).ok());
+  }
+  req.mutable_entry()->set_name("t3");
+  ExpectError(few.stub().UploadTemplate(few.Context().get(), req, &info),
+              grpc::StatusCode::RESOURCE_EXHAUSTED, "hosts 3 templates, its limit");
+  req.mutable_entry()->set_name("t1");
+  req.set_replace(true);
+  EXPECT_TRUE(few.stub().UploadTemplate(few.Context().get(), req, &info).ok())
+      << "replacing one stays within the limit";
+  ASSERT_TRUE(few.stub().GetServerInfo(few.Context().get(), {}, &server).ok());
+  EXPECT_EQ(server.num_templates(), 3);
+  EXPECT_EQ(server.max_templates(), 3);
+}
+
+// 12. The bytes held by unfinished Import streams are bounded together:
+// six streams, each below the memory limit alone, held 381 MB under
+// --max-memory-mb=64.
+TEST(HardeningMemory, ImportStreamsShareOneBudget) {
+  ServerConfig config;
+  config.registry.max_memory_bytes = 4 << 20;
+  config.max_message_bytes = 1 << 20;
+  Harness h(config);
+  ASSERT_TRUE(h.Upload().ok());
+  ASSERT_TRUE(h.Create("keep", {1}).ok());
+  v1::RveChunk one;
+  ASSERT_TRUE(one.ParseFromString(h.ExportBytes("keep", 1)));
+  // A chunk of about 0.9 MiB; each stream declares more records than it
+  // sends, and stays open.
+  v1::RveChunk chunk;
+  chunk.set_total_records(1000);
+  for (int k = 0; chunk.ByteSizeLong() < (9 << 20) / 10; ++k) {
+    v1::RveRecord* r = chunk.add_records();
+    *r = one.records(0);
+    r->set_run_id("imp");
+    r->set_id(k);
+  }
+  const std::string bytes = chunk.SerializeAsString();
+  const auto size = static_cast<std::int64_t>(bytes.size());
+  auto server_info = [&] {
+    v1::ServerInfo info;
+    EXPECT_TRUE(h.stub().GetServerInfo(h.Context().get(), {}, &info).ok());
+    return info;
+  };
+  const v1::ServerInfo before = server_info();
+  const std::int64_t budget = before.max_memory_bytes() - before.memory_bytes();
+  const std::int64_t fit = budget / size;
+  ASSERT_GE(fit, 2);
+  ASSERT_LT(fit, 6);
+  struct Stream {
+    std::unique_ptr<grpc::ClientContext> ctx;
+    grpc::ByteBuffer response;
+    std::unique_ptr<grpc::ClientWriter<grpc::ByteBuffer>> writer;
+  };
+  std::vector<Stream> streams(6);
+  for (std::int64_t k = 0; k < 6; ++k) {
+    Stream& s = streams[static_cast<std::size_t>(k)];
+    s.ctx = h.Context();
+    s.writer.reset(grpc::internal::ClientWriterFactory<grpc::ByteBuffer>::Create(
+        h.channel().get(),
+        grpc::internal::RpcMethod("/rvehub.v1.RveService/Import",
+                                  grpc::internal::RpcMethod::CLIENT_STREAMING),
+        s.ctx.get(), &s.response));
+    grpc::Slice slice(bytes);
+    (void)s.writer->Write(grpc::ByteBuffer(&slice, 1));
+    if (k < fit) {  // held: wait until the server has read it
+      const auto until = Clock::now() + std::chrono::seconds(30);
+      while (server_info().import_bytes() < (k + 1) * size && Clock::now() < until) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      }
+      ASSERT_EQ(server_info().import_bytes(), (k + 1) * size);
+    } else {  // past the budget: refused, what the others hold unchanged
+      s.writer->WritesDone();
+      ExpectError(s.writer->Finish(), grpc::StatusCode::RESOURCE_EXHAUSTED,
+                  absl::StrCat("at most the room left under the server's memory limit, ", budget,
+                               " bytes"));
+      EXPECT_EQ(server_info().import_bytes(), fit * size);
+    }
+  }
+  // Ended, the held streams give their bytes back; an import then fits.
+  for (std::int64_t k = 0; k < fit; ++k) {
+    Stream& s = streams[static_cast<std::size_t>(k)];
+    s.ctx->TryCancel();
+    EXPECT_FALSE(s.writer->Finish().ok());
+  }
+  const auto until = Clock::now() + std::chrono::seconds(30);
+  while (server_info().import_bytes() != 0 && Clock::now() < until) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  EXPECT_EQ(server_info().import_bytes(), 0);
+  v1::RveChunk small;
+  small.set_total_records(1);
+  *small.add_records() = chunk.records(0);
+  v1::ImportResponse imported;
+  ASSERT_TRUE(RawImport(*h.channel(), *h.Context(), {small.SerializeAsString()}, &imported).ok());
+  EXPECT_EQ(imported.imported(), 1);
 }
 
 // 6. health.Watch needs the token as Check does.
