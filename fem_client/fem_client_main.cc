@@ -3,9 +3,11 @@
 //
 //   fem_client run cases/fem-single-element.json --out=out/fem-se
 //   fem_client run CASE --out=DIR --servers=host1:50051,host2:50051
+//   fem_client resume DIR/checkpoint.h5 --out=DIR
 //   fem_client check CASE
 //   fem_client summarise CASE --out=DIR
 #include <cstdio>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -46,19 +48,23 @@ constexpr char kUsage[] =
 
 Usage:
   fem_client run CASE.json --out=DIR [options]   run a case (cases/FEM_FORMAT.md)
+  fem_client resume CHECKPOINT.h5 [options]      continue a run from its checkpoint
   fem_client check CASE.json [--set=...]         validate a case file and print it in full
   fem_client summarise CASE.json --out=DIR       (re)write DIR/summary.json and plot.png from
                                                  DIR/timeseries.csv
   fem_client --help
 
-Options (run):
-  --out=DIR            output directory (required). Written there: timeseries.csv (a row per
+Options (run, resume):
+  --out=DIR            output directory (run: required; resume: default the checkpoint's
+                       directory, whose outputs go on after its step). Written there: timeseries.csv (a row per
                        load step: strains, the platen's and lateral stresses, Newton
-                       iterations and errors, monitored Gauss points), summary.json (peak,
+                       iterations and errors, monitored Gauss points), iterations.csv (every
+                       Newton iteration's E_d and E_f), summary.json (peak,
                        iterations per step, wall time), plot.png, results.h5 + results.xdmf
                        (every Gauss point's fields per frame; open results.xdmf in ParaView),
                        packings-STEP.h5 (the RVEs of output.packings per frame), run.json
-                       (the run record: case, version, command line, host, start and end)
+                       (the run record: case, version, command line, host, start and end),
+                       checkpoint.h5 (every output.checkpoint_every load steps and at the end)
   --servers=H:P,...    RVE servers to use (rve_server). Default: one embedded server in
                        this process, no network
   --threads=N          workers of the embedded server (default: all cores)
@@ -67,15 +73,13 @@ Options (run):
   --timeout=SECONDS    deadline of one batched RVE call (a Newton iteration's TRIALs, a
                        step's COMMITs) at most (default 600)
   --template-cache=DIR where prepared RVE templates are cached (default DIR/templates)
-  --stop-after=N       stop after N load steps (no checkpoint: fem_client cannot resume yet)
+  --stop-after=N       stop after N load steps, writing DIR/checkpoint.h5 there (to resume)
   --quiet              no progress lines
 
-Option (run, check, summarise):
+Option (run, check, summarise; a resume continues the case it was written with):
   --set=PATH=VALUE     override one case field before the case is validated; repeatable.
                        PATH is a JSON pointer or dotted: --set=/mesh/elements=[10,15],
                        --set=loading.axial_strain_step=5e-4, --set=solver.tangent=perturbation
-
-Not supported yet: stress-controlled cyclic shear (the run refuses it), resuming a run.
 
 Exit status: 0 done, 1 failure (message on stderr), 2 usage error.
 )";
@@ -114,15 +118,12 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
   }
   if (positional.empty()) return absl::InvalidArgumentError("no command (see --help)");
   c.name = positional[0];
-  if (c.name == "resume") {
-    return absl::InvalidArgumentError(
-        "resume is not supported yet: fem_client writes no checkpoints (run the case again)");
-  }
-  if (c.name != "run" && c.name != "check" && c.name != "summarise") {
+  if (c.name != "run" && c.name != "resume" && c.name != "check" && c.name != "summarise") {
     return absl::InvalidArgumentError(absl::StrCat("unknown command '", c.name, "'"));
   }
   if (positional.size() < 2) {
-    return absl::InvalidArgumentError(absl::StrCat(c.name, " needs a case file"));
+    return absl::InvalidArgumentError(
+        absl::StrCat(c.name, " needs a ", c.name == "resume" ? "checkpoint" : "case file"));
   }
   c.target = positional[1];
   if (c.name == "check") {
@@ -139,6 +140,10 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
       }
     }
     if (!c.args.contains("out")) return absl::InvalidArgumentError("summarise needs --out=DIR");
+  }
+  if (c.name == "resume" && c.args.contains("set")) {
+    return absl::InvalidArgumentError(
+        "resume takes no --set (a checkpoint continues the case it was written with)");
   }
   if (c.name == "run" && !c.args.contains("out")) {
     return absl::InvalidArgumentError("--out=DIR is required");
@@ -162,7 +167,9 @@ absl::StatusOr<std::vector<CaseOverride>> Overrides(const Args& a) {
 absl::StatusOr<FemSimulationOptions> Options(const Args& a) {
   FemSimulationOptions o;
   o.out_dir = absl::GetFlag(FLAGS_out);
-  if (o.out_dir.empty()) return absl::InvalidArgumentError("--out=DIR needs a directory");
+  if (a.contains("out") && o.out_dir.empty()) {
+    return absl::InvalidArgumentError("--out=DIR needs a directory");
+  }
   if (a.contains("servers")) {
     for (absl::string_view s :
          absl::StrSplit(absl::GetFlag(FLAGS_servers), ',', absl::SkipWhitespace())) {
@@ -199,6 +206,35 @@ int Fail(const absl::Status& s, int code) {
   return code;
 }
 
+// The token and CA files of the flags; an unreadable one is a failure
+// (exit 1), not a usage error.
+int AddClientOptions(FemSimulationOptions& options) {
+  absl::StatusOr<client::ClientOptions> client_options =
+      client::ClientOptionsFromFiles(absl::GetFlag(FLAGS_token_file), absl::GetFlag(FLAGS_tls_ca));
+  if (!client_options.ok()) return Fail(client_options.status(), 1);
+  options.client = *std::move(client_options);
+  return 0;
+}
+
+int StepToEnd(FemSimulation& sim, const FemSimulationOptions& options,
+              client_run::RunRecord& record);
+
+int Resume(const Command& command, int argc, char** argv) {
+  absl::StatusOr<FemSimulationOptions> options = Options(command.args);
+  if (!options.ok()) return Fail(options.status(), 2);
+  if (options->out_dir.empty()) {
+    options->out_dir = std::filesystem::path(command.target).parent_path().string();
+    if (options->out_dir.empty()) options->out_dir = ".";
+  }
+  if (int code = AddClientOptions(*options); code != 0) return code;
+  client_run::RunRecord record("fem_client", RVEHUB_GIT_DESCRIBE, argc, argv, command.name);
+  absl::StatusOr<std::unique_ptr<FemSimulation>> sim =
+      FemSimulation::Resume(command.target, *options);
+  if (!sim.ok()) return Fail(sim.status(), 1);
+  record.Started(options->out_dir, ToJson((*sim)->spec()), /*resumed=*/true);
+  return StepToEnd(**sim, *options, record);
+}
+
 int Main(int argc, char** argv) {
   SetUpLongRunningProcess();
   absl::StatusOr<Command> command = Parse(argc, argv);
@@ -212,6 +248,7 @@ int Main(int argc, char** argv) {
   }
   absl::StatusOr<std::vector<CaseOverride>> overrides = Overrides(command->args);
   if (!overrides.ok()) return Fail(overrides.status(), 2);
+  if (command->name == "resume") return Resume(*command, argc, argv);
   absl::StatusOr<FemCase> spec = LoadFemCase(command->target, *overrides);
   if (command->name == "check") {
     if (!spec.ok()) return Fail(spec.status(), 1);
@@ -230,16 +267,18 @@ int Main(int argc, char** argv) {
   absl::StatusOr<FemSimulationOptions> options = Options(command->args);
   if (!options.ok()) return Fail(options.status(), 2);
   if (!spec.ok()) return Fail(spec.status(), 1);
-  // An unreadable token or CA file is a failure, not a usage error.
-  absl::StatusOr<client::ClientOptions> client_options =
-      client::ClientOptionsFromFiles(absl::GetFlag(FLAGS_token_file), absl::GetFlag(FLAGS_tls_ca));
-  if (!client_options.ok()) return Fail(client_options.status(), 1);
-  options->client = *std::move(client_options);
+  if (int code = AddClientOptions(*options); code != 0) return code;
   client_run::RunRecord record("fem_client", RVEHUB_GIT_DESCRIBE, argc, argv, command->name);
   absl::StatusOr<std::unique_ptr<FemSimulation>> sim = FemSimulation::Start(*spec, *options);
   if (!sim.ok()) return Fail(sim.status(), 1);
   record.Started(options->out_dir, ToJson(*spec), /*resumed=*/false);
-  absl::StatusOr<FemRunSummary> summary = (*sim)->StepToEnd();
+  return StepToEnd(**sim, *options, record);
+}
+
+// Steps a started or resumed run to its end and reports it.
+int StepToEnd(FemSimulation& sim, const FemSimulationOptions& options,
+              client_run::RunRecord& record) {
+  absl::StatusOr<FemRunSummary> summary = sim.StepToEnd();
   if (!summary.ok()) {
     record.Failed(std::string(summary.status().message()));
     return Fail(summary.status(), 1);
@@ -264,7 +303,7 @@ int Main(int argc, char** argv) {
       split.wall_s, split.rve_s, split.wall_s > 0 ? 100.0 * split.rve_s / split.wall_s : 0.0);
   std::fprintf(stderr, "fem_client: %s\n",
                client_run::FormatTimeSplit(split, "FEM (assembly, solves)").c_str());
-  std::fprintf(stderr, "fem_client: outputs in %s\n", options->out_dir.c_str());
+  std::fprintf(stderr, "fem_client: outputs in %s\n", options.out_dir.c_str());
   return 0;
 }
 

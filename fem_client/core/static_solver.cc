@@ -372,4 +372,111 @@ std::map<std::string, SetForces> StaticSolver::NodeSetForces(const Evaluation& e
   return out;
 }
 
+SolverState StaticSolver::State() const {
+  SolverState s;
+  s.steps = steps_;
+  s.nodes = mesh_.nodes;
+  s.displacement = displacement_;
+  s.responses = committed_.responses;
+  s.f_int = committed_.f_int;
+  s.f_ext = committed_.f_ext;
+  s.residual = committed_.residual;
+  s.platen_force = committed_.platen_force;
+  s.initial_tangents = initial_tangents_;
+  return s;
+}
+
+namespace {
+
+bool AllFinite(std::span<const Eigen::Vector2d> v) {
+  return std::all_of(v.begin(), v.end(), [](const Eigen::Vector2d& x) { return x.allFinite(); });
+}
+
+// InvalidArgument "solver state: <field> <what>" for a state Restore refuses.
+absl::Status BadState(absl::string_view field, absl::string_view what) {
+  return absl::InvalidArgumentError(absl::StrCat("solver state: ", field, " ", what));
+}
+
+absl::Status CheckVector(absl::string_view field, const Eigen::VectorXd& v, Eigen::Index size) {
+  if (v.size() != size) {
+    return BadState(field, absl::StrCat("has ", v.size(), " values, not ", size));
+  }
+  if (!v.allFinite()) return BadState(field, "has a value that is not finite");
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+absl::Status StaticSolver::Restore(SolverState state) {
+  const std::size_t nodes = mesh_.nodes.size();
+  const Eigen::Index dofs = 2 * static_cast<Eigen::Index>(nodes);
+  const std::size_t points = reference_.size();
+  if (state.steps < 0) return BadState("steps", absl::StrCat("is negative: ", state.steps));
+  if (state.nodes.size() != nodes) {
+    return BadState("nodes", absl::StrCat("has ", state.nodes.size(), " nodes, not ", nodes));
+  }
+  if (!AllFinite(state.nodes)) return BadState("nodes", "has a position that is not finite");
+  if (absl::Status s = CheckVector("displacement", state.displacement, dofs); !s.ok()) return s;
+  // Before the first step there is no committed Trial yet.
+  const bool started = !state.responses.empty();
+  if (state.steps > 0 && !started) {
+    return BadState("responses", absl::StrCat("are missing after ", state.steps, " steps"));
+  }
+  if (started) {
+    if (state.responses.size() != points) {
+      return BadState("responses",
+                      absl::StrCat("has ", state.responses.size(), " Gauss points, not ", points));
+    }
+    for (const PointResponse& r : state.responses) {
+      if (!r.stress.allFinite() || (r.tangent.has_value() && !r.tangent->allFinite())) {
+        return BadState("responses", "has a stress or tangent that is not finite");
+      }
+    }
+    if (absl::Status s = CheckVector("f_int", state.f_int, dofs); !s.ok()) return s;
+    if (absl::Status s = CheckVector("f_ext", state.f_ext, dofs); !s.ok()) return s;
+    if (absl::Status s = CheckVector("residual", state.residual, dofs); !s.ok()) return s;
+    if (state.platen_force.size() != boundary_.forced.size()) {
+      return BadState("platen_force", absl::StrCat("has ", state.platen_force.size(),
+                                                   " values, not ", boundary_.forced.size()));
+    }
+    for (double f : state.platen_force) {
+      if (!std::isfinite(f)) return BadState("platen_force", "has a value that is not finite");
+    }
+  }
+  if (!state.initial_tangents.empty() && state.initial_tangents.size() != points) {
+    return BadState("initial_tangents", absl::StrCat("has ", state.initial_tangents.size(),
+                                                     " Gauss points, not 0 or ", points));
+  }
+  for (const Tangent& d : state.initial_tangents) {
+    if (!d.allFinite()) return BadState("initial_tangents", "has a value that is not finite");
+  }
+  absl::StatusOr<std::vector<PointGeometry>> reference = EvaluateGeometry(mesh_, state.nodes);
+  if (!reference.ok()) {
+    return BadState("nodes",
+                    absl::StrCat("give a mesh the solver refuses: ", reference.status().message()));
+  }
+  // Accepted: from here on nothing fails.
+  steps_ = state.steps;
+  mesh_.nodes = std::move(state.nodes);
+  displacement_ = std::move(state.displacement);
+  reference_ = *std::move(reference);
+  initial_tangents_ = std::move(state.initial_tangents);
+  committed_ = Evaluation{};
+  platens_.assign(boundary_.forced.size(), PlatenState{});
+  forces_.clear();
+  if (!started) return absl::OkStatus();
+  // As TrySubStep leaves them after a commit.
+  committed_.x = mesh_.nodes;
+  committed_.current = reference_;
+  committed_.delta_f.assign(points, Eigen::Matrix3d::Identity());
+  committed_.responses = std::move(state.responses);
+  committed_.f_int = std::move(state.f_int);
+  committed_.f_ext = std::move(state.f_ext);
+  committed_.residual = std::move(state.residual);
+  committed_.platen_force = std::move(state.platen_force);
+  forces_ = NodeSetForces(committed_);
+  platens_ = PlatenStates(committed_);
+  return absl::OkStatus();
+}
+
 }  // namespace rvehub::fem

@@ -76,6 +76,20 @@ struct StepReport {
   std::vector<PlatenState> platens;         // per forced platen, in Boundary::forced order
 };
 
+// What a checkpoint holds of a solver to go on exactly where it was: the
+// committed configuration and the last converged Trial on it (where the
+// next step starts). The rest (the Gauss points' geometry, the node sets'
+// forces, the forced platens' states) follows from these bit for bit.
+struct SolverState {
+  int steps = 0;                         // load steps done
+  std::vector<Eigen::Vector2d> nodes;    // committed node positions, m
+  Eigen::VectorXd displacement;          // since Create, 2 per node, m
+  std::vector<PointResponse> responses;  // of the last committed Trial; empty before the first step
+  Eigen::VectorXd f_int, f_ext, residual;  // of that Trial, all dofs, N/m
+  std::vector<double> platen_force;        // each forced platen's load there, N/m
+  std::vector<Tangent> initial_tangents;   // kInitialElastic's, once known
+};
+
 class StaticSolver {
  public:
   // Checks the mesh (ValidateMesh), the boundary (DofMap::Create), the
@@ -116,6 +130,14 @@ class StaticSolver {
   // The responses of the last committed Trial (empty before the first step).
   std::span<const PointResponse> responses() const { return committed_.responses; }
   int steps() const { return steps_; }
+
+  // The state to go on from (SolverState), and back into a solver created
+  // for the same mesh, boundary and options. Restore refuses
+  // (InvalidArgument naming the field) a state whose arrays do not fit the
+  // mesh or whose values are not finite, or one that inverts an element;
+  // a refused state changes nothing.
+  SolverState State() const;
+  absl::Status Restore(SolverState state);
 
  private:
   // A Trial of every Gauss point at Δu and what follows from it.

@@ -10,6 +10,7 @@
 #include <Eigen/Dense>
 #include <cstdint>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -39,6 +40,12 @@ class RveMaterial : public GaussPointMaterial {
   absl::Status Commit(std::span<const Eigen::Matrix3d> delta_f) override;
 
   std::int64_t committed_step() const { return committed_step_; }
+  // Takes up a run from its checkpoint: the RVEs' committed step and the
+  // states the outputs read of them.
+  void Restore(std::int64_t committed_step, std::vector<dem::RveState> committed) {
+    committed_step_ = committed_step;
+    committed_ = std::move(committed);
+  }
   // The RVEs' states after the last Commit (empty before the first), Gauss
   // point order: void ratio, fabric, coordination for the outputs.
   const std::vector<dem::RveState>& committed() const { return committed_; }

@@ -13,7 +13,9 @@
 #include "client_run/endpoints.h"
 #include "client_run/templates.h"
 #include "client_run/timeseries.h"
+#include "fem_client/case/case.h"
 #include "fem_client/core/assembly.h"
+#include "fem_client/run/checkpoint_state.h"
 #include "fem_client/run/output.h"
 #include "rve_server/common/status_macros.h"
 #include "rve_server/values/increment.h"
@@ -21,6 +23,7 @@
 #include "rve_server/values/state.h"
 #include "store/checkpoint.h"
 #include "store/results.h"
+#include "store/sim_checkpoint.h"
 
 namespace rvehub::fem {
 namespace {
@@ -80,6 +83,8 @@ Eigen::Matrix2d InPlane(const Eigen::Matrix3d& s) { return s.topLeftCorner<2, 2>
 struct FemSimulation::Outputs {
   std::unique_ptr<store::ResultsWriter> results;
   std::unique_ptr<client_run::TimeseriesWriter> timeseries;
+  // iterations.csv: every Newton iteration of every load step (G&Z Fig. 7).
+  std::unique_ptr<client_run::TimeseriesWriter> iterations;
   std::int64_t last_frame_step = -1;
 };
 
@@ -111,24 +116,66 @@ absl::StatusOr<std::unique_ptr<FemSimulation>> FemSimulation::Start(
     const FemCase& c, const FemSimulationOptions& options) {
   std::unique_ptr<FemSimulation> sim(new FemSimulation());
   sim->case_ = c;
+  sim->case_json_ = ToJson(c);
   sim->options_ = options;
   // A case the run layer refuses fails before anything is written.
   ASSIGN_OR_RETURN(sim->problem_, BuildProblem(c));
   sim->run_id_ = client_run::MakeRunId(c.name);
   RETURN_IF_ERROR(MakeOutputDir(options.out_dir));
   for (const std::string& note : sim->problem_.notes) sim->Log(note);
-  if (c.output.checkpoint_every > 0) {
-    sim->Log(absl::StrFormat(
-        "note: output.checkpoint_every = %d: fem_client writes no checkpoints yet (there is no "
-        "resume)",
-        c.output.checkpoint_every));
-  }
   RETURN_IF_ERROR(sim->ResolveCaseTemplates());
   RETURN_IF_ERROR(sim->Connect());
   RETURN_IF_ERROR(sim->UploadTemplates());
   RETURN_IF_ERROR(sim->CreateRves());
   RETURN_IF_ERROR(sim->CreateSolver());
-  RETURN_IF_ERROR(sim->OpenOutputs());
+  RETURN_IF_ERROR(sim->OpenOutputs(/*resume=*/false));
+  return sim;
+}
+
+absl::StatusOr<std::unique_ptr<FemSimulation>> FemSimulation::Resume(
+    const std::string& checkpoint_path, const FemSimulationOptions& options) {
+  ASSIGN_OR_RETURN(store::SimCheckpoint c, store::ReadSimCheckpoint(checkpoint_path));
+  auto bad = [&](absl::string_view what, const absl::Status& s) {
+    return absl::DataLossError(absl::StrCat(checkpoint_path, ": ", what, s.message()));
+  };
+  absl::StatusOr<FemCase> spec = ParseFemCase(c.case_json, ".");
+  if (!spec.ok())
+    return bad("its case does not parse (is it an mpm_client checkpoint?): ", spec.status());
+  absl::StatusOr<RunState> state = GetRunState(c.doubles, c.ints);
+  if (!state.ok()) return bad("", state.status());
+  std::unique_ptr<FemSimulation> sim(new FemSimulation());
+  sim->case_ = *std::move(spec);
+  sim->case_json_ = std::move(c.case_json);
+  sim->options_ = options;
+  absl::StatusOr<Problem> problem = BuildProblem(sim->case_);
+  if (!problem.ok()) return bad("its case cannot run: ", problem.status());
+  sim->problem_ = *std::move(problem);
+  if (c.rves.size() != static_cast<std::size_t>(CountGaussPoints(sim->problem_.mesh))) {
+    return absl::DataLossError(absl::StrCat(checkpoint_path, ": it holds ", c.rves.size(),
+                                            " RVEs for a mesh of ",
+                                            CountGaussPoints(sim->problem_.mesh), " Gauss points"));
+  }
+  sim->run_id_ = client_run::MakeRunId(sim->case_.name);
+  sim->templates_ = std::move(c.templates);
+  RETURN_IF_ERROR(sim->Connect());
+  RETURN_IF_ERROR(sim->UploadTemplates());
+  std::vector<double> cost;
+  for (RveRecord& r : c.rves) {
+    r.run_id = sim->run_id_;
+    cost.push_back(static_cast<double>(r.packing.radius.size()));
+  }
+  sim->pool_->Assign(cost);
+  sim->pool_->SetPointSizes(cost);
+  RETURN_IF_ERROR(sim->pool_->ImportAll(std::move(c.rves)));
+  RETURN_IF_ERROR(sim->CreateSolver());
+  if (absl::Status s = sim->solver_->Restore(std::move(state->solver)); !s.ok()) {
+    return bad("", s);
+  }
+  sim->material_->Restore(state->committed_step, std::move(state->rves));
+  sim->Log(absl::StrFormat("resumed %s at load step %d", checkpoint_path, sim->solver_->steps()));
+  // Only a checkpoint that fits its case gets an output directory.
+  RETURN_IF_ERROR(MakeOutputDir(options.out_dir));
+  RETURN_IF_ERROR(sim->OpenOutputs(/*resume=*/true));
   return sim;
 }
 
@@ -222,15 +269,82 @@ const std::vector<dem::RveState>& FemSimulation::States() const {
   return material_->committed_step() > 0 ? material_->committed() : created_;
 }
 
-absl::Status FemSimulation::OpenOutputs() {
+absl::Status FemSimulation::OpenOutputs(bool resume) {
   out_ = std::make_unique<Outputs>();
   const std::string dir = options_.out_dir;
-  ASSIGN_OR_RETURN(out_->results, store::ResultsWriter::Create(
-                                      dir + "/results.h5", dir + "/results.xdmf", "fem_client"));
-  ASSIGN_OR_RETURN(out_->timeseries, client_run::TimeseriesWriter::Create(
-                                         dir + "/timeseries.csv", TimeseriesColumns(case_)));
+  const std::string h5 = dir + "/results.h5", xdmf = dir + "/results.xdmf";
+  const std::string csv = dir + "/timeseries.csv";
+  const std::vector<std::string> columns = TimeseriesColumns(case_);
+  // A resumed run goes on in the outputs it finds (a fresh directory gets
+  // new ones); a timeseries it cannot continue is refused before the
+  // results file is touched.
+  bool csv_exists = false, h5_exists = false;
+  if (resume) {
+    std::error_code ec;
+    csv_exists = std::filesystem::exists(csv, ec);
+    h5_exists = std::filesystem::exists(h5, ec);
+  }
+  // What the uninterrupted run would have written by the checkpoint's step:
+  // the row and frame a --stop-after added at its last step go.
+  const std::int64_t step = solver_->steps();
+  const std::int64_t rows_through = step - step % case_.output.timeseries_every;
+  const std::int64_t frames_through = step - step % case_.output.frame_every;
+  const std::string iterations_csv = dir + "/iterations.csv";
+  const std::vector<std::string> iteration_columns = {"step",      "substep", "fraction",
+                                                      "iteration", "error_d", "error_f"};
+  bool iterations_exist = false;
+  if (resume) {
+    std::error_code ec;
+    iterations_exist = std::filesystem::exists(iterations_csv, ec);
+  }
+  if (csv_exists) RETURN_IF_ERROR(client_run::TimeseriesWriter::CheckColumns(csv, columns));
+  if (iterations_exist) {
+    RETURN_IF_ERROR(client_run::TimeseriesWriter::CheckColumns(iterations_csv, iteration_columns));
+  }
+  ASSIGN_OR_RETURN(out_->results,
+                   h5_exists ? store::ResultsWriter::Open(h5, xdmf, "fem_client", frames_through)
+                             : store::ResultsWriter::Create(h5, xdmf, "fem_client"));
+  ASSIGN_OR_RETURN(out_->timeseries,
+                   csv_exists ? client_run::TimeseriesWriter::Resume(csv, columns, rows_through)
+                              : client_run::TimeseriesWriter::Create(csv, columns));
+  ASSIGN_OR_RETURN(out_->iterations, iterations_exist ? client_run::TimeseriesWriter::Resume(
+                                                            iterations_csv, iteration_columns, step)
+                                                      : client_run::TimeseriesWriter::Create(
+                                                            iterations_csv, iteration_columns));
+  if (resume) {
+    out_->last_frame_step = frames_through;
+    return absl::OkStatus();
+  }
   RETURN_IF_ERROR(WriteFrame());
   return WriteRow(StepFigures{});
+}
+
+absl::Status FemSimulation::WriteIterations(std::int64_t step, const StepReport& report) {
+  for (std::size_t k = 0; k < report.substeps.size(); ++k) {
+    const SubStepReport& sub = report.substeps[k];
+    for (std::size_t j = 0; j < sub.iterations.size(); ++j) {
+      const IterationReport& it = sub.iterations[j];
+      const double row[] = {static_cast<double>(step),  static_cast<double>(k + 1), sub.fraction,
+                            static_cast<double>(j + 1), it.displacement_error,      it.force_error};
+      RETURN_IF_ERROR(out_->iterations->Append(row));
+    }
+  }
+  return absl::OkStatus();
+}
+
+absl::Status FemSimulation::WriteCheckpoint() {
+  store::SimCheckpoint c;
+  c.case_json = case_json_;
+  c.run_id = run_id_;
+  c.step = solver_->steps();
+  c.time = static_cast<double>(c.step);  // no time: the load step
+  RunState state{solver_->State(), material_->committed_step(), material_->committed()};
+  PutRunState(state, c.doubles, c.ints);
+  ASSIGN_OR_RETURN(c.rves, pool_->ExportAll());
+  c.templates = templates_;
+  store::FileInfo info;
+  info.created_by = "fem_client";
+  return store::WriteSimCheckpoint(options_.out_dir + "/checkpoint.h5", c, info);
 }
 
 absl::Status FemSimulation::WriteRow(const StepFigures& f) {
@@ -367,6 +481,7 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
   // Stress-controlled cycles end early once |γ| reaches the case's end
   // shear strain (G&Z §5.2: 5 % accumulated).
   bool reached_end_strain = false;
+  auto last_of_case = [&](std::int64_t step) { return step == total || reached_end_strain; };
   while (solver_->steps() < total && !reached_end_strain) {
     if (options_.stop_after_steps > 0 && sum.steps >= options_.stop_after_steps) break;
     const std::int64_t step = solver_->steps() + 1;
@@ -391,6 +506,7 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
       reached_end_strain = std::abs(strains.shear) >= case_.loading.end_strain;
     }
     const Clock::time_point t_out = Clock::now();
+    RETURN_IF_ERROR(WriteIterations(step, *report));
     StepFigures figures;
     figures.step = step;
     figures.report = &*report;
@@ -404,6 +520,14 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
       row_step = step;
     }
     if (frame) RETURN_IF_ERROR(WriteFrame());
+    // Where --stop-after stops there is always a checkpoint, checkpoints on
+    // or not: stopping is for resuming later.
+    const bool stopping = !last_of_case(step) && options_.stop_after_steps > 0 &&
+                          sum.steps >= options_.stop_after_steps;
+    if ((o.checkpoint_every > 0 && (step % o.checkpoint_every == 0 || last_of_case(step))) ||
+        stopping) {
+      RETURN_IF_ERROR(WriteCheckpoint());
+    }
     output_time += Clock::now() - t_out;
     if (options_.progress &&
         (step % o.progress_every == 0 || last || reached_end_strain ||
@@ -450,10 +574,11 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
     ASSIGN_OR_RETURN(const Summary summary, WriteFemRunOutputs(case_, options_.out_dir));
     for (const auto& [key, value] : summary) Log(absl::StrFormat("summary: %s = %.6g", key, value));
   } else if (options_.stop_after_steps > 0) {
+    const std::string path = options_.out_dir + "/checkpoint.h5";
     Log(absl::StrFormat(
-        "stopped after load step %d (--stop-after=%d); no summary or plot (fem_client "
-        "summarise CASE --out=DIR writes them from the timeseries)",
-        sum.final_step, options_.stop_after_steps));
+        "stopped after load step %d (--stop-after=%d); checkpoint written to %s (continue "
+        "with: fem_client resume %s --out=%s)",
+        sum.final_step, options_.stop_after_steps, path, path, options_.out_dir));
   }
   return sum;
 }

@@ -1,7 +1,9 @@
 // A FEM×DEM run (G&Z §2.3): the implicit solver of a FemCase (core/) with
 // an RVE at every Gauss point, hosted by RVE servers (embedded in this
 // process by default, or remote), plus the outputs in one directory:
-// timeseries.csv, summary.json and plot.png (output.h), results.h5 +
+// timeseries.csv, summary.json and plot.png (output.h), iterations.csv
+// (step, substep, fraction of the step, iteration, E_d, E_f: every Newton
+// iteration of the converged sub-steps, G&Z Fig. 7), results.h5 +
 // results.xdmf (every Gauss point as a point of its own every
 // output.frame_every steps and at the last: its Cauchy stress, tension + as
 // the RVE gives it; p and q, compression +; ε_q and ε_v of G&Z eqs. 12–13
@@ -38,8 +40,8 @@ struct FemSimulationOptions {
   double apply_timeout_s = 600;      // deadline of one batched TRIAL or COMMIT at most, s
   // Prepared templates are cached here; empty: <out_dir>/templates.
   std::string template_cache_dir;
-  // Stop after this many load steps (0: run to the end). There is no
-  // checkpoint to resume from yet: a stopped run's outputs end there.
+  // Stop after this many load steps (0: run to the end), with a checkpoint
+  // there (<out_dir>/checkpoint.h5) to resume from.
   std::int64_t stop_after_steps = 0;
   bool progress = true;  // progress lines
   // A progress line also comes when this much wall time has passed since the
@@ -71,6 +73,17 @@ class FemSimulation {
   // solver, and the outputs with row and frame 0.
   static absl::StatusOr<std::unique_ptr<FemSimulation>> Start(const FemCase& c,
                                                               const FemSimulationOptions& options);
+  // Continues a run from its checkpoint (written every
+  // output.checkpoint_every load steps, at the last and at --stop-after): the
+  // case it holds, its templates and RVEs (imported into the servers of
+  // `options`, which may differ from the first run's), the solver's state.
+  // The outputs in options.out_dir go on after the checkpoint's step (rows
+  // and frames after it dropped), so that a run stopped and resumed gives
+  // the uninterrupted run's outputs bit for bit, wall times aside.
+  // DataLoss for a checkpoint that is not one (ReadSimCheckpoint's errors,
+  // a case that does not parse, a state that does not fit the case).
+  static absl::StatusOr<std::unique_ptr<FemSimulation>> Resume(const std::string& checkpoint_path,
+                                                               const FemSimulationOptions& options);
   ~FemSimulation();
 
   // Steps to the case's last load step (or FemSimulationOptions::
@@ -94,7 +107,12 @@ class FemSimulation {
   absl::Status UploadTemplates();
   absl::Status CreateRves();
   absl::Status CreateSolver();
-  absl::Status OpenOutputs();
+  absl::Status OpenOutputs(bool resume);
+  // The rows of iterations.csv of a load step: each converged sub-step's
+  // Newton iterations (1-based), with E_d and E_f.
+  absl::Status WriteIterations(std::int64_t step, const StepReport& report);
+  // <out_dir>/checkpoint.h5 of the current state (atomically replaced).
+  absl::Status WriteCheckpoint();
 
   // The row of the current state (after load step `step`; its report when
   // there was one) and the frame of every Gauss point.
@@ -107,6 +125,7 @@ class FemSimulation {
   void Log(const std::string& line) const;
 
   FemCase case_;
+  std::string case_json_;  // ToJson(case_): what a checkpoint carries
   FemSimulationOptions options_;
   Problem problem_;
   std::string run_id_;

@@ -114,9 +114,9 @@ Json WithoutWall(Json summary) {
 TEST(FemCliTest, HelpDocumentsEveryCommandAndOption) {
   const Result r = RunClient("--help");
   ASSERT_EQ(r.exit_code, 0) << r;
-  for (const char* word :
-       {"run", "check", "summarise", "--out", "--servers", "--threads", "--token-file", "--tls-ca",
-        "--timeout", "--template-cache", "--stop-after", "--quiet", "--set", "Not supported yet"}) {
+  for (const char* word : {"run", "check", "summarise", "--out", "--servers", "--threads",
+                           "--token-file", "--tls-ca", "--timeout", "--template-cache",
+                           "--stop-after", "--quiet", "--set", "resume", "checkpoint.h5"}) {
     EXPECT_TRUE(absl::StrContains(r.out, word)) << word;
   }
 }
@@ -132,7 +132,8 @@ TEST(FemCliTest, UsageErrorsExitTwoWithAMessage) {
            {"run " + c + " --out=x --stop-after=0", "--stop-after must be a positive integer"},
            {"run " + c + " --out=x --servers=nohost", "--servers"},
            {"run " + c + " --out=x --bogus=1", "bogus"},
-           {"resume x/checkpoint.h5", "resume is not supported yet"},
+           {"resume", "resume needs a checkpoint"},
+           {"resume x/checkpoint.h5 --set=solver.tolerance=0.1", "resume takes no --set"},
            {"check " + c + " --out=x", "check takes no options"},
            {"summarise " + c, "summarise needs --out=DIR"}}) {
     SCOPED_TRACE(args);
@@ -170,8 +171,8 @@ TEST(FemCliTest, RunWritesEveryOutputAndSummariseWritesTheSummaryAgain) {
         "DEM engine", "FEM (assembly, solves)", "DEM steps per increment"}) {
     EXPECT_TRUE(absl::StrContains(r.err, line)) << line;
   }
-  for (const char* file :
-       {"timeseries.csv", "summary.json", "plot.png", "results.h5", "results.xdmf", "run.json"}) {
+  for (const char* file : {"timeseries.csv", "iterations.csv", "summary.json", "plot.png",
+                           "results.h5", "results.xdmf", "run.json"}) {
     EXPECT_TRUE(fs::exists(fs::path(dir) / file)) << file;
   }
   const Json run = ReadJson(dir + "/run.json");
@@ -198,7 +199,8 @@ TEST(FemCliTest, RunWritesEveryOutputAndSummariseWritesTheSummaryAgain) {
 }
 
 // Two rve_server processes share the RVEs of the coarse biaxial specimen;
-// the results are the embedded server's, bit for bit.
+// the results are the embedded server's, bit for bit, and so are those of a
+// run stopped on the embedded server and resumed on the two.
 TEST(FemCliTest, RemoteServersGiveTheEmbeddedResult) {
   const std::string embedded = TempPath("embedded");
   const Result e = RunClient(absl::StrCat("run ", Quote(Case("fem-biaxial-coarse-ci")),
@@ -223,6 +225,23 @@ TEST(FemCliTest, RemoteServersGiveTheEmbeddedResult) {
   EXPECT_EQ(WithoutWallTime(ReadFile(remote + "/timeseries.csv")), expected);
   EXPECT_EQ(WithoutWall(ReadJson(remote + "/summary.json")),
             WithoutWall(ReadJson(embedded + "/summary.json")));
+  // Stopped on the embedded server, resumed on the two: the same run.
+  const std::string moved = TempPath("moved");
+  const Result stopped =
+      RunClient(absl::StrCat("run ", Quote(Case("fem-biaxial-coarse-ci")), " --out=", Quote(moved),
+                             " --stop-after=2 --quiet", CommonFlags()));
+  ASSERT_EQ(stopped.exit_code, 0) << stopped;
+  EXPECT_TRUE(absl::StrContains(stopped.err, "continue with: fem_client resume")) << stopped.err;
+  const Result resumed =
+      RunClient(absl::StrCat("resume ", Quote(moved + "/checkpoint.h5"), " --servers=", a.address(),
+                             ",", b.address(), " --quiet", CommonFlags()));
+  ASSERT_EQ(resumed.exit_code, 0) << resumed;
+  EXPECT_TRUE(absl::StrContains(resumed.err, "resumed ")) << resumed.err;
+  EXPECT_EQ(WithoutWallTime(ReadFile(moved + "/timeseries.csv")), expected);
+  const Json record = ReadJson(moved + "/run.json");
+  ASSERT_TRUE(record.is_object());
+  EXPECT_EQ(record["command"], "resume");
+  EXPECT_EQ(record["outcome"], "finished");
   EXPECT_EQ(a.Stop(), 0) << a.Log();
   EXPECT_EQ(b.Stop(), 0) << b.Log();
 }
