@@ -37,6 +37,7 @@ ABSL_FLAG(double, timeout, 600, "deadline of one batched RVE call, s");
 ABSL_FLAG(std::string, template_cache, "", "template cache directory");
 ABSL_FLAG(int64_t, stop_after, 0, "stop after N load steps");
 ABSL_FLAG(bool, quiet, false, "no progress lines");
+ABSL_FLAG(bool, no_recovery, false, "a lost server ends the run");
 // Repeatable: cli::ParseArgs keeps each occurrence as typed (Args::repeated).
 ABSL_FLAG(std::vector<std::string>, set, {}, "case overrides PATH=VALUE");
 
@@ -74,6 +75,10 @@ Options (run, resume):
                        step's COMMITs) at most (default 600)
   --template-cache=DIR where prepared RVE templates are cached (default DIR/templates)
   --stop-after=N       stop after N load steps, writing DIR/checkpoint.h5 there (to resume)
+  --no-recovery        with --servers, a lost server ends the run. Default: the run goes
+                       back to the last load step (a recovery point kept after each), its RVEs
+                       restored onto the servers left, and goes on as it would have without
+                       the failure, bit for bit; a lost server that answers again rejoins
   --quiet              no progress lines
 
 Option (run, check, summarise; a resume continues the case it was written with):
@@ -105,9 +110,10 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
   }
   cli::ArgSpec spec;
   spec.allowed = {"out",     "servers",        "threads",    "token-file", "tls-ca",
-                  "timeout", "template-cache", "stop-after", "quiet",      "set"};
+                  "timeout", "template-cache", "stop-after", "quiet",      "no-recovery",
+                  "set"};
   spec.repeatable = {"set"};
-  spec.bare = {"quiet"};
+  spec.bare = {"quiet", "no-recovery"};
   spec.rules = {
       {"threads", kThreadsRule}, {"timeout", kTimeoutRule}, {"stop-after", kStopAfterRule}};
   ASSIGN_OR_RETURN(Args args, cli::ParseArgs(argc, argv, 1, spec));
@@ -198,6 +204,7 @@ absl::StatusOr<FemSimulationOptions> Options(const Args& a) {
   }
   if (a.contains("template-cache")) o.template_cache_dir = absl::GetFlag(FLAGS_template_cache);
   o.progress = !a.contains("quiet");
+  o.recovery = !a.contains("no-recovery");
   return o;
 }
 

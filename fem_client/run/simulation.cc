@@ -8,8 +8,10 @@
 #include <map>
 #include <system_error>
 
+#include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/time/clock.h"
 #include "client_run/endpoints.h"
 #include "client_run/templates.h"
 #include "client_run/timeseries.h"
@@ -332,7 +334,7 @@ absl::Status FemSimulation::WriteIterations(std::int64_t step, const StepReport&
   return absl::OkStatus();
 }
 
-absl::Status FemSimulation::WriteCheckpoint() {
+absl::Status FemSimulation::WriteCheckpoint(const std::vector<RveRecord>* rves) {
   store::SimCheckpoint c;
   c.case_json = case_json_;
   c.run_id = run_id_;
@@ -340,11 +342,132 @@ absl::Status FemSimulation::WriteCheckpoint() {
   c.time = static_cast<double>(c.step);  // no time: the load step
   RunState state{solver_->State(), material_->committed_step(), material_->committed()};
   PutRunState(state, c.doubles, c.ints);
-  ASSIGN_OR_RETURN(c.rves, pool_->ExportAll());
+  if (rves != nullptr) {
+    c.rves = *rves;
+  } else {
+    ASSIGN_OR_RETURN(c.rves, pool_->ExportAll());
+  }
   c.templates = templates_;
   store::FileInfo info;
   info.created_by = "fem_client";
   return store::WriteSimCheckpoint(options_.out_dir + "/checkpoint.h5", c, info);
+}
+
+struct FemSimulation::RecoveryPoint {
+  std::int64_t step = 0;        // the load step it is after
+  RunState state;               // the solver's and the material's
+  std::vector<RveRecord> rves;  // every RVE's, by Gauss point
+};
+
+bool FemSimulation::RecoveryOn() const { return options_.recovery && !options_.servers.empty(); }
+
+namespace {
+
+double WallSeconds() { return Seconds(Clock::now().time_since_epoch()); }
+
+// What an RVE costs to place: its particles (the same packing everywhere,
+// unless a cell doubled).
+std::vector<double> RecordSizes(std::span<const RveRecord> rves) {
+  std::vector<double> sizes;
+  for (const RveRecord& r : rves) sizes.push_back(static_cast<double>(r.packing.radius.size()));
+  return sizes;
+}
+
+}  // namespace
+
+absl::Status FemSimulation::TakeRecoveryPoint(FemRunSummary& sum) {
+  const Clock::time_point t0 = Clock::now();
+  auto point = std::make_unique<RecoveryPoint>();
+  point->step = solver_->steps();
+  point->state = RunState{solver_->State(), material_->committed_step(), material_->committed()};
+  ASSIGN_OR_RETURN(point->rves, pool_->ExportAll());
+  recovery_ = std::move(point);
+  pool_->SetPointSizes(RecordSizes(recovery_->rves));
+  // Servers back from a loss take their share again.
+  if (ProbeLost(/*force=*/false, sum)) {
+    pool_->Assign(RecordSizes(recovery_->rves));
+    RETURN_IF_ERROR(pool_->Restore(recovery_->rves));
+  }
+  sum.recovery_s += Seconds(Clock::now() - t0);
+  return absl::OkStatus();
+}
+
+bool FemSimulation::ProbeLost(bool force, FemRunSummary& sum) {
+  last_probe_s_.resize(pool_->num_endpoints(), 0.0);
+  bool rejoined = false;
+  for (int k = 0; k < pool_->num_endpoints(); ++k) {
+    if (!pool_->lost(k)) continue;
+    const double now = WallSeconds();
+    if (!force && now - last_probe_s_[k] < options_.probe_interval_s) continue;
+    last_probe_s_[k] = now;
+    client::RveEndpoint& e = pool_->endpoint(k);
+    if (!e.Ping(absl::Seconds(1)).ok()) continue;
+    // What it may still hold of this run is stale: it starts empty.
+    if (absl::Status s = e.Drop(pool_->run_id()); !s.ok() && !absl::IsNotFound(s)) continue;
+    pool_->MarkAlive(k);
+    ++sum.servers_rejoined;
+    rejoined = true;
+    Log(absl::StrFormat("server %s answers again: it rejoins the run", e.name()));
+  }
+  return rejoined;
+}
+
+absl::Status FemSimulation::Recover(const absl::Status& cause, FemRunSummary& sum) {
+  std::vector<int> failed = pool_->TakeFailed();
+  if (failed.empty() || recovery_ == nullptr) return cause;
+  const Clock::time_point t0 = Clock::now();
+  const std::int64_t lost_at = solver_->steps() + 1;
+  last_probe_s_.resize(pool_->num_endpoints(), 0.0);
+  // A deadline missed by a server that was only slow must not be missed
+  // again in the replay.
+  if (absl::IsDeadlineExceeded(cause)) pool_->RelaxDeadline();
+  for (int attempt = 0;; ++attempt) {
+    for (int k : failed) {
+      pool_->MarkLost(k);
+      last_probe_s_[k] = WallSeconds();
+      ++sum.servers_lost;
+      Log(absl::StrFormat("server %s lost (load step %d): %s", pool_->endpoint(k).name(), lost_at,
+                          cause.message()));
+    }
+    // One restarted at once (a supervisor) takes its share again.
+    if (attempt > 0 || pool_->num_alive() == 0) ProbeLost(/*force=*/true, sum);
+    const Clock::time_point wait_start = Clock::now();
+    while (pool_->num_alive() == 0 && Seconds(Clock::now() - wait_start) < options_.server_wait_s) {
+      absl::SleepFor(absl::Seconds(std::min(1.0, options_.server_wait_s)));
+      ProbeLost(/*force=*/true, sum);
+    }
+    if (pool_->num_alive() == 0) {
+      return absl::UnavailableError(absl::StrFormat(
+          "every RVE server is lost (none answered within %.0f s); last error: %s. Resume from a "
+          "checkpoint (fem_client resume) once servers run again",
+          options_.server_wait_s, cause.message()));
+    }
+    pool_->Assign(RecordSizes(recovery_->rves));
+    absl::Status restored = pool_->Restore(recovery_->rves);
+    if (restored.ok()) break;
+    failed = pool_->TakeFailed();
+    if (failed.empty() || attempt >= pool_->num_endpoints()) {
+      return absl::Status(restored.code(),
+                          absl::StrCat("recovering from a lost server: ", restored.message(),
+                                       " (after: ", cause.message(), ")"));
+    }
+  }
+  // The steps done since the point (a step whose outputs failed) go again.
+  sum.steps -= solver_->steps() - recovery_->step;
+  RETURN_IF_ERROR(solver_->Restore(recovery_->state.solver));
+  material_->Restore(recovery_->state.committed_step, recovery_->state.rves);
+  RETURN_IF_ERROR(out_->results->Close());
+  RETURN_IF_ERROR(OpenOutputs(/*resume=*/true));
+  sum.recovery_s += Seconds(Clock::now() - t0);
+  std::string hosts;
+  for (int k = 0; k < pool_->num_endpoints(); ++k) {
+    if (pool_->lost(k)) continue;
+    absl::StrAppend(&hosts, hosts.empty() ? "" : ", ", pool_->endpoint(k).name(), " (",
+                    pool_->points_of(k).size(), ")");
+  }
+  Log(absl::StrFormat("recovered in %.2f s: %d RVEs restored from load step %d onto %s",
+                      Seconds(Clock::now() - t0), recovery_->rves.size(), recovery_->step, hosts));
+  return absl::OkStatus();
 }
 
 absl::Status FemSimulation::WriteRow(const StepFigures& f) {
@@ -482,8 +605,12 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
   // shear strain (G&Z §5.2: 5 % accumulated).
   bool reached_end_strain = false;
   auto last_of_case = [&](std::int64_t step) { return step == total || reached_end_strain; };
-  while (solver_->steps() < total && !reached_end_strain) {
-    if (options_.stop_after_steps > 0 && sum.steps >= options_.stop_after_steps) break;
+  if (RecoveryOn()) RETURN_IF_ERROR(TakeRecoveryPoint(sum));
+  // One load step with its outputs (and recovery point); an error leaves
+  // the outputs as they were at some step (a recovery rewrites them from
+  // its point).
+  auto step_once = [&]() -> absl::Status {
+    reached_end_strain = false;
     const std::int64_t step = solver_->steps() + 1;
     const bool last = step == total ||
                       (options_.stop_after_steps > 0 && sum.steps + 1 >= options_.stop_after_steps);
@@ -524,9 +651,11 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
     // or not: stopping is for resuming later.
     const bool stopping = !last_of_case(step) && options_.stop_after_steps > 0 &&
                           sum.steps >= options_.stop_after_steps;
+    if (RecoveryOn() && !last_of_case(step) && !stopping) RETURN_IF_ERROR(TakeRecoveryPoint(sum));
     if ((o.checkpoint_every > 0 && (step % o.checkpoint_every == 0 || last_of_case(step))) ||
         stopping) {
-      RETURN_IF_ERROR(WriteCheckpoint());
+      const bool fresh = recovery_ != nullptr && recovery_->step == step;
+      RETURN_IF_ERROR(WriteCheckpoint(fresh ? &recovery_->rves : nullptr));
     }
     output_time += Clock::now() - t_out;
     if (options_.progress &&
@@ -555,6 +684,16 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
           report->cutbacks > 0 ? absl::StrFormat(" (%d cut-backs)", report->cutbacks) : "",
           report->substeps.back().iterations.back().displacement_error, wall, eta));
     }
+    return absl::OkStatus();
+  };
+  while (solver_->steps() < total && !reached_end_strain) {
+    if (options_.stop_after_steps > 0 && sum.steps >= options_.stop_after_steps) break;
+    const absl::Status s = step_once();
+    if (s.ok()) continue;
+    if (!RecoveryOn()) return s;
+    RETURN_IF_ERROR(Recover(s, sum));
+    row_clock = Clock::now();
+    row_step = solver_->steps();
   }
   sum.final_step = solver_->steps();
   sum.finished = sum.final_step >= total || reached_end_strain;
@@ -569,6 +708,13 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
   split.rve_stats = pool_->apply_stats().Since(commits_start);
   split.rve_stats.Add(pool_->trial_stats().Since(trials_start));
   split.rve_workers = pool_->total_workers();
+  if (RecoveryOn()) {
+    Log(absl::StrFormat(
+        "recovery: %d server(s) lost and survived, %d rejoined; recovery points and recoveries "
+        "took %.1f s (%.1f %% of the wall time)",
+        sum.servers_lost, sum.servers_rejoined, sum.recovery_s,
+        split.wall_s > 0 ? 100.0 * sum.recovery_s / split.wall_s : 0.0));
+  }
   RETURN_IF_ERROR(out_->results->Close());
   if (sum.finished) {
     ASSIGN_OR_RETURN(const Summary summary, WriteFemRunOutputs(case_, options_.out_dir));

@@ -43,6 +43,19 @@ struct FemSimulationOptions {
   // Stop after this many load steps (0: run to the end), with a checkpoint
   // there (<out_dir>/checkpoint.h5) to resume from.
   std::int64_t stop_after_steps = 0;
+  // With remote servers: a lost server (unreachable, crashed, its calls
+  // past their deadline) is survived. After every load step the run keeps
+  // a recovery point (every RVE's state and the solver's); a step that
+  // loses a server goes back to it, its RVEs restored onto the servers
+  // left, and runs again, giving what the run would have given without
+  // the failure, bit for bit. A lost server that answers again rejoins at
+  // the next recovery point (what it held of the run dropped first).
+  // false: a lost server ends the run (resume from a checkpoint).
+  bool recovery = true;
+  // With every server lost, how long to wait for one to answer again, s.
+  double server_wait_s = 60.0;
+  // A lost server is asked whether it is back at most this often, s.
+  double probe_interval_s = 5.0;
   bool progress = true;  // progress lines
   // A progress line also comes when this much wall time has passed since the
   // last one, s (a late load step may take minutes).
@@ -57,7 +70,10 @@ struct FemRunSummary {
   bool finished = false;         // all the case's load steps done
   std::int64_t iterations = 0;   // Newton iterations over the steps
   std::int64_t cutbacks = 0;
-  std::int64_t trials = 0;  // TRIAL calls over every RVE
+  std::int64_t trials = 0;            // TRIAL calls over every RVE
+  std::int64_t servers_lost = 0;      // lost servers survived
+  std::int64_t servers_rejoined = 0;  // lost servers that answered again and took RVEs
+  double recovery_s = 0.0;            // s of wall_s taking recovery points and recovering
   // Where the wall time went: the stepping loop, the RVE calls (TRIALs and
   // COMMITs), the outputs; the increments' DEM steps and engine time.
   client_run::TimeSplit split;
@@ -111,8 +127,24 @@ class FemSimulation {
   // The rows of iterations.csv of a load step: each converged sub-step's
   // Newton iterations (1-based), with E_d and E_f.
   absl::Status WriteIterations(std::int64_t step, const StepReport& report);
-  // <out_dir>/checkpoint.h5 of the current state (atomically replaced).
-  absl::Status WriteCheckpoint();
+  // <out_dir>/checkpoint.h5 of the current state (atomically replaced);
+  // `rves`: every RVE's record now (a recovery point's), or none to export them.
+  absl::Status WriteCheckpoint(const std::vector<RveRecord>* rves = nullptr);
+
+  // Surviving lost servers (FemSimulationOptions::recovery).
+  struct RecoveryPoint;
+  bool RecoveryOn() const;
+  // The state after the last load step, as a recovery point; servers back
+  // from a loss rejoin here.
+  absl::Status TakeRecoveryPoint(FemRunSummary& sum);
+  // Lost servers that answer again, their stale RVEs of the run dropped,
+  // marked alive (force: ask each now). Whether any rejoined.
+  bool ProbeLost(bool force, FemRunSummary& sum);
+  // After a step failed with `cause`: the servers it lost marked lost, the
+  // recovery point restored onto those left (waiting for one when none
+  // is), the solver and outputs back at the point. `cause` again when no
+  // server was lost (the error is the run's) or there is no point.
+  absl::Status Recover(const absl::Status& cause, FemRunSummary& sum);
 
   // The row of the current state (after load step `step`; its report when
   // there was one) and the frame of every Gauss point.
@@ -139,6 +171,8 @@ class FemSimulation {
   double area0_ = 0.0;  // m², the mesh's initial area (per m of thickness)
   struct Outputs;
   std::unique_ptr<Outputs> out_;
+  std::unique_ptr<RecoveryPoint> recovery_;
+  std::vector<double> last_probe_s_;  // per endpoint: when it was last asked, s
 };
 
 }  // namespace rvehub::fem
