@@ -164,10 +164,12 @@ absl::StatusOr<TemplateInfo> Registry::PutTemplate(TemplateRecord record, bool r
   return summary;
 }
 
-std::vector<TemplateInfo> Registry::ListTemplates() const {
+std::vector<TemplateInfo> Registry::ListTemplates(absl::string_view after,
+                                                  std::size_t limit) const {
   absl::MutexLock lock(&mu_);
   std::vector<TemplateInfo> out;
-  for (const auto& [name, t] : templates_) out.push_back(t.summary);
+  for (auto t = templates_.upper_bound(after); t != templates_.end() && out.size() < limit; ++t)
+    out.push_back(t->second.summary);
   return out;
 }
 
@@ -804,14 +806,14 @@ absl::StatusOr<std::int64_t> Registry::Drop(absl::string_view run_id,
   return dropped;
 }
 
-std::vector<RunInfo> Registry::ListRuns() const {
+std::vector<RunInfo> Registry::ListRuns(absl::string_view after, std::size_t limit) const {
   std::vector<std::pair<std::string, std::vector<EntryPtr>>> runs;
   {
     absl::MutexLock lock(&mu_);
-    for (const auto& [id, run] : runs_) {
+    for (auto r = runs_.upper_bound(after); r != runs_.end() && runs.size() < limit; ++r) {
       std::vector<EntryPtr> entries;
-      for (const auto& [mp, e] : run) entries.push_back(e);
-      runs.emplace_back(id, std::move(entries));
+      for (const auto& [mp, e] : r->second) entries.push_back(e);
+      runs.emplace_back(r->first, std::move(entries));
     }
   }
   std::vector<RunInfo> out;
