@@ -37,9 +37,11 @@ constexpr char kLockFile[] = "rve_server.lock";
 // without the token the reply is replaced by an empty message and the status
 // by UNAUTHENTICATED. (Our service also refuses such calls before doing
 // anything; grpc's services only read, so replacing their reply suffices.)
-// A denied health Watch is cancelled at once (the client sees CANCELLED): it
-// would otherwise stay open, sending empty messages, and never end with the
-// UNAUTHENTICATED status.
+// A denied health Watch would otherwise stay open, sending empty messages,
+// and never end with that status: its request is replaced by bytes that do
+// not parse, so that grpc's health service ends the call at once (with
+// INVALID_ARGUMENT, which becomes UNAUTHENTICATED here like any status of a
+// denied call) before it watches anything.
 // Also turns gRPC's INTERNAL for a request that does not parse into
 // INVALID_ARGUMENT: bad input is the client's error, not the server's.
 class AuthInterceptor final : public grpc::experimental::Interceptor {
@@ -55,9 +57,17 @@ class AuthInterceptor final : public grpc::experimental::Interceptor {
                 !(open_health_ &&
                   std::string_view(info_->method()).starts_with("/grpc.health.v1.Health/"));
       // Only Watch: our own streaming methods refuse with UNAUTHENTICATED.
-      if (denied_ && std::string_view(info_->method()) == "/grpc.health.v1.Health/Watch" &&
-          info_->server_context() != nullptr) {
-        info_->server_context()->TryCancel();
+      denied_watch_ = denied_ && std::string_view(info_->method()) == kHealthWatch;
+    }
+    if (denied_watch_ &&
+        methods->QueryInterceptionHookPoint(InterceptionHookPoints::POST_RECV_MESSAGE)) {
+      // grpc's health service reads its requests as raw bytes (a ByteBuffer):
+      // field 1 with wire type 7, which no protobuf parser accepts.
+      if (auto* request = static_cast<grpc::ByteBuffer*>(methods->GetRecvMessage())) {
+        grpc::Slice unparseable(std::string("\x0f"));
+        *request = grpc::ByteBuffer(&unparseable, 1);
+      } else if (info_->server_context() != nullptr) {
+        info_->server_context()->TryCancel();  // no request to spoil: end it anyhow
       }
     }
     // Only a request read before the handler runs (unary, server streaming):
@@ -94,8 +104,11 @@ class AuthInterceptor final : public grpc::experimental::Interceptor {
   grpc::experimental::ServerRpcInfo* info_;
   const std::string* token_;
   const bool open_health_;
+  static constexpr std::string_view kHealthWatch = "/grpc.health.v1.Health/Watch";
+
   bool denied_ = false;
-  bool unparsed_ = false;  // the request message did not parse
+  bool denied_watch_ = false;  // a health Watch without the token
+  bool unparsed_ = false;      // the request message did not parse
 };
 
 class AuthInterceptorFactory final : public grpc::experimental::ServerInterceptorFactoryInterface {
