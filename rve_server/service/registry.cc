@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <map>
 #include <new>
@@ -410,6 +411,10 @@ absl::Status Registry::ApplyEach(absl::string_view run_id, std::int64_t step, Ap
   }
   RETURN_IF_ERROR(ValidateName("run id", run_id));
   if (step < 1) return absl::InvalidArgumentError(absl::StrCat("step ", step, " must be >= 1"));
+  if (step > kMaxStep) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("step ", step, " must be <= ", kMaxStep, " (2^53)"));
+  }
   if (absl::Status s = dem::Validate(options); !s.ok()) {
     return absl::InvalidArgumentError(absl::StrCat("apply options: ", s.message()));
   }
@@ -706,9 +711,16 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<RveRecord> records) {
   auto build_one = [&](std::size_t k) {
     const RveRecord& r = records[k];
     absl::Status s = ValidateName("run id", r.run_id);
-    if (s.ok() && r.step < 0) s = absl::InvalidArgumentError(absl::StrCat("step ", r.step, " < 0"));
-    if (s.ok() && !r.last_delta_f.allFinite())
-      s = absl::InvalidArgumentError("last ΔF is not finite");
+    if (s.ok() && (r.step < 0 || r.step > kMaxStep)) {
+      s = absl::InvalidArgumentError(
+          absl::StrCat("step = ", r.step, " must lie in 0..", kMaxStep, " (2^53)"));
+    }
+    for (int c = 0; s.ok() && c < 9; ++c) {
+      if (const double v = r.last_delta_f(c / 3, c % 3); !std::isfinite(v)) {
+        s = absl::InvalidArgumentError(
+            absl::StrCat("last_delta_f[", c, "] = ", v, " is not finite (3×3, row-major)"));
+      }
+    }
     if (s.ok()) {
       s = NoThrow([&] {
         ASSIGN_OR_RETURN(dem::Rve rve, dem::Rve::Create(r.packing));

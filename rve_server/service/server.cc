@@ -419,7 +419,13 @@ absl::Status RveServer::LoadCheckpoint(const std::string& dir) {
   if (templates_exist) {
     ASSIGN_OR_RETURN(std::vector<TemplateRecord> t, store::ReadTemplates(templates_path));
     for (TemplateRecord& r : t) {
-      ASSIGN_OR_RETURN(TemplateInfo put, registry_->PutTemplate(std::move(r), true));
+      const std::string name = r.name;
+      if (absl::StatusOr<TemplateInfo> put = registry_->PutTemplate(std::move(r), true);
+          !put.ok()) {
+        return absl::Status(put.status().code(),
+                            absl::StrCat("restoring ", templates_path, ": template ",
+                                         QuotedName(name), ": ", put.status().message()));
+      }
       ++num_templates;
     }
   }
