@@ -1,5 +1,6 @@
 #include "store/sim_checkpoint.h"
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <map>
@@ -103,12 +104,25 @@ std::size_t FirstUnsorted(const std::vector<RveRecord>& rves) {
   return rves.size();
 }
 
+// Why the MPM step or time cannot be a run's ("" when they can): a step in
+// 0..kMaxStep, a finite time >= 0.
+std::string BadStepOrTime(std::int64_t step, double time) {
+  if (step < 0 || step > kMaxStep) {
+    return absl::StrCat("/simulation/step = ", step, " must lie in 0..", kMaxStep, " (2^53)");
+  }
+  if (!std::isfinite(time) || time < 0) {
+    return absl::StrCat("/simulation/time = ", time, " s must be finite and >= 0");
+  }
+  return "";
+}
+
 absl::Status CheckCheckpoint(const std::string& path, const SimCheckpoint& c) {
   const auto invalid = [&path](absl::string_view why) {
     return absl::InvalidArgumentError(absl::StrCat("cannot write ", path, ": ", why));
   };
   if (HasNul(c.case_json)) return invalid("case_json contains a NUL byte");
   if (HasNul(c.run_id)) return invalid("run_id contains a NUL byte");
+  if (const std::string why = BadStepOrTime(c.step, c.time); !why.empty()) return invalid(why);
   for (const auto& [name, array] : c.doubles) {
     if (HasNul(name)) return invalid("a name in doubles contains a NUL byte");
   }
@@ -166,6 +180,9 @@ absl::StatusOr<SimCheckpoint> ReadSimCheckpoint(const std::string& path, FileInf
   RETURN_IF_ERROR(ReadString(file, "/simulation/run_id", &c.run_id));
   RETURN_IF_ERROR(ReadScalar(file, "/simulation/step", &c.step));
   RETURN_IF_ERROR(ReadScalar(file, "/simulation/time", &c.time));
+  if (const std::string why = BadStepOrTime(c.step, c.time); !why.empty()) {
+    return absl::DataLossError(absl::StrCat(path, ": ", why, ": file is corrupt"));
+  }
   RETURN_IF_ERROR(ReadNamedArrays(file, "/mpm/doubles", counts[2], &c.doubles));
   RETURN_IF_ERROR(ReadNamedArrays(file, "/mpm/ints", counts[3], &c.ints));
   ASSIGN_OR_RETURN(std::vector<RveRecord> rves,

@@ -27,8 +27,8 @@ namespace rvehub::store {
 struct SimCheckpoint {
   std::string case_json;  // the case file text as run (so resume needs nothing else)
   std::string run_id;
-  std::int64_t step = 0;  // last completed MPM step
-  double time = 0.0;      // s
+  std::int64_t step = 0;  // last completed MPM step, 0..kMaxStep
+  double time = 0.0;      // s, finite, >= 0
   // Named flat arrays of the MPM state, bit-exact. Names are any strings
   // without NUL bytes (they are data, not HDF5 object names).
   std::map<std::string, std::vector<double>> doubles;
@@ -40,8 +40,9 @@ struct SimCheckpoint {
 // Writes `c` to `path` (kind "simulation"), replacing any file there
 // atomically. An empty info.created_at is filled with the current UTC time.
 // InvalidArgument, before anything is written, for strings with NUL bytes,
-// RVEs not sorted by strictly increasing id, or a record WriteRves /
-// WriteTemplates would refuse; otherwise the errors of WriteRves.
+// a step or time ReadSimCheckpoint would refuse, RVEs not sorted by strictly
+// increasing id, or a record WriteRves / WriteTemplates would refuse;
+// otherwise the errors of WriteRves.
 absl::Status WriteSimCheckpoint(const std::string& path, const SimCheckpoint& c,
                                 const FileInfo& info);
 
@@ -50,7 +51,8 @@ absl::Status WriteSimCheckpoint(const std::string& path, const SimCheckpoint& c,
 // kind (rves, templates, results); FailedPrecondition when its
 // format_version is newer than kFormatVersion; DataLoss when it is
 // truncated, corrupt (checksum mismatch, naming the dataset) or
-// inconsistent. `info`, when given, receives created_by, created_at and
+// inconsistent (a step outside 0..kMaxStep or a time that is not finite and
+// >= 0 included). `info`, when given, receives created_by, created_at and
 // format_version.
 absl::StatusOr<SimCheckpoint> ReadSimCheckpoint(const std::string& path, FileInfo* info = nullptr);
 

@@ -252,14 +252,29 @@ class Hub:
         return info
 
     def templates(self) -> List[TemplateInfo]:
-        """The templates the server hosts."""
-        r = self._call("ListTemplates", pb.ListTemplatesRequest())
-        return [_from_message(TemplateInfo, t) for t in r.templates]
+        """The templates the server hosts, by name (every page of its listing)."""
+        return [_from_message(TemplateInfo, t)
+                for t in self._pages("ListTemplates", pb.ListTemplatesRequest, "templates")]
 
     def runs(self) -> List[RunInfo]:
-        """The runs the server hosts."""
-        r = self._call("ListRuns", pb.ListRunsRequest())
-        return [_from_message(RunInfo, x) for x in r.runs]
+        """The runs the server hosts, by run id (every page of its listing)."""
+        return [_from_message(RunInfo, x)
+                for x in self._pages("ListRuns", pb.ListRunsRequest, "runs")]
+
+    def _pages(self, method: str, request_type, field: str) -> list:
+        """Every entry of a paged listing: a reply holds as many as fit in a
+        message and a next_page_token while more follow."""
+        entries, token = [], ""
+        while True:
+            r = self._call(method, request_type(page_token=token))
+            entries.extend(getattr(r, field))
+            if not r.next_page_token:
+                return entries
+            if r.next_page_token <= token:  # pages are in key order: it would never end
+                raise RveError(grpc.StatusCode.INTERNAL,
+                               f"the server's next page token {r.next_page_token!r} does not "
+                               f"follow {token!r}", method, self.target)
+            token = r.next_page_token
 
     # -- templates ------------------------------------------------------------
 

@@ -18,6 +18,7 @@
 #include "absl/synchronization/mutex.h"
 #include "absl/time/clock.h"
 #include "rve_server/client/record_stream.h"
+#include "rve_server/common/names.h"
 #include "rve_server/common/status_macros.h"
 #include "rve_server/wire/convert.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
@@ -445,23 +446,41 @@ absl::StatusOr<ServerInfo> RemoteServer::GetServerInfo() const {
   return ServerInfoFromProto(info);
 }
 
+namespace {
+
+// The next page's token, or Internal where a server's token would not move
+// on (the pages are in key order): a loop that never ends otherwise.
+absl::Status CheckNextPage(const std::string& token, const std::string& next) {
+  if (next.empty() || next > token) return absl::OkStatus();
+  return absl::InternalError(absl::StrCat("the server's next page token ", QuotedName(next),
+                                          " does not follow the last one ", QuotedName(token)));
+}
+
+}  // namespace
+
 absl::StatusOr<std::vector<RunInfo>> RemoteServer::ListRuns() const {
-  v1::ListRunsResponse response;
-  RETURN_IF_ERROR(
-      Error(impl_->Call(&v1::RveService::Stub::ListRuns, v1::ListRunsRequest(), &response)));
   std::vector<RunInfo> runs;
-  runs.reserve(response.runs_size());
-  for (const v1::RunInfo& r : response.runs()) runs.push_back(wire::FromProto(r));
+  v1::ListRunsRequest request;
+  do {  // every page (a server replies with as many as fit in a message)
+    v1::ListRunsResponse response;
+    RETURN_IF_ERROR(Error(impl_->Call(&v1::RveService::Stub::ListRuns, request, &response)));
+    for (const v1::RunInfo& r : response.runs()) runs.push_back(wire::FromProto(r));
+    RETURN_IF_ERROR(Error(CheckNextPage(request.page_token(), response.next_page_token())));
+    request.set_page_token(response.next_page_token());
+  } while (!request.page_token().empty());
   return runs;
 }
 
 absl::StatusOr<std::vector<TemplateInfo>> RemoteServer::ListTemplates() const {
-  v1::ListTemplatesResponse response;
-  RETURN_IF_ERROR(Error(
-      impl_->Call(&v1::RveService::Stub::ListTemplates, v1::ListTemplatesRequest(), &response)));
   std::vector<TemplateInfo> templates;
-  templates.reserve(response.templates_size());
-  for (const v1::TemplateInfo& t : response.templates()) templates.push_back(wire::FromProto(t));
+  v1::ListTemplatesRequest request;
+  do {  // every page, as ListRuns
+    v1::ListTemplatesResponse response;
+    RETURN_IF_ERROR(Error(impl_->Call(&v1::RveService::Stub::ListTemplates, request, &response)));
+    for (const v1::TemplateInfo& t : response.templates()) templates.push_back(wire::FromProto(t));
+    RETURN_IF_ERROR(Error(CheckNextPage(request.page_token(), response.next_page_token())));
+    request.set_page_token(response.next_page_token());
+  } while (!request.page_token().empty());
   return templates;
 }
 

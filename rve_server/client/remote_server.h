@@ -113,7 +113,8 @@ class RemoteServer final : public RveEndpoint {
   // The server's info now (the limits it was connected with may have
   // changed only by a restart).
   absl::StatusOr<ServerInfo> GetServerInfo() const;
-  // In the server's order.
+  // In the server's order (runs by id, templates by name), every page of
+  // the server's listing.
   absl::StatusOr<std::vector<RunInfo>> ListRuns() const;
   absl::StatusOr<std::vector<TemplateInfo>> ListTemplates() const;
   // Uploads one template (AlreadyExists for a name in use unless `replace`)

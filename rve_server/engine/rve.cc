@@ -154,8 +154,9 @@ absl::Status ValidatePacking(const RveSnapshot& p) {
     return absl::InvalidArgumentError(absl::StrCat(
         "permeability_coefficient = ", p.permeability_coefficient, " must be finite and >= 0 m/s"));
   }
-  if (p.total_steps < 0) {
-    return absl::InvalidArgumentError(absl::StrCat("total_steps = ", p.total_steps, " < 0"));
+  if (p.total_steps < 0 || p.total_steps > kMaxTotalSteps) {
+    return absl::InvalidArgumentError(absl::StrCat("total_steps = ", p.total_steps,
+                                                   " must lie in 0..", kMaxTotalSteps, " (2^53)"));
   }
   // The neighbour search bins the cell by the cutoff: a cell far larger than
   // its particles (1000 m for 1 mm discs) would need billions of bins.

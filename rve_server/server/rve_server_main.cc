@@ -38,7 +38,8 @@ ABSL_FLAG(bool, health_without_token, false,
 ABSL_FLAG(std::string, tls_cert, "", "PEM certificate chain file (with --tls-key: TLS)");
 ABSL_FLAG(std::string, tls_key, "", "PEM private key file");
 ABSL_FLAG(std::string, checkpoint_dir, "",
-          "directory for rves.h5/templates.h5: loaded on start, written on SIGTERM");
+          "directory for rves.h5/templates.h5: loaded on start, written on SIGTERM; held "
+          "(rve_server.lock) while the server runs, so a second server on it refuses to start");
 ABSL_FLAG(int, drain_seconds, 30, "grace for calls in flight on SIGTERM, s");
 
 namespace {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <map>
 #include <new>
@@ -164,10 +165,12 @@ absl::StatusOr<TemplateInfo> Registry::PutTemplate(TemplateRecord record, bool r
   return summary;
 }
 
-std::vector<TemplateInfo> Registry::ListTemplates() const {
+std::vector<TemplateInfo> Registry::ListTemplates(absl::string_view after,
+                                                  std::size_t limit) const {
   absl::MutexLock lock(&mu_);
   std::vector<TemplateInfo> out;
-  for (const auto& [name, t] : templates_) out.push_back(t.summary);
+  for (auto t = templates_.upper_bound(after); t != templates_.end() && out.size() < limit; ++t)
+    out.push_back(t->second.summary);
   return out;
 }
 
@@ -408,6 +411,10 @@ absl::Status Registry::ApplyEach(absl::string_view run_id, std::int64_t step, Ap
   }
   RETURN_IF_ERROR(ValidateName("run id", run_id));
   if (step < 1) return absl::InvalidArgumentError(absl::StrCat("step ", step, " must be >= 1"));
+  if (step > kMaxStep) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("step ", step, " must be <= ", kMaxStep, " (2^53)"));
+  }
   if (absl::Status s = dem::Validate(options); !s.ok()) {
     return absl::InvalidArgumentError(absl::StrCat("apply options: ", s.message()));
   }
@@ -704,9 +711,16 @@ absl::StatusOr<std::int64_t> Registry::Import(std::vector<RveRecord> records) {
   auto build_one = [&](std::size_t k) {
     const RveRecord& r = records[k];
     absl::Status s = ValidateName("run id", r.run_id);
-    if (s.ok() && r.step < 0) s = absl::InvalidArgumentError(absl::StrCat("step ", r.step, " < 0"));
-    if (s.ok() && !r.last_delta_f.allFinite())
-      s = absl::InvalidArgumentError("last ΔF is not finite");
+    if (s.ok() && (r.step < 0 || r.step > kMaxStep)) {
+      s = absl::InvalidArgumentError(
+          absl::StrCat("step = ", r.step, " must lie in 0..", kMaxStep, " (2^53)"));
+    }
+    for (int c = 0; s.ok() && c < 9; ++c) {
+      if (const double v = r.last_delta_f(c / 3, c % 3); !std::isfinite(v)) {
+        s = absl::InvalidArgumentError(
+            absl::StrCat("last_delta_f[", c, "] = ", v, " is not finite (3×3, row-major)"));
+      }
+    }
     if (s.ok()) {
       s = NoThrow([&] {
         ASSIGN_OR_RETURN(dem::Rve rve, dem::Rve::Create(r.packing));
@@ -804,14 +818,14 @@ absl::StatusOr<std::int64_t> Registry::Drop(absl::string_view run_id,
   return dropped;
 }
 
-std::vector<RunInfo> Registry::ListRuns() const {
+std::vector<RunInfo> Registry::ListRuns(absl::string_view after, std::size_t limit) const {
   std::vector<std::pair<std::string, std::vector<EntryPtr>>> runs;
   {
     absl::MutexLock lock(&mu_);
-    for (const auto& [id, run] : runs_) {
+    for (auto r = runs_.upper_bound(after); r != runs_.end() && runs.size() < limit; ++r) {
       std::vector<EntryPtr> entries;
-      for (const auto& [mp, e] : run) entries.push_back(e);
-      runs.emplace_back(id, std::move(entries));
+      for (const auto& [mp, e] : r->second) entries.push_back(e);
+      runs.emplace_back(r->first, std::move(entries));
     }
   }
   std::vector<RunInfo> out;

@@ -7,6 +7,7 @@
 
 #include <Eigen/Dense>
 #include <atomic>
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -80,7 +81,10 @@ class Registry {
   // one whose bytes would take the memory account past its limit (templates
   // count in it as RVEs do).
   absl::StatusOr<TemplateInfo> PutTemplate(TemplateRecord record, bool replace);
-  std::vector<TemplateInfo> ListTemplates() const;
+  // Summaries in name order: those named after `after` (empty: from the
+  // first), at most `limit` of them (pages of a list too long for one reply).
+  std::vector<TemplateInfo> ListTemplates(absl::string_view after = "",
+                                          std::size_t limit = SIZE_MAX) const;
   std::vector<TemplateRecord> AllTemplates() const;
   // NotFound naming the template when it is not hosted.
   absl::StatusOr<TemplateRecord> FindTemplate(absl::string_view name) const;
@@ -136,7 +140,9 @@ class Registry {
   // (then nothing is dropped). Returns how many were dropped.
   absl::StatusOr<std::int64_t> Drop(absl::string_view run_id, std::span<const std::int64_t> ids);
 
-  std::vector<RunInfo> ListRuns() const;
+  // Runs in id order: those after `after` (empty: from the first), at most
+  // `limit` of them.
+  std::vector<RunInfo> ListRuns(absl::string_view after = "", std::size_t limit = SIZE_MAX) const;
   // RVEs hosted for a run (0 for an unknown run).
   std::int64_t CountRves(absl::string_view run_id) const;
   RegistryStats Stats() const;

@@ -112,6 +112,56 @@ std::int64_t MaxResultBytes(bool want_tangent) {
          4;  // field tag and length of the repeated entry
 }
 
+// One page of a listing (see ListTemplatesRequest): the entries after
+// `page_token` in key order, as `list(after, limit)` gives them, at most
+// `page_size` (0: no count) and while they fit in `budget` bytes; the token
+// of the next page when more follow.
+template <typename T, typename M, typename ListFn, typename KeyFn>
+grpc::Status ListPage(const char* what, std::int32_t page_size, const std::string& page_token,
+                      std::int64_t budget, const ListFn& list, const KeyFn& key,
+                      google::protobuf::RepeatedPtrField<M>* out, std::string* next_page_token) {
+  if (page_size < 0) {
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                        absl::StrCat(what, ": page_size = ", page_size,
+                                     " must be >= 0 (0: as many as fit in one reply)"));
+  }
+  if (!page_token.empty()) {
+    if (absl::Status s = ValidateName("page_token", page_token); !s.ok()) {
+      return grpc::Status(
+          grpc::StatusCode::INVALID_ARGUMENT,
+          absl::StrCat(what, ": ", s.message(), " (give a reply's next_page_token, or none)"));
+    }
+  }
+  // A few hundred at a time: a page of a long list costs its own entries.
+  constexpr std::size_t kBatch = 256;
+  const std::size_t limit = page_size > 0 ? static_cast<std::size_t>(page_size) : SIZE_MAX;
+  std::string cursor = page_token;
+  std::size_t count = 0;
+  std::int64_t bytes = 0;
+  bool more = false;
+  while (!more) {
+    // One past the page's count, to know whether more follow.
+    const std::size_t want = limit - count < kBatch ? limit - count + 1 : kBatch;
+    const std::vector<T> batch = list(cursor, want);
+    for (const T& entry : batch) {
+      M message;
+      ToProto(entry, &message);
+      const auto size = static_cast<std::int64_t>(message.ByteSizeLong()) + 8;  // tag, length
+      if (count == limit || (count > 0 && bytes + size > budget)) {
+        more = true;
+        break;
+      }
+      *out->Add() = std::move(message);
+      bytes += size;
+      ++count;
+      cursor = key(entry);
+    }
+    if (batch.size() < want) break;
+  }
+  if (more) *next_page_token = cursor;
+  return grpc::Status::OK;
+}
+
 }  // namespace
 
 CancelFn RveServiceImpl::Canceller(grpc::ServerContext* ctx) const {
@@ -264,11 +314,17 @@ grpc::Status RveServiceImpl::DoUploadTemplate(grpc::ServerContext* ctx,
 }
 
 grpc::Status RveServiceImpl::ListTemplates(grpc::ServerContext* ctx,
-                                           const v1::ListTemplatesRequest*,
+                                           const v1::ListTemplatesRequest* req,
                                            v1::ListTemplatesResponse* resp) {
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
-  for (const TemplateInfo& t : registry_.ListTemplates()) ToProto(t, resp->add_templates());
-  return grpc::Status::OK;
+  return ListPage<TemplateInfo>(
+      "ListTemplates", req->page_size(), req->page_token(),
+      options_.max_message_bytes - kChunkOverheadBytes,
+      [&](absl::string_view after, std::size_t limit) {
+        return registry_.ListTemplates(after, limit);
+      },
+      [](const TemplateInfo& t) { return t.name; }, resp->mutable_templates(),
+      resp->mutable_next_page_token());
 }
 
 grpc::Status RveServiceImpl::DoCreateRves(grpc::ServerContext* ctx,
@@ -557,11 +613,15 @@ grpc::Status RveServiceImpl::DoDrop(grpc::ServerContext* ctx, const v1::DropRequ
   return grpc::Status::OK;
 }
 
-grpc::Status RveServiceImpl::ListRuns(grpc::ServerContext* ctx, const v1::ListRunsRequest*,
+grpc::Status RveServiceImpl::ListRuns(grpc::ServerContext* ctx, const v1::ListRunsRequest* req,
                                       v1::ListRunsResponse* resp) {
   if (grpc::Status a = CheckAuth(ctx); !a.ok()) return a;
-  for (const RunInfo& r : registry_.ListRuns()) ToProto(r, resp->add_runs());
-  return grpc::Status::OK;
+  return ListPage<RunInfo>(
+      "ListRuns", req->page_size(), req->page_token(),
+      options_.max_message_bytes - kChunkOverheadBytes,
+      [&](absl::string_view after, std::size_t limit) { return registry_.ListRuns(after, limit); },
+      [](const RunInfo& r) { return r.run_id; }, resp->mutable_runs(),
+      resp->mutable_next_page_token());
 }
 
 grpc::Status RveServiceImpl::GetServerInfo(grpc::ServerContext* ctx, const v1::ServerInfoRequest*,

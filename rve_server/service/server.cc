@@ -1,17 +1,23 @@
 #include "rve_server/service/server.h"
 
+#include <fcntl.h>
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/health_check_service_interface.h>
 #include <grpcpp/impl/codegen/method_handler.h>
 #include <grpcpp/impl/codegen/rpc_service_method.h>
 #include <grpcpp/support/server_interceptor.h>
+#include <sys/file.h>
 #include <unistd.h>
 
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <limits>
 #include <string_view>
 #include <thread>
 
+#include "absl/strings/ascii.h"
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/synchronization/notification.h"
 #include "rve_server/common/address.h"
@@ -25,14 +31,17 @@ namespace {
 
 constexpr char kRvesFile[] = "rves.h5";
 constexpr char kTemplatesFile[] = "templates.h5";
+constexpr char kLockFile[] = "rve_server.lock";
 
 // Guards every method, grpc's own health and reflection services included:
 // without the token the reply is replaced by an empty message and the status
 // by UNAUTHENTICATED. (Our service also refuses such calls before doing
 // anything; grpc's services only read, so replacing their reply suffices.)
-// A denied health Watch is cancelled at once (the client sees CANCELLED): it
-// would otherwise stay open, sending empty messages, and never end with the
-// UNAUTHENTICATED status.
+// A denied health Watch would otherwise stay open, sending empty messages,
+// and never end with that status: its request is replaced by bytes that do
+// not parse, so that grpc's health service ends the call at once (with
+// INVALID_ARGUMENT, which becomes UNAUTHENTICATED here like any status of a
+// denied call) before it watches anything.
 // Also turns gRPC's INTERNAL for a request that does not parse into
 // INVALID_ARGUMENT: bad input is the client's error, not the server's.
 class AuthInterceptor final : public grpc::experimental::Interceptor {
@@ -48,9 +57,17 @@ class AuthInterceptor final : public grpc::experimental::Interceptor {
                 !(open_health_ &&
                   std::string_view(info_->method()).starts_with("/grpc.health.v1.Health/"));
       // Only Watch: our own streaming methods refuse with UNAUTHENTICATED.
-      if (denied_ && std::string_view(info_->method()) == "/grpc.health.v1.Health/Watch" &&
-          info_->server_context() != nullptr) {
-        info_->server_context()->TryCancel();
+      denied_watch_ = denied_ && std::string_view(info_->method()) == kHealthWatch;
+    }
+    if (denied_watch_ &&
+        methods->QueryInterceptionHookPoint(InterceptionHookPoints::POST_RECV_MESSAGE)) {
+      // grpc's health service reads its requests as raw bytes (a ByteBuffer):
+      // field 1 with wire type 7, which no protobuf parser accepts.
+      if (auto* request = static_cast<grpc::ByteBuffer*>(methods->GetRecvMessage())) {
+        grpc::Slice unparseable(std::string("\x0f"));
+        *request = grpc::ByteBuffer(&unparseable, 1);
+      } else if (info_->server_context() != nullptr) {
+        info_->server_context()->TryCancel();  // no request to spoil: end it anyhow
       }
     }
     // Only a request read before the handler runs (unary, server streaming):
@@ -87,8 +104,11 @@ class AuthInterceptor final : public grpc::experimental::Interceptor {
   grpc::experimental::ServerRpcInfo* info_;
   const std::string* token_;
   const bool open_health_;
+  static constexpr std::string_view kHealthWatch = "/grpc.health.v1.Health/Watch";
+
   bool denied_ = false;
-  bool unparsed_ = false;  // the request message did not parse
+  bool denied_watch_ = false;  // a health Watch without the token
+  bool unparsed_ = false;      // the request message did not parse
 };
 
 class AuthInterceptorFactory final : public grpc::experimental::ServerInterceptorFactoryInterface {
@@ -176,6 +196,50 @@ absl::Status MakeCheckpointDir(const std::string& dir) {
   return absl::OkStatus();
 }
 
+// Locks `dir` for this server (an exclusive flock on its rve_server.lock,
+// which then holds this process's pid) and returns the lock file's
+// descriptor: two servers on one directory would each save their RVEs at
+// their stop, the later one silently replacing the other's. The kernel
+// drops the lock when the process ends, however it ends, so a crashed
+// server leaves no stale lock. FailedPrecondition naming the directory and
+// the holder's pid while another server (or process) holds it.
+absl::StatusOr<int> LockCheckpointDir(const std::string& dir) {
+  const std::string path = (std::filesystem::path(dir) / kLockFile).string();
+  const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    return absl::PermissionDeniedError(absl::StrCat("cannot open the lock file ", path,
+                                                    " of checkpoint directory ", dir, ": ",
+                                                    std::strerror(errno)));
+  }
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    const int error = errno;
+    // The holder writes its pid once it holds the lock: none yet is possible.
+    char text[32] = {};
+    const ssize_t n = ::pread(fd, text, sizeof text - 1, 0);
+    int holder = 0;
+    const bool known = n > 0 && absl::SimpleAtoi(absl::StripAsciiWhitespace(text), &holder);
+    ::close(fd);
+    if (error != EWOULDBLOCK) {
+      return absl::UnavailableError(absl::StrCat("cannot lock checkpoint directory ", dir, " (",
+                                                 path, "): ", std::strerror(error)));
+    }
+    return absl::FailedPreconditionError(
+        absl::StrCat("checkpoint directory ", dir, " is held by another rve_server",
+                     known ? absl::StrCat(" (pid ", holder, ")") : "",
+                     ", which saves its RVEs there (lock file ", path,
+                     "); give each server a checkpoint directory of its own"));
+  }
+  const std::string pid = absl::StrCat(::getpid(), "\n");
+  if (::ftruncate(fd, 0) != 0 ||
+      ::pwrite(fd, pid.data(), pid.size(), 0) != static_cast<ssize_t>(pid.size())) {
+    const int error = errno;
+    ::close(fd);
+    return absl::PermissionDeniedError(
+        absl::StrCat("cannot write the lock file ", path, ": ", std::strerror(error)));
+  }
+  return fd;
+}
+
 std::string NowUtc() {
   return absl::FormatTime("%Y-%m-%dT%H:%M:%SZ", absl::Now(), absl::UTCTimeZone());
 }
@@ -206,6 +270,7 @@ absl::StatusOr<std::unique_ptr<RveServer>> RveServer::Start(const ServerConfig& 
     // Made now, so that a directory that cannot be is found at start, not
     // at the stop that was to save every RVE into it.
     RETURN_IF_ERROR(MakeCheckpointDir(config.checkpoint_dir));
+    ASSIGN_OR_RETURN(s->checkpoint_lock_fd_, LockCheckpointDir(config.checkpoint_dir));
     RETURN_IF_ERROR(s->LoadCheckpoint(config.checkpoint_dir));
   }
   ServiceOptions options;
@@ -272,6 +337,7 @@ RveServer::~RveServer() {
     server_->Shutdown(std::chrono::system_clock::now());
     server_->Wait();
   }
+  if (checkpoint_lock_fd_ >= 0) ::close(checkpoint_lock_fd_);  // releases the lock
 }
 
 absl::Status RveServer::Stop(std::chrono::milliseconds grace) {
@@ -353,7 +419,13 @@ absl::Status RveServer::LoadCheckpoint(const std::string& dir) {
   if (templates_exist) {
     ASSIGN_OR_RETURN(std::vector<TemplateRecord> t, store::ReadTemplates(templates_path));
     for (TemplateRecord& r : t) {
-      ASSIGN_OR_RETURN(TemplateInfo put, registry_->PutTemplate(std::move(r), true));
+      const std::string name = r.name;
+      if (absl::StatusOr<TemplateInfo> put = registry_->PutTemplate(std::move(r), true);
+          !put.ok()) {
+        return absl::Status(put.status().code(),
+                            absl::StrCat("restoring ", templates_path, ": template ",
+                                         QuotedName(name), ": ", put.status().message()));
+      }
       ++num_templates;
     }
   }

@@ -31,7 +31,7 @@ struct ServerConfig {
   bool health_without_token = false;
   std::string tls_cert_pem;  // both set: TLS; else plaintext
   std::string tls_key_pem;
-  std::string checkpoint_dir;  // set: load on start, save on Stop
+  std::string checkpoint_dir;  // set: locked and loaded on start, saved on Stop
 };
 
 class RveServer {
@@ -41,7 +41,9 @@ class RveServer {
   // 0..65535 (ValidateAddress), threads outside 1..kMaxThreads, a max RVEs,
   // memory, batch or templates below 1, a message size outside its range, or one of the
   // TLS certificate and key without the other; PermissionDenied for a
-  // checkpoint directory that cannot be made or written into.
+  // checkpoint directory that cannot be made or written into;
+  // FailedPrecondition for one that another server holds (a server holds
+  // its checkpoint directory, locked, from Start to its destruction).
   static absl::StatusOr<std::unique_ptr<RveServer>> Start(const ServerConfig& config);
   ~RveServer();
 
@@ -72,6 +74,7 @@ class RveServer {
   std::unique_ptr<grpc::Server> server_;
   int port_ = 0;
   bool stopped_ = false;
+  int checkpoint_lock_fd_ = -1;  // the checkpoint directory's lock file, held while >= 0
 };
 
 }  // namespace rvehub::service

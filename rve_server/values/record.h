@@ -14,11 +14,16 @@
 
 namespace rvehub {
 
+// Committed steps lie in 0..kMaxStep (2^53): far beyond any run, and exact
+// in a double, as clients that read them as numbers (JSON, Python) hold
+// them. A record past it is tampered with or corrupt.
+inline constexpr std::int64_t kMaxStep = std::int64_t{1} << 53;
+
 // One hosted RVE.
 struct RveRecord {
   std::string run_id;     // run that owns the RVE (isolates simulations)
   std::int64_t id = 0;    // material-point id within the run
-  std::int64_t step = 0;  // last committed step (0 right after creation)
+  std::int64_t step = 0;  // last committed step (0 right after creation), 0..kMaxStep
   // ΔF of the last committed step (identity at step 0), kept so that a retried
   // COMMIT can be checked against it after a restart. 3×3, [-].
   Eigen::Matrix3d last_delta_f = Eigen::Matrix3d::Identity();

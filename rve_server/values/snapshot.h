@@ -57,7 +57,7 @@ struct RveSnapshot {
   std::vector<ContactHistory> contacts;   // sorted by (i, j)
   double initial_void_ratio = 0.0;        // e0, [-]
   double permeability_coefficient = 0.0;  // c in k = c·e³/(1+e), m/s
-  std::int64_t total_steps = 0;           // DEM steps since creation
+  std::int64_t total_steps = 0;           // DEM steps since creation, 0..kMaxTotalSteps
 };
 
 // Ranges (see also rve_service.proto): time_step_factor (0, 1],
@@ -79,6 +79,9 @@ inline constexpr std::size_t kMaxParticles = 1'000'000;
 inline constexpr double kMaxGridCellsPerParticle = 1000;  // ≈ solid fraction ≥ 6e-4
 inline constexpr double kMinGridCells = 1e4;
 inline constexpr std::size_t kMaxNameBytes = 128;  // material name, printable ASCII
+// DEM steps since creation at most (2^53, exact in a double): centuries of
+// stepping; a count past it is tampered with or corrupt.
+inline constexpr std::int64_t kMaxTotalSteps = std::int64_t{1} << 53;
 
 // Σ π r², the discs' own area, m² (overlaps not taken out).
 double SolidArea(const std::vector<double>& radius);

@@ -53,6 +53,7 @@ using testing_util::FlipByte;
 using testing_util::FromBits;
 using testing_util::MessageHas;
 using testing_util::ReadBytes;
+using testing_util::ReplaceDoubleDataset;
 using testing_util::ReplaceInt64Dataset;
 using testing_util::SetIntAttribute;
 using testing_util::TestDirTest;
@@ -678,6 +679,42 @@ TEST_F(StoreFilesTest, MalformedSimCheckpointsGiveSpecificErrors) {
   expect("negative count", absl::StatusCode::kDataLoss, "invalid num_double_arrays -1");
 }
 
+// A step or time no run can have (tampered with, or corrupt) is refused on
+// reading, naming the file, the dataset and the value.
+TEST_F(StoreFilesTest, SimCheckpointStepAndTimeOutOfRangeAreDataLoss) {
+  const std::string path = Path("checkpoint.h5");
+  const std::string nan = absl::StrCat(std::numeric_limits<double>::quiet_NaN());
+  struct Case {
+    std::vector<std::int64_t> step;
+    std::vector<double> time;
+    std::string message;
+  };
+  for (const Case& c : {
+           Case{{-1}, {}, "/simulation/step = -1 must lie in 0..9007199254740992"},
+           Case{{std::int64_t{1} << 62}, {}, "/simulation/step = 4611686018427387904 must lie"},
+           Case{{}, {std::numeric_limits<double>::quiet_NaN()}, "/simulation/time = " + nan},
+           Case{{}, {std::numeric_limits<double>::infinity()}, "/simulation/time = inf s"},
+           Case{{}, {-1.0}, "/simulation/time = -1 s must be finite and >= 0"},
+       }) {
+    ASSERT_TRUE(WriteSimCheckpoint(path, MakeCheckpoint(), kInfo).ok());
+    if (!c.step.empty()) ReplaceInt64Dataset(path, "/simulation/step", c.step);
+    if (!c.time.empty()) ReplaceDoubleDataset(path, "/simulation/time", c.time);
+    const absl::StatusOr<SimCheckpoint> read = ReadSimCheckpoint(path);
+    EXPECT_EQ(read.status().code(), absl::StatusCode::kDataLoss)
+        << c.message << ": " << read.status();
+    EXPECT_TRUE(MessageHas(read.status(), c.message));
+    EXPECT_TRUE(MessageHas(read.status(), path));
+  }
+  // The largest step and a zero time are a run's.
+  SimCheckpoint edge = MakeCheckpoint();
+  edge.step = kMaxStep;
+  edge.time = 0.0;
+  ASSERT_TRUE(WriteSimCheckpoint(path, edge, kInfo).ok());
+  const absl::StatusOr<SimCheckpoint> read = ReadSimCheckpoint(path);
+  ASSERT_TRUE(read.ok()) << read.status();
+  EXPECT_EQ(read->step, kMaxStep);
+}
+
 TEST_F(StoreFilesTest, InvalidSimCheckpointsAreRefusedBeforeWriting) {
   const std::string path = Path("checkpoint.h5");
   ASSERT_TRUE(WriteSimCheckpoint(path, MakeCheckpoint(), kInfo).ok());
@@ -705,6 +742,12 @@ TEST_F(StoreFilesTest, InvalidSimCheckpointsAreRefusedBeforeWriting) {
   c = MakeCheckpoint();
   c.templates[0].packing.material.friction = -1.0;
   expect_refused("bad template", c, "template 0 ('SET-dense')");
+  c = MakeCheckpoint();
+  c.step = kMaxStep + 1;
+  expect_refused("step past 2^53", c, "/simulation/step = 9007199254740993 must lie");
+  c = MakeCheckpoint();
+  c.time = std::numeric_limits<double>::quiet_NaN();
+  expect_refused("NaN time", c, "/simulation/time = nan s must be finite");
 
   EXPECT_TRUE(ReadBytes(path) == before) << "the existing file changed";
   EXPECT_TRUE(FilesStartingWith(dir_, "checkpoint.h5.tmp").empty());

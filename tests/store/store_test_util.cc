@@ -109,20 +109,34 @@ void SetIntAttribute(const std::string& path, const char* name, std::int32_t val
   H5Fclose(file);
 }
 
-void ReplaceInt64Dataset(const std::string& path, const char* name,
-                         const std::vector<std::int64_t>& values) {
+namespace {
+
+void ReplaceDataset(const std::string& path, const char* name, hid_t file_type, hid_t memory_type,
+                    std::size_t size, const void* values) {
   const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
   ASSERT_GE(file, 0);
   ASSERT_GE(H5Ldelete(file, name, H5P_DEFAULT), 0);
-  const hsize_t dims[1] = {values.size()};
+  const hsize_t dims[1] = {size};
   const hid_t space = H5Screate_simple(1, dims, nullptr);
   const hid_t dset =
-      H5Dcreate2(file, name, H5T_STD_I64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+      H5Dcreate2(file, name, file_type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
   ASSERT_GE(dset, 0);
-  EXPECT_GE(H5Dwrite(dset, H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()), 0);
+  EXPECT_GE(H5Dwrite(dset, memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, values), 0);
   H5Dclose(dset);
   H5Sclose(space);
   H5Fclose(file);
+}
+
+}  // namespace
+
+void ReplaceInt64Dataset(const std::string& path, const char* name,
+                         const std::vector<std::int64_t>& values) {
+  ReplaceDataset(path, name, H5T_STD_I64LE, H5T_NATIVE_INT64, values.size(), values.data());
+}
+
+void ReplaceDoubleDataset(const std::string& path, const char* name,
+                          const std::vector<double>& values) {
+  ReplaceDataset(path, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, values.size(), values.data());
 }
 
 }  // namespace rvehub::store::testing_util

@@ -61,9 +61,11 @@ void ChunkLocation(const std::string& path, const char* dataset, hsize_t index, 
 // Rewrites one int32 attribute of the root group (forging files from elsewhere).
 void SetIntAttribute(const std::string& path, const char* name, std::int32_t value);
 
-// Replaces dataset `name` by a 1-D int64 dataset holding `values`.
+// Replaces dataset `name` by a 1-D int64 (float64) dataset holding `values`.
 void ReplaceInt64Dataset(const std::string& path, const char* name,
                          const std::vector<std::int64_t>& values);
+void ReplaceDoubleDataset(const std::string& path, const char* name,
+                          const std::vector<double>& values);
 
 }  // namespace rvehub::store::testing_util
 

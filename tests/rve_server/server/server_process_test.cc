@@ -113,6 +113,7 @@ class ServerProcess {
 
   v1::RveService::Stub& stub() { return *stub_; }
   std::shared_ptr<grpc::Channel> channel() { return channel_; }
+  pid_t pid() const { return pid_; }
 
  private:
   pid_t pid_ = -1;
@@ -304,6 +305,37 @@ TEST(ServerProcess, SigtermDrainsCheckpointsAndRestartContinues) {
   const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("rves.h5"), std::string::npos) << text;
   EXPECT_NE(text.find("level=error"), std::string::npos) << text;
+  fs::remove_all(dir);
+}
+
+// Two servers on one checkpoint directory would each save their own RVEs
+// there at their stop, the last one silently overwriting the other's: a
+// second server refuses to start while a running one holds the directory,
+// naming it and the holder's pid, and the first one's RVEs survive its stop.
+// Once it has stopped, the directory is free for the next start.
+TEST(ServerProcess, SecondServerOnAHeldCheckpointDirRefusesToStart) {
+  const fs::path dir = fs::temp_directory_path() / ("rvehub_lock_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  const std::string dir_flag = "--checkpoint-dir=" + dir.string();
+  {
+    ServerProcess first({"--listen=127.0.0.1:0", "--threads=1", dir_flag});
+    ASSERT_TRUE(CreateRun(first.stub(), 3).ok());
+    const testing_util::CommandResult second = testing_util::RunCommand(absl::StrCat(
+        "timeout 20 " RVE_SERVER_PATH " --listen=127.0.0.1:0 ", dir_flag, " 2>&1 >/dev/null"));
+    EXPECT_EQ(second.exit_code, 1) << second.out;
+    EXPECT_NE(
+        second.out.find(absl::StrCat("checkpoint directory ", dir.string(),
+                                     " is held by another rve_server (pid ", first.pid(), ")")),
+        std::string::npos)
+        << second.out;
+    EXPECT_EQ(first.Terminate(), 0);
+  }
+  ServerProcess restarted({"--listen=127.0.0.1:0", "--threads=1", dir_flag});
+  v1::ListRunsResponse runs;
+  ASSERT_TRUE(restarted.stub().ListRuns(Ctx().get(), {}, &runs).ok());
+  ASSERT_EQ(runs.runs_size(), 1);
+  EXPECT_EQ(runs.runs(0).num_rves(), 3);
+  EXPECT_EQ(restarted.Terminate(), 0);
   fs::remove_all(dir);
 }
 

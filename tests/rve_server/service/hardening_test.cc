@@ -702,16 +702,21 @@ TEST(HardeningAuth, HealthWatchNeedsTheToken) {
   auto health = grpc::health::v1::Health::NewStub(h.channel());
   grpc::health::v1::HealthCheckRequest req;
   grpc::health::v1::HealthCheckResponse resp;
-  {
-    grpc::ClientContext ctx;
-    ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
-    auto reader = health->Watch(&ctx, req);
-    EXPECT_FALSE(reader->Read(&resp)) << "an unauthenticated Watch must get no status";
-    const grpc::Status s = reader->Finish();
-    // Cancelled by the server at once (a Watch would otherwise never send
-    // the UNAUTHENTICATED status the interceptor sets).
-    EXPECT_EQ(s.error_code(), grpc::StatusCode::CANCELLED) << s.error_message();
+  // Without the token or with a wrong one: ended at once with
+  // UNAUTHENTICATED, as Check is, before any serving status is sent.
+  for (const char* token : {"", "wrong-token"}) {
+    for (const char* service : {"", "rvehub.v1.RveService"}) {
+      grpc::ClientContext ctx;
+      ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+      if (*token != '\0') ctx.AddMetadata("authorization", absl::StrCat("Bearer ", token));
+      req.set_service(service);
+      auto reader = health->Watch(&ctx, req);
+      EXPECT_FALSE(reader->Read(&resp)) << "an unauthenticated Watch must get no status";
+      ExpectError(reader->Finish(), grpc::StatusCode::UNAUTHENTICATED,
+                  "/grpc.health.v1.Health/Watch needs \"authorization: Bearer <token>\"");
+    }
   }
+  req.clear_service();
   {
     auto ctx = h.Context(std::chrono::seconds(10));
     auto reader = health->Watch(ctx.get(), req);
