@@ -1,15 +1,18 @@
 // mpm_client's output directory under stress, the binary run as a child
-// process: a file size limit or a full disk ends the run with run.json
-// saying "failed" and the results written before it readable (and a resume
+// process: a second run into a directory in use is refused at its start; a
+// file size limit or a full disk ends the run with run.json saying
+// "failed" and the results written before it readable (and a resume
 // continues once there is room).
 #include <sys/mount.h>
 #include <unistd.h>
 
 #include <cerrno>
+#include <chrono>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "absl/status/statusor.h"
@@ -63,6 +66,54 @@ std::vector<std::int64_t> ExpectReadableFrames(const std::string& dir) {
     EXPECT_EQ(listed[k].first, absl::StrCat(steps[k]));
   }
   return steps;
+}
+
+// Waits (at most 60 s) until DIR/.lock names `pid`: that run holds the lock.
+bool WaitForLockHolder(const std::string& dir, pid_t pid) {
+  const std::string expected = absl::StrCat(pid, " ");
+  for (int i = 0; i < 600; ++i) {
+    if (ReadFile(dir + "/.lock").starts_with(expected)) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  return false;
+}
+
+// While one run writes into a directory, a second run or a resume into it is
+// refused at its start, naming the first run's pid, and changes nothing
+// there; once the first has ended (killed, even), a run there goes ahead.
+TEST(MpmCliOutputTest, ADirectoryInUseByAnotherRunIsRefused) {
+  const std::string out = TempPath("in-use");
+  Json long_case = SmallCase();
+  long_case["solver"]["end_time"] = 60.0;  // 30000 steps: killed long before
+  long_case["output"]["checkpoint_every"] = 10;
+  testing_util::ChildProcess first(
+      {MPM_CLIENT_PATH, "run", WriteCase("in-use-long", long_case), "--out=" + out, "--threads=2",
+       "--template-cache=" + TemplateCache(), "--quiet"},
+      TempPath("in-use-first.txt"));
+  ASSERT_TRUE(WaitForLockHolder(out, first.pid())) << ReadFile(TempPath("in-use-first.txt"));
+  const std::string expected =
+      absl::StrCat(out, " is in use by another run (pid ", first.pid(), ")");
+  const Result second = RunClient(absl::StrCat("run ", Quote(WriteCase("in-use", SmallCase())),
+                                               " --out=", Quote(out), CommonFlags(), " --quiet"));
+  EXPECT_EQ(second.exit_code, 1) << second;
+  EXPECT_TRUE(absl::StrContains(second.err, expected)) << second;
+  EXPECT_FALSE(absl::StrContains(second.err, "HDF5")) << second;
+  // A checkpoint of the first run, resumed into its own directory.
+  for (int i = 0; i < 600 && !fs::exists(out + "/checkpoint.h5"); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ASSERT_TRUE(fs::exists(out + "/checkpoint.h5"));
+  const Result resume =
+      RunClient(absl::StrCat("resume ", Quote(out + "/checkpoint.h5"), CommonFlags(), " --quiet"));
+  EXPECT_EQ(resume.exit_code, 1) << resume;
+  EXPECT_TRUE(absl::StrContains(resume.err, expected)) << resume;
+  ASSERT_TRUE(first.Running()) << "the first run ended: " << ReadFile(TempPath("in-use-first.txt"));
+  EXPECT_EQ(Json::parse(ReadFile(out + "/run.json"), nullptr, false)["command"], "run");
+
+  first.Kill();
+  const Result after = RunClient(absl::StrCat("run ", Quote(TempPath("in-use.json")),
+                                              " --out=", Quote(out), CommonFlags(), " --quiet"));
+  EXPECT_EQ(after.exit_code, 0) << after;
 }
 
 // A file size limit (ulimit -f) reached by results.xdmf part way: the write
