@@ -73,8 +73,19 @@ def h5_digests(path):
                 blob = np.ascontiguousarray(arr).tobytes()
             out[name] = sha(blob + repr((arr.shape, str(arr.dtype))).encode())
 
+    # Walked by name rather than visititems, which skips external links
+    # (results.h5 links its frames, each a file of its own).
+    def walk(group, prefix):
+        for key in group:
+            obj = group[key]
+            name = prefix + key
+            if isinstance(obj, h5py.Group):
+                walk(obj, name + "/")
+            else:
+                visit(name, obj)
+
     with h5py.File(path, "r") as f:
-        f.visititems(visit)
+        walk(f, "")
     return out
 
 

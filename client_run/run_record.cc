@@ -1,5 +1,6 @@
 #include "client_run/run_record.h"
 
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <cstdio>
@@ -24,6 +25,49 @@ std::string HostName() {
   char name[256] = {};
   if (gethostname(name, sizeof(name) - 1) != 0) return "";
   return name;
+}
+
+// Room kept for run.json beyond its end: the final record (with an error
+// message, a few kB) must fit when the disk has filled up during the run.
+constexpr off_t kReserveBytes = 64 << 10;
+
+// Written under a temporary name and renamed over `path`: readers see the
+// old record or the new one.
+bool WriteReplacing(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".tmp";
+  std::FILE* f = std::fopen(tmp.c_str(), "w");
+  const bool ok = f != nullptr && std::fwrite(text.data(), 1, text.size(), f) == text.size();
+  const bool closed = f != nullptr && std::fclose(f) == 0;
+  if (!ok || !closed || std::rename(tmp.c_str(), path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    return false;
+  }
+  return true;
+}
+
+// Allocates kReserveBytes beyond the end of `path` without changing its size
+// (best effort: a file system without fallocate keeps no reserve).
+void Reserve(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC);
+  if (fd < 0) return;
+  (void)::fallocate(fd, FALLOC_FL_KEEP_SIZE, 0, kReserveBytes);
+  ::close(fd);
+}
+
+// Overwrites `path` from its start, in its own (reserved) blocks.
+bool WriteInPlace(const std::string& path, const std::string& text) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC);
+  if (fd < 0) return false;
+  std::size_t done = 0;
+  while (done < text.size()) {
+    const ssize_t n =
+        ::pwrite(fd, text.data() + done, text.size() - done, static_cast<off_t>(done));
+    if (n <= 0) break;
+    done += static_cast<std::size_t>(n);
+  }
+  const bool ok = done == text.size() && ::ftruncate(fd, static_cast<off_t>(done)) == 0;
+  ::close(fd);
+  return ok;
 }
 
 }  // namespace
@@ -78,15 +122,15 @@ void RunRecord::Finished(const std::string& outcome, const Json& fields) {
 
 void RunRecord::Write() const {
   if (dir_.empty()) return;
-  const std::string tmp = Path() + ".tmp";
-  std::FILE* f = std::fopen(tmp.c_str(), "w");
   const std::string text = json_.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
-  const bool ok = f != nullptr && std::fwrite(text.data(), 1, text.size(), f) == text.size();
-  const bool closed = f != nullptr && std::fclose(f) == 0;
-  if (!ok || !closed || std::rename(tmp.c_str(), Path().c_str()) != 0) {
-    std::remove(tmp.c_str());
-    std::fprintf(stderr, "%s: cannot write %s\n", program_.c_str(), Path().c_str());
+  if (WriteReplacing(Path(), text)) {
+    Reserve(Path());
+    return;
   }
+  // A full disk has no room for a second copy; the reserved blocks of the
+  // one there take the record (so that it says "failed", not "running").
+  if (WriteInPlace(Path(), text)) return;
+  std::fprintf(stderr, "%s: cannot write %s\n", program_.c_str(), Path().c_str());
 }
 
 }  // namespace rvehub::client_run

@@ -34,7 +34,8 @@ class RunRecord {
  private:
   std::string Path() const { return dir_ + "/run.json"; }
   // A record that cannot be written is reported on stderr, not fatal: the
-  // results are.
+  // results are. Each write reserves room beyond the record's end, which a
+  // later write takes when the disk is full.
   void Write() const;
 
   std::string program_;

@@ -16,6 +16,7 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
+#include "client_run/out_dir_lock.h"
 #include "client_run/run_record.h"
 #include "fem_client/case/case.h"
 #include "fem_client/run/output.h"
@@ -276,6 +277,11 @@ int Main(int argc, char** argv) {
   if (!spec.ok()) return Fail(spec.status(), 1);
   if (int code = AddClientOptions(*options); code != 0) return code;
   client_run::RunRecord record("fem_client", RVEHUB_GIT_DESCRIBE, argc, argv, command->name);
+  // Held until the run ends, before anything is written there: a second run
+  // into the directory is refused now rather than failing part way.
+  absl::StatusOr<client_run::OutDirLock> out_lock =
+      client_run::OutDirLock::Acquire(options->out_dir);
+  if (!out_lock.ok()) return Fail(out_lock.status(), 1);
   absl::StatusOr<std::unique_ptr<FemSimulation>> sim = FemSimulation::Start(*spec, *options);
   if (!sim.ok()) return Fail(sim.status(), 1);
   record.Started(options->out_dir, ToJson(*spec), /*resumed=*/false);

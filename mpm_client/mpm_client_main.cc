@@ -21,6 +21,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
+#include "client_run/out_dir_lock.h"
 #include "client_run/run_record.h"
 #include "mpm_client/case/case.h"
 #include "mpm_client/run/output.h"
@@ -363,19 +364,23 @@ int Main(int argc, char** argv) {
   if (!client_options.ok()) return Fail(client_options.status(), 1);
   options->client = *std::move(client_options);
   client_run::RunRecord record("mpm_client", RVEHUB_GIT_DESCRIBE, argc, argv, command->name);
-  absl::StatusOr<std::unique_ptr<Simulation>> sim;
+  absl::StatusOr<CaseSpec> spec;
   if (command->name == "run") {
-    absl::StatusOr<CaseSpec> spec = LoadCase(command->target, *overrides);
+    spec = LoadCase(command->target, *overrides);
     if (!spec.ok()) return Fail(spec.status(), 1);
-    sim = Simulation::Start(*spec, *options);
-  } else {
-    if (!command->args.contains("out")) {
-      // The checkpoint's directory ("/" for /checkpoint.h5, "." for a bare name).
-      const std::filesystem::path dir = std::filesystem::path(command->target).parent_path();
-      options->out_dir = dir.empty() ? "." : dir.string();
-    }
-    sim = Simulation::Resume(command->target, *options);
+  } else if (!command->args.contains("out")) {
+    // The checkpoint's directory ("/" for /checkpoint.h5, "." for a bare name).
+    const std::filesystem::path dir = std::filesystem::path(command->target).parent_path();
+    options->out_dir = dir.empty() ? "." : dir.string();
   }
+  // Held until the run ends, before anything is written there: a second run
+  // into the directory is refused now rather than failing part way.
+  absl::StatusOr<client_run::OutDirLock> out_lock =
+      client_run::OutDirLock::Acquire(options->out_dir);
+  if (!out_lock.ok()) return Fail(out_lock.status(), 1);
+  absl::StatusOr<std::unique_ptr<Simulation>> sim =
+      command->name == "run" ? Simulation::Start(*spec, *options)
+                             : Simulation::Resume(command->target, *options);
   if (!sim.ok()) return Fail(sim.status(), 1);
   record.Started(options->out_dir, ToJson((*sim)->spec()), command->name == "resume");
   absl::StatusOr<SimulationSummary> summary = (*sim)->StepToEnd();

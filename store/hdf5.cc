@@ -104,7 +104,16 @@ ErrorInfo TakeErrorInfo() {
 std::string TakeErrorStack() { return TakeErrorInfo().text; }
 
 absl::Status Error(absl::StatusCode code, absl::string_view what) {
-  return absl::Status(code, absl::StrCat(what, ": ", TakeErrorStack()));
+  const std::string stack = TakeErrorStack();
+  // A write that failed for want of space says so first: the stack buries
+  // the errno HDF5's file driver saw in a long line.
+  for (const auto& [marker, why] : {std::pair{"errno = 28,", "no space left on device"},
+                                    std::pair{"errno = 27,", "file too large"}}) {
+    if (absl::StrContains(stack, marker)) {
+      return absl::ResourceExhaustedError(absl::StrCat(what, ": ", why, " (HDF5: ", stack, ")"));
+    }
+  }
+  return absl::Status(code, absl::StrCat(what, ": ", stack));
 }
 
 Handle& Handle::operator=(Handle&& other) noexcept {
@@ -206,10 +215,10 @@ absl::StatusOr<File> File::OpenForAppend(const std::string& path, LockRetry retr
 absl::Status File::Close() {
   if (!handle_.valid()) return absl::OkStatus();
   if (Failed(H5Fflush(handle_.id(), H5F_SCOPE_LOCAL))) {
-    const std::string stack = TakeErrorStack();
+    absl::Status error = Error(absl::StatusCode::kInternal, absl::StrCat("cannot flush ", path_));
     handle_.Close();
     H5Eclear2(H5E_DEFAULT);
-    return absl::InternalError(absl::StrCat("cannot flush ", path_, ": ", stack));
+    return error;
   }
   if (!handle_.Close()) {
     return Error(absl::StatusCode::kInternal, absl::StrCat("cannot close ", path_));
@@ -427,6 +436,58 @@ absl::Status File::Delete(const std::string& name) {
   return absl::OkStatus();
 }
 
+absl::Status File::CreateExternalLink(const std::string& name, const std::string& target_file,
+                                      const std::string& target_object) {
+  if (Failed(H5Lcreate_external(target_file.c_str(), target_object.c_str(), handle_.id(),
+                                name.c_str(), H5P_DEFAULT, H5P_DEFAULT))) {
+    return Error(
+        absl::StatusCode::kInternal,
+        absl::StrCat("cannot link ", name, " of ", path_, " to ", target_file, ":", target_object));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::string> File::ExternalLinkFile(const std::string& name) const {
+  H5L_info_t info;
+  if (Failed(H5Lget_info(handle_.id(), name.c_str(), &info, H5P_DEFAULT))) {
+    return CorruptError("look up", Where("link", name));
+  }
+  if (info.type != H5L_TYPE_EXTERNAL) return std::string();
+  std::string value(info.u.val_size, '\0');
+  const char* file = nullptr;
+  const char* object = nullptr;
+  if (value.empty() ||
+      Failed(H5Lget_val(handle_.id(), name.c_str(), value.data(), value.size(), H5P_DEFAULT)) ||
+      Failed(H5Lunpack_elink_val(value.data(), value.size(), nullptr, &file, &object)) ||
+      file == nullptr) {
+    return CorruptError("read", Where("link", name));
+  }
+  return std::string(file);
+}
+
+absl::Status File::CopyFrom(const File& source, const std::string& name) {
+  Handle lcpl(H5Pcreate(H5P_LINK_CREATE), H5Pclose);
+  if (!lcpl.valid() || Failed(H5Pset_create_intermediate_group(lcpl.id(), 1))) {
+    return Error(absl::StatusCode::kInternal, "creating a link creation list");
+  }
+  if (Failed(
+          H5Ocopy(source.id(), name.c_str(), handle_.id(), name.c_str(), H5P_DEFAULT, lcpl.id()))) {
+    return Error(absl::StatusCode::kInternal,
+                 absl::StrCat("cannot copy ", name, " of ", source.path(), " to ", path_));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::uint64_t> Object::FileSize() const {
+  Handle file(H5Iget_file_id(handle_.id()), H5Fclose);
+  hsize_t size = 0;
+  if (!file.valid() || Failed(H5Fget_filesize(file.id(), &size))) {
+    return Error(absl::StatusCode::kDataLoss,
+                 absl::StrCat("cannot get the size of the file holding ", where_));
+  }
+  return static_cast<std::uint64_t>(size);
+}
+
 absl::Status File::CheckShape(const std::string& name, std::size_t rows, std::size_t width) const {
   Handle dataset;
   return OpenShaped(name, rows, width, &dataset);
@@ -576,7 +637,14 @@ absl::Status ReadFailure(const std::string& where) {
 absl::Status File::CheckFits(const std::string& name, std::size_t rows, std::size_t width,
                              std::size_t element_size) const {
   if (rows == 0) return absl::OkStatus();
-  ASSIGN_OR_RETURN(std::uint64_t file_size, Size());
+  // A missing dataset is for the caller's open to report.
+  ASSIGN_OR_RETURN(bool exists, Exists(name));
+  if (!exists) return absl::OkStatus();
+  // The dataset's own file: an external link may lead to another.
+  Handle object(H5Oopen(handle_.id(), name.c_str(), H5P_DEFAULT), H5Oclose);
+  if (!object.valid()) return CorruptError("open", Where("dataset", name));
+  ASSIGN_OR_RETURN(std::uint64_t file_size,
+                   Dataset(std::move(object), Where("dataset", name)).FileSize());
   const std::uint64_t row_bytes = std::uint64_t{element_size} * (width == 0 ? 1 : width);
   // Division, not multiplication: a corrupt count must not overflow.
   if (row_bytes == 0 || rows > file_size / row_bytes) {

@@ -183,6 +183,10 @@ class Object {
   absl::StatusOr<std::int64_t> ReadIntAttribute(const char* name) const;
   absl::StatusOr<std::string> ReadStringAttribute(const char* name) const;
 
+  // Size in bytes of the file that holds the object: another file than the
+  // one opened where an external link led to it.
+  absl::StatusOr<std::uint64_t> FileSize() const;
+
  protected:
   Object() = default;
   Object(Handle handle, std::string where) : handle_(std::move(handle)), where_(std::move(where)) {}
@@ -247,6 +251,18 @@ class File : public Object {
   absl::StatusOr<Dataset> OpenDataset(const std::string& name) const;
   // Unlinks `name` (HDF5 does not reclaim its space; h5repack does).
   absl::Status Delete(const std::string& name);
+
+  // A link `name` to object `target_object` of the file `target_file`. HDF5
+  // looks for a relative `target_file` in the directory of the file holding
+  // the link, so the two can be moved together.
+  absl::Status CreateExternalLink(const std::string& name, const std::string& target_file,
+                                  const std::string& target_object);
+  // The file an external link `name` points to, as stored; "" when `name`
+  // is a link of another kind. DataLoss when the lookup fails.
+  absl::StatusOr<std::string> ExternalLinkFile(const std::string& name) const;
+  // Copies object `name` of `source` (a group with everything below it) to
+  // the same name here, creating the groups along the way.
+  absl::Status CopyFrom(const File& source, const std::string& name);
 
   // A [rows] dataset (width 0) or a [rows × width] dataset from `data`
   // (row-major, rows·max(width, 1) elements), chunked and checksummed.
@@ -318,7 +334,7 @@ class File : public Object {
   absl::Status AppendRaw(const std::string& name, const void* data, std::size_t count,
                          hid_t file_type, hid_t memory_type);
   // DataLoss unless rows × max(width, 1) elements of `element_size` bytes
-  // fit in the file (unfiltered data must).
+  // fit in the file that holds dataset `name` (unfiltered data must).
   absl::Status CheckFits(const std::string& name, std::size_t rows, std::size_t width,
                          std::size_t element_size) const;
   absl::Status CreateDataset(const std::string& name, std::size_t rows, std::size_t width,

@@ -27,6 +27,9 @@ inline constexpr char kKindRves[] = "rves";
 inline constexpr char kKindTemplates[] = "templates";
 inline constexpr char kKindSimulation[] = "simulation";
 inline constexpr char kKindResults[] = "results";
+// The files beside results.h5 that it links: one frame, one topology.
+inline constexpr char kKindResultsFrame[] = "results_frame";
+inline constexpr char kKindResultsTopology[] = "results_topology";
 
 // One lock for every store call: HDF5 serialises its API anyway, and the
 // lock also keeps two writers in one process off the same temporary file.

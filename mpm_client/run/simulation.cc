@@ -105,6 +105,14 @@ Simulation::~Simulation() {
     // Free the servers' memory; a failure here only leaks RVEs on a server
     // that is going away anyway.
     (void)pool_->DropAll();
+    // A server lost during the run that answers again (one stopped and
+    // continued since the last probe) still holds this run's RVEs as they
+    // were when it was lost: dropped too, or they stay until it stops.
+    for (int k = 0; k < pool_->num_endpoints(); ++k) {
+      if (!pool_->lost(k)) continue;
+      client::RveEndpoint& e = pool_->endpoint(k);
+      if (e.Ping(absl::Seconds(1)).ok()) (void)e.Drop(pool_->run_id());
+    }
   }
 }
 
@@ -935,8 +943,10 @@ absl::Status Simulation::Recover(const absl::Status& cause, SimulationSummary& s
       pool_->MarkLost(k);
       last_probe_s_[k] = WallSeconds();
       ++sum.servers_lost;
+      // Its own error: `cause` is the first failing server's.
+      const absl::Status& own = pool_->last_failure(k);
       Log(absl::StrFormat("server %s lost (run at step %d): %s", pool_->endpoint(k).name(), lost_at,
-                          cause.message()));
+                          own.ok() ? cause.message() : own.message()));
     }
     // One restarted at once (a supervisor) takes its share again.
     if (attempt > 0 || pool_->num_alive() == 0) ProbeLost(/*force=*/true, sum);

@@ -55,12 +55,14 @@ RvePool::RvePool(std::vector<std::unique_ptr<RveEndpoint>> endpoints, std::strin
       points_(endpoints_.size()),
       last_apply_seconds_(endpoints_.size(), 0.0),
       lost_(endpoints_.size(), false),
+      last_failure_(endpoints_.size()),
       round_seconds_(endpoints_.size(), 0.0),
       busy_seconds_(endpoints_.size(), 0.0),
       engine_seconds_(endpoints_.size(), 0.0) {}
 
 void RvePool::NoteFailure(int k, const absl::Status& s) {
   if (s.ok() || !IsTransient(s)) return;
+  last_failure_[k] = s;
   if (std::find(failed_.begin(), failed_.end(), k) == failed_.end()) {
     failed_.insert(std::upper_bound(failed_.begin(), failed_.end(), k), k);
   }
@@ -543,10 +545,10 @@ absl::StatusOr<std::vector<dem::RveState>> RvePool::ApplyBatches(
         b.done = true;
       } else if (b.attempts >= max_attempts) {
         b.done = true;
-        NoteFailure(k, b.status);
         b.status = absl::Status(b.status.code(),
                                 absl::StrCat(b.status.message(), " (gave up after ", max_attempts,
                                              max_attempts == 1 ? " attempt)" : " attempts)"));
+        NoteFailure(k, b.status);
       } else {
         pending = true;
       }

@@ -123,6 +123,9 @@ class RvePool {
   // the retries) is reported by TakeFailed; the caller decides to MarkLost
   // it. A lost endpoint gets no points and no calls until MarkAlive.
   std::vector<int> TakeFailed();
+  // The error that last had endpoint k noted for TakeFailed (OK when none):
+  // each lost endpoint's own, where a call's error is the first endpoint's.
+  const absl::Status& last_failure(int k) const { return last_failure_[k]; }
   void MarkLost(int k);
   void MarkAlive(int k);
   bool lost(int k) const { return lost_[k]; }
@@ -290,6 +293,7 @@ class RvePool {
   std::vector<double> last_apply_seconds_;
   double total_apply_seconds_ = 0.0;
   std::vector<bool> lost_;
+  std::vector<absl::Status> last_failure_;    // per endpoint, see last_failure()
   std::vector<int> failed_;                   // noted since the last TakeFailed, ascending
   std::vector<double> recent_batch_seconds_;  // the slowest batch of the last few steps
   std::vector<double> recent_state_seconds_;  // the slowest endpoint of the last few state calls

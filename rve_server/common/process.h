@@ -18,6 +18,9 @@ namespace rvehub {
 //   with these settings. Blocks up to 32 MiB (glibc's own ceiling for
 //   its adaptive threshold) come from the heap; up to 128 MiB of freed heap
 //   stays with the process.
+// - SIGXFSZ ignored: a file size limit (ulimit -f, a batch system's) then
+//   makes the write that passes it fail with EFBIG, an error the writer
+//   reports (the run record says "failed"), rather than killing the process.
 void SetUpLongRunningProcess();
 
 }  // namespace rvehub

@@ -2,14 +2,17 @@
 // check, run on the embedded server with every output, the same run on two
 // loopback rve_servers giving the same timeseries bit for bit, summarise
 // writing the run's summary again, and cases it refuses (a run it cannot do,
-// a bad file) failing with a clear message and no misleading outputs.
+// a bad file) failing with a clear message and no misleading outputs, and a
+// second run into a directory in use refused.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -273,6 +276,38 @@ TEST(FemCliTest, ARefusedCaseFailsClearlyAndWritesNothing) {
       absl::StrCat("summarise ", Quote(Case("fem-single-element-ci")), " --out=", Quote(dir)));
   EXPECT_EQ(s.exit_code, 1) << s;
   EXPECT_TRUE(absl::StrContains(s.err, "timeseries.csv")) << s.err;
+}
+
+// While one run writes into a directory, a second run into it is refused at
+// its start, naming the first run's pid; once the first has ended (killed,
+// even), a run there goes ahead.
+TEST(FemCliTest, ADirectoryInUseByAnotherRunIsRefused) {
+  const std::string dir = TempPath("in-use");
+  const std::string cache = (fs::path(testing::TempDir()) / "fem_test_templates").string();
+  // 5000 load steps: killed long before the end.
+  testing_util::ChildProcess first(
+      {FEM_CLIENT_PATH, "run", Case("fem-single-element-ci"), "--set=/loading/steps=5000",
+       "--out=" + dir, "--threads=2", "--template-cache=" + cache},
+      TempPath("in-use-first.txt"));
+  const std::string holder = absl::StrCat(first.pid(), " ");
+  for (int i = 0; i < 600 && !ReadFile(dir + "/.lock").starts_with(holder); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ASSERT_TRUE(ReadFile(dir + "/.lock").starts_with(holder))
+      << ReadFile(TempPath("in-use-first.txt"));
+  const Result second = RunClient(absl::StrCat("run ", Quote(Case("fem-single-element-ci")),
+                                               " --out=", Quote(dir), CommonFlags()));
+  EXPECT_EQ(second.exit_code, 1) << second;
+  EXPECT_TRUE(absl::StrContains(
+      second.err, absl::StrCat(dir, " is in use by another run (pid ", first.pid(), ")")))
+      << second;
+  EXPECT_FALSE(absl::StrContains(second.err, "HDF5")) << second;
+  ASSERT_TRUE(first.Running()) << "the first run ended: " << ReadFile(TempPath("in-use-first.txt"));
+
+  first.Kill();
+  const Result after = RunClient(absl::StrCat("run ", Quote(Case("fem-single-element-ci")),
+                                              " --out=", Quote(dir), CommonFlags()));
+  EXPECT_EQ(after.exit_code, 0) << after;
 }
 
 }  // namespace

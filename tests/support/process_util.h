@@ -55,6 +55,26 @@ class ServerProcess {
   std::string address_, log_path_;
 };
 
+// A child process running `args` (args[0] the binary), its stdout
+// discarded and its stderr in `err_path`, for tests that need one running
+// while they do something else. Killed (SIGKILL) and waited for by Kill or
+// at destruction.
+class ChildProcess {
+ public:
+  ChildProcess(std::vector<std::string> args, const std::string& err_path);
+  ~ChildProcess() { Kill(); }
+  ChildProcess(const ChildProcess&) = delete;
+  ChildProcess& operator=(const ChildProcess&) = delete;
+
+  pid_t pid() const { return pid_; }
+  // Whether it has not ended yet (a child that ended is waited for).
+  bool Running();
+  void Kill();
+
+ private:
+  pid_t pid_ = -1;
+};
+
 }  // namespace rvehub::testing_util
 
 #endif  // RVEHUB_TESTS_SUPPORT_PROCESS_UTIL_H_

@@ -3,7 +3,9 @@
 // at a random step of the shipped footing-dense-ci case, and the run ends by
 // itself with outputs equal to a fault-free run's; a stopped server that
 // continues rejoins; a server killed while writing its checkpoint leaves the
-// previous one readable and, once restarted, no stray files.
+// previous one readable and, once restarted, no stray files; every server
+// killed is logged with its own error; a lost server that continues
+// unprobed is left without the run's RVEs at its end.
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <unistd.h>
@@ -189,18 +191,18 @@ std::vector<std::unique_ptr<ServerProcess>> StartServers(int n, const std::strin
   return servers;
 }
 
-// Runs the case on `count` server processes while `strike` (from another
-// thread) hits server `victim` once the run has passed step `at`.
+// A run with faults: its outcome, output directory and log.
 struct Faulted {
   absl::StatusOr<SimulationSummary> summary;
   std::string out;
   LogLines log;
 };
-void RunWithFault(const std::string& name, int count, std::int64_t at, int victim,
-                  const std::function<void(ServerProcess&, const LogLines&)>& strike,
-                  const std::function<void(SimulationOptions&)>& tune, Faulted& f) {
-  f.out = FreshDir(name);
-  std::vector<std::unique_ptr<ServerProcess>> servers = StartServers(count, f.out);
+
+// Runs the case on `servers` (tuned by `tune`) while `strike` hits them
+// from another thread once the run has passed step `at`.
+void RunStriking(std::vector<std::unique_ptr<ServerProcess>>& servers, std::int64_t at,
+                 const std::function<void()>& strike,
+                 const std::function<void(SimulationOptions&)>& tune, Faulted& f) {
   SimulationOptions o = Options(f.out, &f.log);
   for (const auto& s : servers) {
     ASSERT_FALSE(s->address().empty());
@@ -212,7 +214,7 @@ void RunWithFault(const std::string& name, int count, std::int64_t at, int victi
     // Bounded: gives up when the run ends or after 120 s.
     for (int i = 0; i < 120000 && !done; ++i) {
       if (LastRowStep(f.out) >= at) {
-        strike(*servers[victim], f.log);
+        strike();
         return;
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
@@ -221,6 +223,17 @@ void RunWithFault(const std::string& name, int count, std::int64_t at, int victi
   f.summary = RunCase(o);
   done = true;
   striker.join();
+}
+
+// Runs the case on `count` server processes while `strike` (from another
+// thread) hits server `victim` once the run has passed step `at`.
+void RunWithFault(const std::string& name, int count, std::int64_t at, int victim,
+                  const std::function<void(ServerProcess&, const LogLines&)>& strike,
+                  const std::function<void(SimulationOptions&)>& tune, Faulted& f) {
+  f.out = FreshDir(name);
+  std::vector<std::unique_ptr<ServerProcess>> servers = StartServers(count, f.out);
+  RunStriking(
+      servers, at, [&] { strike(*servers[victim], f.log); }, tune, f);
 }
 
 TEST(FaultTest, ServerKilledAtARandomStepIsRecoveredFromBitIdentically) {
@@ -422,6 +435,88 @@ TEST(FaultTest, OnlyServerKilledAndRestartedOnItsAddressTakesTheRunBack) {
   EXPECT_EQ(f.summary->servers_lost, 1) << f.log.All();
   EXPECT_EQ(f.summary->servers_rejoined, 1) << f.log.All();
   ExpectSameOutputs(reference, f.out);
+}
+
+// Every server killed at once: the run ends (none comes back within
+// server_wait_s) and each "server lost" line quotes that server's own
+// error, which names it, not the first server's.
+TEST(FaultTest, EveryServerKilledIsLoggedWithItsOwnError) {
+  const std::int64_t at = StrikeStep(50, 450);
+  std::printf("SIGKILL of every server after step %lld (RVEHUB_FAULT_STEP=%lld repeats it)\n",
+              static_cast<long long>(at), static_cast<long long>(at));
+  Faulted f;
+  f.out = FreshDir("kill_all");
+  std::vector<std::unique_ptr<ServerProcess>> servers = StartServers(2, f.out);
+  RunStriking(
+      servers, at,
+      [&] {
+        for (const auto& s : servers) s->Signal(SIGKILL);
+      },
+      [](SimulationOptions& o) {
+        o.server_wait_s = 2;
+        o.probe_interval_s = 0.2;
+      },
+      f);
+  ASSERT_FALSE(f.summary.ok()) << f.log.All();
+  EXPECT_TRUE(absl::StrContains(f.summary.status().message(), "every RVE server is lost"))
+      << f.summary.status();
+  const std::vector<std::string> lines = absl::StrSplit(f.log.All(), '\n');
+  for (std::size_t k = 0; k < 2; ++k) {
+    const std::string &mine = servers[k]->address(), &other = servers[1 - k]->address();
+    const std::string head = absl::StrCat("server ", mine, " lost (run at step ");
+    int found = 0;
+    for (const std::string& line : lines) {
+      if (!absl::StartsWith(line, head)) continue;
+      ++found;
+      const std::string error = line.substr(line.find("): ") + 3);
+      EXPECT_TRUE(absl::StrContains(error, mine)) << line;
+      EXPECT_FALSE(absl::StrContains(error, other)) << line;
+    }
+    EXPECT_GE(found, 1) << mine << " not logged as lost:\n" << f.log.All();
+  }
+}
+
+// A server stopped (SIGSTOP) and given up, which continues (SIGCONT) after
+// the run's last probe: never taken into use again, it still holds none of
+// the run's RVEs once the run has ended (else they stay until it stops).
+TEST(FaultTest, ALostServerThatContinuesKeepsNoRvesOfTheRun) {
+  const std::int64_t at = StrikeStep(50, 450);
+  std::printf("SIGSTOP after step %lld (RVEHUB_FAULT_STEP=%lld repeats it)\n",
+              static_cast<long long>(at), static_cast<long long>(at));
+  Faulted f;
+  f.out = FreshDir("stop_late");
+  std::vector<std::unique_ptr<ServerProcess>> servers = StartServers(2, f.out);
+  RunStriking(
+      servers, at,
+      [&] {
+        servers[1]->Signal(SIGSTOP);
+        // Bounded wait for the client to give it up, then wake it.
+        for (int i = 0; i < 6000 && !f.log.Has("lost (run at step"); ++i) {
+          std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        }
+        servers[1]->Signal(SIGCONT);
+      },
+      [](SimulationOptions& o) {
+        o.min_apply_timeout_s = 2;
+        o.apply_timeout_s = 3;
+        o.probe_interval_s = 1e6;  // not probed again during the run
+      },
+      f);
+  ASSERT_TRUE(f.summary.ok()) << f.summary.status() << "\n" << f.log.All();
+  EXPECT_TRUE(f.summary->finished);
+  EXPECT_EQ(f.summary->servers_lost, 1) << f.log.All();
+  EXPECT_EQ(f.summary->servers_rejoined, 0) << f.log.All();
+  for (const auto& s : servers) {
+    absl::StatusOr<std::unique_ptr<client::RemoteServer>> server =
+        client::RemoteServer::Connect(s->address(), {});
+    ASSERT_TRUE(server.ok()) << server.status();
+    absl::StatusOr<std::vector<RunInfo>> runs = (*server)->ListRuns();
+    ASSERT_TRUE(runs.ok()) << runs.status();
+    for (const RunInfo& run : *runs) {
+      EXPECT_EQ(run.num_rves, 0) << s->address() << " still holds run " << run.run_id << "\n"
+                                 << f.log.All();
+    }
+  }
 }
 
 // A server killed (SIGKILL) while it writes its checkpoint on SIGTERM: the
