@@ -236,6 +236,10 @@ int Resume(const Command& command, int argc, char** argv) {
   }
   if (int code = AddClientOptions(*options); code != 0) return code;
   client_run::RunRecord record("fem_client", RVEHUB_GIT_DESCRIBE, argc, argv, command.name);
+  // As a run's: a second run or resume into the directory is refused.
+  absl::StatusOr<client_run::OutDirLock> out_lock =
+      client_run::OutDirLock::Acquire(options->out_dir);
+  if (!out_lock.ok()) return Fail(out_lock.status(), 1);
   absl::StatusOr<std::unique_ptr<FemSimulation>> sim =
       FemSimulation::Resume(command.target, *options);
   if (!sim.ok()) return Fail(sim.status(), 1);

@@ -426,8 +426,10 @@ absl::Status FemSimulation::Recover(const absl::Status& cause, FemRunSummary& su
       pool_->MarkLost(k);
       last_probe_s_[k] = WallSeconds();
       ++sum.servers_lost;
+      // Its own error: `cause` is the first failing server's.
+      const absl::Status& own = pool_->last_failure(k);
       Log(absl::StrFormat("server %s lost (load step %d): %s", pool_->endpoint(k).name(), lost_at,
-                          cause.message()));
+                          own.ok() ? cause.message() : own.message()));
     }
     // One restarted at once (a supervisor) takes its share again.
     if (attempt > 0 || pool_->num_alive() == 0) ProbeLost(/*force=*/true, sum);
