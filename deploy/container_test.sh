@@ -5,7 +5,7 @@
 # timeseries.csv is compared with the host build's (byte for byte but for the
 # wall-clock column) when that build has mpm_client.
 #
-#   deploy/container_test.sh          (as root; 15-30 min on 2 cores, mostly the image's build)
+#   deploy/container_test.sh          (as root; 23-27 min on 2 cores, mostly the image's build)
 #
 # Everything podman writes (images, containers, layers) lives in a private
 # storage directory under a new temporary directory, removed at the end,
