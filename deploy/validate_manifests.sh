@@ -37,7 +37,7 @@ fi
 if command -v shellcheck >/dev/null; then
   # Warnings and errors; its notes (a trap's handler looks unreachable to it)
   # are not.
-  shellcheck --severity=warning deploy/*.sh deploy/slurm/*.sbatch &&
+  shellcheck --severity=warning deploy/*.sh deploy/slurm/*.sh deploy/slurm/*.sbatch &&
     echo "shellcheck: deploy scripts clean" ||
     status=1
 else
