@@ -26,6 +26,7 @@
 #include "fem_client/case/case.h"
 #include "fem_client/run/simulation.h"
 #include "store/results.h"
+#include "tests/support/log_lines.h"
 #include "tests/support/process_util.h"
 
 namespace rvehub::fem {
@@ -43,29 +44,7 @@ std::string Scratch(const std::string& name) {
   return d.string();
 }
 
-// Log lines from the run's thread, read by the test's.
-class LogLines {
- public:
-  void Add(const std::string& line) {
-    absl::MutexLock lock(&mu_);
-    lines_.push_back(line);
-  }
-  bool Contains(const std::string& part) const {
-    absl::MutexLock lock(&mu_);
-    for (const std::string& l : lines_) {
-      if (absl::StrContains(l, part)) return true;
-    }
-    return false;
-  }
-  std::string All() const {
-    absl::MutexLock lock(&mu_);
-    return absl::StrJoin(lines_, "\n");
-  }
-
- private:
-  mutable absl::Mutex mu_;
-  std::vector<std::string> lines_;
-};
+using testing_util::LogLines;
 
 FemSimulationOptions Options(const std::string& out, LogLines* log) {
   FemSimulationOptions o;
@@ -158,7 +137,7 @@ void RunWithFault(const std::string& name, const std::string& when, bool during,
   std::thread striker([&] {
     // Bounded: gives up when the run ends or after 120 s.
     for (int i = 0; during && i < 12000 && !done; ++i) {
-      if (f.log.Contains(when)) {
+      if (f.log.Has(when)) {
         std::this_thread::sleep_for(std::chrono::milliseconds(30));
         struck = true;
         b.Signal(SIGKILL);
@@ -186,8 +165,8 @@ TEST(FemFaultTest, AServerKilledBetweenStepsIsRecoveredFromBitIdentically) {
   EXPECT_TRUE(f.summary->finished);
   EXPECT_EQ(f.summary->servers_lost, 1);
   EXPECT_EQ(f.summary->steps, 5);
-  EXPECT_TRUE(f.log.Contains("lost (load step 3)")) << f.log.All();
-  EXPECT_TRUE(f.log.Contains("32 RVEs restored from load step 2 onto 127.0.0.1:")) << f.log.All();
+  EXPECT_TRUE(f.log.Has("lost (load step 3)")) << f.log.All();
+  EXPECT_TRUE(f.log.Has("32 RVEs restored from load step 2 onto 127.0.0.1:")) << f.log.All();
   ExpectSameOutputs(reference, f.out);
 }
 
@@ -198,7 +177,7 @@ TEST(FemFaultTest, AServerKilledDuringAStepIsRecoveredFromBitIdentically) {
   ASSERT_TRUE(f.summary.ok()) << f.summary.status() << "\n" << f.log.All();
   EXPECT_TRUE(f.summary->finished);
   EXPECT_EQ(f.summary->servers_lost, 1);
-  EXPECT_TRUE(f.log.Contains("restored from load step")) << f.log.All();
+  EXPECT_TRUE(f.log.Has("restored from load step")) << f.log.All();
   ExpectSameOutputs(reference, f.out);
 }
 

@@ -41,6 +41,7 @@
 #include "rve_server/client/rve_pool.h"
 #include "store/checkpoint.h"
 #include "store/results.h"
+#include "tests/support/log_lines.h"
 #include "tests/support/process_util.h"
 #include "tests/support/test_util.h"
 
@@ -67,29 +68,7 @@ std::string FreshDir(const std::string& name) {
   return dir.string();
 }
 
-// Log lines of a run, kept for the assertions.
-class LogLines {
- public:
-  void Add(const std::string& line) {
-    absl::MutexLock lock(&mu_);
-    lines_.push_back(line);
-  }
-  // Whether a line contains `words`.
-  bool Has(const std::string& words) const {
-    absl::MutexLock lock(&mu_);
-    for (const std::string& l : lines_)
-      if (absl::StrContains(l, words)) return true;
-    return false;
-  }
-  std::string All() const {
-    absl::MutexLock lock(&mu_);
-    return absl::StrJoin(lines_, "\n");
-  }
-
- private:
-  mutable absl::Mutex mu_;
-  std::vector<std::string> lines_;
-};
+using testing_util::LogLines;
 
 SimulationOptions Options(const std::string& out, LogLines* log) {
   SimulationOptions o;
