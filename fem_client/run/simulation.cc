@@ -19,6 +19,7 @@
 #include "fem_client/core/assembly.h"
 #include "fem_client/run/checkpoint_state.h"
 #include "fem_client/run/output.h"
+#include "rve_server/common/elasticity.h"
 #include "rve_server/common/status_macros.h"
 #include "rve_server/values/increment.h"
 #include "rve_server/values/snapshot.h"
@@ -545,6 +546,7 @@ absl::Status FemSimulation::WriteFrame() {
   const std::int64_t step = solver_->steps();
   const std::vector<dem::RveState>& states = States();
   const std::vector<Eigen::Vector2d> x = GaussPointPositions(mesh, mesh.nodes);
+  const std::vector<Eigen::Vector2d> x0 = GaussPointPositions(mesh0_, mesh0_.nodes);
   // F since the start at every Gauss point, on the mesh as created.
   const std::vector<Eigen::Matrix3d> f =
       DeformationIncrements(mesh0_, geometry0_, solver_->displacement());
@@ -553,7 +555,8 @@ absl::Status FemSimulation::WriteFrame() {
   frame.time = static_cast<double>(step);  // no time: the load step
   store::ResultField stress{"stress", 9, {}}, p{"p", 1, {}}, q{"q", 1, {}}, eq{"eps_q", 1, {}},
       ev{"eps_v", 1, {}}, e{"void_ratio", 1, {}}, z{"coordination", 1, {}},
-      fa{"fabric_anisotropy", 1, {}}, id{"gauss_point", 1, {}};
+      fa{"fabric_anisotropy", 1, {}}, rot{"rotation", 1, {}}, u{"displacement", 2, {}},
+      id{"gauss_point", 1, {}};
   for (std::size_t k = 0; k < x.size(); ++k) {
     frame.position.push_back(x[k].x());
     frame.position.push_back(x[k].y());
@@ -574,10 +577,17 @@ absl::Status FemSimulation::WriteFrame() {
     e.values.push_back(states[k].void_ratio);
     z.values.push_back(states[k].coordination);
     fa.values.push_back(states[k].fabric_anisotropy);
+    // The material's rigid rotation since the start (polar R of F), rad,
+    // counter-clockwise positive.
+    const Eigen::Matrix2d r = PolarRotation(fk);
+    rot.values.push_back(std::atan2(r(1, 0), r(0, 0)));
+    u.values.push_back(x[k].x() - x0[k].x());
+    u.values.push_back(x[k].y() - x0[k].y());
     id.values.push_back(static_cast<double>(k));
   }
-  frame.fields = {std::move(stress), std::move(p), std::move(q),  std::move(eq), std::move(ev),
-                  std::move(e),      std::move(z), std::move(fa), std::move(id)};
+  frame.fields = {std::move(stress), std::move(p), std::move(q), std::move(eq),
+                  std::move(ev),     std::move(e), std::move(z), std::move(fa),
+                  std::move(rot),    std::move(u), std::move(id)};
   RETURN_IF_ERROR(out_->results->Append(frame));
   out_->last_frame_step = step;
   if (case_.output.packings.empty()) return absl::OkStatus();
