@@ -278,6 +278,31 @@ TEST(FemCliTest, ARefusedCaseFailsClearlyAndWritesNothing) {
   EXPECT_TRUE(absl::StrContains(s.err, "timeseries.csv")) << s.err;
 }
 
+// A load step larger than the RVEs take in one call (|V − I| ≤ 0.05): with
+// no cut-backs allowed the run ends at its first step naming the bound, and
+// its outputs say it failed (no summary; the timeseries ends before the
+// step).
+TEST(FemCliTest, ALoadStepTooLargeForTheServersEndsTheRunNamingTheBound) {
+  const std::string dir = TempPath("too-large");
+  const Result r = RunClient(
+      absl::StrCat("run ", Quote(Case("fem-single-element-ci")),
+                   " --set=/loading/end_axial_strain=0.1 --set=/loading/steps=2",
+                   " '--set=/solver={\"max_cutbacks\": 0}'", " --out=", Quote(dir), CommonFlags()));
+  EXPECT_EQ(r.exit_code, 1) << r;
+  EXPECT_TRUE(absl::StrContains(r.err, "load step 1 (a part of 1 of it, after 0 cut-backs)"))
+      << r.err;
+  EXPECT_TRUE(absl::StrContains(r.err, "exceeds the per-call limit 0.05")) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/summary.json"));
+  const Json run = ReadJson(dir + "/run.json");
+  ASSERT_TRUE(run.is_object()) << ReadFile(dir + "/run.json");
+  EXPECT_EQ(run.value("outcome", ""), "failed") << run.dump();
+  EXPECT_TRUE(absl::StrContains(run.value("error", ""), "per-call limit")) << run.dump();
+  const std::vector<std::string> rows =
+      absl::StrSplit(ReadFile(dir + "/timeseries.csv"), '\n', absl::SkipEmpty());
+  ASSERT_EQ(rows.size(), 2u);  // the header and step 0
+  EXPECT_TRUE(rows[1].starts_with("0,")) << rows[1];
+}
+
 // While one run writes into a directory, a second run into it is refused at
 // its start, naming the first run's pid; once the first has ended (killed,
 // even), a run there goes ahead.
