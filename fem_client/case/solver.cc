@@ -24,6 +24,13 @@ absl::string_view TangentName(TangentKind kind) {
   return "contact";
 }
 
+constexpr Table<PredictorKind> kPredictors = {{"zero", PredictorKind::kZero},
+                                              {"previous", PredictorKind::kPrevious}};
+
+absl::string_view PredictorName(PredictorKind kind) {
+  return kind == PredictorKind::kPrevious ? "previous" : "zero";
+}
+
 bool Perturbation(const SolverSpec& s) { return s.tangent == TangentKind::kPerturbation; }
 
 Fields<SolverSpec> SolverFields() {
@@ -36,6 +43,8 @@ Fields<SolverSpec> SolverFields() {
       Only(&Perturbation, "only for tangent \"perturbation\"",
            NumberField("perturbation", &SolverSpec::perturbation, Need::kOptional,
                        Range{0.0, 0.01, true, false})),
+      EnumField("predictor", &SolverSpec::predictor, Need::kOptional, "predictor", kPredictors,
+                &PredictorName),
       NumberField("tolerance", &SolverSpec::tolerance, Need::kOptional,
                   Range{0.0, 1.0, true, true}),
       IntField("max_iterations", &SolverSpec::max_iterations, 1, 1000),

@@ -145,22 +145,40 @@ bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& fai
     platen_force.push_back(committed_.platen_force[k] + force_increment.back());
   }
   Eigen::VectorXd du = Eigen::VectorXd::Zero(g.size());
+  Eigen::VectorXd q = Eigen::VectorXd::Zero(dofs_.unknowns());  // Δu's unknowns
   const Evaluation* at = &committed_;
   Evaluation ev;
+  // kPrevious: start from the last increment, scaled, with g imposed
+  // exactly; then every solve is a correction (no g in it).
+  bool predicted = false;
+  if (options_.predictor == Predictor::kPrevious && last_rate_.size() == q.size()) {
+    const Eigen::VectorXd q0 = factor * last_rate_;
+    Failure predictor_failure;
+    if (Evaluate(g + t * q0, 0, platen_force, ev, predictor_failure)) {
+      du = g + t * q0;
+      q = q0;
+      at = &ev;
+      predicted = true;
+    } else if (!predictor_failure.retry) {
+      failure = std::move(predictor_failure);
+      return false;
+    }
+  }
   for (int j = 1; j <= options_.max_iterations; ++j) {
+    const bool imposes = j == 1 && !predicted;  // the first solve of a zero start
     // (2a) The tangent operator of every Gauss point.
     std::vector<Tangent> d;
     if (!Tangents(*at, j, d, failure)) return false;
     // (2b) Assemble K_t (eq. 3, with the geometric terms) and solve
     // Tᵀ K T δq = −Tᵀ (R + K g − Δf) (g and the platens' Δf only in the
     // first) for the correction.
-    Eigen::VectorXd delta = j == 1 ? g : Eigen::VectorXd::Zero(g.size());
+    Eigen::VectorXd delta = imposes ? g : Eigen::VectorXd::Zero(g.size());
     if (dofs_.unknowns() > 0) {
       const Eigen::SparseMatrix<double> k = TangentStiffness(
           mesh_, reference_, at->current, at->responses, d, boundary_.pressures, at->x);
       const Eigen::VectorXd rhs =
-          j == 1 ? Eigen::VectorXd(at->residual + k * g - PlatenLoads(force_increment))
-                 : at->residual;
+          imposes ? Eigen::VectorXd(at->residual + k * g - PlatenLoads(force_increment))
+                  : at->residual;
       const Eigen::SparseMatrix<double> kr = t.transpose() * k * t;
       Eigen::SparseLU<Eigen::SparseMatrix<double>> lu;
       lu.compute(kr);
@@ -173,6 +191,7 @@ bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& fai
         return false;
       }
       delta += t * dq;
+      q += dq;
     }
     du += delta;
     IterationReport it;
@@ -196,6 +215,7 @@ bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& fai
       platens_ = PlatenStates(ev);
       reference_ = ev.current;
       committed_ = std::move(ev);
+      if (factor != 0.0) last_rate_ = q / factor;
       // The next step starts here: its ΔF are measured from this state.
       std::fill(committed_.delta_f.begin(), committed_.delta_f.end(), Eigen::Matrix3d::Identity());
       return true;
@@ -383,6 +403,7 @@ SolverState StaticSolver::State() const {
   s.residual = committed_.residual;
   s.platen_force = committed_.platen_force;
   s.initial_tangents = initial_tangents_;
+  s.last_rate = last_rate_;
   return s;
 }
 
@@ -450,6 +471,11 @@ absl::Status StaticSolver::Restore(SolverState state) {
   for (const Tangent& d : state.initial_tangents) {
     if (!d.allFinite()) return BadState("initial_tangents", "has a value that is not finite");
   }
+  if (state.last_rate.size() > 0) {
+    if (absl::Status s = CheckVector("last_rate", state.last_rate, dofs_.unknowns()); !s.ok()) {
+      return s;
+    }
+  }
   absl::StatusOr<std::vector<PointGeometry>> reference = EvaluateGeometry(mesh_, state.nodes);
   if (!reference.ok()) {
     return BadState("nodes",
@@ -461,6 +487,7 @@ absl::Status StaticSolver::Restore(SolverState state) {
   displacement_ = std::move(state.displacement);
   reference_ = *std::move(reference);
   initial_tangents_ = std::move(state.initial_tangents);
+  last_rate_ = std::move(state.last_rate);
   committed_ = Evaluation{};
   platens_.assign(boundary_.forced.size(), PlatenState{});
   forces_.clear();

@@ -23,8 +23,21 @@
 
 namespace rvehub::fem {
 
+// Where a load step's Newton iterations start.
+enum class Predictor {
+  // From Δu = 0 on the committed state, the prescribed increments imposed
+  // through the first solve (G&Z §2.3).
+  kZero,
+  // From the last converged sub-step's increment scaled to this one (a
+  // secant extrapolation, one Trial): on a smooth path it starts Newton
+  // near the solution, so fewer iterations reach the tolerance. A predictor
+  // whose Trial fails falls back to kZero's start.
+  kPrevious,
+};
+
 struct SolverOptions {
   TangentOperator tangent = TangentOperator::kContact;
+  Predictor predictor = Predictor::kZero;
   // Converged when E_d = ‖Δu^j − Δu^{j−1}‖₂/‖Δu^j‖₂ < this (G&Z eq. 21;
   // their 0.01), over all dofs.
   double displacement_tolerance = 0.01;
@@ -88,6 +101,9 @@ struct SolverState {
   Eigen::VectorXd f_int, f_ext, residual;  // of that Trial, all dofs, N/m
   std::vector<double> platen_force;        // each forced platen's load there, N/m
   std::vector<Tangent> initial_tangents;   // kInitialElastic's, once known
+  // kPrevious's: the last converged sub-step's increment of the unknowns
+  // per unit of load-step factor, m; empty before the first.
+  Eigen::VectorXd last_rate;
 };
 
 class StaticSolver {
@@ -180,6 +196,7 @@ class StaticSolver {
   // first step: the Trial at ΔF = I): where every step starts.
   Evaluation committed_;
   std::vector<Tangent> initial_tangents_;    // kInitialElastic's
+  Eigen::VectorXd last_rate_;                // SolverState::last_rate
   std::map<std::string, SetForces> forces_;  // at the last commit
   std::vector<PlatenState> platens_;         // at the last commit
   int steps_ = 0;

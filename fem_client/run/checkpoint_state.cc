@@ -94,6 +94,7 @@ void PutRunState(const RunState& s, NamedDoubles& doubles, NamedInts& ints) {
   std::vector<double>& initial = doubles["initial_tangents"];
   initial.clear();
   for (const Tangent& d : v.initial_tangents) PutTangent(d, initial);
+  doubles["last_rate"] = FromVector(v.last_rate);
   std::vector<double>& rs = doubles["rve_stress"];
   std::vector<double>& re = doubles["rve_void_ratio"];
   std::vector<double>& rz = doubles["rve_coordination"];
@@ -172,6 +173,8 @@ absl::StatusOr<RunState> GetRunState(const NamedDoubles& doubles, const NamedInt
   if (!initial.ok()) return initial.status();
   const std::vector<double>& iv = doubles.at("initial_tangents");
   for (std::size_t p = 0; p < *initial; ++p) v.initial_tangents.push_back(GetTangent(&iv[81 * p]));
+  // Absent from checkpoints of runs that had no predictor to keep.
+  if (auto it = doubles.find("last_rate"); it != doubles.end()) v.last_rate = ToVector(it->second);
 
   absl::StatusOr<std::size_t> rves = Items(doubles, "rve_stress", 9);
   if (!rves.ok()) return rves.status();

@@ -234,6 +234,8 @@ absl::StatusOr<Problem> BuildProblem(const FemCase& c) {
   }
 
   p.solver.tangent = CoreTangent(c.solver.tangent);
+  p.solver.predictor =
+      c.solver.predictor == PredictorKind::kPrevious ? Predictor::kPrevious : Predictor::kZero;
   p.solver.perturbation = c.solver.perturbation;
   p.solver.displacement_tolerance = c.solver.tolerance;
   p.solver.max_iterations = c.solver.max_iterations;

@@ -11,6 +11,7 @@
 #include <cstring>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -92,12 +93,19 @@ void ExpectSameStep(const StepReport& a, const StepReport& b, const StaticSolver
 // Three steps on one solver; its state and a copy of its material into a
 // fresh solver; then both go on for three more steps (one of them
 // reversed) and agree bit for bit.
+// With the previous increment as the predictor the state carries it too.
 TEST(StaticSolverStateTest, ARestoredSolverStepsOnAsTheOriginal) {
-  for (TangentOperator op : {TangentOperator::kPerturbation, TangentOperator::kInitialElastic}) {
-    SCOPED_TRACE(std::string(OperatorName(op)));
+  const std::pair<TangentOperator, Predictor> settings[] = {
+      {TangentOperator::kPerturbation, Predictor::kZero},
+      {TangentOperator::kInitialElastic, Predictor::kZero},
+      {TangentOperator::kPerturbation, Predictor::kPrevious}};
+  for (const auto& [op, predictor] : settings) {
+    SCOPED_TRACE(std::string(OperatorName(op)) +
+                 (predictor == Predictor::kPrevious ? ", previous" : ", zero"));
     const Mesh mesh = Specimen();
     SolverOptions options;
     options.tangent = op;
+    options.predictor = predictor;
     options.max_iterations = 40;
     auto material = StiffeningElasticMaterial::Create(Stiffening(), Consolidated(mesh));
     ASSERT_TRUE(material.ok()) << material.status();
@@ -108,6 +116,7 @@ TEST(StaticSolverStateTest, ARestoredSolverStepsOnAsTheOriginal) {
     const SolverState state = (*original)->State();
     EXPECT_EQ(state.steps, 3);
     EXPECT_EQ(state.platen_force, std::vector<double>{6e4});
+    EXPECT_GT(state.last_rate.size(), 0);
     StiffeningElasticMaterial copy = **material;
     auto restored = StaticSolver::Create(mesh, Sheared(mesh), options, &copy);
     ASSERT_TRUE(restored.ok()) << restored.status();
@@ -179,6 +188,10 @@ TEST(StaticSolverStateTest, AStateThatDoesNotFitIsRefusedAndChangesNothing) {
       {"initial tangents short",
        [](SolverState& s, double) { s.initial_tangents.assign(3, Tangent::Zero()); },
        "initial_tangents has 3 Gauss points, not 0 or 32"},
+      {"last rate short", [](SolverState& s, double) { s.last_rate.conservativeResize(3); },
+       "last_rate has 3 values"},
+      {"last rate NaN", [](SolverState& s, double x) { s.last_rate[2] = x; },
+       "last_rate has a value that is not finite"},
       {"an inverted element", [](SolverState& s, double) { std::swap(s.nodes[0], s.nodes[6]); },
        "nodes give a mesh the solver refuses"},
   };
@@ -201,6 +214,40 @@ TEST(StaticSolverStateTest, AStateThatDoesNotFitIsRefusedAndChangesNothing) {
   const absl::StatusOr<StepReport> a = (*solver)->Step(), b = (*twin)->Step();
   ASSERT_TRUE(a.ok() && b.ok());
   ExpectSameStep(*a, *b, **solver, **twin);
+}
+
+}  // namespace
+}  // namespace rvehub::fem
+
+namespace rvehub::fem {
+namespace {
+
+// Starting each step from the last converged increment reaches the same
+// solution (to the tolerance) in fewer iterations on a smooth path: the
+// stiffening stand-in with the exact (perturbation) tangent, six steps.
+TEST(StaticSolverPredictorTest, ThePreviousIncrementStartsNewtonCloser) {
+  const Mesh mesh = Specimen();
+  int iterations[2] = {0, 0};
+  Eigen::VectorXd displacement[2];
+  for (int k = 0; k < 2; ++k) {
+    SolverOptions options;
+    options.tangent = TangentOperator::kPerturbation;
+    options.displacement_tolerance = 1e-8;
+    options.predictor = k == 0 ? Predictor::kZero : Predictor::kPrevious;
+    auto material = StiffeningElasticMaterial::Create(Stiffening(), Consolidated(mesh));
+    ASSERT_TRUE(material.ok());
+    auto solver = StaticSolver::Create(mesh, Sheared(mesh), options, material->get());
+    ASSERT_TRUE(solver.ok());
+    for (int s = 0; s < 6; ++s) {
+      absl::StatusOr<StepReport> r = (*solver)->Step();
+      ASSERT_TRUE(r.ok()) << r.status();
+      for (const SubStepReport& sub : r->substeps) iterations[k] += sub.iterations.size();
+    }
+    displacement[k] = (*solver)->displacement();
+  }
+  // Measured: 24 iterations from zero, 19 from the previous increment.
+  EXPECT_LT(iterations[1], iterations[0]);
+  EXPECT_LT((displacement[1] - displacement[0]).norm(), 1e-7 * displacement[0].norm());
 }
 
 }  // namespace
