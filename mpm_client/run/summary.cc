@@ -30,6 +30,19 @@ absl::StatusOr<std::string> SummaryBody(const CaseSpec& spec) {
   return spec.bodies.front().name;
 }
 
+// The footing's full width B, m: plot_width, or twice that for a half model
+// (the footing body's left edge on the grid's left edge, the symmetry plane).
+double FootingWidth(const CaseSpec& spec, const std::string& body) {
+  for (const RigidBody& b : spec.bodies) {
+    if (b.name != body || b.shape != RigidBody::Shape::kRectangle) continue;
+    const double left = b.center.x() - b.half_size.x();  // m
+    if (std::abs(left - spec.grid.origin.x()) <= 1e-9 * spec.grid.cell_size) {
+      return 2.0 * spec.output.plot_width;
+    }
+  }
+  return spec.output.plot_width;
+}
+
 absl::StatusOr<Summary> Footing(const CaseSpec& spec, const Columns& columns) {
   ASSIGN_OR_RETURN(const std::string body, SummaryBody(spec));
   ASSIGN_OR_RETURN(const std::vector<double>* fy, Column(columns, body + "_fy"));
@@ -63,6 +76,26 @@ absl::StatusOr<Summary> Footing(const CaseSpec& spec, const Columns& columns) {
     out.emplace_back("N_q_reduced", ReducedNq(phi));
   }
   if (surcharge > 0.0) out.emplace_back("surcharge_Pa", surcharge);
+  // The load at d/B = 0.1 (liang-zhao-mpm-dem §3.3 reads the medium and soft
+  // footings there, which have no peak): its mean over one cell of
+  // settlement around it, so that a grid crossing's jump does not decide it;
+  // left out when the curve stops short of that window.
+  const double tenth = 0.1 * FootingWidth(spec, body);  // m
+  const double half = 0.5 * spec.grid.cell_size;        // m
+  if (*dmax >= tenth + half) {
+    double sum = 0.0;
+    int rows = 0;
+    for (std::size_t i = 0; i < d.size(); ++i) {
+      if (std::abs(d[i] - tenth) <= half) {
+        sum += q[i];
+        ++rows;
+      }
+    }
+    if (rows > 0) {
+      out.emplace_back("load_at_tenth_width_Pa", sum / rows);
+      if (surcharge > 0.0) out.emplace_back("N_q_at_tenth_width", sum / rows / surcharge);
+    }
+  }
   return out;
 }
 
