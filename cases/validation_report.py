@@ -241,10 +241,12 @@ def report(args):
         evaluated[name] = [(c, evaluate(c, summary)) for c in doc.get("checks", [])]
 
     lines += ["Generated from these runs:", "",
-              "| case | version | host | start (UTC) | wall time, s |", "|---|---|---|---|---|"]
+              "| case | version | host | start (UTC) | wall time, s | note |",
+              "|---|---|---|---|---|---|"]
     for name, rec in recorded:
         lines.append(f"| {name} | {rec.get('version', '–')} | {rec.get('host', '–')} | "
-                     f"{rec.get('start', '–')} | {rec.get('wall_s', 0):.1f} |")
+                     f"{rec.get('start', '–')} | {rec.get('wall_s', 0):.1f} | "
+                     f"{rec.get('note', '')} |")
     lines.append("")
 
     for ci in (False, True):
