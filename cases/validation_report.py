@@ -90,8 +90,8 @@ VERDICTS = [
      []),
     ("medium and soft footings", "re-read",
      "against Terzaghi's reduced N'_q (eq. 47) with the ultimate load at the knee (two "
-     "tangents) and at d/B = 0.1 (N_q_at_tenth_width); the footing summary does not write "
-     "N_q_knee yet",
+     "tangents: N_q_knee) and at d/B = 0.1 (N_q_at_tenth_width); the full runs' records are "
+     "to be made with this reading",
      [("footing-medium", "N_q_knee"), ("footing-medium", "N_q_at_tenth_width"),
       ("footing-soft", "N_q_knee"), ("footing-soft", "N_q_at_tenth_width")]),
     ("column collapse d*", "reproduced",

@@ -290,6 +290,12 @@ TEST(SummaryTest, FootingCollapseBiaxialAndPipeFigures) {
   }
   EXPECT_NEAR(m["load_at_tenth_width_Pa"], sum / rows, 1e-6);
   EXPECT_NEAR(m["N_q_at_tenth_width"], sum / rows / 20e3, 1e-9);
+  // The knee: the start (d ≤ 0.02·B = 0.01 m) rises at 2 MPa/m from 0, the
+  // second half (d ≥ 0.1 m) falls at 200 kPa/m from 220 kPa at d = 0: they
+  // meet at d = 220/2200 m = 0.1 m, 200 kPa.
+  EXPECT_NEAR(m["settlement_at_knee_m"], 0.1, 1e-9);
+  EXPECT_NEAR(m["knee_load_Pa"], 200e3, 1e-6);
+  EXPECT_NEAR(m["N_q_knee"], 10.0, 1e-9);
   // A half model, the footing from the grid's left edge: B = 1 m, and the
   // curve (to 0.2 m) stops short of 0.1 m + half a cell (0.125 m).
   RigidBody half;
