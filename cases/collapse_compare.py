@@ -19,8 +19,7 @@ runout_normalised_mass98 and _mass99).
 
 The energy panel is the paper's Fig. 27: kinetic, potential and dissipated energy over the
 initial potential energy, E_d = E_p0 - E_p - E_k (paper: E_k peaks at 0.1 E_p0 near 0.4 s,
-E_d ends at 0.55 E_p0); it needs the timeseries' potential_energy column (runs from
-2026-11-27 on) and the base at y = 0, where the collapse cases put it.
+E_d ends at 0.55 E_p0); it needs the timeseries' potential_energy column and the base at y = 0, where the collapse cases put it.
 
 Reads each RUN_DIR's timeseries.csv (time, front_x, kinetic_energy; deposit_front_x where
 the run wrote it, else the main deposit's front comes from every frame) and results.h5
