@@ -241,10 +241,10 @@ def report(args):
         evaluated[name] = [(c, evaluate(c, summary)) for c in doc.get("checks", [])]
 
     lines += ["Generated from these runs:", "",
-              "| case | version | host | start (UTC) | wall time, s | note |",
+              "| case | built from | host | start (UTC) | wall time, s | note |",
               "|---|---|---|---|---|---|"]
     for name, rec in recorded:
-        lines.append(f"| {name} | {rec.get('version', '–')} | {rec.get('host', '–')} | "
+        lines.append(f"| {name} | version {rec.get('version', '–')} | {rec.get('host', '–')} | "
                      f"{rec.get('start', '–')} | {rec.get('wall_s', 0):.1f} | "
                      f"{rec.get('note', '')} |")
     lines.append("")
@@ -272,14 +272,14 @@ def report(args):
                                  f"{reference_text(check, ref)} | {tolerance_text(check)} | "
                                  f"**{verdict}** | {check['source']} |")
             lines.append("")
-            lines += ["| case | runtime (expected, 2 cores) | run: wall time, start, version | "
+            lines += ["| case | runtime (expected, 2 cores) | run: version, wall time, date | "
                       "figure | other figures of the run |", "|---|---|---|---|---|"]
             for name, doc in rows:
                 summary, rec = read_record(args.results, name)
                 run = "no record yet"
                 if rec is not None:
-                    run = (f"{rec.get('wall_s', 0):.1f} s, {rec.get('start', '–')[:10]}, "
-                           f"{rec.get('version', '–')}")
+                    run = (f"version {rec.get('version', '–')}, {rec.get('wall_s', 0):.1f} s, "
+                           f"{rec.get('start', '–')[:10]}")
                 fig = FIGURES.get(name)
                 fig_text = (f"[{fig}]({figures_rel}/{fig})"
                             if fig and os.path.exists(os.path.join(HERE, "figures", fig)) else "–")
