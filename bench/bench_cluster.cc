@@ -1,4 +1,4 @@
-// Several RVE servers (issue 13; figures only, never pass/fail): parallel
+// Several RVE servers (figures only, never pass/fail): parallel
 // efficiency of one case on 1, 2 and 3 rve_server processes of one worker
 // each on loopback, what that predicts for more hosts, the share of the run
 // the client's recovery points cost, and the time to detect and recover from

@@ -18,7 +18,7 @@
 // cases: the CI-sized ones (single-element-biaxial, footing-dense-ci,
 // biaxial-specimen-ci, column-collapse-ci); --full: footing-coarse,
 // biaxial-specimen-medium and its -fast variant, column-collapse-full,
-// footing-dense (hours before issue 9; give --steps to sample them).
+// footing-dense (about an hour; give --steps to sample them).
 #include <algorithm>
 #include <chrono>
 #include <cstdio>

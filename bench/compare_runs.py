@@ -11,7 +11,7 @@ Reads each run's timeseries.csv and, from the case, what its headline curve is:
       against the nominal axial strain -platen_dy / H (H from the soil region);
   none (a flow, e.g. the column collapse): the front x and the kinetic energy
       against time.
-Prints the differences the time-to-solution issue judges by and writes both
+Prints the differences the time-to-solution goals are judged by and writes both
 curves on one plot (numpy and matplotlib; Debian: python3-numpy python3-matplotlib).
 
 Differences of a curve y(x): NEW is interpolated onto BASE's x; the difference at

@@ -15,12 +15,11 @@ the others (drawn grey) are scatter. It also prints where the main deposit is at
 and 3 points thick, since a sheet one or two points thick along the base is where such
 readings part, and where 98 and 99 % of the points lie behind (the points carry equal
 shares of the column's mass): a reading that no single link decides (summary.json's
-runout_normalised_mass98 and _mass99 since session 35).
+runout_normalised_mass98 and _mass99).
 
 The energy panel is the paper's Fig. 27: kinetic, potential and dissipated energy over the
 initial potential energy, E_d = E_p0 - E_p - E_k (paper: E_k peaks at 0.1 E_p0 near 0.4 s,
-E_d ends at 0.55 E_p0); it needs the timeseries' potential_energy column (runs from
-2026-11-27 on) and the base at y = 0, where the collapse cases put it.
+E_d ends at 0.55 E_p0); it needs the timeseries' potential_energy column and the base at y = 0, where the collapse cases put it.
 
 Reads each RUN_DIR's timeseries.csv (time, front_x, kinetic_energy; deposit_front_x where
 the run wrote it, else the main deposit's front comes from every frame) and results.h5
@@ -92,7 +91,7 @@ def points_summary(path, dead):
     missing = {"x", "x0", "y0", "max_displacement"} - set(rows[0] if rows else ())
     if missing:
         raise SystemExit(f"{path}: no points or no column {', '.join(sorted(missing))} (a points "
-                         "CSV from the measuring tool since session 40)")
+                         "CSV from the measuring tool)")
     col = lambda key: np.array([float(r[key]) for r in rows])  # noqa: E731
     start = np.column_stack([col("x0"), col("y0")])
     spacing, d0 = column_width(start[:, 0])

@@ -24,10 +24,10 @@ nonlocal_fraction m, `--set` on the printed commands) are marked "l/m". A run is
 where the footing's edge falls: on a node line; inside a cell, between two points' boxes (more
 than 1 point per cell); or through a column of points. Inside a cell the contact pushes that
 cell's soil with the footing, so the load acts on a wider strip (mpm_client notes such a
-corner at set-up; cases/README.md, "The footing's N_q").
+corner at set-up; docs/footing-bearing-capacity.md).
 
 With the edge on a node line N_q falls with h at first order, as if the footing were one cell
-wider on each side (cases/README.md, "The footing's N_q"). Needs numpy and matplotlib
+wider on each side (docs/footing-bearing-capacity.md). Needs numpy and matplotlib
 (Debian's python3-numpy, python3-matplotlib).
 """
 import argparse

@@ -3,7 +3,8 @@
 
 As liang-zhao-mpm-dem §3.3.1 does for the footing: biaxial tests on the same
 RVE at 10, 15, 20, 25 and 30 kPa; the Mohr circles of the peak states (the
-largest deviator within --peak-within, 8 % axial strain) give
+largest deviator within --peak-within, 8 % axial strain, of the curve smoothed
+by a running mean over --smoothing, 0.5 % axial strain) give
 phi' (best fit of sin phi' = (s1 - s3)/(s1 + s3) through the origin, i.e. a
 cohesionless envelope), and N_q = tan^2(pi/4 + phi'/2) exp(pi tan phi').
 The tests run on to 30 % axial strain; the mean stress ratio from 15 % on
@@ -11,7 +12,8 @@ gives the critical-state (large-strain) angle phi_cs, which a deep
 penetration mobilises in a strain-softening soil (cases/pipe_compare.py).
 
 A 400-disc packing is one sample: --seed=1-9 measures nine packings and
-prints the mean, spread and range of phi' (footing-dense: 28.6-32.3 deg).
+prints the mean, spread and range of phi'; the mean over the seeds is the
+packing's phi' (cases/REFERENCE.md).
 --particles=1600 measures larger samples of the same material (footing-dense,
 seeds 1-6: 29.0 deg on average against 30.7 with 400 discs). --axis=x loads
 the packing along x instead of y: a small packing's strength depends on the
@@ -67,13 +69,23 @@ def initial_void_ratio(path):
         return float(next(csv.DictReader(f))["void_ratio"])
 
 
-def peak_state(rows, within):
-    """(sigma_1, sigma_3, axial strain) at the peak deviator of read_rows' rows up to axial
-    strain `within`, Pa, compression +."""
+def peak_state(rows, within, window=0.005):
+    """(sigma_1, sigma_3, axial strain) at the smoothed peak of read_rows' rows up to axial
+    strain `within`, Pa, compression +: each row's sigma_1 and sigma_3 averaged over the rows
+    within +/- window/2 of its axial strain (a running mean over `window` of strain), and the
+    row whose mean deviator is the largest. A packing's few hundred discs put spikes on the
+    curve; the largest raw row reads a spike, not the material's strength."""
+    kept = [r for r in rows if r[0] <= within]
     best = None
-    for e1, _, s1, s3 in rows:
-        if e1 > within:
-            break
+    lo = 0
+    hi = 0
+    for e1, _, _, _ in kept:
+        while kept[lo][0] < e1 - window / 2:
+            lo += 1
+        while hi < len(kept) and kept[hi][0] <= e1 + window / 2:
+            hi += 1
+        s1 = sum(r[2] for r in kept[lo:hi]) / (hi - lo)
+        s3 = sum(r[3] for r in kept[lo:hi]) / (hi - lo)
         if best is None or s1 - s3 > best[0] - best[1]:
             best = (s1, s3, e1)
     return best
@@ -152,10 +164,10 @@ def measure(a, seed, pressures):
                              f"{seed} along {axis} at {p:g} Pa:\n"
                              f"{test.stderr.strip()[-2000:]}")
         tests.append((path, axis, p))
-    return fit(tests, a.peak_within, a.cs_from, f"seed {seed}")
+    return fit(tests, a.peak_within, a.cs_from, f"seed {seed}", a.smoothing)
 
 
-def fit(tests, peak_within, cs_from, label=None):
+def fit(tests, peak_within, cs_from, label=None, smoothing=0.005):
     """Fits the biaxial CSVs `tests`, (path, loading axis, confining pressure Pa) each: returns
     (phi', phi_cs, psi, e), the angles in radians, psi the mean dilatancy angle at the peaks,
     e the mean void ratio at the tests' start. With `label`, prints each test's figures."""
@@ -164,7 +176,7 @@ def fit(tests, peak_within, cs_from, label=None):
     for path, axis, p in tests:
         rows = read_rows(path, axis)
         voids.append(initial_void_ratio(path))
-        s1, s3, at = peak_state(rows, peak_within)
+        s1, s3, at = peak_state(rows, peak_within, smoothing)
         radius, centre = (s1 - s3) / 2, (s1 + s3) / 2
         num += radius * centre
         den += centre * centre
@@ -209,6 +221,9 @@ def main():
     # within 8 %, the strain the tests ran to when the cases' phi_deg were measured).
     ap.add_argument("--peak-within", type=float, default=0.08,
                     help="axial strain up to which the peak is sought")
+    ap.add_argument("--smoothing", type=float, default=0.005,
+                    help="axial strain over which the running mean smooths the curve before "
+                         "its peak is read (0: the largest raw row)")
     ap.add_argument("--cs-from", type=float, default=0.15,
                     help="axial strain from which the stress ratio counts as critical state")
     a = ap.parse_args()

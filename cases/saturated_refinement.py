@@ -20,11 +20,11 @@ up to --until s, before any late blow-up), their ratio saturated/dry (the paper'
 continuum's kinetic energies on its coarsest and finest cells and the RVE columns' on their
 finest. --peaks=CSV adds the ratios of runs no longer at hand (columns kind, fbar, h_m,
 sat_peak_J, dry_peak_J as printed here; a run in DIR takes precedence), e.g. the measured
-peaks kept in cases/figures/issue12-saturated-refinement-peaks.csv. --histories=CSV adds
+peaks kept in cases/figures/collapse-saturated-refinement-peaks.csv. --histories=CSV adds
 the curves of RVE runs no longer at hand (columns kind, phase, fbar, h_m, time_s,
 kinetic_energy_J, front99_m; a run in DIR takes precedence), as
 --write-histories=CSV writes them from the RVE runs in DIR, e.g.
-cases/figures/issue12-saturated-refinement-histories.csv. Needs numpy and matplotlib.
+cases/figures/collapse-saturated-refinement-histories.csv. Needs numpy and matplotlib.
 """
 import argparse
 import csv

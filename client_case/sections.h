@@ -1,14 +1,17 @@
 // The case-file sections that mean the same for every continuum client
-// (mpm_client, fem_client): "templates" (the RVE packings) and "rve" (the
+// (mpm_client, fem_client): "templates" (the RVE packings), "rve" (the
 // controls set on every RVE), each read from and written back to JSON by one
-// field table (toolkit/field_table.h). Errors are InvalidArgument
+// field table (toolkit/field_table.h), and "checks" (the validation checks
+// against summary.json). Errors are InvalidArgument
 // "<JSON pointer>: <what is wrong>", as every field-table reader's.
 #ifndef RVEHUB_CLIENT_CASE_SECTIONS_H_
 #define RVEHUB_CLIENT_CASE_SECTIONS_H_
 
 #include <string>
+#include <vector>
 
 #include "absl/status/status.h"
+#include "client_case/spec/check_spec.h"
 #include "client_case/spec/rve_spec.h"
 #include "toolkit/json_pointer.h"
 
@@ -46,6 +49,16 @@ absl::Status ParseRve(const fields::Json& j, const std::string& ptr, const RveKe
 // Its canonical JSON: every key of `keys` (real_time and
 // full_state_every_step only when true).
 fields::OrderedJson WriteRve(const RveSpec& rve, const RveKeys& keys);
+
+// The "checks" array at `ptr` (cases/FORMAT.md): each element an object of
+// "quantity" (a summary.json key), "reference" (a number, or another
+// summary.json key), exactly one of "relative_tolerance" (in (0, 10]) or
+// "absolute_tolerance" (>= 0), and a non-empty "source"; unknown keys
+// refused. `checks` is left untouched on an error.
+absl::Status ParseChecks(const fields::Json& j, const std::string& ptr,
+                         std::vector<CheckSpec>* checks);
+// Its canonical JSON, the keys in that order.
+fields::OrderedJson WriteChecks(const std::vector<CheckSpec>& checks);
 
 }  // namespace rvehub::client_case
 

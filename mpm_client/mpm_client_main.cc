@@ -21,6 +21,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
+#include "client_run/checks.h"
 #include "client_run/out_dir_lock.h"
 #include "client_run/run_record.h"
 #include "mpm_client/case/case.h"
@@ -65,7 +66,9 @@ Usage:
   mpm_client resume CHECKPOINT.h5 [options]       continue a run from its checkpoint
   mpm_client check CASE.json [--set=...]         validate a case file and print it in full
   mpm_client summarise CASE.json --out=DIR       (re)write DIR/summary.json and plot.png from
-                                                 DIR/timeseries.csv
+                                                 DIR/timeseries.csv, and print the case's
+                                                 checks against it (pass or FAIL, ours, the
+                                                 reference, the tolerance, the source)
   mpm_client --help
 
 Options (run, resume):
@@ -111,7 +114,8 @@ Option (run, check):
                        PATH is a JSON pointer or dotted: --set=/rve/min_steps=4,
                        --set=regions.0.density=1600, --set=solver.shape=gimp
 
-Exit status: 0 done, 1 failure (message on stderr), 2 usage error.
+Exit status: 0 done, 1 failure (message on stderr), 2 usage error, 3 summarise: the outputs
+were written but a check failed. A finished run prints the same check lines and exits 0.
 )";
 
 using cli::Args;
@@ -221,14 +225,25 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
 
 // summarise: summary.json and plot.png of a finished run in `dir` from its
 // timeseries.csv (e.g. after giving the case its φ'), printed as the run
-// prints them.
-absl::Status Summarise(const std::string& case_path, const std::vector<CaseOverride>& overrides,
-                       const std::string& dir) {
+// prints them, then the case's checks against it. True when every check
+// passes (or the case has none).
+absl::StatusOr<bool> Summarise(const std::string& case_path,
+                               const std::vector<CaseOverride>& overrides, const std::string& dir) {
   ASSIGN_OR_RETURN(const CaseSpec spec, LoadCase(case_path, overrides));
   ASSIGN_OR_RETURN(const Summary summary, WriteRunOutputs(spec, dir));
   for (const auto& [key, value] : summary) std::printf("summary: %s = %.6g\n", key.c_str(), value);
-  return absl::OkStatus();
+  const std::vector<client_run::CheckResult> checks =
+      client_run::EvaluateChecks(spec.checks, summary);
+  for (const client_run::CheckResult& r : checks) {
+    std::printf("check: %s\n", client_run::FormatCheck(r).c_str());
+  }
+  return client_run::AllPass(checks);
 }
+
+// summarise's exit status when the outputs were written but a check failed:
+// apart from a failure (1) and a usage error (2), so that a test or CI job
+// can tell a result that misses its reference from a run that broke.
+constexpr int kCheckFailed = 3;
 
 // The case overrides of --set, in the order given.
 absl::StatusOr<std::vector<CaseOverride>> Overrides(const Args& a) {
@@ -351,8 +366,14 @@ int Main(int argc, char** argv) {
     return 0;
   }
   if (command->name == "summarise") {
-    const absl::Status s = Summarise(command->target, *overrides, command->args.text.at("out"));
-    return s.ok() ? 0 : Fail(s, 1);
+    const absl::StatusOr<bool> passed =
+        Summarise(command->target, *overrides, command->args.text.at("out"));
+    if (!passed.ok()) return Fail(passed.status(), 1);
+    if (!*passed) {
+      std::fprintf(stderr, "mpm_client: a check failed (see the check: lines)\n");
+      return kCheckFailed;
+    }
+    return 0;
   }
   absl::StatusOr<SimulationOptions> options = Options(command->args);
   if (!options.ok()) return Fail(options.status(), 2);

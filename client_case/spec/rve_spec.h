@@ -43,7 +43,7 @@ struct RveSpec {
   // steps, so a looser bound changes nothing for increments within the
   // template's (0.05): it lets a rare larger one through instead of stopping
   // the run. It does not cure a point that blows up (its increments only
-  // grow): with 0.5 the saturated scatter point of cases/README.md left the
+  // grow): with 0.5 the saturated scatter point of docs/f-bar-and-nonlocal-strain.md left the
   // grid one step after its 0.19 increment.
   double max_stretch = 0.0;
   // Cap every increment's DEM steps at the MPM step's own duration

@@ -33,7 +33,7 @@ absl::StatusOr<CaseSpec> ReadCase(const Json& doc, const std::string& base_dir) 
   ASSIGN_OR_RETURN(Object root, Object::Open(doc, "",
                                              {"name", "description", "expected_runtime_s", "grid",
                                               "solver", "templates", "regions", "walls", "bodies",
-                                              "tractions", "rve", "phases", "output"}));
+                                              "tractions", "rve", "phases", "output", "checks"}));
   CaseSpec spec;
   RETURN_IF_ERROR(GetString(root, "name", Need::kOptional, false, &spec.name));
   RETURN_IF_ERROR(GetString(root, "description", Need::kOptional, false, &spec.description));
@@ -148,6 +148,9 @@ absl::StatusOr<CaseSpec> ReadCase(const Json& doc, const std::string& base_dir) 
   if (const Json* output = root.Get("output")) {
     RETURN_IF_ERROR(ParseOutput(*output, root.At("output"), spec.bodies, base_dir, &spec.output));
   }
+  if (const Json* checks = root.Get("checks")) {
+    RETURN_IF_ERROR(client_case::ParseChecks(*checks, root.At("checks"), &spec.checks));
+  }
   // Refused here rather than as std::bad_alloc an hour into setting up.
   if (const CaseSize size = EstimateSize(spec); size.bytes > kMaxCaseBytes) {
     return Bad("/grid",
@@ -191,6 +194,7 @@ OrderedJson WriteCase(const CaseSpec& spec) {
   doc["rve"] = WriteRve(spec.rve, kRveKeys);
   if (spec.phases.saturated) doc["phases"] = WritePhases(spec.phases);
   doc["output"] = WriteOutput(spec.output);
+  doc["checks"] = client_case::WriteChecks(spec.checks);
   return doc;
 }
 

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "client_case/spec/check_spec.h"
 #include "client_case/spec/rve_spec.h"
 
 namespace rvehub::mpm {
@@ -358,6 +359,9 @@ struct CaseSpec {
   RveSpec rve;
   PhasesSpec phases;
   OutputSpec output;
+  // Validation checks of the run's summary.json (cases/FORMAT.md); the run
+  // does not use them.
+  std::vector<client_case::CheckSpec> checks;
 };
 
 }  // namespace rvehub::mpm

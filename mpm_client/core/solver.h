@@ -152,7 +152,7 @@ inline constexpr double kApartVoidRatio = 1.0;
 // the averages. Kept in, its share of its neighbours' mean stress pushes
 // its nodes apart with a force in proportion to its own volume, which it
 // then gains: a saturated scatter point in collapse-saturated-medium swelled
-// so to e = 115 and blew up at 3.62 s (cases/README.md).
+// so to e = 115 and blew up at 3.62 s (docs/f-bar-and-nonlocal-strain.md).
 bool HasComeApart(const PointResponse& last);
 
 // F-bar with a nodal average (SolverSpec::f_bar kNodal): each point's

@@ -15,6 +15,7 @@
 #include "absl/synchronization/mutex.h"
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
+#include "client_run/checks.h"
 #include "client_run/endpoints.h"
 #include "client_run/templates.h"
 #include "client_run/time_split.h"
@@ -1197,6 +1198,11 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
   if (sum.finished) {
     ASSIGN_OR_RETURN(const Summary summary, WriteRunOutputs(spec_, options_.out_dir));
     for (const auto& [key, value] : summary) Log(absl::StrFormat("summary: %s = %.6g", key, value));
+    // The same lines as `mpm_client summarise`; the verdict is summarise's
+    // exit status, a finished run's is 0 either way.
+    for (const client_run::CheckResult& r : client_run::EvaluateChecks(spec_.checks, summary)) {
+      Log("check: " + client_run::FormatCheck(r));
+    }
   }
   return sum;
 }

@@ -30,6 +30,39 @@ absl::StatusOr<std::string> SummaryBody(const CaseSpec& spec) {
   return spec.bodies.front().name;
 }
 
+// The footing's full width B, m: plot_width, or twice that for a half model
+// (the footing body's left edge on the grid's left edge, the symmetry plane).
+double FootingWidth(const CaseSpec& spec, const std::string& body) {
+  for (const RigidBody& b : spec.bodies) {
+    if (b.name != body || b.shape != RigidBody::Shape::kRectangle) continue;
+    const double left = b.center.x() - b.half_size.x();  // m
+    if (std::abs(left - spec.grid.origin.x()) <= 1e-9 * spec.grid.cell_size) {
+      return 2.0 * spec.output.plot_width;
+    }
+  }
+  return spec.output.plot_width;
+}
+
+// The least-squares line q = slope·d + intercept through the rows whose d is
+// in [lo, hi]; false with fewer than 3 rows or no spread in d.
+bool FitLine(const std::vector<double>& d, const std::vector<double>& q, double lo, double hi,
+             double* slope, double* intercept) {
+  double n = 0, sd = 0, sq = 0, sdd = 0, sdq = 0;
+  for (std::size_t i = 0; i < d.size(); ++i) {
+    if (d[i] < lo || d[i] > hi) continue;
+    n += 1;
+    sd += d[i];
+    sq += q[i];
+    sdd += d[i] * d[i];
+    sdq += d[i] * q[i];
+  }
+  const double det = n * sdd - sd * sd;
+  if (n < 3 || !(det > 0)) return false;
+  *slope = (n * sdq - sd * sq) / det;
+  *intercept = (sq - *slope * sd) / n;
+  return true;
+}
+
 absl::StatusOr<Summary> Footing(const CaseSpec& spec, const Columns& columns) {
   ASSIGN_OR_RETURN(const std::string body, SummaryBody(spec));
   ASSIGN_OR_RETURN(const std::vector<double>* fy, Column(columns, body + "_fy"));
@@ -63,6 +96,43 @@ absl::StatusOr<Summary> Footing(const CaseSpec& spec, const Columns& columns) {
     out.emplace_back("N_q_reduced", ReducedNq(phi));
   }
   if (surcharge > 0.0) out.emplace_back("surcharge_Pa", surcharge);
+  // The knee of the curve, where the tangent to its start (the rows to
+  // d = 0.02·B) meets the tangent to its second half (a least-squares line
+  // each): the ultimate load of a curve without a peak as liang-zhao-mpm-dem
+  // §3.3 reads the medium and soft footings. Left out when the two do not
+  // meet on the curve (the start no stiffer than the end).
+  const double width = FootingWidth(spec, body);  // m
+  double a1 = 0, b1 = 0, a2 = 0, b2 = 0;
+  if (FitLine(d, q, *dmin, *dmin + 0.02 * width, &a1, &b1) &&
+      FitLine(d, q, 0.5 * (*dmin + *dmax), *dmax, &a2, &b2) && a1 > a2) {
+    const double knee = (b2 - b1) / (a1 - a2);  // m
+    if (knee >= *dmin && knee <= *dmax) {
+      const double load = a1 * knee + b1;  // Pa
+      out.emplace_back("knee_load_Pa", load);
+      out.emplace_back("settlement_at_knee_m", knee);
+      if (surcharge > 0.0) out.emplace_back("N_q_knee", load / surcharge);
+    }
+  }
+  // The load at d/B = 0.1 (liang-zhao-mpm-dem §3.3 reads the medium and soft
+  // footings there, which have no peak): its mean over one cell of
+  // settlement around it, so that a grid crossing's jump does not decide it;
+  // left out when the curve stops short of that window.
+  const double tenth = 0.1 * width;               // m
+  const double half = 0.5 * spec.grid.cell_size;  // m
+  if (*dmax >= tenth + half) {
+    double sum = 0.0;
+    int rows = 0;
+    for (std::size_t i = 0; i < d.size(); ++i) {
+      if (std::abs(d[i] - tenth) <= half) {
+        sum += q[i];
+        ++rows;
+      }
+    }
+    if (rows > 0) {
+      out.emplace_back("load_at_tenth_width_Pa", sum / rows);
+      if (surcharge > 0.0) out.emplace_back("N_q_at_tenth_width", sum / rows / surcharge);
+    }
+  }
   return out;
 }
 

@@ -100,7 +100,12 @@ using client_run::WriteSummary;
 
 // The figures of a case's kind from its timeseries columns (by header):
 // footing: N_q, ultimate_load_Pa, settlement_at_ultimate_m, phi_deg and
-// N_q_prandtl and N_q_reduced (when the case gives φ'), surcharge_Pa; pipe:
+// N_q_prandtl and N_q_reduced (when the case gives φ'), surcharge_Pa,
+// knee_load_Pa, settlement_at_knee_m and N_q_knee (where the tangents to the
+// curve's start, to d = 0.02·B, and to its second half meet), and
+// load_at_tenth_width_Pa and N_q_at_tenth_width (the mean load over one cell
+// of settlement around d/B = 0.1, B the footing's full width: plot_width,
+// doubled for a half model; when the curve reaches that far); pipe:
 // peak_vertical_force_N, peak_horizontal_force_N (largest magnitudes of what
 // the soil exerts on the body, N for the domain thickness, one row),
 // penetration_peak_force_N and _depth_m (the largest mean vertical force over

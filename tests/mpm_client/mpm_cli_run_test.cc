@@ -134,6 +134,66 @@ TEST(MpmCliTest, SummariseRewritesTheRunsSummary) {
             2);
 }
 
+// The case's checks against summary.json: summarise prints each (pass or
+// FAIL, ours, the reference, the tolerance, the source) and exits 0 when all
+// pass, 3 when one fails (the outputs still written); the same check moved
+// off our value fails, so a test on the exit status can fail. A finished run
+// prints the same lines and exits 0.
+TEST(MpmCliTest, SummariseExitsThreeWhenACheckFails) {
+  const RunOutput& run = ReferenceRun();
+  ASSERT_EQ(run.result.exit_code, 0) << run.result;
+  const Json summary = Json::parse(ReadFile(run.dir + "/summary.json"));
+  const double peak = summary["peak_stress_Pa"].get<double>();
+  Json c = SmallCase();
+  c["checks"] = Json::array({{{"quantity", "peak_stress_Pa"},
+                              {"reference", peak * 1.01},
+                              {"relative_tolerance", 0.02},
+                              {"source", "its own run"}},
+                             {{"quantity", "final_strain"},
+                              {"reference", "peak_strain"},
+                              {"absolute_tolerance", 1.0},
+                              {"source", "within 100 % strain of the peak"}}});
+  const std::string case_path = WriteCase("checked", c);
+  const std::string dir = TempPath("checked");
+  fs::create_directories(dir);
+  fs::copy_file(run.dir + "/timeseries.csv", dir + "/timeseries.csv");
+  const Result pass =
+      RunClient(absl::StrCat("summarise ", Quote(case_path), " --out=", Quote(dir)));
+  EXPECT_EQ(pass.exit_code, 0) << pass;
+  EXPECT_TRUE(absl::StrContains(pass.out, "check: pass peak_stress_Pa = ")) << pass.out;
+  EXPECT_TRUE(absl::StrContains(pass.out, " ± 2 % = ")) << pass.out;
+  EXPECT_TRUE(absl::StrContains(pass.out, "; its own run)")) << pass.out;
+  EXPECT_TRUE(absl::StrContains(pass.out, "check: pass final_strain = ")) << pass.out;
+
+  // 3 % above ours: outside ± 2 %.
+  const Result fail = RunClient(absl::StrCat("summarise ", Quote(case_path), " --out=", Quote(dir),
+                                             " --set=/checks/0/reference=", peak * 1.03));
+  EXPECT_EQ(fail.exit_code, 3) << fail;
+  EXPECT_TRUE(absl::StrContains(fail.out, "check: FAIL peak_stress_Pa = ")) << fail.out;
+  EXPECT_TRUE(absl::StrContains(fail.out, "check: pass final_strain = ")) << fail.out;
+  EXPECT_TRUE(absl::StrContains(fail.err, "a check failed")) << fail.err;
+  EXPECT_TRUE(fs::exists(dir + "/summary.json"));
+  // A figure the summary does not have fails too.
+  const Result missing = RunClient(absl::StrCat(
+      "summarise ", Quote(case_path), " --out=", Quote(dir), " --set=/checks/1/quantity=\"N_q\""));
+  EXPECT_EQ(missing.exit_code, 3) << missing;
+  EXPECT_TRUE(absl::StrContains(missing.out, "check: FAIL N_q: N_q is not in summary.json"))
+      << missing.out;
+  // A bad check is a bad case: refused with its pointer, exit 1.
+  const Result bad = RunClient(absl::StrCat("summarise ", Quote(case_path), " --out=", Quote(dir),
+                                            " --set=/checks/0/relative_tolerance=0"));
+  EXPECT_EQ(bad.exit_code, 1) << bad;
+  EXPECT_TRUE(absl::StrContains(bad.err, "/checks/0/relative_tolerance: must be in (0, 10]"))
+      << bad.err;
+
+  // The run prints them at its end.
+  const std::string run_dir = TempPath("checked-run");
+  const Result ran = RunClient(
+      absl::StrCat("run ", Quote(case_path), " --out=", Quote(run_dir), " --quiet", CommonFlags()));
+  EXPECT_EQ(ran.exit_code, 0) << ran;
+  EXPECT_TRUE(absl::StrContains(ran.err + ran.out, "check: pass final_strain = ")) << ran;
+}
+
 // Stopped after 20 steps (its checkpoint there), then resumed into the same
 // directory: the timeseries equals the uninterrupted run's, and results.xdmf
 // holds every frame once.

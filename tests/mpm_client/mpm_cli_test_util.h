@@ -110,6 +110,8 @@ inline Json SmallCase() {
                  {"checkpoint_every", 0},
                  {"progress_every", 10},
                  {"plot", "stress-strain"}};
+  // The shipped checks are for the full 15 %, not these 35 steps.
+  c.erase("checks");
   return c;
 }
 

@@ -117,6 +117,30 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
       {"/output/summary", "fancy",
        "/output/summary: unknown summary \"fancy\" (footing, pipe, collapse, biaxial, none)"},
       {"/output/plot_body", kRemove, "/output/plot_body: required key is missing"},
+      // Checks.
+      {"/checks", Json::object(), "/checks: must be an array of checks, got object"},
+      {"/checks/0/quantity", kRemove, "/checks/0/quantity: required key is missing"},
+      {"/checks/0/quantity", "N q",
+       "/checks/0/quantity: keys of summary.json use letters, digits, '_', '-' and '.' only"},
+      {"/checks/0/reference", Json::array({1}),
+       "/checks/0/reference: must be a number or a key of summary.json, got array"},
+      {"/checks/1/reference", "N_q", "/checks/1/reference: is the checked quantity itself"},
+      {"/checks/0/reference", 1e13,
+       "/checks/0/reference: must be at most 1e+12 in magnitude, got 1e+13"},
+      {"/checks/0/relative_tolerance", kRemove,
+       "/checks/0: give exactly one of \"relative_tolerance\" ([-], of the reference) or "
+       "\"absolute_tolerance\""},
+      {"/checks/0/absolute_tolerance", 1, "/checks/0: give exactly one of"},
+      {"/checks/0/relative_tolerance", 0,
+       "/checks/0/relative_tolerance: must be in (0, 10], got 0"},
+      {"/checks/2/absolute_tolerance", -1, "/checks/2/absolute_tolerance: must be >= 0, got -1"},
+      {"/checks/0/reference", 0,
+       "/checks/0/relative_tolerance: a relative tolerance needs a non-zero reference"},
+      {"/checks/0/source", kRemove, "/checks/0/source: required key is missing"},
+      {"/checks/0/source", "", "/checks/0/source: must be a non-empty string"},
+      {"/checks/0/tolerance", 0.1,
+       "/checks/0/tolerance: unknown key (keys here: quantity, reference, relative_tolerance, "
+       "absolute_tolerance, source)"},
       // Parameter sets and template files.
       {"/templates/0/parameter_set", "SET-foo",
        "/templates/0/parameter_set: unknown parameter set \"SET-foo\" (known: SET-dense, "

@@ -154,6 +154,26 @@ TEST_F(CaseTest, FullCaseParsesIntoExpectedSpec) {
   EXPECT_EQ(spec->output.plot_width, 0.5);
 }
 
+// The checks are read in order, a number or a summary key as the reference,
+// and the tolerance's kind kept.
+TEST_F(CaseTest, ChecksAreReadInOrder) {
+  absl::StatusOr<CaseSpec> spec = Parse(kFullCase);
+  ASSERT_TRUE(spec.ok()) << spec.status();
+  ASSERT_EQ(spec->checks.size(), 3u);
+  EXPECT_EQ(spec->checks[0].quantity, "N_q");
+  EXPECT_EQ(spec->checks[0].reference, 14.4);
+  EXPECT_TRUE(spec->checks[0].reference_quantity.empty());
+  EXPECT_TRUE(spec->checks[0].relative);
+  EXPECT_EQ(spec->checks[0].tolerance, 0.1);
+  EXPECT_EQ(spec->checks[0].source, "liang-zhao-mpm-dem §3.3 Fig. 12");
+  EXPECT_EQ(spec->checks[1].reference_quantity, "N_q_reduced");
+  EXPECT_FALSE(spec->checks[2].relative);
+  EXPECT_EQ(spec->checks[2].tolerance, 0.0);
+  absl::StatusOr<CaseSpec> minimal = Parse(kMinimalCase);
+  ASSERT_TRUE(minimal.ok()) << minimal.status();
+  EXPECT_TRUE(minimal->checks.empty());
+}
+
 TEST_F(CaseTest, MinimalCaseTakesModelDefaults) {
   absl::StatusOr<CaseSpec> spec = Parse(kMinimalCase);
   ASSERT_TRUE(spec.ok()) << spec.status();
@@ -420,6 +440,15 @@ void ExpectSameSpec(const CaseSpec& a, const CaseSpec& b) {
   EXPECT_EQ(a.output.plot_width, b.output.plot_width);
   EXPECT_EQ(a.output.summary, b.output.summary);
   EXPECT_EQ(a.output.phi_deg, b.output.phi_deg);
+  ASSERT_EQ(a.checks.size(), b.checks.size());
+  for (std::size_t c = 0; c < a.checks.size(); ++c) {
+    EXPECT_EQ(a.checks[c].quantity, b.checks[c].quantity);
+    EXPECT_EQ(a.checks[c].reference, b.checks[c].reference);
+    EXPECT_EQ(a.checks[c].reference_quantity, b.checks[c].reference_quantity);
+    EXPECT_EQ(a.checks[c].relative, b.checks[c].relative);
+    EXPECT_EQ(a.checks[c].tolerance, b.checks[c].tolerance);
+    EXPECT_EQ(a.checks[c].source, b.checks[c].source);
+  }
 }
 
 TEST_F(CaseTest, ToJsonRoundTrips) {
@@ -480,6 +509,22 @@ TEST(ShippedCases, ParseAndRoundTrip) {
     absl::StatusOr<CaseSpec> again = ParseCase(ToJson(*spec), dir.string());
     ASSERT_TRUE(again.ok()) << again.status();
     ExpectSameSpec(*spec, *again);
+    // Its checks come last, away from the description at the top; a case
+    // that CI runs and whose summary has figures checks at least one.
+    std::ifstream in(entry.path());
+    const nlohmann::ordered_json doc = nlohmann::ordered_json::parse(in);
+    ASSERT_TRUE(doc.contains("checks"));
+    EXPECT_EQ(std::prev(doc.end()).key(), "checks");
+    const std::string file = entry.path().filename().string();
+    const bool in_ci = file.ends_with("-ci.json") || file == "single-element-biaxial.json";
+    // The summary's kind as mpm_client/run/summary.h reads it ("collapse"
+    // names its plot "collapse" too).
+    const std::string kind = !spec->output.summary.empty() ? spec->output.summary
+                             : spec->output.plot == "none" ? "none"
+                                                           : spec->output.plot;
+    if (in_ci && kind != "none") {
+      EXPECT_FALSE(spec->checks.empty());
+    }
   }
   EXPECT_GT(count, 0);
 }

@@ -83,7 +83,15 @@ inline constexpr char kFullCase[] = R"json({
   "rve": {"max_inertial_number": 1e-3, "min_steps": 50, "max_stretch": 0.2, "real_time": true},
   "output": {"frame_every": 50, "timeseries_every": 5, "checkpoint_every": 1000,
              "progress_every": 10, "plot": "load-settlement", "plot_body": "footing",
-             "plot_width": 0.5, "phi_deg": 30}
+             "plot_width": 0.5, "phi_deg": 30},
+  "checks": [
+    {"quantity": "N_q", "reference": 14.4, "relative_tolerance": 0.1,
+     "source": "liang-zhao-mpm-dem §3.3 Fig. 12"},
+    {"quantity": "N_q", "reference": "N_q_reduced", "relative_tolerance": 0.25,
+     "source": "Terzaghi's N'_q, liang-zhao-mpm-dem eq. 47"},
+    {"quantity": "ultimate_is_peak", "reference": 1, "absolute_tolerance": 0,
+     "source": "general shear: a peak"}
+  ]
 })json";
 
 // The smallest valid case: everything else takes model.h's defaults.

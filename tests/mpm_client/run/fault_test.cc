@@ -41,6 +41,7 @@
 #include "rve_server/client/rve_pool.h"
 #include "store/checkpoint.h"
 #include "store/results.h"
+#include "tests/support/case_checks.h"
 #include "tests/support/log_lines.h"
 #include "tests/support/process_util.h"
 #include "tests/support/test_util.h"
@@ -232,6 +233,8 @@ TEST(FaultTest, ServerKilledAtARandomStepIsRecoveredFromBitIdentically) {
   EXPECT_TRUE(f.log.Has("recovered in")) << f.log.All();
   EXPECT_TRUE(f.log.Has(" lost;")) << f.log.All();  // the progress line says so
   ExpectSameOutputs(reference, f.out);
+  // The reduced case's own checks, on the run made here anyway.
+  testing_util::ExpectCaseChecksPass(LoadOrDie().checks, reference);
 }
 
 double SecondsSince(std::chrono::steady_clock::time_point t0) {

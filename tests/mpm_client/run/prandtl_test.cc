@@ -365,7 +365,7 @@ FootingResult RunFooting(const std::string& file, const MohrCoulombParameters& m
 // exact for a rough or smooth strip footing. footing-coarse's half domain
 // (6 m × 4 m, B/2 = 0.5 m) on cells of 1/8 and 1/16 m, the footing's edge on
 // a node line, pushed to d = 0.2 m: N_c = (q_ult − q_s)/c. The grid spreads
-// the edge over about one cell (cases/README.md, "The footing's N_q"), so
+// the edge over about one cell (docs/footing-bearing-capacity.md), so
 // N_c falls at first order in h; extrapolated to h = 0 it must come within
 // 10 % of 2 + π. Measured: 6.59 and 6.03, extrapolated 5.48 (+6.6 %); on
 // footing-dense's mesh (h = 1/9 m, the edge inside a cell) 6.99, so that
@@ -392,12 +392,11 @@ TEST(PrandtlTest, TrescaFootingConvergesToTwoPlusPi) {
 }
 
 // footing-dense (the paper's domain and mesh) pushed to d = 0.125 m, as the
-// seed and mesh studies of cases/README.md run it.
+// seed and mesh studies of docs/footing-bearing-capacity.md run it.
 const std::vector<CaseOverride> kToEighthOfAMetre = {{"/solver/end_time", "1.3"}};
 
 // footing-dense's RVE (seed 1): peak φ' 31.67° (friction_angle.py), dilatancy
-// about 15° at the peak, critical state about 20° (cases/README.md, "The
-// packing's density and a Mohr–Coulomb soil").
+// about 15° at the peak, critical state about 20° (docs/footing-bearing-capacity.md).
 MohrCoulombParameters FootingDensePeak() { return Material(31.67, 15.0); }
 
 // On footing-dense's set-up, a soil that softens from the packing's peak to

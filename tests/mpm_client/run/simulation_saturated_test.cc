@@ -26,6 +26,7 @@
 #include "rve_server/service/server.h"
 #include "store/results.h"
 #include "tests/mpm_client/run/simulation_test_util.h"
+#include "tests/support/case_checks.h"
 #include "tests/support/test_util.h"
 
 namespace rvehub::mpm::sim_test {
@@ -182,6 +183,7 @@ TEST(SimulationTest, SaturatedDenseColumnCollapsesSlowlyWithSuction) {
     EXPECT_LE(m99[r], ts.at("front_x")[r]) << "t " << t[r];
   }
   EXPECT_GT(m98.back(), 2.0);  // m: the flow moved them
+  testing_util::ExpectCaseChecksPass(LoadOrDie("collapse-saturated-ci").checks, out);
 }
 
 // §4.4, wave-propagation-ci: a half-sine pulse (eq. 38) on the surface of a

@@ -27,6 +27,7 @@
 #include "rve_server/service/server.h"
 #include "store/results.h"
 #include "tests/mpm_client/run/simulation_test_util.h"
+#include "tests/support/case_checks.h"
 #include "tests/support/test_util.h"
 
 namespace rvehub::mpm::sim_test {
@@ -140,6 +141,8 @@ TEST(SimulationTest, SingleElementMatchesElementTestUpToPeak) {
                          std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("\"peak_stress_Pa\""), std::string::npos) << text;
   EXPECT_NE(text.find("\"final_strain\": 0.15"), std::string::npos) << text;
+  // The case's checks: the nominal peak against the element test's.
+  testing_util::ExpectCaseChecksPass(spec.checks, out);
 }
 
 // A template prepared with another disc count has that count, is cached

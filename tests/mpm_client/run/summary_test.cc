@@ -277,6 +277,49 @@ TEST(SummaryTest, FootingCollapseBiaxialAndPipeFigures) {
   EXPECT_NEAR(m["N_q_prandtl"], 18.40, 0.01);
   EXPECT_NEAR(m["N_q_reduced"], ReducedNq(30.0 * kDeg), 1e-12);
   EXPECT_EQ(m["phi_deg"], 30.0);
+  // A full model (no footing body at the grid's edge): B = plot_width =
+  // 0.5 m, so d/B = 0.1 at 0.05 m, the mean over 0.05 ± 0.125 m of the
+  // rising curve and the peak.
+  double sum = 0.0;
+  int rows = 0;
+  for (int i = 0; i <= 40; ++i) {
+    if (std::abs(0.005 * i - 0.05) <= 0.125) {
+      sum += cols["footing_fy"][i] / 0.5;
+      ++rows;
+    }
+  }
+  EXPECT_NEAR(m["load_at_tenth_width_Pa"], sum / rows, 1e-6);
+  EXPECT_NEAR(m["N_q_at_tenth_width"], sum / rows / 20e3, 1e-9);
+  // The knee: the start (d ≤ 0.02·B = 0.01 m) rises at 2 MPa/m from 0, the
+  // second half (d ≥ 0.1 m) falls at 200 kPa/m from 220 kPa at d = 0: they
+  // meet at d = 220/2200 m = 0.1 m, 200 kPa.
+  EXPECT_NEAR(m["settlement_at_knee_m"], 0.1, 1e-9);
+  EXPECT_NEAR(m["knee_load_Pa"], 200e3, 1e-6);
+  EXPECT_NEAR(m["N_q_knee"], 10.0, 1e-9);
+  // A half model, the footing from the grid's left edge: B = 1 m, and the
+  // curve (to 0.2 m) stops short of 0.1 m + half a cell (0.125 m).
+  RigidBody half;
+  half.name = "footing";
+  half.center = Eigen::Vector2d(0.25, 0.6);
+  half.half_size = Eigen::Vector2d(0.25, 0.1);
+  footing.bodies.push_back(half);
+  s = Summarise(footing, cols);
+  ASSERT_TRUE(s.ok()) << s.status();
+  m = std::map<std::string, double>(s->begin(), s->end());
+  EXPECT_FALSE(m.contains("N_q_at_tenth_width"));
+  footing.grid.cell_size = 0.1;  // now 0.1 ± 0.05 m lies on the curve
+  s = Summarise(footing, cols);
+  ASSERT_TRUE(s.ok()) << s.status();
+  m = std::map<std::string, double>(s->begin(), s->end());
+  sum = 0.0;
+  rows = 0;
+  for (int i = 0; i <= 40; ++i) {
+    if (std::abs(0.005 * i - 0.1) <= 0.05) {
+      sum += cols["footing_fy"][i] / 0.5;
+      ++rows;
+    }
+  }
+  EXPECT_NEAR(m["N_q_at_tenth_width"], sum / rows / 20e3, 1e-9);
 
   // Collapse: a 1 m column of 0.25 m cells with 2 points per side (half
   // spacing 0.0625 m), the front stopping at 1.7375 + 0.0625 = 1.8 m.

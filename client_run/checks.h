@@ -1,0 +1,47 @@
+// A case's validation checks (client_case/spec/check_spec.h) evaluated
+// against a run's summary: pass or fail, with the numbers that decided it,
+// and the line mpm_client prints for each.
+#ifndef RVEHUB_CLIENT_RUN_CHECKS_H_
+#define RVEHUB_CLIENT_RUN_CHECKS_H_
+
+#include <span>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "client_case/spec/check_spec.h"
+#include "client_run/summary.h"
+
+namespace rvehub::client_run {
+
+struct CheckResult {
+  client_case::CheckSpec check;
+  // The quantity (and a reference_quantity) are in the summary; else the
+  // check fails and `missing` names the key.
+  bool found = false;
+  std::string missing;
+  double value = 0.0;      // ours, the quantity's units
+  double reference = 0.0;  // the check's number, or its reference_quantity's value
+  double allowed = 0.0;    // the largest |value − reference| that passes, same units
+  bool pass = false;
+};
+
+// Each check against `summary`, in order. A check passes when both its keys
+// are present, the value is finite and |value − reference| ≤ allowed.
+std::vector<CheckResult> EvaluateChecks(std::span<const client_case::CheckSpec> checks,
+                                        const Summary& summary);
+bool AllPass(std::span<const CheckResult> results);
+
+// "pass N_q = 14.94 (reference 14.4 ± 10 % = 1.44; liang-zhao-mpm-dem §3.3
+// Fig. 12)", or "FAIL N_q: not in summary.json (...)".
+std::string FormatCheck(const CheckResult& r);
+
+// summary.json as WriteSummary writes it: the numbers (the "case" entry and
+// anything that is not a number left out), in the file's order.
+// NotFound when the file cannot be read, InvalidArgument when it is not a
+// JSON object.
+absl::StatusOr<Summary> ReadSummary(const std::string& path);
+
+}  // namespace rvehub::client_run
+
+#endif  // RVEHUB_CLIENT_RUN_CHECKS_H_
