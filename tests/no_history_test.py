@@ -41,12 +41,6 @@ PATTERNS = [
 SKIP_FILES = [
     "tests/no_history_test.py",   # this file: its patterns and examples
     "cases/reference/*.csv",      # published curves: columns of numbers
-    # Owned by the FEM client's maintainer and cleaned there; remove these
-    # entries once they are clean.
-    "fem_client/*",
-    "tests/fem_client/*",
-    "cases/fem-*",
-    "cases/FEM_FORMAT.md",
 ]
 
 # Lines allowed to match, each a regular expression with its reason.
