@@ -26,6 +26,7 @@ import argparse
 import csv
 import json
 import os
+import re
 import sys
 
 FAILED_P_PA = 1e3  # a point below this mean stress has lost its strength
@@ -291,9 +292,13 @@ def main():
         if args.start:
             records["start"] = start_field(args.start)
         os.makedirs(os.path.dirname(args.records), exist_ok=True)
+        # One key per line, each list of numbers on one line: small, and
+        # the run record's fields (its version) on lines of their own.
+        text = json.dumps(records, indent=1)
+        text = re.sub(r"\[\s*([^\[\]{}\"]*?)\s*\]",
+                      lambda m: "[" + ",".join(m.group(1).split()).replace(",,", ",") + "]", text)
         with open(args.records, "w") as f:
-            json.dump(records, f, separators=(",", ":"))
-            f.write("\n")
+            f.write(text + "\n")
     reference = reference_curve(args.reference) if os.path.exists(args.reference) else None
     plot(records, reference, args.figures)
 
