@@ -26,6 +26,7 @@
 #include "fem_client/case/case.h"
 #include "fem_client/run/simulation.h"
 #include "store/results.h"
+#include "tests/fem_client/run/fem_run_test_util.h"
 #include "tests/support/log_lines.h"
 #include "tests/support/process_util.h"
 
@@ -33,15 +34,12 @@ namespace rvehub::fem {
 namespace {
 
 namespace fs = std::filesystem;
-using Columns = std::map<std::string, std::vector<double>>;
+using run_test::Columns;
+using run_test::ReadColumns;
 using testing_util::ServerProcess;
 
 std::string Scratch(const std::string& name) {
-  const fs::path d =
-      fs::path(testing::TempDir()) / absl::StrCat("fem_fault_test_", getpid()) / name;
-  fs::remove_all(d);
-  fs::create_directories(d.parent_path());
-  return d.string();
+  return run_test::ScratchPath("fem_fault_test", name);
 }
 
 using testing_util::LogLines;

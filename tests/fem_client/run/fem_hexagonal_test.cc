@@ -18,24 +18,17 @@
 #include "fem_client/case/case.h"
 #include "fem_client/run/simulation.h"
 #include "store/results.h"
+#include "tests/fem_client/run/fem_run_test_util.h"
 
 namespace rvehub::fem {
 namespace {
 
 namespace fs = std::filesystem;
-using Columns = std::map<std::string, std::vector<double>>;
+using run_test::Columns;
+using run_test::ReadColumns;
 
 std::string Scratch(const std::string& name) {
-  const fs::path d =
-      fs::path(testing::TempDir()) / absl::StrCat("fem_hexagonal_test_", getpid()) / name;
-  fs::remove_all(d);
-  return d.string();
-}
-
-Columns ReadColumns(const std::string& path) {
-  absl::StatusOr<Columns> columns = client_run::ReadCsvColumns(path);
-  EXPECT_TRUE(columns.ok()) << columns.status();
-  return columns.ok() ? *columns : Columns{};
+  return run_test::ScratchPath("fem_hexagonal_test", name);
 }
 
 // y(x) on a polyline, linear between its points (x ascending).

@@ -23,18 +23,17 @@
 #include "fem_client/run/simulation.h"
 #include "store/results.h"
 #include "store/sim_checkpoint.h"
+#include "tests/fem_client/run/fem_run_test_util.h"
 
 namespace rvehub::fem {
 namespace {
 
 namespace fs = std::filesystem;
-using Columns = std::map<std::string, std::vector<double>>;
+using run_test::Columns;
+using run_test::ReadColumns;
 
 std::string Scratch(const std::string& name) {
-  const fs::path d =
-      fs::path(testing::TempDir()) / absl::StrCat("fem_resume_test_", getpid()) / name;
-  fs::remove_all(d);
-  return d.string();
+  return run_test::ScratchPath("fem_resume_test", name);
 }
 
 FemSimulationOptions Options(const std::string& out, std::int64_t stop_after = 0) {
@@ -66,12 +65,6 @@ absl::StatusOr<FemRunSummary> ResumeCase(const std::string& checkpoint,
   absl::StatusOr<std::unique_ptr<FemSimulation>> sim = FemSimulation::Resume(checkpoint, o);
   if (!sim.ok()) return sim.status();
   return (*sim)->StepToEnd();
-}
-
-Columns ReadColumns(const std::string& path) {
-  absl::StatusOr<Columns> columns = client_run::ReadCsvColumns(path);
-  EXPECT_TRUE(columns.ok()) << columns.status();
-  return columns.ok() ? *columns : Columns{};
 }
 
 bool SameBits(const std::vector<double>& a, const std::vector<double>& b) {

@@ -27,18 +27,17 @@
 #include "nlohmann/json.hpp"
 #include "rve_server/embedded/packings.h"
 #include "store/results.h"
+#include "tests/fem_client/run/fem_run_test_util.h"
 
 namespace rvehub::fem {
 namespace {
 
 namespace fs = std::filesystem;
-using Columns = std::map<std::string, std::vector<double>>;
+using run_test::Columns;
+using run_test::ReadColumns;
 
 std::string Scratch(const std::string& name) {
-  const fs::path d =
-      fs::path(testing::TempDir()) / absl::StrCat("fem_simulation_test_", getpid()) / name;
-  fs::remove_all(d);
-  return d.string();
+  return run_test::ScratchPath("fem_simulation_test", name);
 }
 
 // Prepared templates, shared with the other fem tests.
@@ -73,12 +72,6 @@ Outcome RunCase(const FemCase& c, const std::string& out, std::int64_t stop_afte
   }
   run.summary = (*sim)->StepToEnd();
   return run;
-}
-
-Columns ReadColumns(const std::string& path) {
-  absl::StatusOr<Columns> columns = client_run::ReadCsvColumns(path);
-  EXPECT_TRUE(columns.ok()) << columns.status();
-  return columns.ok() ? *columns : Columns{};
 }
 
 nlohmann::json ReadJson(const std::string& path) {
