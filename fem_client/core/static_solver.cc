@@ -153,9 +153,10 @@ bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& fai
   bool predicted = false;
   if (options_.predictor == Predictor::kPrevious && last_rate_.size() == q.size()) {
     const Eigen::VectorXd q0 = factor * last_rate_;
+    const Eigen::VectorXd du0 = g + t * q0;
     Failure predictor_failure;
-    if (Evaluate(g + t * q0, 0, platen_force, ev, predictor_failure)) {
-      du = g + t * q0;
+    if (Evaluate(du0, 0, platen_force, ev, predictor_failure)) {
+      du = du0;
       q = q0;
       at = &ev;
       predicted = true;
