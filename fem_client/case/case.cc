@@ -71,6 +71,12 @@ absl::StatusOr<FemCase> ReadCase(const Json& doc, const std::string& base_dir) {
   if (const Json* solver = root.Get("solver")) {
     RETURN_IF_ERROR(ParseSolver(*solver, root.At("solver"), &c.solver));
   }
+  if (c.solver.second_gradient > 0.0 && c.mesh.element != ElementKind::kQ8R) {
+    return Bad("/solver/second_gradient_N",
+               "the second gradient needs the mesh's element \"q8r\" (Q8 displacements, "
+               "2 x 2 Gauss points), not \"",
+               ElementName(c.mesh.element), "\"");
+  }
 
   c.output.plot = DefaultPlot(c.loading);
   if (const Json* output = root.Get("output")) {

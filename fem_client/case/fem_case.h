@@ -21,8 +21,9 @@ using client_case::RveSpec;
 using client_case::TemplateSpec;
 
 enum class ElementKind {
-  kQ4,  // bilinear quadrilateral, 2×2 Gauss points
-  kQ8,  // serendipity quadrilateral, 3×3 Gauss points
+  kQ4,   // bilinear quadrilateral, 2×2 Gauss points
+  kQ8,   // serendipity quadrilateral, 3×3 Gauss points
+  kQ8R,  // serendipity quadrilateral, 2×2 Gauss points: the second-gradient element
 };
 
 // A rectangle of nx × ny equal elements. Elements are numbered row by row
@@ -37,7 +38,7 @@ struct MeshSpec {
   ElementKind element = ElementKind::kQ4;
 };
 
-// 4 for Q4, 9 for Q8.
+// 4 for Q4 and Q8R, 9 for Q8.
 int GaussPointsPerElement(ElementKind kind);
 // nx·ny·GaussPointsPerElement: the mesh's RVEs.
 std::int64_t GaussPointCount(const MeshSpec& mesh);
@@ -144,8 +145,13 @@ struct SolverSpec {
   // E_d = |u^j − u^(j−1)| / |u^j| (G&Z eq. 21) below which an iteration
   // has converged, [-].
   double tolerance = 0.01;
+  // When > 0, the force error E_f = |R| / |f| must also be below it, [-].
+  double force_tolerance = 0.0;
   int max_iterations = 30;  // Newton iterations of a step before it is cut back
   int max_cutbacks = 6;     // halvings of one step before the run stops
+  // D of the local second gradient (Desrues et al. eq. 44), N (Pa·m² per
+  // metre of thickness); 0: none. Needs Q8R elements.
+  double second_gradient = 0.0;
 };
 
 // The standard plot of a finished run: the nominal stress and volumetric

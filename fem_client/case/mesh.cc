@@ -1,4 +1,4 @@
-// The case's "mesh" section: a structured rectangle of Q4 or Q8 elements.
+// The case's "mesh" section: a structured rectangle of Q4, Q8 or Q8R elements.
 #include <cstdint>
 #include <string>
 
@@ -22,7 +22,8 @@ constexpr int kMaxElementsPerSide = 200;
 // A specimen of metres to a slope of kilometres.
 constexpr Range kSide{0.0, 1e4, true, false};  // m
 
-constexpr Table<ElementKind> kElements = {{"q4", ElementKind::kQ4}, {"q8", ElementKind::kQ8}};
+constexpr Table<ElementKind> kElements = {
+    {"q4", ElementKind::kQ4}, {"q8", ElementKind::kQ8}, {"q8r", ElementKind::kQ8R}};
 
 Fields<MeshSpec> MeshFields() {
   return {
@@ -48,11 +49,21 @@ Fields<MeshSpec> MeshFields() {
 
 }  // namespace
 
-absl::string_view ElementName(ElementKind kind) { return kind == ElementKind::kQ8 ? "q8" : "q4"; }
+absl::string_view ElementName(ElementKind kind) {
+  switch (kind) {
+    case ElementKind::kQ4:
+      return "q4";
+    case ElementKind::kQ8:
+      return "q8";
+    case ElementKind::kQ8R:
+      break;
+  }
+  return "q8r";
+}
 
 int NodesAlongFace(const MeshSpec& mesh, Face face) {
   const int elements = face == Face::kLeft || face == Face::kRight ? mesh.ny : mesh.nx;
-  return (mesh.element == ElementKind::kQ8 ? 2 * elements : elements) + 1;
+  return (mesh.element == ElementKind::kQ4 ? elements : 2 * elements) + 1;
 }
 
 absl::Status ParseMesh(const Json& j, const std::string& ptr, MeshSpec* mesh) {

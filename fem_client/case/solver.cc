@@ -47,8 +47,14 @@ Fields<SolverSpec> SolverFields() {
                 &PredictorName),
       NumberField("tolerance", &SolverSpec::tolerance, Need::kOptional,
                   Range{0.0, 1.0, true, true}),
+      NumberField("force_tolerance", &SolverSpec::force_tolerance, Need::kOptional,
+                  Range{0.0, 1.0, false, true}),
       IntField("max_iterations", &SolverSpec::max_iterations, 1, 1000),
       IntField("max_cutbacks", &SolverSpec::max_cutbacks, 0, 20),
+      // D: 1e6 N over a 1 mm element is a double stress of 1e9 Pa·m per
+      // unit strain gradient, far past any granular layer's.
+      NumberField("second_gradient_N", &SolverSpec::second_gradient, Need::kOptional,
+                  Range{0.0, 1e6, false, false}),
   };
 }
 

@@ -34,15 +34,25 @@ std::array<GaussPoint, 9> MakeQ8Points() {
 }  // namespace
 
 int NodeCount(ElementType type) { return type == ElementType::kQ4 ? 4 : 8; }
-int GaussPointCount(ElementType type) { return type == ElementType::kQ4 ? 4 : 9; }
+int GaussPointCount(ElementType type) { return type == ElementType::kQ8 ? 9 : 4; }
 int EdgeNodeCount(ElementType type) { return type == ElementType::kQ4 ? 2 : 3; }
-absl::string_view ElementName(ElementType type) { return type == ElementType::kQ4 ? "Q4" : "Q8"; }
+absl::string_view ElementName(ElementType type) {
+  switch (type) {
+    case ElementType::kQ4:
+      return "Q4";
+    case ElementType::kQ8:
+      return "Q8";
+    case ElementType::kQ8R:
+      break;
+  }
+  return "Q8R";
+}
 
 std::span<const GaussPoint> GaussPoints(ElementType type) {
   static const std::array<GaussPoint, 4> q4 = MakeQ4Points();
   static const std::array<GaussPoint, 9> q8 = MakeQ8Points();
-  if (type == ElementType::kQ4) return q4;
-  return q8;
+  if (type == ElementType::kQ8) return q8;
+  return q4;
 }
 
 ShapeVector ShapeFunctions(ElementType type, const Eigen::Vector2d& xi) {
@@ -134,7 +144,7 @@ std::span<const Eigen::Vector2d> EdgeGaussPoints() {
 
 std::array<int, kMaxEdgeNodes> FaceNodes(ElementType type, int face) {
   const int start = face, end = (face + 1) % 4;
-  return {start, end, type == ElementType::kQ8 ? 4 + face : -1};
+  return {start, end, type == ElementType::kQ4 ? -1 : 4 + face};
 }
 
 }  // namespace rvehub::fem

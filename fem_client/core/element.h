@@ -1,5 +1,7 @@
 // Isoparametric plane-strain elements: the 4-node bilinear quadrilateral Q4
-// (2×2 Gauss points) and the 8-node serendipity quadrilateral Q8 (3×3).
+// (2×2 Gauss points), the 8-node serendipity quadrilateral Q8 (3×3) and Q8R,
+// the same 8 nodes with 2×2 points (the second-gradient element,
+// second_gradient.h).
 // Natural coordinates ξ = (ξ, η) ∈ [−1, 1]²; nodes counter-clockwise, the
 // corners first (0: (−1,−1), 1: (1,−1), 2: (1,1), 3: (−1,1)), then Q8's
 // midsides (4: edge 0–1, 5: 1–2, 6: 2–3, 7: 3–0).
@@ -15,7 +17,7 @@
 
 namespace rvehub::fem {
 
-enum class ElementType { kQ4, kQ8 };
+enum class ElementType { kQ4, kQ8, kQ8R };
 
 inline constexpr int kMaxElementNodes = 8;
 inline constexpr int kMaxEdgeNodes = 3;
@@ -27,17 +29,18 @@ using ShapeGradient =
     Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::ColMajor, kMaxElementNodes, 2>;
 using ElementCoordinates = ShapeGradient;
 
-int NodeCount(ElementType type);                  // 4, 8
-int GaussPointCount(ElementType type);            // 4, 9
-int EdgeNodeCount(ElementType type);              // 2, 3
-absl::string_view ElementName(ElementType type);  // "Q4", "Q8"
+int NodeCount(ElementType type);                  // 4, 8, 8
+int GaussPointCount(ElementType type);            // 4, 9, 4
+int EdgeNodeCount(ElementType type);              // 2, 3, 3
+absl::string_view ElementName(ElementType type);  // "Q4", "Q8", "Q8R"
 
 struct GaussPoint {
   Eigen::Vector2d xi;  // natural coordinates
   double weight;       // [-]
 };
-// ξ varies fastest: Q4's points are (−,−), (+,−), (−,+), (+,+) at ±1/√3.
-// Exact for polynomials of degree 3 (Q4) and 5 (Q8) in each coordinate.
+// ξ varies fastest: Q4's and Q8R's points are (−,−), (+,−), (−,+), (+,+)
+// at ±1/√3. Exact for polynomials of degree 3 (Q4, Q8R) and 5 (Q8) in each
+// coordinate.
 std::span<const GaussPoint> GaussPoints(ElementType type);
 
 ShapeVector ShapeFunctions(ElementType type, const Eigen::Vector2d& xi);      // N_a, [-]

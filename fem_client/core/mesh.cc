@@ -82,8 +82,9 @@ absl::StatusOr<Mesh> StructuredRectangle(const RectangleSpec& spec) {
         absl::StrCat("rectangle: ", spec.nx, " × ", spec.ny,
                      " elements, each must be in [1, 10000] and their product at most 1e6"));
   }
-  // Grid positions (i, j); Q8 uses a grid twice as fine without the centres.
-  const int m = spec.type == ElementType::kQ8 ? 2 : 1;
+  // Grid positions (i, j); Q8 and Q8R use a grid twice as fine without the
+  // centres.
+  const int m = spec.type == ElementType::kQ4 ? 1 : 2;
   const int gx = m * spec.nx + 1, gy = m * spec.ny + 1;
   const auto is_node = [m](int i, int j) { return m == 1 || i % 2 == 0 || j % 2 == 0; };
   Mesh mesh;

@@ -48,6 +48,30 @@ absl::Status Prefixed(const absl::Status& status, absl::string_view message) {
 
 const char* AxisName(int dof) { return dof == 0 ? "x" : "y"; }
 
+// k with `extra` empty rows and columns appended.
+Eigen::SparseMatrix<double> Padded(const Eigen::SparseMatrix<double>& k, int extra) {
+  std::vector<Eigen::Triplet<double>> t;
+  t.reserve(static_cast<std::size_t>(k.nonZeros()));
+  for (int c = 0; c < k.outerSize(); ++c) {
+    for (Eigen::SparseMatrix<double>::InnerIterator it(k, c); it; ++it) {
+      t.emplace_back(static_cast<int>(it.row()), static_cast<int>(it.col()), it.value());
+    }
+  }
+  Eigen::SparseMatrix<double> out(k.rows() + extra, k.cols() + extra);
+  out.setFromTriplets(t.begin(), t.end());
+  return out;
+}
+
+// diag(t, I_extra): the extra unknowns are free.
+Eigen::SparseMatrix<double> Expanded(const Eigen::SparseMatrix<double>& t, int extra) {
+  Eigen::SparseMatrix<double> out = Padded(t, extra);
+  for (int i = 0; i < extra; ++i) {
+    out.coeffRef(t.rows() + i, t.cols() + i) = 1.0;
+  }
+  out.makeCompressed();
+  return out;
+}
+
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<StaticSolver>> StaticSolver::Create(Mesh mesh, Boundary boundary,
@@ -58,12 +82,14 @@ absl::StatusOr<std::unique_ptr<StaticSolver>> StaticSolver::Create(Mesh mesh, Bo
   if (!(o.displacement_tolerance > 0.0 && std::isfinite(o.displacement_tolerance)) ||
       !(o.force_tolerance >= 0.0 && std::isfinite(o.force_tolerance)) || o.max_iterations < 1 ||
       o.max_iterations > 1000 || o.max_cutbacks < 0 || o.max_cutbacks > 30 ||
-      !(o.perturbation > 0.0 && o.perturbation < 0.1)) {
+      !(o.perturbation > 0.0 && o.perturbation < 0.1) ||
+      !(o.second_gradient >= 0.0 && std::isfinite(o.second_gradient))) {
     return absl::InvalidArgumentError(
         absl::StrCat("solver options: displacement tolerance ", o.displacement_tolerance,
                      " must be positive, force tolerance ", o.force_tolerance,
                      " non-negative, iterations ", o.max_iterations, " in [1, 1000], cut-backs ",
-                     o.max_cutbacks, " in [0, 30], perturbation ", o.perturbation, " in (0, 0.1)"));
+                     o.max_cutbacks, " in [0, 30], perturbation ", o.perturbation,
+                     " in (0, 0.1), second-gradient modulus ", o.second_gradient, " non-negative"));
   }
   if (absl::Status s = ValidateMesh(mesh); !s.ok()) return s;
   absl::StatusOr<DofMap> dofs = DofMap::Create(static_cast<int>(mesh.nodes.size()), boundary);
@@ -71,14 +97,21 @@ absl::StatusOr<std::unique_ptr<StaticSolver>> StaticSolver::Create(Mesh mesh, Bo
   if (absl::Status s = CheckSupports(mesh, *dofs); !s.ok()) return s;
   absl::StatusOr<std::vector<PointGeometry>> reference = EvaluateGeometry(mesh, mesh.nodes);
   if (!reference.ok()) return reference.status();
-  return std::unique_ptr<StaticSolver>(new StaticSolver(std::move(mesh), std::move(boundary),
-                                                        options, material, *std::move(dofs),
-                                                        *std::move(reference)));
+  std::optional<SecondGradient> second_gradient;
+  if (o.second_gradient > 0.0) {
+    absl::StatusOr<SecondGradient> sg = SecondGradient::Create(mesh, o.second_gradient);
+    if (!sg.ok()) return sg.status();
+    second_gradient = *std::move(sg);
+  }
+  return std::unique_ptr<StaticSolver>(
+      new StaticSolver(std::move(mesh), std::move(boundary), options, material, *std::move(dofs),
+                       *std::move(reference), std::move(second_gradient)));
 }
 
 StaticSolver::StaticSolver(Mesh mesh, Boundary boundary, SolverOptions options,
                            GaussPointMaterial* material, DofMap dofs,
-                           std::vector<PointGeometry> reference)
+                           std::vector<PointGeometry> reference,
+                           std::optional<SecondGradient> second_gradient)
     : mesh_(std::move(mesh)),
       boundary_(std::move(boundary)),
       options_(options),
@@ -86,7 +119,10 @@ StaticSolver::StaticSolver(Mesh mesh, Boundary boundary, SolverOptions options,
       dofs_(std::move(dofs)),
       reference_(std::move(reference)),
       displacement_(Eigen::VectorXd::Zero(2 * static_cast<Eigen::Index>(mesh_.nodes.size()))),
-      platens_(boundary_.forced.size()) {}
+      second_gradient_(std::move(second_gradient)),
+      platens_(boundary_.forced.size()) {
+  if (second_gradient_) sg_committed_ = second_gradient_->Initial();
+}
 
 absl::StatusOr<StepReport> StaticSolver::Step(double factor) {
   if (!std::isfinite(factor)) return absl::InvalidArgumentError("the step factor is not finite");
@@ -97,7 +133,10 @@ absl::StatusOr<StepReport> StaticSolver::Step(double factor) {
   if (committed_.responses.empty()) {
     Failure failure;
     const std::vector<double> unloaded(boundary_.forced.size(), 0.0);
-    if (!Evaluate(Eigen::VectorXd::Zero(displacement_.size()), 0, unloaded, committed_, failure)) {
+    const Eigen::VectorXd ds =
+        Eigen::VectorXd::Zero(second_gradient_ ? second_gradient_->unknowns() : 0);
+    if (!Evaluate(Eigen::VectorXd::Zero(displacement_.size()), ds, 0, unloaded, committed_,
+                  failure)) {
       committed_.responses.clear();
       return Prefixed(failure.status, absl::StrCat("load step ", report.step, ", "));
     }
@@ -144,26 +183,38 @@ bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& fai
     force_increment.push_back(factor * boundary_.forced[k].force_increment);
     platen_force.push_back(committed_.platen_force[k] + force_increment.back());
   }
+  const int extra = second_gradient_ ? second_gradient_->unknowns() : 0;
   Eigen::VectorXd du = Eigen::VectorXd::Zero(g.size());
   Eigen::VectorXd q = Eigen::VectorXd::Zero(dofs_.unknowns());  // Δu's unknowns
+  Eigen::VectorXd ds = Eigen::VectorXd::Zero(extra);            // the second gradient's
   const Evaluation* at = &committed_;
   Evaluation ev;
   // kPrevious: start from the last increment, scaled, with g imposed
   // exactly; then every solve is a correction (no g in it).
   bool predicted = false;
-  if (options_.predictor == Predictor::kPrevious && last_rate_.size() == q.size()) {
-    const Eigen::VectorXd q0 = factor * last_rate_;
+  if (options_.predictor == Predictor::kPrevious && last_rate_.size() == q.size() + extra) {
+    const Eigen::VectorXd q0 = factor * last_rate_.head(q.size());
+    const Eigen::VectorXd ds0 = factor * last_rate_.tail(extra);
     const Eigen::VectorXd du0 = g + t * q0;
     Failure predictor_failure;
-    if (Evaluate(du0, 0, platen_force, ev, predictor_failure)) {
+    if (Evaluate(du0, ds0, 0, platen_force, ev, predictor_failure)) {
       du = du0;
       q = q0;
+      ds = ds0;
       at = &ev;
       predicted = true;
     } else if (!predictor_failure.retry) {
       failure = std::move(predictor_failure);
       return false;
     }
+  }
+  // With a second gradient the system grows by its unknowns, all free:
+  // T becomes diag(T, I), K gains the second gradient's blocks (constant
+  // over the step: they live on the committed configuration).
+  Eigen::SparseMatrix<double> t_full, k_sg;
+  if (extra > 0) {
+    t_full = Expanded(t, extra);
+    k_sg = second_gradient_->Stiffness(mesh_, mesh_.nodes);
   }
   for (int j = 1; j <= options_.max_iterations; ++j) {
     const bool imposes = j == 1 && !predicted;  // the first solve of a zero start
@@ -174,31 +225,43 @@ bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& fai
     // Tᵀ K T δq = −Tᵀ (R + K g − Δf) (g and the platens' Δf only in the
     // first) for the correction.
     Eigen::VectorXd delta = imposes ? g : Eigen::VectorXd::Zero(g.size());
-    if (dofs_.unknowns() > 0) {
-      const Eigen::SparseMatrix<double> k = TangentStiffness(
+    if (dofs_.unknowns() + extra > 0) {
+      Eigen::SparseMatrix<double> k = TangentStiffness(
           mesh_, reference_, at->current, at->responses, d, boundary_.pressures, at->x);
-      const Eigen::VectorXd rhs =
-          imposes ? Eigen::VectorXd(at->residual + k * g - PlatenLoads(force_increment))
-                  : at->residual;
-      const Eigen::SparseMatrix<double> kr = t.transpose() * k * t;
+      Eigen::VectorXd rhs = at->residual;
+      if (imposes) rhs += k * g - PlatenLoads(force_increment);
+      if (extra > 0) {
+        k = Padded(k, extra) + k_sg;
+        Eigen::VectorXd r(rhs.size() + extra);
+        r << rhs, at->sg_residual;
+        if (imposes) {  // Δλ's constraint sees the imposed increments too
+          Eigen::VectorXd g_full = Eigen::VectorXd::Zero(r.size());
+          g_full.head(g.size()) = g;
+          r.tail(extra) += (k_sg * g_full).tail(extra);
+        }
+        rhs = std::move(r);
+      }
+      const Eigen::SparseMatrix<double>& tt = extra > 0 ? t_full : t;
+      const Eigen::SparseMatrix<double> kr = tt.transpose() * k * tt;
       Eigen::SparseLU<Eigen::SparseMatrix<double>> lu;
       lu.compute(kr);
       Eigen::VectorXd dq;
-      if (lu.info() == Eigen::Success) dq = lu.solve(-(t.transpose() * rhs));
+      if (lu.info() == Eigen::Success) dq = lu.solve(-(tt.transpose() * rhs));
       if (lu.info() != Eigen::Success || !dq.allFinite()) {
         failure.status = absl::AbortedError(absl::StrCat(
             "iteration ", j, ": the tangent stiffness (", OperatorName(options_.tangent),
             " operator) is singular: ", lu.lastErrorMessage()));
         return false;
       }
-      delta += t * dq;
-      q += dq;
+      delta += t * dq.head(q.size());
+      q += dq.head(q.size());
+      ds += dq.tail(extra);
     }
     du += delta;
     IterationReport it;
     it.displacement_error = delta.norm() == 0.0 ? 0.0 : delta.norm() / du.norm();
     // (2c–d) Deform the RVEs by the new Δu and take the residual (eq. 4).
-    if (!Evaluate(du, j, platen_force, ev, failure)) return false;
+    if (!Evaluate(du, ds, j, platen_force, ev, failure)) return false;
     at = &ev;
     const Eigen::VectorXd reduced = t.transpose() * ev.residual;
     it.force_error = ForceError(ev, reduced);
@@ -215,10 +278,18 @@ bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& fai
       displacement_ += du;
       platens_ = PlatenStates(ev);
       reference_ = ev.current;
+      if (second_gradient_) {
+        SecondGradient::Terms terms{ev.multiplier_forces, ev.sg_residual, ev.double_stress};
+        sg_committed_ = second_gradient_->Advance(sg_committed_, ds, std::move(terms));
+      }
       committed_ = std::move(ev);
-      if (factor != 0.0) last_rate_ = q / factor;
+      if (factor != 0.0) {
+        last_rate_.resize(q.size() + extra);
+        last_rate_ << q / factor, ds / factor;
+      }
       // The next step starts here: its ΔF are measured from this state.
       std::fill(committed_.delta_f.begin(), committed_.delta_f.end(), Eigen::Matrix3d::Identity());
+      RestartSecondGradient();
       return true;
     }
     if (j == options_.max_iterations) {
@@ -235,7 +306,7 @@ bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& fai
   return false;
 }
 
-bool StaticSolver::Evaluate(const Eigen::VectorXd& du, int iteration,
+bool StaticSolver::Evaluate(const Eigen::VectorXd& du, const Eigen::VectorXd& ds, int iteration,
                             std::span<const double> platen_force, Evaluation& ev,
                             Failure& failure) {
   const std::string where = absl::StrCat("iteration ", iteration, ": ");
@@ -288,11 +359,41 @@ bool StaticSolver::Evaluate(const Eigen::VectorXd& du, int iteration,
   }
   // (2d) The residual (eq. 4) on the current configuration.
   ev.f_int = InternalForces(mesh_, ev.current, ev.responses);
+  if (second_gradient_) {
+    SecondGradient::Terms terms =
+        second_gradient_->Evaluate(mesh_, mesh_.nodes, sg_committed_, du, ds);
+    ev.ds = ds;
+    ev.f_int += terms.internal;
+    ev.multiplier_forces = std::move(terms.internal);
+    ev.sg_residual = std::move(terms.residual);
+    ev.double_stress = std::move(terms.double_stress);
+  }
   ev.f_ext = PressureForces(static_cast<int>(du.size()), boundary_.pressures, ev.x) +
              PlatenLoads(platen_force);
   ev.platen_force.assign(platen_force.begin(), platen_force.end());
   ev.residual = ev.f_int - ev.f_ext;
   return true;
+}
+
+void StaticSolver::RestartSecondGradient() {
+  if (!second_gradient_) return;
+  const int extra = second_gradient_->unknowns();
+  SecondGradient::Terms terms = second_gradient_->Evaluate(
+      mesh_, mesh_.nodes, sg_committed_, Eigen::VectorXd::Zero(displacement_.size()),
+      Eigen::VectorXd::Zero(extra));
+  // λ's forces move to the new configuration; σ's stay as the last Trial left them.
+  if (committed_.f_int.size() > 0) {
+    const Eigen::VectorXd change =
+        terms.internal - (committed_.multiplier_forces.size() > 0
+                              ? committed_.multiplier_forces
+                              : Eigen::VectorXd::Zero(terms.internal.size()));
+    committed_.f_int += change;
+    committed_.residual += change;
+  }
+  committed_.ds = Eigen::VectorXd::Zero(extra);
+  committed_.multiplier_forces = std::move(terms.internal);
+  committed_.sg_residual = std::move(terms.residual);
+  committed_.double_stress = std::move(terms.double_stress);
 }
 
 bool StaticSolver::Tangents(const Evaluation& ev, int iteration, std::vector<Tangent>& d,
@@ -405,6 +506,7 @@ SolverState StaticSolver::State() const {
   s.platen_force = committed_.platen_force;
   s.initial_tangents = initial_tangents_;
   s.last_rate = last_rate_;
+  if (second_gradient_) s.second_gradient = sg_committed_;
   return s;
 }
 
@@ -472,10 +574,39 @@ absl::Status StaticSolver::Restore(SolverState state) {
   for (const Tangent& d : state.initial_tangents) {
     if (!d.allFinite()) return BadState("initial_tangents", "has a value that is not finite");
   }
+  const int extra = second_gradient_ ? second_gradient_->unknowns() : 0;
   if (state.last_rate.size() > 0) {
-    if (absl::Status s = CheckVector("last_rate", state.last_rate, dofs_.unknowns()); !s.ok()) {
+    if (absl::Status s = CheckVector("last_rate", state.last_rate, dofs_.unknowns() + extra);
+        !s.ok()) {
       return s;
     }
+  }
+  if (second_gradient_) {
+    const SecondGradientState& sg = state.second_gradient;
+    if (sg.double_stress.size() != points) {
+      return BadState("second_gradient.double_stress",
+                      absl::StrCat("has ", sg.double_stress.size(), " Gauss points, not ", points));
+    }
+    for (const DoubleStress& v : sg.double_stress) {
+      if (!v.allFinite()) {
+        return BadState("second_gradient.double_stress", "has a value that is not finite");
+      }
+    }
+    if (absl::Status s = CheckVector("second_gradient.multiplier", sg.multiplier,
+                                     4 * static_cast<Eigen::Index>(mesh_.elements.size()));
+        !s.ok()) {
+      return s;
+    }
+    if (absl::Status s =
+            CheckVector("second_gradient.micro", sg.micro,
+                        4 * static_cast<Eigen::Index>(second_gradient_->corner_nodes()));
+        !s.ok()) {
+      return s;
+    }
+  } else if (!state.second_gradient.double_stress.empty() ||
+             state.second_gradient.multiplier.size() > 0 ||
+             state.second_gradient.micro.size() > 0) {
+    return BadState("second_gradient", "is given to a solver without a second gradient");
   }
   absl::StatusOr<std::vector<PointGeometry>> reference = EvaluateGeometry(mesh_, state.nodes);
   if (!reference.ok()) {
@@ -489,6 +620,7 @@ absl::Status StaticSolver::Restore(SolverState state) {
   reference_ = *std::move(reference);
   initial_tangents_ = std::move(state.initial_tangents);
   last_rate_ = std::move(state.last_rate);
+  if (second_gradient_) sg_committed_ = std::move(state.second_gradient);
   committed_ = Evaluation{};
   platens_.assign(boundary_.forced.size(), PlatenState{});
   forces_.clear();
@@ -504,6 +636,17 @@ absl::Status StaticSolver::Restore(SolverState state) {
   committed_.platen_force = std::move(state.platen_force);
   forces_ = NodeSetForces(committed_);
   platens_ = PlatenStates(committed_);
+  // As the commit left them: the saved f_int already holds λ's share on
+  // this configuration, so only the bookkeeping is rebuilt.
+  if (second_gradient_) {
+    SecondGradient::Terms terms =
+        second_gradient_->Evaluate(mesh_, mesh_.nodes, sg_committed_, Eigen::VectorXd::Zero(dofs),
+                                   Eigen::VectorXd::Zero(extra));
+    committed_.ds = Eigen::VectorXd::Zero(extra);
+    committed_.multiplier_forces = std::move(terms.internal);
+    committed_.sg_residual = std::move(terms.residual);
+    committed_.double_stress = std::move(terms.double_stress);
+  }
   return absl::OkStatus();
 }
 

@@ -9,6 +9,7 @@
 #include <Eigen/Dense>
 #include <map>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -19,6 +20,7 @@
 #include "fem_client/core/boundary.h"
 #include "fem_client/core/material.h"
 #include "fem_client/core/mesh.h"
+#include "fem_client/core/second_gradient.h"
 #include "fem_client/core/tangent_operator.h"
 
 namespace rvehub::fem {
@@ -47,6 +49,9 @@ struct SolverOptions {
   int max_iterations = 25;     // per (sub-)step, [1, 1000]
   int max_cutbacks = 6;        // halvings of one load step, [0, 30]
   double perturbation = 5e-5;  // ξ of kPerturbation (G&Z §3.3), (0, 0.1)
+  // D of the local second gradient (second_gradient.h), N; 0: none. When
+  // > 0 every element must be Q8R, and E_d stays over the displacements.
+  double second_gradient = 0.0;
 };
 
 // One Newton iteration: a solve, then the Trial of the new Δu^j.
@@ -102,8 +107,11 @@ struct SolverState {
   std::vector<double> platen_force;        // each forced platen's load there, N/m
   std::vector<Tangent> initial_tangents;   // kInitialElastic's, once known
   // kPrevious's: the last converged sub-step's increment of the unknowns
-  // per unit of load-step factor, m; empty before the first.
+  // (the displacements', then the second gradient's) per unit of load-step
+  // factor; empty before the first.
   Eigen::VectorXd last_rate;
+  // The second gradient's committed fields; empty without one.
+  SecondGradientState second_gradient;
 };
 
 class StaticSolver {
@@ -162,21 +170,30 @@ class StaticSolver {
     std::vector<PointGeometry> current;  // the Gauss points on x
     std::vector<Eigen::Matrix3d> delta_f;
     std::vector<PointResponse> responses;
+    // f_int includes the second gradient's λ share (`multiplier_forces`).
     Eigen::VectorXd f_int, f_ext, residual;  // all dofs, N/m
     std::vector<double> platen_force;        // each forced platen's load, N/m
+    // With a second gradient: its increments, λ's nodal forces, its own
+    // residual and the double stresses (SecondGradient::Terms).
+    Eigen::VectorXd ds, multiplier_forces, sg_residual;
+    std::vector<DoubleStress> double_stress;
   };
   struct Failure;
 
   StaticSolver(Mesh mesh, Boundary boundary, SolverOptions options, GaussPointMaterial* material,
-               DofMap dofs, std::vector<PointGeometry> reference);
+               DofMap dofs, std::vector<PointGeometry> reference,
+               std::optional<SecondGradient> second_gradient);
 
   // One attempt at `factor` of the step's increments: Newton to
   // convergence and Commit (true), or a Failure.
   bool TrySubStep(double factor, SubStepReport& report, Failure& failure);
-  // Trial and residual at Δu = du, the forced platens loaded by
-  // `platen_force` (N/m each).
-  bool Evaluate(const Eigen::VectorXd& du, int iteration, std::span<const double> platen_force,
-                Evaluation& ev, Failure& failure);
+  // Trial and residual at Δu = du (and the second gradient's increments
+  // ds), the forced platens loaded by `platen_force` (N/m each).
+  bool Evaluate(const Eigen::VectorXd& du, const Eigen::VectorXd& ds, int iteration,
+                std::span<const double> platen_force, Evaluation& ev, Failure& failure);
+  // The second gradient's terms at zero increments on the committed
+  // configuration into committed_ (where the next step starts).
+  void RestartSecondGradient();
   // `force` (N/m, one per forced platen) on the platens' master dofs: f_ext.
   Eigen::VectorXd PlatenLoads(std::span<const double> force) const;
   std::vector<PlatenState> PlatenStates(const Evaluation& ev) const;
@@ -195,8 +212,10 @@ class StaticSolver {
   // The last converged Trial on the committed configuration (before the
   // first step: the Trial at ΔF = I): where every step starts.
   Evaluation committed_;
-  std::vector<Tangent> initial_tangents_;    // kInitialElastic's
-  Eigen::VectorXd last_rate_;                // SolverState::last_rate
+  std::vector<Tangent> initial_tangents_;  // kInitialElastic's
+  Eigen::VectorXd last_rate_;              // SolverState::last_rate
+  std::optional<SecondGradient> second_gradient_;
+  SecondGradientState sg_committed_;
   std::map<std::string, SetForces> forces_;  // at the last commit
   std::vector<PlatenState> platens_;         // at the last commit
   int steps_ = 0;

@@ -95,6 +95,16 @@ void PutRunState(const RunState& s, NamedDoubles& doubles, NamedInts& ints) {
   initial.clear();
   for (const Tangent& d : v.initial_tangents) PutTangent(d, initial);
   doubles["last_rate"] = FromVector(v.last_rate);
+  // The second gradient's fields, present only when the run has one.
+  if (!v.second_gradient.double_stress.empty()) {
+    std::vector<double>& ds = doubles["double_stress"];
+    ds.clear();
+    for (const DoubleStress& d : v.second_gradient.double_stress) {
+      ds.insert(ds.end(), d.data(), d.data() + d.size());
+    }
+    doubles["multiplier"] = FromVector(v.second_gradient.multiplier);
+    doubles["micro"] = FromVector(v.second_gradient.micro);
+  }
   std::vector<double>& rs = doubles["rve_stress"];
   std::vector<double>& re = doubles["rve_void_ratio"];
   std::vector<double>& rz = doubles["rve_coordination"];
@@ -175,6 +185,20 @@ absl::StatusOr<RunState> GetRunState(const NamedDoubles& doubles, const NamedInt
   for (std::size_t p = 0; p < *initial; ++p) v.initial_tangents.push_back(GetTangent(&iv[81 * p]));
   // Absent from checkpoints of runs that had no predictor to keep.
   if (auto it = doubles.find("last_rate"); it != doubles.end()) v.last_rate = ToVector(it->second);
+  if (doubles.contains("double_stress")) {
+    absl::StatusOr<std::size_t> n = Items(doubles, "double_stress", 8);
+    if (!n.ok()) return n.status();
+    const std::vector<double>& dv = doubles.at("double_stress");
+    for (std::size_t p = 0; p < *n; ++p) {
+      v.second_gradient.double_stress.push_back(Eigen::Map<const DoubleStress>(&dv[8 * p]));
+    }
+    for (const char* key : {"multiplier", "micro"}) {
+      absl::StatusOr<std::size_t> m = Items(doubles, key, 1);
+      if (!m.ok()) return m.status();
+    }
+    v.second_gradient.multiplier = ToVector(doubles.at("multiplier"));
+    v.second_gradient.micro = ToVector(doubles.at("micro"));
+  }
 
   absl::StatusOr<std::size_t> rves = Items(doubles, "rve_stress", 9);
   if (!rves.ok()) return rves.status();

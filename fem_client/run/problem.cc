@@ -16,7 +16,15 @@ const char* AxisName(int dof) { return dof == 0 ? "x" : "y"; }
 int NormalDof(Face face) { return face == Face::kLeft || face == Face::kRight ? 0 : 1; }
 
 ElementType CoreElement(ElementKind kind) {
-  return kind == ElementKind::kQ8 ? ElementType::kQ8 : ElementType::kQ4;
+  switch (kind) {
+    case ElementKind::kQ4:
+      return ElementType::kQ4;
+    case ElementKind::kQ8:
+      return ElementType::kQ8;
+    case ElementKind::kQ8R:
+      break;
+  }
+  return ElementType::kQ8R;
 }
 
 TangentOperator CoreTangent(TangentKind kind) {
@@ -238,6 +246,8 @@ absl::StatusOr<Problem> BuildProblem(const FemCase& c) {
       c.solver.predictor == PredictorKind::kPrevious ? Predictor::kPrevious : Predictor::kZero;
   p.solver.perturbation = c.solver.perturbation;
   p.solver.displacement_tolerance = c.solver.tolerance;
+  p.solver.force_tolerance = c.solver.force_tolerance;
+  p.solver.second_gradient = c.solver.second_gradient;
   p.solver.max_iterations = c.solver.max_iterations;
   p.solver.max_cutbacks = c.solver.max_cutbacks;
   return p;

@@ -66,7 +66,7 @@ TEST_F(FemCaseErrorsTest, BadFieldsNameTheirPointer) {
       {full, "/mesh/elements/0", 0, "/mesh/elements/0: must be an integer in 1..200, got 0"},
       {full, "/mesh/elements/1", 201, "/mesh/elements/1: must be an integer in 1..200, got 201"},
       {full, "/mesh/elements/0", 2.5, "/mesh/elements/0: must be an integer in 1..200, got 2.5"},
-      {full, "/mesh/element", "q9", "/mesh/element: unknown element \"q9\" (q4, q8)"},
+      {full, "/mesh/element", "q9", "/mesh/element: unknown element \"q9\" (q4, q8, q8r)"},
       // templates (shared with mpm_client)
       {full, "/templates/0/parameter_set", "SET-foo",
        "/templates/0/parameter_set: unknown parameter set \"SET-foo\" (known: SET-dense"},
@@ -220,6 +220,11 @@ TEST_F(FemCaseErrorsTest, BadFieldsNameTheirPointer) {
        "/solver/max_cutbacks: must be an integer in 0..20, got 21"},
       {full, "/solver/max_cutbacks", -1,
        "/solver/max_cutbacks: must be an integer in 0..20, got -1"},
+      {full, "/solver/force_tolerance", 1, "/solver/force_tolerance: must be in [0, 1), got 1"},
+      {full, "/solver/second_gradient_N", -2,
+       "/solver/second_gradient_N: must be in [0, 1000000], got -2"},
+      {full, "/solver/second_gradient_N", 30,
+       "/solver/second_gradient_N: the second gradient needs the mesh's element \"q8r\""},
       // output
       {full, "/output/frame_every", 0, "/output/frame_every: must be an integer >= 1, got 0"},
       {full, "/output/timeseries_every", 0.5,

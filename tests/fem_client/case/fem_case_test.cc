@@ -110,6 +110,8 @@ TEST_F(FemCaseTest, MinimalCaseTakesTheDefaults) {
   EXPECT_EQ(c->solver.tolerance, 0.01);
   EXPECT_EQ(c->solver.max_iterations, 30);
   EXPECT_EQ(c->solver.max_cutbacks, 6);
+  EXPECT_EQ(c->solver.force_tolerance, 0.0);  // E_f only reported, as in G&Z
+  EXPECT_EQ(c->solver.second_gradient, 0.0);  // none
   EXPECT_EQ(c->output.timeseries_every, defaults.output.timeseries_every);
   EXPECT_EQ(c->output.frame_every, defaults.output.frame_every);
   EXPECT_EQ(c->output.checkpoint_every, 0);
@@ -343,7 +345,8 @@ TEST(ShippedFemCases, ParseAndRoundTrip) {
         "fem-biaxial-medium.json", "fem-biaxial-fine.json", "fem-biaxial-coarse-q8.json",
         "fem-biaxial-coarse-ci.json", "fem-biaxial-coarse-q8-ci.json",
         "fem-simple-shear-strain.json", "fem-simple-shear-strain-ci.json",
-        "fem-simple-shear-stress.json", "fem-simple-shear-stress-ci.json"}) {
+        "fem-simple-shear-stress.json", "fem-simple-shear-stress-ci.json",
+        "fem-biaxial-second-gradient.json", "fem-biaxial-second-gradient-ci.json"}) {
     EXPECT_NE(std::find(names.begin(), names.end(), expected), names.end()) << expected;
   }
 }
@@ -365,7 +368,8 @@ TEST(ShippedFemCases, HoldThePapersSetUps) {
   for (const Mesh& m : {Mesh{"fem-biaxial-coarse.json", 6, 10, ElementKind::kQ4},
                         Mesh{"fem-biaxial-medium.json", 10, 15, ElementKind::kQ4},
                         Mesh{"fem-biaxial-fine.json", 12, 20, ElementKind::kQ4},
-                        Mesh{"fem-biaxial-coarse-q8.json", 6, 10, ElementKind::kQ8}}) {
+                        Mesh{"fem-biaxial-coarse-q8.json", 6, 10, ElementKind::kQ8},
+                        Mesh{"fem-biaxial-second-gradient.json", 6, 10, ElementKind::kQ8R}}) {
     SCOPED_TRACE(m.name);
     const FemCase c = load(m.name);
     EXPECT_EQ(c.mesh.size, Eigen::Vector2d(0.05, 0.1));

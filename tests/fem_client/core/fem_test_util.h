@@ -30,7 +30,7 @@ inline Mesh DistortedSquare(ElementType type) {
   for (Eigen::Vector2d& x : mesh.nodes) {
     if ((x - centre).norm() < 1e-12) x = moved;
   }
-  if (type == ElementType::kQ8) {
+  if (type != ElementType::kQ4) {
     // Midsides of the four interior edges: halfway to the moved centre,
     // then off the chord.
     const Eigen::Vector2d ends[4] = {{1.0, 0.0}, {2.0, 1.0}, {1.0, 2.0}, {0.0, 1.0}};

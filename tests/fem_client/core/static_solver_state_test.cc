@@ -24,13 +24,13 @@ namespace {
 
 constexpr double kLateral = 1e5;  // Pa
 
-Mesh Specimen() {
+Mesh Specimen(ElementType type = ElementType::kQ4) {
   RectangleSpec spec;
   spec.width = 2.0;
   spec.height = 1.0;
   spec.nx = 4;
   spec.ny = 2;
-  spec.type = ElementType::kQ4;
+  spec.type = type;
   return *StructuredRectangle(spec);
 }
 
@@ -248,6 +248,71 @@ TEST(StaticSolverPredictorTest, ThePreviousIncrementStartsNewtonCloser) {
   // Measured: 24 iterations from zero, 19 from the previous increment.
   EXPECT_LT(iterations[1], iterations[0]);
   EXPECT_LT((displacement[1] - displacement[0]).norm(), 1e-7 * displacement[0].norm());
+}
+
+// With a second gradient the state carries its fields (Σ, λ, v) and the
+// predictor's rate of its unknowns: a restored solver steps on bit for bit,
+// its second gradient included; a state whose fields do not fit is refused.
+TEST(StaticSolverStateTest, ASecondGradientTravelsWithTheState) {
+  const Mesh mesh = Specimen(ElementType::kQ8R);
+  SolverOptions options;
+  options.tangent = TangentOperator::kPerturbation;
+  options.predictor = Predictor::kPrevious;
+  options.max_iterations = 40;
+  options.second_gradient = 1e4;
+  auto material = StiffeningElasticMaterial::Create(Stiffening(), Consolidated(mesh));
+  ASSERT_TRUE(material.ok()) << material.status();
+  auto original = StaticSolver::Create(mesh, Sheared(mesh), options, material->get());
+  ASSERT_TRUE(original.ok()) << original.status();
+  for (int s = 0; s < 3; ++s) ASSERT_TRUE((*original)->Step().ok());
+  const SolverState state = (*original)->State();
+  ASSERT_EQ(state.second_gradient.double_stress.size(), 32u);
+  EXPECT_EQ(state.second_gradient.multiplier.size(), 32);
+  EXPECT_EQ(state.second_gradient.micro.size(), 4 * 15);    // the 5 × 3 corner nodes
+  EXPECT_GT(state.second_gradient.multiplier.norm(), 0.0);  // sheared, not uniform
+
+  for (const char* field : {"multiplier", "micro", "double_stress"}) {
+    SolverState bad = state;
+    if (std::string(field) == "multiplier") bad.second_gradient.multiplier.conservativeResize(5);
+    if (std::string(field) == "micro") bad.second_gradient.micro[3] = std::nan("");
+    if (std::string(field) == "double_stress") bad.second_gradient.double_stress.pop_back();
+    StiffeningElasticMaterial copy = **material;
+    auto other = StaticSolver::Create(mesh, Sheared(mesh), options, &copy);
+    ASSERT_TRUE(other.ok());
+    const absl::Status status = (*other)->Restore(std::move(bad));
+    EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << status;
+    EXPECT_TRUE(absl::StrContains(status.message(), std::string("second_gradient.") + field))
+        << status;
+  }
+
+  StiffeningElasticMaterial copy = **material;
+  auto restored = StaticSolver::Create(mesh, Sheared(mesh), options, &copy);
+  ASSERT_TRUE(restored.ok()) << restored.status();
+  ASSERT_TRUE((*restored)->Restore(state).ok());
+  for (double factor : {1.0, -1.0, 1.0}) {
+    const absl::StatusOr<StepReport> a = (*original)->Step(factor);
+    const absl::StatusOr<StepReport> b = (*restored)->Step(factor);
+    ASSERT_TRUE(a.ok()) << a.status();
+    ASSERT_TRUE(b.ok()) << b.status();
+    ExpectSameStep(*a, *b, **original, **restored);
+  }
+  const SecondGradientState sa = (*original)->State().second_gradient;
+  const SecondGradientState sb = (*restored)->State().second_gradient;
+  EXPECT_TRUE(SameBits(sa.multiplier, sb.multiplier));
+  EXPECT_TRUE(SameBits(sa.micro, sb.micro));
+  for (std::size_t p = 0; p < sa.double_stress.size(); ++p) {
+    EXPECT_TRUE(SameBits(sa.double_stress[p], sb.double_stress[p])) << p;
+  }
+
+  // A solver without a second gradient refuses the fields.
+  StiffeningElasticMaterial plain = **material;
+  auto without =
+      StaticSolver::Create(Specimen(ElementType::kQ8R), Sheared(mesh), SolverOptions{}, &plain);
+  ASSERT_TRUE(without.ok());
+  SolverState foreign = state;
+  foreign.last_rate.resize(0);
+  const absl::Status status = (*without)->Restore(std::move(foreign));
+  EXPECT_TRUE(absl::StrContains(status.message(), "without a second gradient")) << status;
 }
 
 }  // namespace

@@ -209,7 +209,7 @@ TEST(StaticSolverTest, TheThreeOperatorsOnTheBiaxialElement) {
 TEST(StaticSolverTest, PatchTestThroughTheSolver) {
   Eigen::Matrix2d h;
   h << 2e-3, -1e-3, 4e-3, -3e-3;
-  for (ElementType type : {ElementType::kQ4, ElementType::kQ8}) {
+  for (ElementType type : {ElementType::kQ4, ElementType::kQ8, ElementType::kQ8R}) {
     const Mesh mesh = DistortedSquare(type);
     auto material = LinearElasticMaterial::Create(kE, kNu, Uniform(mesh, Prestress()));
     ASSERT_TRUE(material.ok());
@@ -247,7 +247,7 @@ TEST(StaticSolverTest, PatchTestThroughTheSolver) {
 // iteration's E_d and E_f are below the square of the one before (measured
 // factors 0.15–0.45), until round-off (1e-13).
 TEST(StaticSolverTest, NewtonConvergesQuadraticallyWithTheExactTangent) {
-  for (ElementType type : {ElementType::kQ4, ElementType::kQ8}) {
+  for (ElementType type : {ElementType::kQ4, ElementType::kQ8, ElementType::kQ8R}) {
     const Mesh mesh = Rectangle(1.0, 1.0, 4, 4, type);
     auto material = StiffeningElasticMaterial::Create(
         {5e7, 3e7, 40.0}, Uniform(mesh, -kLateral * Eigen::Matrix3d::Identity()));
@@ -315,7 +315,7 @@ TEST(StaticSolverTest, ThePerturbationOperatorConvergesToTheSameSolution) {
 // turn with the faces, and every node's reaction is zero to round-off
 // (1e-9 of the nodal forces p·L/2), as is each face's.
 TEST(StaticSolverTest, ARigidRotationKeepsEquilibriumWithTheRotatedStress) {
-  for (ElementType type : {ElementType::kQ4, ElementType::kQ8}) {
+  for (ElementType type : {ElementType::kQ4, ElementType::kQ8, ElementType::kQ8R}) {
     Mesh mesh = Rectangle(1.0, 1.0, 1, 1, type);
     for (int a = 0; a < static_cast<int>(mesh.nodes.size()); ++a) {
       mesh.node_sets[absl::StrCat("node ", a)] = {a};

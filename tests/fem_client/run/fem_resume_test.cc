@@ -151,6 +151,22 @@ TEST(FemResumeTest, AForcedPlatenResumesWithItsLoad) {
   ExpectSameOutputs(full, part);
 }
 
+// With the local second gradient the checkpoint carries its double
+// stresses, multipliers and micro-kinematic field: stopped and resumed, the
+// reduced case ends as the uninterrupted run.
+TEST(FemResumeTest, ASecondGradientResumesWithItsFields) {
+  const FemCase c = Load("fem-biaxial-second-gradient-ci");
+  const std::string full = Scratch("sg-full"), part = Scratch("sg-part");
+  ASSERT_TRUE(RunCase(c, Options(full)).ok());
+  ASSERT_TRUE(RunCase(c, Options(part, /*stop_after=*/3)).ok());
+  absl::StatusOr<store::SimCheckpoint> at = store::ReadSimCheckpoint(part + "/checkpoint.h5");
+  ASSERT_TRUE(at.ok()) << at.status();
+  EXPECT_EQ(at->doubles.at("multiplier").size(), 4u * 8);
+  EXPECT_EQ(at->doubles.at("double_stress").size(), 8u * 32);
+  ASSERT_TRUE(ResumeCase(part + "/checkpoint.h5", Options(part)).ok());
+  ExpectSameOutputs(full, part);
+}
+
 // What Resume refuses, before it writes anything.
 TEST(FemResumeTest, ACheckpointThatIsNotOneIsRefused) {
   const std::string out = Scratch("refused");

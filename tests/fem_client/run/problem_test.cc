@@ -236,7 +236,8 @@ TEST(ProblemTest, EveryShippedCaseBuilds) {
        {"fem-single-element", "fem-single-element-ci", "fem-biaxial-coarse", "fem-biaxial-medium",
         "fem-biaxial-fine", "fem-biaxial-coarse-q8", "fem-biaxial-coarse-ci",
         "fem-biaxial-coarse-q8-ci", "fem-simple-shear-strain", "fem-simple-shear-strain-ci",
-        "fem-simple-shear-stress", "fem-simple-shear-stress-ci"}) {
+        "fem-simple-shear-stress", "fem-simple-shear-stress-ci", "fem-biaxial-second-gradient",
+        "fem-biaxial-second-gradient-ci"}) {
     SCOPED_TRACE(name);
     const FemCase c = Load(name);
     const Problem p = Build(c);
