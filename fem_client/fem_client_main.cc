@@ -16,6 +16,7 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
+#include "client_run/checks.h"
 #include "client_run/out_dir_lock.h"
 #include "client_run/run_record.h"
 #include "fem_client/case/case.h"
@@ -53,7 +54,9 @@ Usage:
   fem_client resume CHECKPOINT.h5 [options]      continue a run from its checkpoint
   fem_client check CASE.json [--set=...]         validate a case file and print it in full
   fem_client summarise CASE.json --out=DIR       (re)write DIR/summary.json and plot.png from
-                                                 DIR/timeseries.csv
+                                                 DIR/timeseries.csv, then the case's checks
+                                                 against it (pass or FAIL; exit status 3 when
+                                                 one fails)
   fem_client --help
 
 Options (run, resume):
@@ -247,6 +250,10 @@ int Resume(const Command& command, int argc, char** argv) {
   return StepToEnd(**sim, *options, record);
 }
 
+// summarise's exit status when the outputs were written but a check failed
+// (as mpm_client's): apart from a failure (1) and a usage error (2).
+constexpr int kCheckFailed = 3;
+
 int Main(int argc, char** argv) {
   SetUpLongRunningProcess();
   absl::StatusOr<Command> command = Parse(argc, argv);
@@ -273,6 +280,15 @@ int Main(int argc, char** argv) {
     if (!summary.ok()) return Fail(summary.status(), 1);
     for (const auto& [key, value] : *summary) {
       std::printf("summary: %s = %.6g\n", key.c_str(), value);
+    }
+    const std::vector<client_run::CheckResult> checks =
+        client_run::EvaluateChecks(spec->checks, *summary);
+    for (const client_run::CheckResult& r : checks) {
+      std::printf("check: %s\n", client_run::FormatCheck(r).c_str());
+    }
+    if (!client_run::AllPass(checks)) {
+      std::fprintf(stderr, "fem_client: a check failed (see the check: lines)\n");
+      return kCheckFailed;
     }
     return 0;
   }

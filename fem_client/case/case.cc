@@ -30,10 +30,10 @@ constexpr client_case::RveKeys kRveKeys{.real_time = false, .max_void_ratio = fa
 // refers to (the material after the templates, the loading after the
 // boundaries, the output after the mesh and the loading).
 absl::StatusOr<FemCase> ReadCase(const Json& doc, const std::string& base_dir) {
-  ASSIGN_OR_RETURN(Object root,
-                   Object::Open(doc, "",
-                                {"name", "description", "expected_runtime_s", "mesh", "templates",
-                                 "material", "rve", "boundaries", "loading", "solver", "output"}));
+  ASSIGN_OR_RETURN(Object root, Object::Open(doc, "",
+                                             {"name", "description", "expected_runtime_s", "mesh",
+                                              "templates", "material", "rve", "boundaries",
+                                              "loading", "solver", "output", "checks"}));
   FemCase c;
   RETURN_IF_ERROR(GetString(root, "name", Need::kOptional, false, &c.name));
   RETURN_IF_ERROR(GetString(root, "description", Need::kOptional, false, &c.description));
@@ -84,6 +84,10 @@ absl::StatusOr<FemCase> ReadCase(const Json& doc, const std::string& base_dir) {
         ParseOutput(*output, root.At("output"), c.mesh, c.loading, base_dir, &c.output));
   }
 
+  if (const Json* checks = root.Get("checks")) {
+    RETURN_IF_ERROR(client_case::ParseChecks(*checks, root.At("checks"), &c.checks));
+  }
+
   // Refused here rather than as std::bad_alloc while the RVEs are created.
   if (const double bytes = EstimateRveBytes(c); bytes > kMaxFemCaseBytes) {
     return Bad("/mesh", absl::StrFormat("the case's RVEs need about %.1f GiB (%d Gauss points), "
@@ -110,6 +114,7 @@ OrderedJson WriteCase(const FemCase& c) {
   doc["loading"] = WriteLoading(c.loading);
   doc["solver"] = WriteSolver(c.solver);
   doc["output"] = WriteOutput(c.output);
+  doc["checks"] = client_case::WriteChecks(c.checks);
   return doc;
 }
 

@@ -12,11 +12,13 @@
 #include <string>
 #include <vector>
 
+#include "client_case/spec/check_spec.h"
 #include "client_case/spec/rve_spec.h"
 
 namespace rvehub::fem {
 
 // The RVE templates and controls, as every continuum client's case holds them.
+using client_case::CheckSpec;
 using client_case::RveSpec;
 using client_case::TemplateSpec;
 
@@ -185,6 +187,8 @@ struct FemCase {
   LoadingSpec loading;
   SolverSpec solver;
   OutputSpec output;
+  // What the run's summary.json is compared with (`fem_client summarise`).
+  std::vector<CheckSpec> checks;
 };
 
 }  // namespace rvehub::fem

@@ -199,6 +199,15 @@ TEST(FemCliTest, RunWritesEveryOutputAndSummariseWritesTheSummaryAgain) {
   EXPECT_TRUE(absl::StrContains(again.out, "summary: peak_stress_Pa")) << again.out;
   EXPECT_EQ(ReadJson(dir + "/summary.json"), summary);
   EXPECT_TRUE(fs::exists(dir + "/plot.png"));
+  EXPECT_TRUE(absl::StrContains(again.out, "check: pass final_stress_Pa")) << again.out;
+
+  // A check the run misses: its line says FAIL and the exit status is 3.
+  const Result missed =
+      RunClient(absl::StrCat("summarise ", Quote(Case("fem-single-element-ci")),
+                             " --out=", Quote(dir), " --set=/checks/0/reference=300000"));
+  EXPECT_EQ(missed.exit_code, 3) << missed;
+  EXPECT_TRUE(absl::StrContains(missed.out, "check: FAIL final_stress_Pa")) << missed.out;
+  EXPECT_TRUE(absl::StrContains(missed.err, "a check failed")) << missed.err;
 }
 
 // Two rve_server processes share the RVEs of the coarse biaxial specimen;

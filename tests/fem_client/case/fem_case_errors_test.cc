@@ -43,7 +43,7 @@ TEST_F(FemCaseErrorsTest, BadFieldsNameTheirPointer) {
       // Unknown keys (typos), with a suggestion; wrong types; missing keys.
       {full, "/colour", "red",
        "/colour: unknown key (keys here: name, description, expected_runtime_s, mesh, templates, "
-       "material, rve, boundaries, loading, solver, output)"},
+       "material, rve, boundaries, loading, solver, output, checks)"},
       {full, "/mesh/elemnts", {1, 1}, "/mesh/elemnts: unknown key (did you mean \"elements\"?"},
       {full, "/name", 3, "/name: must be a string, got number 3"},
       {full, "/expected_runtime_s", -1, "/expected_runtime_s: must be >= 0, got -1"},

@@ -212,7 +212,8 @@ TEST_F(FemCaseTest, ToJsonWritesEveryKeyInOrder) {
   for (const auto& [key, value] : j.items()) keys.push_back(key);
   EXPECT_EQ(keys, (std::vector<std::string>{"name", "description", "expected_runtime_s", "mesh",
                                             "templates", "material", "rve", "boundaries", "loading",
-                                            "solver", "output"}));
+                                            "solver", "output", "checks"}));
+  EXPECT_EQ(j["checks"], Json::array());
   EXPECT_EQ(j["mesh"]["element"], "q4");
   EXPECT_EQ(j["material"]["initial_stress"], Json({{"kind", "template"}}));
   EXPECT_EQ(j["solver"]["tangent"], "contact");

@@ -2,7 +2,7 @@
 // embedded server (cases/fem-biaxial-second-gradient-ci.json): before the
 // peak the specimen deforms nearly homogeneously, where the second gradient
 // has nothing to act on, so the curve is that of the same Q8R mesh without
-// it and follows the DEM element test on the same RVE.
+// it and follows the DEM element test on the same RVE (the case's checks).
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -15,6 +15,7 @@
 #include "fem_client/case/case.h"
 #include "fem_client/run/simulation.h"
 #include "tests/fem_client/run/fem_run_test_util.h"
+#include "tests/support/case_checks.h"
 
 namespace rvehub::fem {
 namespace {
@@ -46,6 +47,7 @@ Columns RunCase(const std::string& name, std::vector<CaseOverride> overrides) {
   if (!sim.ok()) return {};
   absl::StatusOr<FemRunSummary> summary = (*sim)->StepToEnd();
   EXPECT_TRUE(summary.ok()) << summary.status();
+  if (overrides.empty()) testing_util::ExpectCaseChecksPass(c->checks, o.out_dir);
   return ReadColumns(o.out_dir + "/timeseries.csv");
 }
 
