@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The validation report: each MPM case's checks against its recorded run.
+"""The validation report: each case's checks (mpm_client's and fem_client's) against its recorded run.
 
 Two commands:
 
@@ -34,6 +34,8 @@ PAPERS = {
     "liang-zhao-mpm-dem": "Liang & Zhao, multiscale MPM×DEM (dry granular soil)",
     "liang-zhao-wu-soga-2023": "Liang, Zhao, Wu & Soga 2023, two-phase MPM×DEM (saturated soil)",
     "analytic": "Closed-form solutions",
+    "guo-zhao-2014": "Guo & Zhao 2014, implicit FEM×DEM (fem_client)",
+    "desrues-et-al": "Desrues et al., FEM×DEM with a local second gradient (fem_client)",
 }
 
 # The paper each case reproduces (a reduced -ci case its full case's).
@@ -42,6 +44,10 @@ SATURATED = ("consolidation-1d", "cyclic-shaking", "collapse-saturated", "collap
 
 
 def paper_of(case):
+    if case.startswith("fem-biaxial-second-gradient"):
+        return "desrues-et-al"
+    if case.startswith("fem-"):
+        return "guo-zhao-2014"
     if case.startswith("consolidation-crs"):
         return "analytic"
     if case.startswith(SATURATED):
@@ -74,6 +80,15 @@ FIGURES = {
     "collapse-saturated-loose": "collapse-saturated-columns.png",
     "collapse-dry-medium": "collapse-saturated-columns.png",
     "wave-propagation": "wave-propagation.png",
+    "fem-single-element": "fem-single-element-stress-strain.png",
+    "fem-biaxial-coarse": "fem-biaxial-stress-strain-meshes.png",
+    "fem-biaxial-medium": "fem-biaxial-stress-strain-meshes.png",
+    "fem-biaxial-fine": "fem-biaxial-stress-strain-meshes.png",
+    "fem-biaxial-coarse-q8": "fem-biaxial-stress-strain-meshes.png",
+    "fem-biaxial-hexagonal": "fem-biaxial-hexagonal.png",
+    "fem-biaxial-second-gradient": "fem-biaxial-second-gradient-bands.png",
+    "fem-simple-shear-strain": "fem-simple-shear-strain-loops.png",
+    "fem-simple-shear-stress": "fem-simple-shear-stress-loops.png",
 }
 
 # The owner's rulings on the points the papers left open, each with the checks (case,
@@ -132,12 +147,10 @@ def load_json(path):
 
 
 def cases():
-    """(name, case document) of every MPM case file, by name."""
+    """(name, case document) of every case file, mpm_client's and fem_client's, by name."""
     out = []
     for path in sorted(glob.glob(os.path.join(HERE, "*.json"))):
         name = os.path.basename(path)[:-len(".json")]
-        if name.startswith("fem-"):
-            continue
         out.append((name, load_json(path)))
     return out
 
@@ -265,8 +278,10 @@ def report(args):
                       "|---|---|---|---|---|---|---|"]
             for name, doc in rows:
                 if not evaluated[name]:
+                    where = ("the case's description and cases/README.md" if name.startswith("fem-")
+                             else "see the rulings below")
                     lines.append(f"| {name} | – | – | – | – | no machine-readable check | "
-                                 "see the rulings below |")
+                                 f"{where} |")
                 for check, (ours, ref, _, verdict) in evaluated[name]:
                     lines.append(f"| {name} | `{check['quantity']}` | {fmt(ours)} | "
                                  f"{reference_text(check, ref)} | {tolerance_text(check)} | "
