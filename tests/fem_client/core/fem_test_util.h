@@ -4,6 +4,7 @@
 #define RVEHUB_TESTS_FEM_CLIENT_CORE_FEM_TEST_UTIL_H_
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <functional>
 #include <span>
 #include <utility>
@@ -11,6 +12,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "fem_client/core/boundary.h"
 #include "fem_client/core/material.h"
 #include "fem_client/core/mesh.h"
 
@@ -56,6 +58,20 @@ inline std::vector<int> InteriorNodes(const Mesh& mesh) {
     if (!boundary[a]) out.push_back(a);
   }
   return out;
+}
+
+// The patch test's boundary: every node outside InteriorNodes moved by
+// h·x over each step (a uniform gradient h), the interior free.
+inline Boundary PatchBoundary(const Mesh& mesh, const Eigen::Matrix2d& h) {
+  const std::vector<int> interior = InteriorNodes(mesh);
+  Boundary b;
+  for (int a = 0; a < static_cast<int>(mesh.nodes.size()); ++a) {
+    if (std::find(interior.begin(), interior.end(), a) != interior.end()) continue;
+    const Eigen::Vector2d du = h * mesh.nodes[a];
+    b.prescribed.push_back({a, 0, du.x()});
+    b.prescribed.push_back({a, 1, du.y()});
+  }
+  return b;
 }
 
 inline Eigen::Matrix3d InPlane(const Eigen::Matrix2d& a) {

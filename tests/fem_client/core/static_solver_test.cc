@@ -214,13 +214,7 @@ TEST(StaticSolverTest, PatchTestThroughTheSolver) {
     auto material = LinearElasticMaterial::Create(kE, kNu, Uniform(mesh, Prestress()));
     ASSERT_TRUE(material.ok());
     const std::vector<int> interior = InteriorNodes(mesh);
-    Boundary b;
-    for (int a = 0; a < static_cast<int>(mesh.nodes.size()); ++a) {
-      if (std::find(interior.begin(), interior.end(), a) != interior.end()) continue;
-      const Eigen::Vector2d du = h * mesh.nodes[a];
-      b.prescribed.push_back({a, 0, du.x()});
-      b.prescribed.push_back({a, 1, du.y()});
-    }
+    const Boundary b = testing::PatchBoundary(mesh, h);
     SolverOptions options;
     options.displacement_tolerance = 1e-12;
     auto solver = StaticSolver::Create(mesh, b, options, material->get());

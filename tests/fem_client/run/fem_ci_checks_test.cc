@@ -9,7 +9,6 @@
 #include <string>
 
 #include "fem_client/case/case.h"
-#include "fem_client/run/simulation.h"
 #include "tests/fem_client/run/fem_run_test_util.h"
 #include "tests/support/case_checks.h"
 
@@ -19,19 +18,14 @@ namespace {
 namespace fs = std::filesystem;
 
 void RunAndCheck(const std::string& name) {
-  absl::StatusOr<FemCase> c = LoadFemCase(RVEHUB_SOURCE_DIR "/cases/" + name + ".json", {});
-  ASSERT_TRUE(c.ok()) << c.status();
-  FemSimulationOptions o;
-  o.out_dir = run_test::ScratchPath("fem_ci_checks_test", name);
-  o.threads = 2;
-  o.template_cache_dir = (fs::path(testing::TempDir()) / "fem_test_templates").string();
-  absl::StatusOr<std::unique_ptr<FemSimulation>> sim = FemSimulation::Start(*c, o);
-  ASSERT_TRUE(sim.ok()) << sim.status();
-  absl::StatusOr<FemRunSummary> summary = (*sim)->StepToEnd();
+  const std::string out = run_test::ScratchPath("fem_ci_checks_test", name);
+  absl::StatusOr<FemRunSummary> summary = run_test::RunShippedCase(name, out);
   ASSERT_TRUE(summary.ok()) << summary.status();
   ASSERT_TRUE(summary->finished);
-  testing_util::ExpectCaseChecksPass(c->checks, o.out_dir);
-  fs::remove_all(o.out_dir);
+  absl::StatusOr<FemCase> c = LoadFemCase(RVEHUB_SOURCE_DIR "/cases/" + name + ".json", {});
+  ASSERT_TRUE(c.ok()) << c.status();
+  testing_util::ExpectCaseChecksPass(c->checks, out);
+  fs::remove_all(out);
 }
 
 TEST(FemCiChecksTest, SingleElement) { RunAndCheck("fem-single-element-ci"); }

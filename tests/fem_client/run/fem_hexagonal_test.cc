@@ -25,19 +25,11 @@ namespace {
 
 namespace fs = std::filesystem;
 using run_test::Columns;
+using run_test::Interpolate;
 using run_test::ReadColumns;
 
 std::string Scratch(const std::string& name) {
   return run_test::ScratchPath("fem_hexagonal_test", name);
-}
-
-// y(x) on a polyline, linear between its points (x ascending).
-double Interpolate(const std::vector<double>& xs, const std::vector<double>& ys, double x) {
-  const auto it = std::upper_bound(xs.begin(), xs.end(), x);
-  if (it == xs.begin()) return ys.front();
-  if (it == xs.end()) return ys.back();
-  const std::size_t i = it - xs.begin();
-  return ys[i - 1] + (ys[i] - ys[i - 1]) * (x - xs[i - 1]) / (xs[i] - xs[i - 1]);
 }
 
 const std::vector<double>* Field(const store::ResultFrame& frame, const std::string& name) {
@@ -63,17 +55,8 @@ double RelativeSpread(const std::vector<double>& v) {
 // they are open the response is linear again and the spread falls to well
 // below 1 %. The peak itself is at about 5.9 %, past the reduced case's end.
 TEST(FemHexagonalTest, UniformBeforeThePeakAndFollowsTheLattice) {
-  const std::string case_path = RVEHUB_SOURCE_DIR "/cases/fem-biaxial-hexagonal-ci.json";
-  absl::StatusOr<FemCase> c = LoadFemCase(case_path, {});
-  ASSERT_TRUE(c.ok()) << c.status();
   const std::string out = Scratch("ci");
-  FemSimulationOptions o;
-  o.out_dir = out;
-  o.threads = 2;
-  o.template_cache_dir = (fs::path(testing::TempDir()) / "fem_test_templates").string();
-  absl::StatusOr<std::unique_ptr<FemSimulation>> sim = FemSimulation::Start(*c, o);
-  ASSERT_TRUE(sim.ok()) << sim.status();
-  absl::StatusOr<FemRunSummary> summary = (*sim)->StepToEnd();
+  absl::StatusOr<FemRunSummary> summary = run_test::RunShippedCase("fem-biaxial-hexagonal-ci", out);
   ASSERT_TRUE(summary.ok()) << summary.status();
   EXPECT_TRUE(summary->finished);
 

@@ -22,33 +22,23 @@ namespace {
 
 namespace fs = std::filesystem;
 using run_test::Columns;
+using run_test::Interpolate;
 using run_test::ReadColumns;
 
-// y(x) on a polyline, linear between its points (x ascending).
-double Interpolate(const std::vector<double>& xs, const std::vector<double>& ys, double x) {
-  const auto it = std::upper_bound(xs.begin(), xs.end(), x);
-  if (it == xs.begin()) return ys.front();
-  if (it == xs.end()) return ys.back();
-  const std::size_t i = it - xs.begin();
-  return ys[i - 1] + (ys[i] - ys[i - 1]) * (x - xs[i - 1]) / (xs[i] - xs[i - 1]);
-}
-
+// The reduced case with `overrides`, its timeseries; without overrides its
+// checks asserted too.
 Columns RunCase(const std::string& name, std::vector<CaseOverride> overrides) {
-  absl::StatusOr<FemCase> c =
-      LoadFemCase(RVEHUB_SOURCE_DIR "/cases/fem-biaxial-second-gradient-ci.json", overrides);
-  EXPECT_TRUE(c.ok()) << c.status();
-  if (!c.ok()) return {};
-  FemSimulationOptions o;
-  o.out_dir = run_test::ScratchPath("fem_second_gradient_test", name);
-  o.threads = 2;
-  o.template_cache_dir = (fs::path(testing::TempDir()) / "fem_test_templates").string();
-  absl::StatusOr<std::unique_ptr<FemSimulation>> sim = FemSimulation::Start(*c, o);
-  EXPECT_TRUE(sim.ok()) << sim.status();
-  if (!sim.ok()) return {};
-  absl::StatusOr<FemRunSummary> summary = (*sim)->StepToEnd();
+  const std::string out = run_test::ScratchPath("fem_second_gradient_test", name);
+  absl::StatusOr<FemRunSummary> summary =
+      run_test::RunShippedCase("fem-biaxial-second-gradient-ci", out, overrides);
   EXPECT_TRUE(summary.ok()) << summary.status();
-  if (overrides.empty()) testing_util::ExpectCaseChecksPass(c->checks, o.out_dir);
-  return ReadColumns(o.out_dir + "/timeseries.csv");
+  if (overrides.empty()) {
+    absl::StatusOr<FemCase> c =
+        LoadFemCase(RVEHUB_SOURCE_DIR "/cases/fem-biaxial-second-gradient-ci.json", {});
+    EXPECT_TRUE(c.ok()) << c.status();
+    if (c.ok()) testing_util::ExpectCaseChecksPass(c->checks, out);
+  }
+  return ReadColumns(out + "/timeseries.csv");
 }
 
 // Measured: the two curves within 2.2e-5 of each other, both within 1.5 % of

@@ -34,6 +34,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using run_test::Columns;
+using run_test::Interpolate;
 using run_test::ReadColumns;
 
 std::string Scratch(const std::string& name) {
@@ -105,15 +106,6 @@ Curve ElementTest(const FemCase& c) {
     curve.ev.push_back(row.vol_strain_comp);
   }
   return curve;
-}
-
-// y(x) on a polyline, linear between its points (x ascending).
-double Interpolate(const std::vector<double>& xs, const std::vector<double>& ys, double x) {
-  const auto it = std::upper_bound(xs.begin(), xs.end(), x);
-  if (it == xs.begin()) return ys.front();
-  if (it == xs.end()) return ys.back();
-  const std::size_t i = it - xs.begin();
-  return ys[i - 1] + (ys[i] - ys[i - 1]) * (x - xs[i - 1]) / (xs[i] - xs[i - 1]);
 }
 
 // Every load step converged with at least two iterations (the first has
