@@ -34,7 +34,7 @@
 #include "rve_server/common/flags.h"
 #include "rve_server/common/process.h"
 #include "rve_server/common/status_macros.h"
-#include "rvehub_version.h"  // RVEHUB_GIT_DESCRIBE, generated at build time
+#include "rvehub/version.h"  // RVEHUB_GIT_DESCRIBE, generated at build time
 
 // The options (kUsage documents them); cli::ParseArgs reads them with
 // hyphens (--stop-after).

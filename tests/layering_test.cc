@@ -123,10 +123,10 @@ const std::vector<Layer>& Layers() {
         "rve_server/client/", "rve_server/embedded/", "rve_server/values/", "rve_server/common/",
         "store/", "toolkit/", "absl/", "nlohmann/"},
        {"Eigen/", "nlohmann/"}},
-      // The binary.
+      // The binary (rvehub/version.h: the build's git describe, generated).
       {"mpm_client",
        {"mpm_client/", "client_run/", "rve_server/client/", "rve_server/common/", "absl/",
-        "nlohmann/"},
+        "nlohmann/", "rvehub/version.h"},
        {"Eigen/", "nlohmann/"}},
       // fem_client's case files: the shared sections, never mpm_client's.
       {"fem_client/case",
@@ -149,7 +149,7 @@ const std::vector<Layer>& Layers() {
       // The binary: commands and flags over the run layer.
       {"fem_client",
        {"fem_client/", "client_run/", "rve_server/client/", "rve_server/common/", "absl/",
-        "nlohmann/"},
+        "nlohmann/", "rvehub/version.h"},
        {"Eigen/", "nlohmann/"}},
   };
   return *layers;
