@@ -17,6 +17,16 @@ const char kElementTestCsvHeader[] =
     "step,axial_strain,vol_strain,sxx,syy,sxy,p,q,void_ratio,coordination,fabric_xx,fabric_yy,"
     "fabric_xy,Fa,permeability,shear_strain";
 
+absl::Status WriteTextFile(const std::string& path, absl::string_view text) {
+  std::unique_ptr<FILE, int (*)(FILE*)> file(std::fopen(path.c_str(), "w"), &std::fclose);
+  if (!file) return absl::UnavailableError(absl::StrCat("cannot open '", path, "' for writing"));
+  std::fwrite(text.data(), 1, text.size(), file.get());
+  if (std::ferror(file.get()) || std::fclose(file.release()) != 0) {
+    return absl::UnavailableError(absl::StrCat("error while writing '", path, "'"));
+  }
+  return absl::OkStatus();
+}
+
 absl::Status WriteElementTestCsv(const std::string& path, const std::vector<ElementTestRow>& rows) {
   std::unique_ptr<FILE, int (*)(FILE*)> file(std::fopen(path.c_str(), "w"), &std::fclose);
   if (!file) return absl::UnavailableError(absl::StrCat("cannot open '", path, "' for writing"));

@@ -7,9 +7,14 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "absl/strings/string_view.h"
 #include "rve_server/values/element_test.h"
 
 namespace rvehub::cli {
+
+// Writes `text` to `path` (replacing it): Unavailable naming the path when
+// it cannot be opened or written.
+absl::Status WriteTextFile(const std::string& path, absl::string_view text);
 
 // The CSV header, in column order.
 extern const char kElementTestCsvHeader[];

@@ -112,6 +112,7 @@ Commands:
   get              one hosted RVE's homogenised state (text or JSON)
   upload-template  upload the templates of a template file (from prepare --out)
   checkpoint       export hosted RVEs (one run or all) into an HDF5 file
+  contacts         one RVE of an RVE file: its discs and contact forces as CSV
   restore          import RVEs from a checkpoint file into a server
   list-runs        the runs a server hosts (RVEs, steps)
   drop             free a run's RVEs (or one of them) on a server
@@ -297,6 +298,25 @@ run.
 Options:
   --run=RUN          run id
   --id=N             only this material-point id
+)";
+
+constexpr char kContactsHelp[] =
+    R"(rve_cli contacts — one RVE's discs and contact forces, for force-chain plots
+
+  rve_cli contacts --file=RVES.h5 --out=PREFIX [--id=N]
+
+Reads the RVEs of an RVE file (a client's packings-STEP.h5, rve_cli checkpoint's
+output), takes the one of material-point id N (default: the first), and writes
+PREFIX-discs.csv (x_m, y_m, radius_m: each centre wrapped into the cell) and
+PREFIX-contacts.csv (i, j, branch_x_m, branch_y_m, normal_force_N,
+tangential_force_N: each active contact, the branch from disc i to the nearest
+image of disc j, fn compression +) as the engine's force law gives them. No
+server is called.
+
+Options:
+  --file=RVES.h5     the RVE file
+  --id=N             the material-point id (Gauss point) of the RVE
+  --out=PREFIX       output prefix
 )";
 
 // ---------------------------------------------------------------------------
@@ -880,6 +900,46 @@ absl::Status UploadTemplateCommand(const Flags& flags) {
   return absl::OkStatus();
 }
 
+absl::Status ContactsCommand(const Flags& flags) {
+  std::string file, out;
+  RETURN_IF_ERROR(Require(flags, "file", "RVES.h5", &file));
+  RETURN_IF_ERROR(Require(flags, "out", "PREFIX", &out));
+  std::int64_t id = -1;
+  if (flags.contains("id")) RETURN_IF_ERROR(Get(flags, "id", &id));
+  absl::StatusOr<std::vector<RveRecord>> all = store::ReadRves(file);
+  if (!all.ok()) return ExplainFileKind(all.status(), file);
+  const RveRecord* rve = nullptr;
+  for (const RveRecord& r : *all) {
+    if (id < 0 || r.id == id) {
+      rve = &r;
+      break;
+    }
+  }
+  if (rve == nullptr) {
+    return absl::NotFoundError(id < 0 ? absl::StrCat("'", file, "' holds no RVE")
+                                      : absl::StrCat("'", file, "' holds no RVE of id ", id));
+  }
+  ASSIGN_OR_RETURN(const embedded::PackingForces forces, embedded::ContactForces(rve->packing));
+  const std::string discs = out + "-discs.csv", contacts = out + "-contacts.csv";
+  std::string text = "x_m,y_m,radius_m\n";
+  for (std::size_t k = 0; k < forces.radius.size(); ++k) {
+    absl::StrAppendFormat(&text, "%.9g,%.9g,%.9g\n", forces.position[k].x(), forces.position[k].y(),
+                          forces.radius[k]);
+  }
+  RETURN_IF_ERROR(cli::WriteTextFile(discs, text));
+  text = "i,j,branch_x_m,branch_y_m,normal_force_N,tangential_force_N\n";
+  for (const embedded::PackingContact& c : forces.contacts) {
+    absl::StrAppendFormat(&text, "%d,%d,%.9g,%.9g,%.9g,%.9g\n", c.i, c.j, c.branch.x(),
+                          c.branch.y(), c.normal_force, c.tangential_force);
+  }
+  RETURN_IF_ERROR(cli::WriteTextFile(contacts, text));
+  std::printf("RVE %lld of run \"%s\" (step %lld): %zu discs, %zu contacts -> %s, %s\n",
+              static_cast<long long>(rve->id), rve->run_id.c_str(),
+              static_cast<long long>(rve->step), forces.radius.size(), forces.contacts.size(),
+              discs.c_str(), contacts.c_str());
+  return absl::OkStatus();
+}
+
 absl::Status CheckpointCommand(const Flags& flags) {
   std::string out, run;
   RETURN_IF_ERROR(Require(flags, "out", "FILE.h5", &out));
@@ -999,6 +1059,7 @@ const std::vector<Command>& Commands() {
       {"get", kGetHelp, true, {"run", "id", "tangent", "format"}, &GetCommand},
       {"upload-template", kUploadTemplateHelp, true, {"file", "replace"}, &UploadTemplateCommand},
       {"checkpoint", kCheckpointHelp, true, {"out", "run"}, &CheckpointCommand},
+      {"contacts", kContactsHelp, false, {"file", "id", "out"}, &ContactsCommand},
       {"restore", kRestoreHelp, true, {"file", "run"}, &RestoreCommand},
       {"list-runs", kListRunsHelp, true, {}, &ListRunsCommand},
       {"drop", kDropHelp, true, {"run", "id"}, &DropCommand},

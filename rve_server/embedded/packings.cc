@@ -1,5 +1,6 @@
 #include "rve_server/embedded/packings.h"
 
+#include <cmath>
 #include <utility>
 
 #include "rve_server/common/status_macros.h"
@@ -27,6 +28,22 @@ absl::StatusOr<TemplateRecord> PrepareTemplate(
 absl::StatusOr<dem::RveState> Observe(const dem::RveSnapshot& packing, bool want_tangent) {
   ASSIGN_OR_RETURN(dem::Rve rve, dem::Rve::Create(packing));
   return rve.Observe(want_tangent);
+}
+
+absl::StatusOr<PackingForces> ContactForces(const dem::RveSnapshot& packing) {
+  ASSIGN_OR_RETURN(dem::Rve rve, dem::Rve::Create(packing));
+  PackingForces out;
+  out.cell = packing.cell;
+  for (std::size_t k = 0; k < packing.radius.size(); ++k) {
+    const Eigen::Vector2d s(packing.sx[k] - std::floor(packing.sx[k]),
+                            packing.sy[k] - std::floor(packing.sy[k]));
+    out.position.push_back(packing.cell * s);
+    out.radius.push_back(packing.radius[k]);
+  }
+  for (const dem::ContactForce& c : rve.Contacts()) {
+    out.contacts.push_back({c.i, c.j, c.branch, c.normal_force, c.tangential_force});
+  }
+  return out;
 }
 
 absl::StatusOr<std::vector<dem::ElementTestRow>> RunElementTest(

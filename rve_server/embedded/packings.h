@@ -1,11 +1,12 @@
 // Work on single packings in a client's own process, offered in values so
 // that clients need not know the engine: preparing a template from a named
 // parameter set (rve_cli prepare, mpm_client's and fem_client's case
-// templates), observing a packing's state, and an element test on a local
-// RVE (rve_cli element-test without --server).
+// templates), observing a packing's state and its contact forces, and an
+// element test on a local RVE (rve_cli element-test without --server).
 #ifndef RVEHUB_RVE_SERVER_EMBEDDED_PACKINGS_H_
 #define RVEHUB_RVE_SERVER_EMBEDDED_PACKINGS_H_
 
+#include <Eigen/Dense>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -33,6 +34,26 @@ absl::StatusOr<TemplateRecord> PrepareTemplate(
 // The homogenised state of a packing as it is (the tangent when asked).
 // InvalidArgument for a packing the engine refuses (ValidatePacking).
 absl::StatusOr<dem::RveState> Observe(const dem::RveSnapshot& packing, bool want_tangent);
+
+// One active contact of a packing, as the engine's force law gives it.
+struct PackingContact {
+  std::uint32_t i = 0, j = 0;                        // disc indices
+  Eigen::Vector2d branch = Eigen::Vector2d::Zero();  // x_j − x_i, nearest image, m
+  double normal_force = 0.0;                         // fn, N, compression +
+  double tangential_force = 0.0;                     // ft, N, along (−n_y, n_x)
+};
+
+// A packing's discs and contact forces as it is: for force-chain plots.
+struct PackingForces {
+  Eigen::Matrix2d cell = Eigen::Matrix2d::Identity();  // columns: the cell vectors, m
+  std::vector<Eigen::Vector2d> position;  // each disc's centre wrapped into the cell, m
+  std::vector<double> radius;             // m
+  std::vector<PackingContact> contacts;   // sorted by (i, j)
+};
+
+// The discs and contacts of `packing` (InvalidArgument for a packing the
+// engine refuses, as Observe).
+absl::StatusOr<PackingForces> ContactForces(const dem::RveSnapshot& packing);
 
 // Runs `spec` on an RVE made from `packing` (engine/element_test.h: the
 // ranges, the consolidation first, the rows). `progress` sees the fraction

@@ -26,16 +26,19 @@
 #include "nlohmann/json.hpp"
 #include "rve_server/client/channel.h"
 #include "rve_server/client/remote_server.h"
+#include "rve_server/embedded/packings.h"
 #include "rve_server/service/registry.h"
 #include "rvehub/v1/rve_service.grpc.pb.h"
+#include "store/checkpoint.h"
 #include "tests/rve_server/cli/cli_test_util.h"
 #include "tests/support/process_util.h"
 
 namespace rvehub::cli::cli_test {
 namespace {
 
-const char* const kCommands[] = {"element-test",    "prepare",    "materials", "info",      "get",
-                                 "upload-template", "checkpoint", "restore",   "list-runs", "drop"};
+const char* const kCommands[] = {"element-test", "prepare",         "materials",  "info",
+                                 "get",          "upload-template", "checkpoint", "contacts",
+                                 "restore",      "list-runs",       "drop"};
 const char* const kServerCommands[] = {
     "info", "get", "upload-template", "checkpoint", "restore", "list-runs", "drop"};
 
@@ -168,6 +171,57 @@ TEST(CliTest, ServerWithAFailedCheckpointExitsOne) {
 }
 
 // A header and one line per set with its parameters (cases/REFERENCE.md).
+// contacts: one RVE of an RVE file as discs and contact forces. The forces
+// are the engine's: their Love–Weber sum −(1/V) Σ f_j ⊗ b over the file's
+// contacts is the stress the packing reports, to round-off.
+TEST(CliTest, ContactsWritesTheDiscsAndForcesOfOneRve) {
+  absl::StatusOr<std::vector<TemplateRecord>> templates =
+      store::ReadTemplates(RVEHUB_SOURCE_DIR "/cases/reference/hexagonal-400.h5");
+  ASSERT_TRUE(templates.ok()) << templates.status();
+  RveRecord rve;
+  rve.run_id = "chains";
+  rve.id = 7;
+  rve.packing = templates->front().packing;
+  const std::string file = TempPath("contacts-rves.h5"), prefix = TempPath("contacts-7");
+  ASSERT_TRUE(store::WriteRves(file, std::vector<RveRecord>{rve}, {}).ok());
+  const Result r = RunCli(absl::StrCat("contacts --file='", file, "' --id=7 --out='", prefix, "'"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(absl::StrContains(r.output, "RVE 7 of run \"chains\"")) << r.output;
+
+  absl::StatusOr<embedded::PackingForces> forces = embedded::ContactForces(rve.packing);
+  ASSERT_TRUE(forces.ok()) << forces.status();
+  const auto lines = [](const std::string& path) {
+    std::ifstream in(path);
+    std::string line;
+    std::size_t n = 0;
+    while (std::getline(in, line)) ++n;
+    return n;
+  };
+  EXPECT_EQ(lines(prefix + "-discs.csv"), 1 + rve.packing.radius.size());
+  EXPECT_EQ(lines(prefix + "-contacts.csv"), 1 + forces->contacts.size());
+  ASSERT_GT(forces->contacts.size(), 1000u);  // 400 discs of coordination 6
+  Eigen::Matrix2d sum = Eigen::Matrix2d::Zero();
+  for (const embedded::PackingContact& c : forces->contacts) {
+    const Eigen::Vector2d n = c.branch.normalized(), t(-n.y(), n.x());
+    const Eigen::Vector2d on_j = c.normal_force * n - c.tangential_force * t;
+    sum -= on_j * c.branch.transpose();
+  }
+  const Eigen::Matrix2d stress =
+      0.5 * (sum + sum.transpose()) / (forces->cell.determinant() * rve.packing.material.thickness);
+  absl::StatusOr<dem::RveState> state = embedded::Observe(rve.packing, false);
+  ASSERT_TRUE(state.ok()) << state.status();
+  EXPECT_LT((stress - state->stress.topLeftCorner<2, 2>()).norm(), 1e-9 * state->stress.norm());
+  for (const Eigen::Vector2d& x : forces->position) {
+    const Eigen::Vector2d s = forces->cell.inverse() * x;
+    EXPECT_TRUE(s.minCoeff() >= -1e-12 && s.maxCoeff() < 1 + 1e-12) << x.transpose();
+  }
+
+  const Result missing =
+      RunCli(absl::StrCat("contacts --file='", file, "' --id=8 --out='", prefix, "'"));
+  EXPECT_EQ(missing.exit_code, 1);
+  EXPECT_TRUE(absl::StrContains(missing.output, "holds no RVE of id 8")) << missing.output;
+}
+
 TEST(CliTest, MaterialsListsTheParameterSets) {
   const Result r = RunCli("materials");
   EXPECT_EQ(r.exit_code, 0);
