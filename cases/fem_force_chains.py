@@ -77,16 +77,18 @@ def main():
             ax.set_yticks([])
             fn = [c[3] for c in contacts]
             ax.set_title(f"{label} (Gauss point {point}), {strain.get(step, 0) * 100:.1f} %\n"
-                         f"{len(contacts)} contacts, max fn {max(fn):.0f} N", fontsize=8)
+                         f"{len(contacts)} contacts, max fn {max(fn, default=0):.0f} N",
+                         fontsize=8)
     fig.suptitle("Force chains in the RVEs (line width ∝ normal force; G&Z Fig. 16)", fontsize=9)
     fig.tight_layout()
-    fig.savefig(a.figure, dpi=110)
+    fig.savefig(a.figure, dpi=75)
     print(f"wrote {a.figure}")
     for (step, point), (discs, contacts) in sorted(data.items()):
         fn = [c[3] for c in contacts]
+        mean = sum(fn) / len(fn) if fn else 0.0
         print(f"step {step}, Gauss point {point}: {len(discs)} discs, {len(contacts)} contacts, "
-              f"coordination {2 * len(contacts) / len(discs):.2f}, mean fn {sum(fn) / len(fn):.1f} N, "
-              f"max {max(fn):.1f} N")
+              f"coordination {2 * len(contacts) / len(discs):.2f}, mean fn {mean:.1f} N, "
+              f"max {max(fn, default=0):.1f} N")
     return 0
 
 
