@@ -47,6 +47,22 @@ inline Mesh DistortedSquare(ElementType type) {
   return mesh;
 }
 
+// A width × height (m) rectangle of nx × ny elements of `type`.
+inline Mesh Rectangle(double width, double height, int nx, int ny, ElementType type) {
+  RectangleSpec spec;
+  spec.width = width;
+  spec.height = height;
+  spec.nx = nx;
+  spec.ny = ny;
+  spec.type = type;
+  return *StructuredRectangle(spec);
+}
+
+// One stress (Pa) for every Gauss point of the mesh: a stand-in's initial state.
+inline std::vector<Eigen::Matrix3d> Uniform(const Mesh& mesh, const Eigen::Matrix3d& s) {
+  return std::vector<Eigen::Matrix3d>(CountGaussPoints(mesh), s);
+}
+
 // The nodes in no node set: the interior.
 inline std::vector<int> InteriorNodes(const Mesh& mesh) {
   std::vector<bool> boundary(mesh.nodes.size(), false);

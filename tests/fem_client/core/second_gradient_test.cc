@@ -25,20 +25,10 @@ namespace {
 using testing::DistortedSquare;
 using testing::InteriorNodes;
 using testing::Prestress;
+using testing::Rectangle;
+using testing::Uniform;
 
 constexpr double kE = 1e8, kNu = 0.3;  // Pa, [-]
-
-Mesh Rectangle(int nx, int ny, ElementType type) {
-  RectangleSpec spec;
-  spec.nx = nx;
-  spec.ny = ny;
-  spec.type = type;
-  return *StructuredRectangle(spec);
-}
-
-std::vector<Eigen::Matrix3d> Uniform(const Mesh& mesh, const Eigen::Matrix3d& s) {
-  return std::vector<Eigen::Matrix3d>(CountGaussPoints(mesh), s);
-}
 
 // Eq. 44 as printed: symmetric, and positive semi-definite (a double
 // stress never gives energy back).
@@ -140,7 +130,7 @@ TEST(SecondGradientTest, AHomogeneousDeformationLeavesItIdle) {
 // adds positive energy at the same travel: the force grows with D. With
 // D = 0 on Q8R the force is the plain first-gradient one.
 TEST(SecondGradientTest, ItStiffensANonUniformField) {
-  const Mesh mesh = Rectangle(4, 4, ElementType::kQ8R);
+  const Mesh mesh = Rectangle(1.0, 1.0, 4, 4, ElementType::kQ8R);
   std::vector<double> force;
   for (double d : {0.0, 1e4, 1e5, 1e6}) {
     auto material = LinearElasticMaterial::Create(kE, kNu, Uniform(mesh, Eigen::Matrix3d::Zero()));
@@ -170,7 +160,7 @@ TEST(SecondGradientTest, ItStiffensANonUniformField) {
 // exact tangent stays quadratic (each E_d below the square of the one
 // before once below 0.1), as without it.
 TEST(SecondGradientTest, NewtonStaysQuadratic) {
-  const Mesh mesh = Rectangle(4, 4, ElementType::kQ8R);
+  const Mesh mesh = Rectangle(1.0, 1.0, 4, 4, ElementType::kQ8R);
   auto material = StiffeningElasticMaterial::Create(
       {5e7, 3e7, 40.0}, Uniform(mesh, -1e5 * Eigen::Matrix3d::Identity()));
   ASSERT_TRUE(material.ok());
@@ -198,14 +188,14 @@ TEST(SecondGradientTest, NewtonStaysQuadratic) {
 
 TEST(SecondGradientTest, RefusesElementsOtherThanQ8RAndABadModulus) {
   for (ElementType type : {ElementType::kQ4, ElementType::kQ8}) {
-    const Mesh mesh = Rectangle(1, 1, type);
+    const Mesh mesh = Rectangle(1.0, 1.0, 1, 1, type);
     const absl::StatusOr<SecondGradient> sg = SecondGradient::Create(mesh, 1.0);
     ASSERT_FALSE(sg.ok());
     EXPECT_EQ(sg.status().code(), absl::StatusCode::kInvalidArgument);
     EXPECT_TRUE(absl::StrContains(sg.status().message(), "needs Q8R elements")) << sg.status();
     EXPECT_TRUE(absl::StrContains(sg.status().message(), ElementName(type))) << sg.status();
   }
-  const Mesh mesh = Rectangle(1, 1, ElementType::kQ8R);
+  const Mesh mesh = Rectangle(1.0, 1.0, 1, 1, ElementType::kQ8R);
   for (double d : {-1.0, 0.0, std::numeric_limits<double>::infinity()}) {
     const absl::StatusOr<SecondGradient> sg = SecondGradient::Create(mesh, d);
     ASSERT_FALSE(sg.ok()) << d;
@@ -213,16 +203,16 @@ TEST(SecondGradientTest, RefusesElementsOtherThanQ8RAndABadModulus) {
   }
   // Through the solver: a Q4 mesh with a second gradient, a negative D.
   auto material = LinearElasticMaterial::Create(
-      kE, kNu, Uniform(Rectangle(1, 1, ElementType::kQ4), Eigen::Matrix3d::Zero()));
+      kE, kNu, Uniform(Rectangle(1.0, 1.0, 1, 1, ElementType::kQ4), Eigen::Matrix3d::Zero()));
   ASSERT_TRUE(material.ok());
   Boundary b;
   AddFixed(mesh.node_sets.at("bottom"), b);
-  auto solver =
-      StaticSolver::Create(Rectangle(1, 1, ElementType::kQ4), b, Tight(1.0), material->get());
+  auto solver = StaticSolver::Create(Rectangle(1.0, 1.0, 1, 1, ElementType::kQ4), b, Tight(1.0),
+                                     material->get());
   ASSERT_FALSE(solver.ok());
   EXPECT_TRUE(absl::StrContains(solver.status().message(), "needs Q8R elements"));
-  solver =
-      StaticSolver::Create(Rectangle(1, 1, ElementType::kQ8R), b, Tight(-1.0), material->get());
+  solver = StaticSolver::Create(Rectangle(1.0, 1.0, 1, 1, ElementType::kQ8R), b, Tight(-1.0),
+                                material->get());
   ASSERT_FALSE(solver.ok());
   EXPECT_TRUE(absl::StrContains(solver.status().message(), "second-gradient modulus"));
 }

@@ -26,24 +26,12 @@ using testing::DistortedSquare;
 using testing::InPlane;
 using testing::InteriorNodes;
 using testing::Prestress;
+using testing::Rectangle;
 using testing::SpyMaterial;
+using testing::Uniform;
 
 constexpr double kE = 1e8, kNu = 0.3;  // Pa, [-]
 constexpr double kLateral = 1e5;       // Pa
-
-Mesh Rectangle(double width, double height, int nx, int ny, ElementType type) {
-  RectangleSpec spec;
-  spec.width = width;
-  spec.height = height;
-  spec.nx = nx;
-  spec.ny = ny;
-  spec.type = type;
-  return *StructuredRectangle(spec);
-}
-
-std::vector<Eigen::Matrix3d> Uniform(const Mesh& mesh, const Eigen::Matrix3d& s) {
-  return std::vector<Eigen::Matrix3d>(CountGaussPoints(mesh), s);
-}
 
 // G&Z §3.3's single element: rollers on the left (x) and the bottom (y), a
 // smooth platen on top moving by `increment` (m) per step, the lateral
