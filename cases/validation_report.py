@@ -105,8 +105,8 @@ VERDICTS = [
      []),
     ("medium and soft footings", "re-read",
      "against Terzaghi's reduced N'_q (eq. 47) with the ultimate load at the knee (two "
-     "tangents: N_q_knee) and at d/B = 0.1 (N_q_at_tenth_width); the full runs' records are "
-     "to be made with this reading",
+     "tangents: N_q_knee) and at d/B = 0.1 (N_q_at_tenth_width), read on the full runs' "
+     "load-settlement curves; the knee is where the two tangents meet, above the curve",
      [("footing-medium", "N_q_knee"), ("footing-medium", "N_q_at_tenth_width"),
       ("footing-soft", "N_q_knee"), ("footing-soft", "N_q_at_tenth_width")]),
     ("column collapse d*", "reproduced",
