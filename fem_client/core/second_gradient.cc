@@ -196,9 +196,10 @@ Eigen::SparseMatrix<double> SecondGradient::Stiffness(const Mesh& mesh,
 }
 
 SecondGradientState SecondGradient::Advance(const SecondGradientState& committed,
-                                            const Eigen::VectorXd& ds, Terms terms) const {
+                                            const Eigen::VectorXd& ds,
+                                            std::vector<DoubleStress> double_stress) const {
   SecondGradientState s;
-  s.double_stress = std::move(terms.double_stress);
+  s.double_stress = std::move(double_stress);
   s.multiplier = committed.multiplier + ds.tail(4 * elements_);
   s.micro = committed.micro + ds.head(4 * corner_nodes_);
   return s;

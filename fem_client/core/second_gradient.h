@@ -86,10 +86,10 @@ class SecondGradient {
   // part is the solver's). Constant over a load step.
   Eigen::SparseMatrix<double> Stiffness(const Mesh& mesh, std::span<const Eigen::Vector2d> x) const;
 
-  // The committed state after a converged step at (du, ds) with `terms`
-  // their Evaluate.
+  // The committed state after a converged step with increments ds and
+  // `double_stress` (Evaluate's at them).
   SecondGradientState Advance(const SecondGradientState& committed, const Eigen::VectorXd& ds,
-                              Terms terms) const;
+                              std::vector<DoubleStress> double_stress) const;
 
  private:
   SecondGradient(std::vector<int> corner, int corner_nodes, int elements, double modulus)

@@ -121,7 +121,10 @@ StaticSolver::StaticSolver(Mesh mesh, Boundary boundary, SolverOptions options,
       displacement_(Eigen::VectorXd::Zero(2 * static_cast<Eigen::Index>(mesh_.nodes.size()))),
       second_gradient_(std::move(second_gradient)),
       platens_(boundary_.forced.size()) {
-  if (second_gradient_) sg_committed_ = second_gradient_->Initial();
+  if (second_gradient_) {
+    sg_committed_ = second_gradient_->Initial();
+    expand_full_ = Expanded(dofs_.expand(), second_gradient_->unknowns());
+  }
 }
 
 absl::StatusOr<StepReport> StaticSolver::Step(double factor) {
@@ -211,11 +214,8 @@ bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& fai
   // With a second gradient the system grows by its unknowns, all free:
   // T becomes diag(T, I), K gains the second gradient's blocks (constant
   // over the step: they live on the committed configuration).
-  Eigen::SparseMatrix<double> t_full, k_sg;
-  if (extra > 0) {
-    t_full = Expanded(t, extra);
-    k_sg = second_gradient_->Stiffness(mesh_, mesh_.nodes);
-  }
+  Eigen::SparseMatrix<double> k_sg;
+  if (extra > 0) k_sg = second_gradient_->Stiffness(mesh_, mesh_.nodes);
   for (int j = 1; j <= options_.max_iterations; ++j) {
     const bool imposes = j == 1 && !predicted;  // the first solve of a zero start
     // (2a) The tangent operator of every Gauss point.
@@ -228,20 +228,19 @@ bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& fai
     if (dofs_.unknowns() + extra > 0) {
       Eigen::SparseMatrix<double> k = TangentStiffness(
           mesh_, reference_, at->current, at->responses, d, boundary_.pressures, at->x);
-      Eigen::VectorXd rhs = at->residual;
-      if (imposes) rhs += k * g - PlatenLoads(force_increment);
+      Eigen::VectorXd rhs = at->residual, gk = g;  // gk: g over all the system's unknowns
       if (extra > 0) {
         k = Padded(k, extra) + k_sg;
-        Eigen::VectorXd r(rhs.size() + extra);
-        r << rhs, at->sg_residual;
-        if (imposes) {  // Δλ's constraint sees the imposed increments too
-          Eigen::VectorXd g_full = Eigen::VectorXd::Zero(r.size());
-          g_full.head(g.size()) = g;
-          r.tail(extra) += (k_sg * g_full).tail(extra);
-        }
-        rhs = std::move(r);
+        rhs.conservativeResize(rhs.size() + extra);
+        rhs.tail(extra) = at->sg_residual;
+        gk.conservativeResize(gk.size() + extra);
+        gk.tail(extra).setZero();
       }
-      const Eigen::SparseMatrix<double>& tt = extra > 0 ? t_full : t;
+      if (imposes) {
+        rhs += k * gk;
+        rhs.head(g.size()) -= PlatenLoads(force_increment);
+      }
+      const Eigen::SparseMatrix<double>& tt = extra > 0 ? expand_full_ : t;
       const Eigen::SparseMatrix<double> kr = tt.transpose() * k * tt;
       Eigen::SparseLU<Eigen::SparseMatrix<double>> lu;
       lu.compute(kr);
@@ -279,8 +278,7 @@ bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& fai
       platens_ = PlatenStates(ev);
       reference_ = ev.current;
       if (second_gradient_) {
-        SecondGradient::Terms terms{ev.multiplier_forces, ev.sg_residual, ev.double_stress};
-        sg_committed_ = second_gradient_->Advance(sg_committed_, ds, std::move(terms));
+        sg_committed_ = second_gradient_->Advance(sg_committed_, ds, std::move(ev.double_stress));
       }
       committed_ = std::move(ev);
       if (factor != 0.0) {
@@ -289,7 +287,7 @@ bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& fai
       }
       // The next step starts here: its ΔF are measured from this state.
       std::fill(committed_.delta_f.begin(), committed_.delta_f.end(), Eigen::Matrix3d::Identity());
-      RestartSecondGradient();
+      RestartSecondGradient(/*move_forces=*/true);
       return true;
     }
     if (j == options_.max_iterations) {
@@ -362,7 +360,6 @@ bool StaticSolver::Evaluate(const Eigen::VectorXd& du, const Eigen::VectorXd& ds
   if (second_gradient_) {
     SecondGradient::Terms terms =
         second_gradient_->Evaluate(mesh_, mesh_.nodes, sg_committed_, du, ds);
-    ev.ds = ds;
     ev.f_int += terms.internal;
     ev.multiplier_forces = std::move(terms.internal);
     ev.sg_residual = std::move(terms.residual);
@@ -375,22 +372,17 @@ bool StaticSolver::Evaluate(const Eigen::VectorXd& du, const Eigen::VectorXd& ds
   return true;
 }
 
-void StaticSolver::RestartSecondGradient() {
+void StaticSolver::RestartSecondGradient(bool move_forces) {
   if (!second_gradient_) return;
-  const int extra = second_gradient_->unknowns();
   SecondGradient::Terms terms = second_gradient_->Evaluate(
       mesh_, mesh_.nodes, sg_committed_, Eigen::VectorXd::Zero(displacement_.size()),
-      Eigen::VectorXd::Zero(extra));
-  // λ's forces move to the new configuration; σ's stay as the last Trial left them.
-  if (committed_.f_int.size() > 0) {
-    const Eigen::VectorXd change =
-        terms.internal - (committed_.multiplier_forces.size() > 0
-                              ? committed_.multiplier_forces
-                              : Eigen::VectorXd::Zero(terms.internal.size()));
+      Eigen::VectorXd::Zero(second_gradient_->unknowns()));
+  // σ's share stays as the last Trial left it.
+  if (move_forces) {
+    const Eigen::VectorXd change = terms.internal - committed_.multiplier_forces;
     committed_.f_int += change;
     committed_.residual += change;
   }
-  committed_.ds = Eigen::VectorXd::Zero(extra);
   committed_.multiplier_forces = std::move(terms.internal);
   committed_.sg_residual = std::move(terms.residual);
   committed_.double_stress = std::move(terms.double_stress);
@@ -637,16 +629,8 @@ absl::Status StaticSolver::Restore(SolverState state) {
   forces_ = NodeSetForces(committed_);
   platens_ = PlatenStates(committed_);
   // As the commit left them: the saved f_int already holds λ's share on
-  // this configuration, so only the bookkeeping is rebuilt.
-  if (second_gradient_) {
-    SecondGradient::Terms terms =
-        second_gradient_->Evaluate(mesh_, mesh_.nodes, sg_committed_, Eigen::VectorXd::Zero(dofs),
-                                   Eigen::VectorXd::Zero(extra));
-    committed_.ds = Eigen::VectorXd::Zero(extra);
-    committed_.multiplier_forces = std::move(terms.internal);
-    committed_.sg_residual = std::move(terms.residual);
-    committed_.double_stress = std::move(terms.double_stress);
-  }
+  // this configuration.
+  RestartSecondGradient(/*move_forces=*/false);
   return absl::OkStatus();
 }
 

@@ -173,9 +173,9 @@ class StaticSolver {
     // f_int includes the second gradient's λ share (`multiplier_forces`).
     Eigen::VectorXd f_int, f_ext, residual;  // all dofs, N/m
     std::vector<double> platen_force;        // each forced platen's load, N/m
-    // With a second gradient: its increments, λ's nodal forces, its own
-    // residual and the double stresses (SecondGradient::Terms).
-    Eigen::VectorXd ds, multiplier_forces, sg_residual;
+    // With a second gradient: λ's nodal forces, its own residual and the
+    // double stresses (SecondGradient::Terms).
+    Eigen::VectorXd multiplier_forces, sg_residual;
     std::vector<DoubleStress> double_stress;
   };
   struct Failure;
@@ -192,8 +192,10 @@ class StaticSolver {
   bool Evaluate(const Eigen::VectorXd& du, const Eigen::VectorXd& ds, int iteration,
                 std::span<const double> platen_force, Evaluation& ev, Failure& failure);
   // The second gradient's terms at zero increments on the committed
-  // configuration into committed_ (where the next step starts).
-  void RestartSecondGradient();
+  // configuration into committed_ (where the next step starts); with
+  // `move_forces`, λ's share of f_int and the residual moves from the last
+  // Trial's configuration to it (a restored state already has it there).
+  void RestartSecondGradient(bool move_forces);
   // `force` (N/m, one per forced platen) on the platens' master dofs: f_ext.
   Eigen::VectorXd PlatenLoads(std::span<const double> force) const;
   std::vector<PlatenState> PlatenStates(const Evaluation& ev) const;
@@ -216,6 +218,9 @@ class StaticSolver {
   Eigen::VectorXd last_rate_;              // SolverState::last_rate
   std::optional<SecondGradient> second_gradient_;
   SecondGradientState sg_committed_;
+  // diag(T, I): the displacements' elimination with the second gradient's
+  // unknowns (all free) after them; empty without a second gradient.
+  Eigen::SparseMatrix<double> expand_full_;
   std::map<std::string, SetForces> forces_;  // at the last commit
   std::vector<PlatenState> platens_;         // at the last commit
   int steps_ = 0;
