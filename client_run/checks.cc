@@ -1,6 +1,7 @@
 #include "client_run/checks.h"
 
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 
@@ -52,6 +53,15 @@ bool AllPass(std::span<const CheckResult> results) {
     if (!r.pass) return false;
   }
   return true;
+}
+
+bool PrintSummaryAndChecks(const Summary& summary, std::span<const client_case::CheckSpec> checks) {
+  for (const auto& [key, value] : summary) {
+    std::printf("summary: %s = %.6g\n", key.c_str(), value);
+  }
+  const std::vector<CheckResult> results = EvaluateChecks(checks, summary);
+  for (const CheckResult& r : results) std::printf("check: %s\n", FormatCheck(r).c_str());
+  return AllPass(results);
 }
 
 std::string FormatCheck(const CheckResult& r) {

@@ -36,6 +36,17 @@ bool AllPass(std::span<const CheckResult> results);
 // Fig. 12)", or "FAIL N_q: not in summary.json (...)".
 std::string FormatCheck(const CheckResult& r);
 
+// summarise's exit status when the outputs were written but a check failed
+// (mpm_client and fem_client alike): apart from a failure (1) and a usage
+// error (2), so that a test or CI job can tell a result that misses its
+// reference from a run that broke.
+inline constexpr int kCheckFailedExitCode = 3;
+
+// What `summarise` prints on stdout: "summary: KEY = VALUE" per summary
+// entry, then "check: ..." (FormatCheck) per check. True when every check
+// passes (or there are none).
+bool PrintSummaryAndChecks(const Summary& summary, std::span<const client_case::CheckSpec> checks);
+
 // summary.json as WriteSummary writes it: the numbers (the "case" entry and
 // anything that is not a number left out), in the file's order.
 // NotFound when the file cannot be read, InvalidArgument when it is not a

@@ -251,10 +251,6 @@ int Resume(const Command& command, int argc, char** argv) {
   return StepToEnd(**sim, *options, record);
 }
 
-// summarise's exit status when the outputs were written but a check failed
-// (as mpm_client's): apart from a failure (1) and a usage error (2).
-constexpr int kCheckFailed = 3;
-
 int Main(int argc, char** argv) {
   SetUpLongRunningProcess();
   absl::StatusOr<Command> command = Parse(argc, argv);
@@ -279,17 +275,9 @@ int Main(int argc, char** argv) {
     if (!spec.ok()) return Fail(spec.status(), 1);
     absl::StatusOr<Summary> summary = WriteFemRunOutputs(*spec, command->args.text.at("out"));
     if (!summary.ok()) return Fail(summary.status(), 1);
-    for (const auto& [key, value] : *summary) {
-      std::printf("summary: %s = %.6g\n", key.c_str(), value);
-    }
-    const std::vector<client_run::CheckResult> checks =
-        client_run::EvaluateChecks(spec->checks, *summary);
-    for (const client_run::CheckResult& r : checks) {
-      std::printf("check: %s\n", client_run::FormatCheck(r).c_str());
-    }
-    if (!client_run::AllPass(checks)) {
+    if (!client_run::PrintSummaryAndChecks(*summary, spec->checks)) {
       std::fprintf(stderr, "fem_client: a check failed (see the check: lines)\n");
-      return kCheckFailed;
+      return client_run::kCheckFailedExitCode;
     }
     return 0;
   }

@@ -232,19 +232,8 @@ absl::StatusOr<bool> Summarise(const std::string& case_path,
                                const std::vector<CaseOverride>& overrides, const std::string& dir) {
   ASSIGN_OR_RETURN(const CaseSpec spec, LoadCase(case_path, overrides));
   ASSIGN_OR_RETURN(const Summary summary, WriteRunOutputs(spec, dir));
-  for (const auto& [key, value] : summary) std::printf("summary: %s = %.6g\n", key.c_str(), value);
-  const std::vector<client_run::CheckResult> checks =
-      client_run::EvaluateChecks(spec.checks, summary);
-  for (const client_run::CheckResult& r : checks) {
-    std::printf("check: %s\n", client_run::FormatCheck(r).c_str());
-  }
-  return client_run::AllPass(checks);
+  return client_run::PrintSummaryAndChecks(summary, spec.checks);
 }
-
-// summarise's exit status when the outputs were written but a check failed:
-// apart from a failure (1) and a usage error (2), so that a test or CI job
-// can tell a result that misses its reference from a run that broke.
-constexpr int kCheckFailed = 3;
 
 // The case overrides of --set, in the order given.
 absl::StatusOr<std::vector<CaseOverride>> Overrides(const Args& a) {
@@ -372,7 +361,7 @@ int Main(int argc, char** argv) {
     if (!passed.ok()) return Fail(passed.status(), 1);
     if (!*passed) {
       std::fprintf(stderr, "mpm_client: a check failed (see the check: lines)\n");
-      return kCheckFailed;
+      return client_run::kCheckFailedExitCode;
     }
     return 0;
   }
