@@ -28,22 +28,18 @@ absl::Status WriteTextFile(const std::string& path, absl::string_view text) {
 }
 
 absl::Status WriteElementTestCsv(const std::string& path, const std::vector<ElementTestRow>& rows) {
-  std::unique_ptr<FILE, int (*)(FILE*)> file(std::fopen(path.c_str(), "w"), &std::fclose);
-  if (!file) return absl::UnavailableError(absl::StrCat("cannot open '", path, "' for writing"));
-  std::fprintf(file.get(), "%s\n", kElementTestCsvHeader);
+  std::string text = absl::StrCat(kElementTestCsvHeader, "\n");
   for (const ElementTestRow& r : rows) {
     // %.10g keeps the columns exact enough to re-derive moduli from them.
-    std::fprintf(file.get(),
-                 "%lld,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,"
-                 "%.10g,%.10g,%.10g\n",
-                 static_cast<long long>(r.step), r.axial_strain_comp, r.vol_strain_comp, r.sxx_comp,
-                 r.syy_comp, r.sxy_comp, r.p_comp, r.q, r.void_ratio, r.coordination, r.fabric_xx,
-                 r.fabric_yy, r.fabric_xy, r.fabric_anisotropy, r.permeability, r.shear_strain);
+    absl::StrAppendFormat(
+        &text,
+        "%d,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,"
+        "%.10g\n",
+        r.step, r.axial_strain_comp, r.vol_strain_comp, r.sxx_comp, r.syy_comp, r.sxy_comp,
+        r.p_comp, r.q, r.void_ratio, r.coordination, r.fabric_xx, r.fabric_yy, r.fabric_xy,
+        r.fabric_anisotropy, r.permeability, r.shear_strain);
   }
-  if (std::ferror(file.get()) || std::fclose(file.release()) != 0) {
-    return absl::UnavailableError(absl::StrCat("error while writing '", path, "'"));
-  }
-  return absl::OkStatus();
+  return WriteTextFile(path, text);
 }
 
 absl::Status WriteElementTestPlot(const std::string& path, ElementTestKind kind,
