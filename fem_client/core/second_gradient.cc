@@ -51,7 +51,6 @@ absl::StatusOr<SecondGradient> SecondGradient::Create(const Mesh& mesh, double m
         absl::StrCat("the second-gradient modulus D must be positive and finite, got ", modulus));
   }
   std::vector<int> corner(mesh.nodes.size(), -1);
-  int corners = 0;
   for (std::size_t e = 0; e < mesh.elements.size(); ++e) {
     const Element& element = mesh.elements[e];
     if (element.type != ElementType::kQ8R) {
@@ -60,13 +59,11 @@ absl::StatusOr<SecondGradient> SecondGradient::Create(const Mesh& mesh, double m
           "micro-kinematic field on the corners); element ",
           e, " is ", ElementName(element.type)));
     }
-    for (int a = 0; a < 4; ++a) {
-      if (corner[element.nodes[a]] < 0) corner[element.nodes[a]] = corners++;
-    }
+    for (int a = 0; a < 4; ++a) corner[element.nodes[a]] = 0;  // a corner
   }
   // Numbered in node order, so that the unknowns do not depend on which
   // element met a node first.
-  corners = 0;
+  int corners = 0;
   for (int& c : corner) {
     if (c >= 0) c = corners++;
   }
