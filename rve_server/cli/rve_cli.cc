@@ -904,20 +904,24 @@ absl::Status ContactsCommand(const Flags& flags) {
   std::string file, out;
   RETURN_IF_ERROR(Require(flags, "file", "RVES.h5", &file));
   RETURN_IF_ERROR(Require(flags, "out", "PREFIX", &out));
-  std::int64_t id = -1;
-  if (flags.contains("id")) RETURN_IF_ERROR(Get(flags, "id", &id));
+  const bool any = !flags.contains("id");  // the first RVE
+  std::int64_t id = 0;
+  if (!any) {
+    RETURN_IF_ERROR(Get(flags, "id", &id));
+    if (id < 0) return UsageError(absl::StrCat("--id must be a material-point id >= 0, got ", id));
+  }
   absl::StatusOr<std::vector<RveRecord>> all = store::ReadRves(file);
   if (!all.ok()) return ExplainFileKind(all.status(), file);
   const RveRecord* rve = nullptr;
   for (const RveRecord& r : *all) {
-    if (id < 0 || r.id == id) {
+    if (any || r.id == id) {
       rve = &r;
       break;
     }
   }
   if (rve == nullptr) {
-    return absl::NotFoundError(id < 0 ? absl::StrCat("'", file, "' holds no RVE")
-                                      : absl::StrCat("'", file, "' holds no RVE of id ", id));
+    return absl::NotFoundError(any ? absl::StrCat("'", file, "' holds no RVE")
+                                   : absl::StrCat("'", file, "' holds no RVE of id ", id));
   }
   ASSIGN_OR_RETURN(const embedded::PackingForces forces, embedded::ContactForces(rve->packing));
   const std::string discs = out + "-discs.csv", contacts = out + "-contacts.csv";

@@ -220,6 +220,11 @@ TEST(CliTest, ContactsWritesTheDiscsAndForcesOfOneRve) {
       RunCli(absl::StrCat("contacts --file='", file, "' --id=8 --out='", prefix, "'"));
   EXPECT_EQ(missing.exit_code, 1);
   EXPECT_TRUE(absl::StrContains(missing.output, "holds no RVE of id 8")) << missing.output;
+  const Result negative =
+      RunCli(absl::StrCat("contacts --file='", file, "' --id=-1 --out='", prefix, "'"));
+  EXPECT_EQ(negative.exit_code, 2);
+  EXPECT_TRUE(absl::StrContains(negative.output, "--id must be a material-point id >= 0, got -1"))
+      << negative.output;
 }
 
 TEST(CliTest, MaterialsListsTheParameterSets) {
