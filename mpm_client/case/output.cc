@@ -27,6 +27,7 @@ const Table<std::string> kSummaries = {{"footing", "footing"},
                                        {"pipe", "pipe"},
                                        {"collapse", "collapse"},
                                        {"biaxial", "biaxial"},
+                                       {"shaking", "shaking"},
                                        {"none", "none"}};
 
 bool FootingSummary(const OutputSpec& o) {

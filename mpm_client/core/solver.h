@@ -79,7 +79,7 @@ struct MaterialPoints {
   std::vector<double> pore_pressure;            // p, Pa, compression +
   std::vector<double> porosity0;                // n at the start, [-]
   std::vector<Eigen::Vector2d> position0;       // m, at the start (settlement, monitors)
-  std::vector<double> vertical_stress0;         // −σ'yy at the start, Pa, compression +
+  std::vector<double> vertical_stress0;         // σ'yy,0 of the excess ratio, Pa, compression +
 
   std::size_t size() const { return position.size(); }
   // Resizes every per-point array (new points: zero, F = I).

@@ -557,6 +557,7 @@ Simulation::RveStarts Simulation::PlanRveStarts(const MaterialPoints& points,
   out.template_of.resize(n);
   out.initial.resize(n);
   out.cost.resize(n);
+  out.vertical_stress0.assign(n, std::numeric_limits<double>::quiet_NaN());
   std::vector<std::string>& template_of = out.template_of;
   std::vector<InitialStress>& initial = out.initial;
   std::vector<double>& cost = out.cost;
@@ -593,6 +594,7 @@ Simulation::RveStarts Simulation::PlanRveStarts(const MaterialPoints& points,
         break;
     }
     if (r.initial_stress != InitialStressKind::kTemplate) {
+      out.vertical_stress0[p] = geostatic;
       RegionStart& start = starts[points.region[p]];
       ++start.points;
       if (r.minimum_stress > geostatic) {
@@ -705,7 +707,8 @@ absl::Status Simulation::CreateRves(const RveStarts& starts, MaterialPoints& poi
       // n0 = e0/(1 + e0) of the point's own RVE unless the case gives it.
       const double e0 = (*states)[p].void_ratio;
       if (spec.phases.porosity == 0) points.porosity0[p] = e0 / (1.0 + e0);
-      points.vertical_stress0[p] = -(*states)[p].stress(1, 1);
+      const double geostatic = starts.vertical_stress0[p];
+      points.vertical_stress0[p] = std::isnan(geostatic) ? -(*states)[p].stress(1, 1) : geostatic;
     }
   }
   return absl::OkStatus();

@@ -154,6 +154,12 @@ class Simulation {
     std::vector<std::string> template_of;
     std::vector<InitialStress> initial;
     std::vector<double> cost;
+    // −σ'yy,0 the excess pore pressure ratio is taken against, Pa
+    // (compression +): the geostatic effective stress of the point's depth,
+    // without the floor (initial_stress.minimum) that only lets its RVE
+    // consolidate; NaN where the region starts from the template (the
+    // RVE's own σyy then).
+    std::vector<double> vertical_stress0;
   };
   RveStarts PlanRveStarts(const MaterialPoints& points, const std::vector<double>& density) const;
   // Creates (and consolidates) the RVEs on the servers, with a progress line

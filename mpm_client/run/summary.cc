@@ -250,6 +250,49 @@ absl::StatusOr<Summary> Collapse(const CaseSpec& spec, const Columns& columns) {
   return out;
 }
 
+// The mean of y over the rows whose time lies in (t − window, t] for each
+// row's t: a trailing running mean by time, whatever the rows' spacing.
+std::vector<double> TrailingMean(const std::vector<double>& time, const std::vector<double>& y,
+                                 double window) {
+  std::vector<double> out(y.size());
+  double sum = 0.0;
+  std::size_t first = 0;
+  for (std::size_t i = 0; i < y.size(); ++i) {
+    sum += y[i];
+    while (time[first] <= time[i] - window) sum -= y[first++];
+    out[i] = sum / static_cast<double>(i - first + 1);
+  }
+  return out;
+}
+
+absl::StatusOr<Summary> Shaking(const CaseSpec& spec, const Columns& columns) {
+  if (!(spec.solver.shaking_frequency > 0.0))
+    return absl::InvalidArgumentError("the shaking summary needs solver.shaking_frequency");
+  ASSIGN_OR_RETURN(const std::vector<double>* time, Column(columns, "time"));
+  ASSIGN_OR_RETURN(const std::vector<double>* settlement, Column(columns, "surface_settlement"));
+  // The ratio swings with every half cycle of the shake; its level is the
+  // mean over two whole cycles (liang-zhao-wu-soga-2023 Fig. 8 reads
+  // "fluctuations around" a level).
+  const double window = 2.0 / spec.solver.shaking_frequency;  // s
+  Summary out{{"surface_settlement_m", settlement->back()}};
+  for (const PressureMonitor& m : spec.phases.monitors) {
+    ASSIGN_OR_RETURN(const std::vector<double>* ratio, Column(columns, m.name + "_excess_ratio"));
+    if (ratio->size() != time->size())
+      return absl::InvalidArgumentError(
+          absl::StrCat(m.name, "_excess_ratio has ", ratio->size(), " rows, time ", time->size()));
+    const std::vector<double> level = TrailingMean(*time, *ratio, window);
+    // Levels from the first row with two whole cycles behind it (the last
+    // row's for a shorter run): a part-cycle mean is still a swing.
+    std::size_t first = 0;
+    while (first + 1 < level.size() && (*time)[first] - time->front() < window) ++first;
+    const auto peak = std::max_element(level.begin() + first, level.end());
+    out.emplace_back(m.name + "_excess_ratio_peak", *peak);
+    out.emplace_back(m.name + "_excess_ratio_peak_time_s", (*time)[peak - level.begin()]);
+    out.emplace_back(m.name + "_excess_ratio_final", level.back());
+  }
+  return out;
+}
+
 absl::StatusOr<Summary> Biaxial(const CaseSpec& spec, const Columns& columns) {
   std::vector<double> stress, strain;  // Pa and [-], compression +
   if (!spec.bodies.empty() && !spec.regions.empty()) {
@@ -492,6 +535,7 @@ absl::StatusOr<Summary> Summarise(const CaseSpec& spec, const Columns& columns) 
   if (kind == "pipe") return Pipe(spec, columns);
   if (kind == "collapse") return Collapse(spec, columns);
   if (kind == "biaxial") return Biaxial(spec, columns);
+  if (kind == "shaking") return Shaking(spec, columns);
   if (kind == "none") return Summary{};
   return absl::InvalidArgumentError(absl::StrCat("unknown summary kind '", kind, "'"));
 }

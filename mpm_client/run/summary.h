@@ -125,7 +125,12 @@ using client_run::WriteSummary;
 // biaxial: peak_stress_Pa and peak_strain (nominal: the platen's force over
 // the region's width, its travel over the region's height; compression +;
 // the mean σyy and εyy of the points without a platen), final_stress_Pa,
-// final_strain. Empty for "none".
+// final_strain; shaking (a saturated box shaken by solver.shaking_*):
+// surface_settlement_m (the last row's) and for each monitor M
+// M_excess_ratio_peak and _peak_time_s (the largest level of Δp/σ'yy,0, the
+// level a trailing mean over two cycles of the shake, from the first row
+// with two cycles behind it) and
+// M_excess_ratio_final (the level at the end). Empty for "none".
 absl::StatusOr<Summary> Summarise(const CaseSpec& spec,
                                   const std::map<std::string, std::vector<double>>& columns);
 

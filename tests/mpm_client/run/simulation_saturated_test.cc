@@ -231,6 +231,41 @@ TEST(SimulationTest, SaturatedImpulseSendsARayleighWave) {
 }
 
 // A saturated run resumes bit for bit and runs alike on two servers.
+// The excess pore pressure ratio's σ'yy,0 is each point's geostatic
+// effective stress γ'·z, not the 2 kPa floor (initial_stress.minimum) its
+// RVE was consolidated to: near the surface the floor lifts the RVE, not
+// the ratio's denominator.
+TEST(SimulationTest, ExcessRatioIsTakenAgainstTheGeostaticStressNotTheFloor) {
+  CaseSpec spec = LoadOrDie("collapse-saturated-ci");
+  std::unique_ptr<Simulation> sim = StartOrDie(spec, Options(FreshDir("sat_sv0")));
+  ASSERT_NE(sim, nullptr);
+  absl::StatusOr<store::SimCheckpoint> start = sim->Snapshot();
+  ASSERT_TRUE(start.ok()) << start.status();
+  const std::vector<double>& sv0 = start->doubles.at("vertical_stress0");
+  const std::vector<double>& position = start->doubles.at("position");
+  const std::vector<double>& stress = start->doubles.at("stress");
+  ASSERT_EQ(position.size(), 2 * sv0.size());
+  const double surface = spec.regions.front().surface_y;  // m
+  // γ' = (ρ_d − (1 − n0)·ρ_f)·g, the solid's mass per volume less the water
+  // it displaces: one value for the region (its template's porosity), within
+  // 1 % of a point's (its own RVE's porosity after consolidation).
+  const double gamma = sv0[0] / (surface - position[1]);  // N/m³
+  const double g = spec.solver.gravity.norm();            // m/s²
+  const double n0 = start->doubles.at("porosity0")[0];
+  const double dry = start->doubles.at("mass")[0] / start->doubles.at("volume")[0];  // kg/m³
+  EXPECT_NEAR(gamma, (dry - (1.0 - n0) * spec.phases.fluid_density) * g, 0.01 * gamma);
+  int lifted = 0;
+  for (std::size_t p = 0; p < sv0.size(); ++p) {
+    const double depth = surface - position[2 * p + 1];  // m
+    EXPECT_NEAR(sv0[p], gamma * depth, 1e-9 * gamma) << "point " << p;
+    if (gamma * depth < 2000.0) {
+      ++lifted;
+      EXPECT_GT(-stress[9 * p + 4], 1900.0) << "point " << p << ": its RVE at the floor";
+    }
+  }
+  EXPECT_GT(lifted, 0);
+}
+
 TEST(SimulationTest, SaturatedResumeAndRemoteAreBitIdentical) {
   setenv("GRPC_CLIENT_CHANNEL_BACKUP_POLL_INTERVAL_MS", "50", 1);
   CaseSpec spec = LoadOrDie("consolidation-1d-ci");

@@ -445,6 +445,47 @@ TEST(SummaryTest, PipeStagesSmoothedPeakAndLateralMedians) {
   EXPECT_FALSE(Summarise(pipe, c).ok());
 }
 
+TEST(SummaryTest, ShakingLevelsAreTwoCycleMeansOfTheSwingingRatio) {
+  // A box shaken at 2.5 Hz, rows every 0.01 s for 10 s: monitor B's ratio
+  // swings by ±0.3 at the shake's frequency around a level that climbs to
+  // 0.4 at 4 s and falls back to 0.1 at 10 s; C's stays at 0 ± 0.05.
+  CaseSpec spec;
+  spec.output.summary = "shaking";
+  spec.solver.shaking_frequency = 2.5;  // Hz
+  spec.phases.monitors = {{"B", {1.0, 0.5}}, {"C", {1.0, 0.0125}}};
+  std::map<std::string, std::vector<double>> c;
+  const auto level = [](double t) { return t < 4.0 ? 0.1 * t : 0.4 - 0.05 * (t - 4.0); };
+  for (int i = 0; i <= 1000; ++i) {
+    const double t = 0.01 * i;  // s
+    const double swing = std::sin(2.0 * std::numbers::pi * 2.5 * t);
+    c["time"].push_back(t);
+    c["surface_settlement"].push_back(1e-3 * t);
+    c["B_excess_ratio"].push_back(level(t) + 0.3 * swing);
+    c["C_excess_ratio"].push_back(0.05 * swing);
+  }
+  absl::StatusOr<Summary> s = Summarise(spec, c);
+  ASSERT_TRUE(s.ok()) << s.status();
+  std::map<std::string, double> m(s->begin(), s->end());
+  EXPECT_DOUBLE_EQ(m["surface_settlement_m"], 0.01);
+  // Two whole cycles (0.8 s, 80 rows) cancel the swing; the level's peak is
+  // the window whose ends lie at equal levels, (3.733 s, 4.533 s]: 0.3867.
+  EXPECT_NEAR(m["B_excess_ratio_peak"], 0.3867, 1e-3);
+  EXPECT_NEAR(m["B_excess_ratio_peak_time_s"], 4.533, 0.011);
+  EXPECT_NEAR(m["B_excess_ratio_final"], 0.4 - 0.05 * (9.6 - 4.0), 1e-3);
+  EXPECT_NEAR(m["C_excess_ratio_peak"], 0.0, 1e-3);
+  EXPECT_NEAR(m["C_excess_ratio_final"], 0.0, 1e-3);
+
+  // A monitor's column missing is named; an unshaken case is refused.
+  c.erase("C_excess_ratio");
+  s = Summarise(spec, c);
+  ASSERT_FALSE(s.ok());
+  EXPECT_TRUE(absl::StrContains(s.status().message(), "C_excess_ratio")) << s.status();
+  spec.solver.shaking_frequency = 0.0;
+  s = Summarise(spec, c);
+  ASSERT_FALSE(s.ok());
+  EXPECT_TRUE(absl::StrContains(s.status().message(), "shaking_frequency")) << s.status();
+}
+
 // summarise reads DIR/timeseries.csv back: a damaged file is refused with
 // the row and column, never summarised from made-up values. A NaN pasted
 // into a footing's load column used to pass and flip ultimate_is_peak.
