@@ -23,7 +23,7 @@ the pipe's penetration d: F = B (gamma d N_q + gamma B N_gamma / 2), with Prandt
 Meyerhof's N_gamma = (N_q - 1) tan(1.4 phi) (close to Martin's exact values for a rough strip),
 the way pipeline design estimates vertical penetration in drained sand. It is drawn for the
 RVE's peak friction angle and for its critical-state angle (cases/friction_angle.py:
-footing-dense 31.67 and 20.5 deg), gamma from the geostatic stresses of the run's first frame
+footing-dense 30.19 and 19.9 deg, means over nine seeds), gamma from the geostatic stresses of the run's first frame
 (results.h5). It ignores the heave and the pipe's curvature: a scale, not a solution.
 Needs numpy and matplotlib (Debian's python3-numpy, python3-matplotlib), h5py for gamma.
 """
@@ -113,8 +113,8 @@ def main():
     ap.add_argument("--out", default="pipe.png")
     ap.add_argument("--radius", type=float, default=0.5, help="pipe radius, m")
     ap.add_argument("--surface", type=float, default=2.5, help="initial soil surface y, m")
-    ap.add_argument("--phi", type=float, default=31.67, help="peak friction angle, deg")
-    ap.add_argument("--phi-cs", type=float, default=20.5, help="critical-state angle, deg")
+    ap.add_argument("--phi", type=float, default=30.19, help="peak friction angle, deg")
+    ap.add_argument("--phi-cs", type=float, default=19.9, help="critical-state angle, deg")
     ap.add_argument("--gamma", type=float, help="unit weight, N/m^3 (default: from results.h5)")
     ap.add_argument("--also", action="append", default=[], metavar="RUN_DIR",
                     help="another run of the case to draw beside it (e.g. another mesh)")
