@@ -29,6 +29,7 @@ TEST(CiChecksTest, FootingMedium) { RunAndCheck("footing-medium-ci"); }
 TEST(CiChecksTest, FootingSoft) { RunAndCheck("footing-soft-ci"); }
 TEST(CiChecksTest, BiaxialSpecimen) { RunAndCheck("biaxial-specimen-ci"); }
 TEST(CiChecksTest, ColumnCollapse) { RunAndCheck("column-collapse-ci"); }
+TEST(CiChecksTest, CyclicShakingDense) { RunAndCheck("cyclic-shaking-dense-ci"); }
 
 }  // namespace
 }  // namespace rvehub::mpm::sim_test
