@@ -23,12 +23,12 @@ const Table<std::string> kPlots = {{"stress-strain", "stress-strain"},
 bool LoadSettlement(const OutputSpec& o) { return o.plot == "load-settlement"; }
 bool StressStrain(const OutputSpec& o) { return o.plot == "stress-strain"; }
 
-const Table<std::string> kSummaries = {{"footing", "footing"},
-                                       {"pipe", "pipe"},
-                                       {"collapse", "collapse"},
-                                       {"biaxial", "biaxial"},
-                                       {"shaking", "shaking"},
+const Table<std::string> kSummaries = {{"footing", "footing"},   {"pipe", "pipe"},
+                                       {"collapse", "collapse"}, {"biaxial", "biaxial"},
+                                       {"shaking", "shaking"},   {"consolidation", "consolidation"},
                                        {"none", "none"}};
+
+bool ConsolidationSummary(const OutputSpec& o) { return o.summary == "consolidation"; }
 
 bool FootingSummary(const OutputSpec& o) {
   return o.summary == "footing" || (o.summary.empty() && o.plot == "load-settlement");
@@ -100,6 +100,9 @@ Fields<OutputSpec> OutputFields(const std::vector<RigidBody>* bodies, const std:
             [](const OutputSpec& out, OrderedJson& j) {
               if (out.phi_deg > 0.0) j["phi_deg"] = out.phi_deg;
             }}),
+      Only(&ConsolidationSummary, "only for a consolidation summary",
+           NumberField("constrained_modulus", &OutputSpec::constrained_modulus, Need::kRequired,
+                       kPositive)),
       Only(&StressStrain, "only for plot \"stress-strain\"",
            {"reference_curve",
             [base_dir](const Object& o, OutputSpec* out) {

@@ -258,11 +258,15 @@ struct OutputSpec {
   std::string plot_body;    // body for load-settlement
   double plot_width = 1.0;  // m, footing width B for load normalisation q = fy/(B·t)
   // Headline figures written to summary.json (mpm_client/run/summary.h):
-  // "footing", "pipe", "collapse", "biaxial", "none"; empty: from `plot`
+  // "footing", "pipe", "collapse", "biaxial", "shaking", "consolidation",
+  // "none"; empty: from `plot`
   // (load-settlement: footing; stress-strain: biaxial; none: none).
   std::string summary;
   // φ' of the soil for Prandtl's N_q (footing summary), degrees; 0: not given.
   double phi_deg = 0.0;
+  // The skeleton's constrained modulus M for Terzaghi's c_v (consolidation
+  // summary), Pa; 0: not given.
+  double constrained_modulus = 0.0;
   // An `rve_cli element-test` CSV (absolute path; the case file may give it
   // relative to itself) drawn on the stress-strain plot's nominal curve as
   // the DEM element test on the same RVE: syy (Pa) against axial_strain.

@@ -8,6 +8,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "client_run/summary.h"
+#include "mpm_client/core/two_phase.h"
 #include "rve_server/common/status_macros.h"
 
 namespace rvehub::mpm {
@@ -63,6 +64,15 @@ bool FitLine(const std::vector<double>& d, const std::vector<double>& q, double 
   return true;
 }
 
+// The surcharge: the pressure on the ground surface (the first +y
+// traction pushing down), Pa; 0 without one.
+double Surcharge(const CaseSpec& spec) {
+  for (const SurfaceTraction& t : spec.tractions) {
+    if (t.normal_axis == 1 && t.normal_sign == 1 && -t.traction.y() > 0.0) return -t.traction.y();
+  }
+  return 0.0;
+}
+
 absl::StatusOr<Summary> Footing(const CaseSpec& spec, const Columns& columns) {
   ASSIGN_OR_RETURN(const std::string body, SummaryBody(spec));
   ASSIGN_OR_RETURN(const std::vector<double>* fy, Column(columns, body + "_fy"));
@@ -77,14 +87,7 @@ absl::StatusOr<Summary> Footing(const CaseSpec& spec, const Columns& columns) {
   const double span = std::min(spec.grid.cell_size, 0.2 * (*dmax - *dmin));  // m
   ASSIGN_OR_RETURN(const UltimateLoad ultimate, FindUltimateLoad(d, q, span));
   Summary out;
-  // The surcharge: the pressure on the ground surface (a +y traction).
-  double surcharge = 0.0;
-  for (const SurfaceTraction& t : spec.tractions) {
-    if (t.normal_axis == 1 && t.normal_sign == 1 && -t.traction.y() > 0.0) {
-      surcharge = -t.traction.y();
-      break;
-    }
-  }
+  const double surcharge = Surcharge(spec);  // Pa
   if (surcharge > 0.0) out.emplace_back("N_q", ultimate.load / surcharge);
   out.emplace_back("ultimate_load_Pa", ultimate.load);
   out.emplace_back("settlement_at_ultimate_m", ultimate.settlement);
@@ -290,6 +293,57 @@ absl::StatusOr<Summary> Shaking(const CaseSpec& spec, const Columns& columns) {
     out.emplace_back(m.name + "_excess_ratio_peak_time_s", (*time)[peak - level.begin()]);
     out.emplace_back(m.name + "_excess_ratio_final", level.back());
   }
+  return out;
+}
+
+absl::StatusOr<Summary> Consolidation(const CaseSpec& spec, const Columns& columns) {
+  if (spec.regions.empty())
+    return absl::InvalidArgumentError("the consolidation summary needs a region");
+  if (spec.solver.gravity.norm() != 0.0)
+    return absl::InvalidArgumentError(
+        "the consolidation summary reads Terzaghi's weightless layer: solver.gravity must be zero");
+  if (!(spec.output.constrained_modulus > 0.0))
+    return absl::InvalidArgumentError(
+        "the consolidation summary needs output.constrained_modulus (M of c_v = k·M/(ρ_f·g))");
+  const double surcharge = Surcharge(spec);  // Pa
+  if (!(surcharge > 0.0))
+    return absl::InvalidArgumentError("the consolidation summary needs a +y surcharge traction");
+  ASSIGN_OR_RETURN(const std::vector<double>* time, Column(columns, "time"));
+  ASSIGN_OR_RETURN(const std::vector<double>* syy, Column(columns, "mean_syy"));
+  ASSIGN_OR_RETURN(const std::vector<double>* settlement, Column(columns, "surface_settlement"));
+  // The load the water carries at first: the surcharge less what the RVEs
+  // already hold (compression +).
+  const double p0 = surcharge - syy->front();  // Pa
+  const MaterialRegion& layer = spec.regions.front();
+  const double height = layer.upper.y() - layer.lower.y();  // m, drained at its top
+  const double modulus = spec.output.constrained_modulus;   // Pa
+  const double cv =
+      spec.phases.permeability * modulus / (spec.phases.fluid_density * kDarcyGravity);  // m²/s
+  Summary out{
+      {"p0_Pa", p0}, {"c_v_m2_per_s", cv}, {"final_tv", cv * time->back() / (height * height)}};
+  // The worst distance from Terzaghi once the wave of the load's first
+  // instants has passed (liang-zhao-wu-soga-2023 §4.1 compares from
+  // Tv = 0.04 on; before that the mixture's inertia still shows).
+  double pressure_error = 0.0, consolidation_error = 0.0;
+  for (const PressureMonitor& m : spec.phases.monitors) {
+    ASSIGN_OR_RETURN(const std::vector<double>* p, Column(columns, m.name + "_p"));
+    const double z = (layer.upper.y() - m.position.y()) / height;  // [-], from the drained top
+    for (std::size_t i = 0; i < p->size() && i < time->size(); ++i) {
+      const double tv = cv * (*time)[i] / (height * height);
+      if (tv < kTerzaghiFromTv) continue;
+      pressure_error =
+          std::max(pressure_error, std::abs((*p)[i] - TerzaghiExcessPressure(p0, z, tv)) / p0);
+    }
+  }
+  for (std::size_t i = 0; i < settlement->size() && i < time->size(); ++i) {
+    const double tv = cv * (*time)[i] / (height * height);
+    if (tv < kTerzaghiFromTv) continue;
+    const double degree = (*settlement)[i] / (p0 * height / modulus);
+    consolidation_error =
+        std::max(consolidation_error, std::abs(degree - TerzaghiDegreeOfConsolidation(tv)));
+  }
+  out.emplace_back("pore_pressure_error_max", pressure_error);
+  out.emplace_back("degree_of_consolidation_error_max", consolidation_error);
   return out;
 }
 
@@ -536,6 +590,7 @@ absl::StatusOr<Summary> Summarise(const CaseSpec& spec, const Columns& columns) 
   if (kind == "collapse") return Collapse(spec, columns);
   if (kind == "biaxial") return Biaxial(spec, columns);
   if (kind == "shaking") return Shaking(spec, columns);
+  if (kind == "consolidation") return Consolidation(spec, columns);
   if (kind == "none") return Summary{};
   return absl::InvalidArgumentError(absl::StrCat("unknown summary kind '", kind, "'"));
 }

@@ -79,6 +79,10 @@ std::string MassFrontColumn(int percent);
 double InitialPointSpacing(const CaseSpec& spec);
 inline constexpr double kDepositLinkSpacings = 2.0;
 
+// Tv from which a consolidation run is compared with Terzaghi's solution:
+// before it the mixture's inertia, which Terzaghi leaves out, still shows.
+inline constexpr double kTerzaghiFromTv = 0.04;
+
 // The summary kind of a case: OutputSpec::summary, or from its plot.
 std::string SummaryKind(const OutputSpec& out);
 
@@ -130,7 +134,15 @@ using client_run::WriteSummary;
 // M_excess_ratio_peak and _peak_time_s (the largest level of Δp/σ'yy,0, the
 // level a trailing mean over two cycles of the shake, from the first row
 // with two cycles behind it) and
-// M_excess_ratio_final (the level at the end). Empty for "none".
+// M_excess_ratio_final (the level at the end); consolidation (a weightless
+// layer drained at its top under a +y surcharge, Terzaghi's problem):
+// p0_Pa (the surcharge less the first row's mean σyy), c_v_m2_per_s
+// (k·M/(ρ_f·g), M output.constrained_modulus), final_tv, and from
+// Tv = kTerzaghiFromTv on pore_pressure_error_max (the largest distance of a
+// monitor's pore pressure from TerzaghiExcessPressure at the monitor's
+// depth, over p0) and degree_of_consolidation_error_max (of the surface
+// settlement over p0·H/M from TerzaghiDegreeOfConsolidation). Empty for
+// "none".
 absl::StatusOr<Summary> Summarise(const CaseSpec& spec,
                                   const std::map<std::string, std::vector<double>>& columns);
 

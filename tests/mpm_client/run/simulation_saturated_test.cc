@@ -80,6 +80,7 @@ TEST(SimulationTest, SaturatedConsolidationFollowsTerzaghi) {
         << "Tv " << tv;
   }
   EXPECT_GT(ts.at("base_p").back(), 0.0);
+  testing_util::ExpectCaseChecksPass(LoadOrDie("consolidation-1d-ci").checks, out);
 }
 
 // consolidation-crs-ci: the RVE column under an impermeable rigid platen

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "absl/strings/match.h"
+#include "mpm_client/core/two_phase.h"
 #include "mpm_client/run/output.h"
 
 namespace rvehub::mpm {
@@ -484,6 +485,53 @@ TEST(SummaryTest, ShakingLevelsAreTwoCycleMeansOfTheSwingingRatio) {
   s = Summarise(spec, c);
   ASSERT_FALSE(s.ok());
   EXPECT_TRUE(absl::StrContains(s.status().message(), "shaking_frequency")) << s.status();
+}
+
+TEST(SummaryTest, ConsolidationIsMeasuredAgainstTerzaghiFromTv004) {
+  // A 1 m layer, k = 1e-3 m/s, M = 9.81 MPa: c_v = 1 m²/s, so Tv = t. The
+  // RVEs hold 100 kPa of the 110 kPa surcharge: p0 = 10 kPa. The monitors
+  // follow Terzaghi but for 2 % of p0 at the base from Tv = 0.2 on and
+  // 30 % at Tv = 0.01 (the early wave, not compared); the settlement is
+  // 0.01 behind U(Tv).
+  CaseSpec spec = Region(0.02, 1.0, 2, 0.02);
+  spec.output.summary = "consolidation";
+  spec.output.constrained_modulus = 9.81e6;  // Pa
+  spec.phases.permeability = 1e-3;           // m/s
+  SurfaceTraction surcharge;
+  surcharge.normal_axis = 1;
+  surcharge.traction = Eigen::Vector2d(0.0, -110e3);
+  spec.tractions.push_back(surcharge);
+  spec.phases.monitors = {{"base", {0.01, 0.0}}, {"middle", {0.01, 0.5}}};
+  const double p0 = 10e3;  // Pa
+  std::map<std::string, std::vector<double>> c;
+  for (const double t : {0.0, 0.01, 0.05, 0.1, 0.2, 0.5, 1.0}) {
+    c["time"].push_back(t);
+    c["mean_syy"].push_back(100e3);
+    c["base_p"].push_back(TerzaghiExcessPressure(p0, 1.0, t) + (t >= 0.2    ? 0.02 * p0
+                                                                : t == 0.01 ? 0.3 * p0
+                                                                            : 0.0));
+    c["middle_p"].push_back(TerzaghiExcessPressure(p0, 0.5, t));
+    c["surface_settlement"].push_back((TerzaghiDegreeOfConsolidation(t) - 0.01) * p0 / 9.81e6);
+  }
+  absl::StatusOr<Summary> s = Summarise(spec, c);
+  ASSERT_TRUE(s.ok()) << s.status();
+  std::map<std::string, double> m(s->begin(), s->end());
+  EXPECT_DOUBLE_EQ(m["p0_Pa"], p0);
+  EXPECT_NEAR(m["c_v_m2_per_s"], 1.0, 1e-12);
+  EXPECT_NEAR(m["final_tv"], 1.0, 1e-12);
+  EXPECT_NEAR(m["pore_pressure_error_max"], 0.02, 1e-9);
+  EXPECT_NEAR(m["degree_of_consolidation_error_max"], 0.01, 1e-9);
+
+  // Terzaghi's layer is weightless and needs M and a surcharge.
+  spec.solver.gravity = Eigen::Vector2d(0.0, -9.81);
+  s = Summarise(spec, c);
+  ASSERT_FALSE(s.ok());
+  EXPECT_TRUE(absl::StrContains(s.status().message(), "gravity")) << s.status();
+  spec.solver.gravity = Eigen::Vector2d::Zero();
+  spec.output.constrained_modulus = 0.0;
+  s = Summarise(spec, c);
+  ASSERT_FALSE(s.ok());
+  EXPECT_TRUE(absl::StrContains(s.status().message(), "constrained_modulus")) << s.status();
 }
 
 // summarise reads DIR/timeseries.csv back: a damaged file is refused with
