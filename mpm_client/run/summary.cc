@@ -278,16 +278,16 @@ absl::StatusOr<Summary> Shaking(const CaseSpec& spec, const Columns& columns) {
   // "fluctuations around" a level).
   const double window = 2.0 / spec.solver.shaking_frequency;  // s
   Summary out{{"surface_settlement_m", settlement->back()}};
+  // Levels count from the first row with two whole cycles behind it (the
+  // last row for a shorter run): a part-cycle mean is still a swing.
+  std::size_t first = 0;
+  while (first + 1 < time->size() && (*time)[first] - time->front() < window) ++first;
   for (const PressureMonitor& m : spec.phases.monitors) {
     ASSIGN_OR_RETURN(const std::vector<double>* ratio, Column(columns, m.name + "_excess_ratio"));
     if (ratio->size() != time->size())
       return absl::InvalidArgumentError(
           absl::StrCat(m.name, "_excess_ratio has ", ratio->size(), " rows, time ", time->size()));
     const std::vector<double> level = TrailingMean(*time, *ratio, window);
-    // Levels from the first row with two whole cycles behind it (the last
-    // row's for a shorter run): a part-cycle mean is still a swing.
-    std::size_t first = 0;
-    while (first + 1 < level.size() && (*time)[first] - time->front() < window) ++first;
     const auto peak = std::max_element(level.begin() + first, level.end());
     out.emplace_back(m.name + "_excess_ratio_peak", *peak);
     out.emplace_back(m.name + "_excess_ratio_peak_time_s", (*time)[peak - level.begin()]);
@@ -314,6 +314,13 @@ absl::StatusOr<Summary> Consolidation(const CaseSpec& spec, const Columns& colum
   // The load the water carries at first: the surcharge less what the RVEs
   // already hold (compression +).
   const double p0 = surcharge - syy->front();  // Pa
+  if (!(p0 > 0.0))
+    return absl::InvalidArgumentError(absl::StrCat(
+        "the consolidation summary needs a surcharge above the RVEs' first mean σyy (p0 = ", p0,
+        " Pa)"));
+  if (settlement->size() != time->size())
+    return absl::InvalidArgumentError(
+        absl::StrCat("surface_settlement has ", settlement->size(), " rows, time ", time->size()));
   const MaterialRegion& layer = spec.regions.front();
   const double height = layer.upper.y() - layer.lower.y();  // m, drained at its top
   const double modulus = spec.output.constrained_modulus;   // Pa
@@ -327,15 +334,18 @@ absl::StatusOr<Summary> Consolidation(const CaseSpec& spec, const Columns& colum
   double pressure_error = 0.0, consolidation_error = 0.0;
   for (const PressureMonitor& m : spec.phases.monitors) {
     ASSIGN_OR_RETURN(const std::vector<double>* p, Column(columns, m.name + "_p"));
+    if (p->size() != time->size())
+      return absl::InvalidArgumentError(
+          absl::StrCat(m.name, "_p has ", p->size(), " rows, time ", time->size()));
     const double z = (layer.upper.y() - m.position.y()) / height;  // [-], from the drained top
-    for (std::size_t i = 0; i < p->size() && i < time->size(); ++i) {
+    for (std::size_t i = 0; i < time->size(); ++i) {
       const double tv = cv * (*time)[i] / (height * height);
       if (tv < kTerzaghiFromTv) continue;
       pressure_error =
           std::max(pressure_error, std::abs((*p)[i] - TerzaghiExcessPressure(p0, z, tv)) / p0);
     }
   }
-  for (std::size_t i = 0; i < settlement->size() && i < time->size(); ++i) {
+  for (std::size_t i = 0; i < time->size(); ++i) {
     const double tv = cv * (*time)[i] / (height * height);
     if (tv < kTerzaghiFromTv) continue;
     const double degree = (*settlement)[i] / (p0 * height / modulus);

@@ -522,6 +522,19 @@ TEST(SummaryTest, ConsolidationIsMeasuredAgainstTerzaghiFromTv004) {
   EXPECT_NEAR(m["pore_pressure_error_max"], 0.02, 1e-9);
   EXPECT_NEAR(m["degree_of_consolidation_error_max"], 0.01, 1e-9);
 
+  // Columns of different lengths and a surcharge the RVEs already hold are
+  // refused, naming what is wrong.
+  c["middle_p"].pop_back();
+  s = Summarise(spec, c);
+  ASSERT_FALSE(s.ok());
+  EXPECT_TRUE(absl::StrContains(s.status().message(), "middle_p has 6 rows")) << s.status();
+  c["middle_p"].push_back(0.0);
+  c["mean_syy"][0] = 110e3;
+  s = Summarise(spec, c);
+  ASSERT_FALSE(s.ok());
+  EXPECT_TRUE(absl::StrContains(s.status().message(), "p0 = 0")) << s.status();
+  c["mean_syy"][0] = 100e3;
+
   // Terzaghi's layer is weightless and needs M and a surcharge.
   spec.solver.gravity = Eigen::Vector2d(0.0, -9.81);
   s = Summarise(spec, c);
