@@ -100,8 +100,9 @@ VERDICTS = [
      [("footing-dense", "N_q")]),
     ("φ' of a packing", "corrected",
      "the smoothed peak (running mean over 0.5 % axial strain) of the drained biaxial tests at "
-     "10–30 kPa, the mean over seeds where several exist (cases/friction_angle.py); the cases' "
-     "phi_deg are to be measured again with it",
+     "10–30 kPa, the mean over seeds where several exist (cases/friction_angle.py); the "
+     "footing cases' phi_deg (in their summaries) are the nine-seed means: dense 30.19° ± 1.13, "
+     "medium 24.24° ± 1.73, soft 18.80° ± 1.32",
      []),
     ("medium and soft footings", "re-read",
      "against Terzaghi's reduced N'_q (eq. 47) with the ultimate load at the knee (two "
@@ -120,15 +121,21 @@ VERDICTS = [
      [("pipe", "penetration_peak_force_N"), ("pipe", "lateral_horizontal_force_N"),
       ("pipe", "lateral_vertical_force_N")]),
     ("consolidation", "reproduced",
-     "3 % of p0 from Tv = 0.041 on; at Tv = 0.010 within 5 % of the solution with the "
-     "mixture's inertia; read by cases/consolidation_compare.py from the frames, no "
-     "summary.json figure yet",
-     []),
+     "3 % of p0 from Tv = 0.04 on (the consolidation summary); at Tv = 0.010 within 5 % of "
+     "the solution with the mixture's inertia, read by cases/consolidation_compare.py from "
+     "the frames",
+     [("consolidation-1d", "pore_pressure_error_max"),
+      ("consolidation-1d", "degree_of_consolidation_error_max")]),
     ("cyclic shaking", "correct, then judge",
      "the excess pore pressure ratio with the point's own σ'v0 = γ'z and the current surface "
-     "as datum, at the centre and bottom points, judged against the reduced cases' seed "
-     "spread; not yet in the outputs",
-     []),
+     "as datum (the shaking summary), at the centre B and the base C; dense: no build-up; "
+     "medium: judged against the reduced medium packing's seed spread (B peak 0.05–1.03, "
+     "settlement 2.1–23.3 mm; docs/cyclic-shaking-seeds.md)",
+     [("cyclic-shaking-dense", "B_excess_ratio_peak"),
+      ("cyclic-shaking-dense", "C_excess_ratio_peak"),
+      ("cyclic-shaking-dense", "surface_settlement_m"),
+      ("cyclic-shaking-medium", "B_excess_ratio_peak"),
+      ("cyclic-shaking-medium", "surface_settlement_m")]),
     ("saturated collapse", "reproduced",
      "the paper's scheme (no F-bar) gives a kinetic-energy peak much smaller than the dry "
      "column's; with F-bar refinement closes the gap (a ratio of two runs' kinetic energies: "
