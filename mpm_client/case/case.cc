@@ -15,6 +15,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
 #include "mpm_client/case/sections.h"
 #include "rve_server/common/status_macros.h"
 #include "rve_server/common/text_file.h"
@@ -147,6 +148,21 @@ absl::StatusOr<CaseSpec> ReadCase(const Json& doc, const std::string& base_dir) 
   }
   if (const Json* output = root.Get("output")) {
     RETURN_IF_ERROR(ParseOutput(*output, root.At("output"), spec.bodies, base_dir, &spec.output));
+    // The wave summary reads two monitors' traces, which saturated cases write.
+    if (spec.output.summary == "wave") {
+      std::vector<std::string> monitors;
+      for (const PressureMonitor& m : spec.phases.monitors) monitors.push_back(m.name);
+      for (const auto& [key, name] : {std::pair{"wave_from", spec.output.wave_from},
+                                      std::pair{"wave_to", spec.output.wave_to}}) {
+        if (std::find(monitors.begin(), monitors.end(), name) == monitors.end()) {
+          return Bad(root.At("output") + "/" + key, "no monitor named ", Quote(name),
+                     " (phases.monitors: ", absl::StrJoin(monitors, ", "), ")");
+        }
+      }
+      if (spec.output.wave_from == spec.output.wave_to) {
+        return Bad(root.At("output") + "/wave_to", "must name another monitor than wave_from");
+      }
+    }
   }
   if (const Json* checks = root.Get("checks")) {
     RETURN_IF_ERROR(client_case::ParseChecks(*checks, root.At("checks"), &spec.checks));

@@ -26,9 +26,10 @@ bool StressStrain(const OutputSpec& o) { return o.plot == "stress-strain"; }
 const Table<std::string> kSummaries = {{"footing", "footing"},   {"pipe", "pipe"},
                                        {"collapse", "collapse"}, {"biaxial", "biaxial"},
                                        {"shaking", "shaking"},   {"consolidation", "consolidation"},
-                                       {"none", "none"}};
+                                       {"wave", "wave"},         {"none", "none"}};
 
 bool ConsolidationSummary(const OutputSpec& o) { return o.summary == "consolidation"; }
+bool WaveSummary(const OutputSpec& o) { return o.summary == "wave"; }
 
 bool FootingSummary(const OutputSpec& o) {
   return o.summary == "footing" || (o.summary.empty() && o.plot == "load-settlement");
@@ -103,6 +104,12 @@ Fields<OutputSpec> OutputFields(const std::vector<RigidBody>* bodies, const std:
       Only(&ConsolidationSummary, "only for a consolidation summary",
            NumberField("constrained_modulus", &OutputSpec::constrained_modulus, Need::kRequired,
                        kPositive)),
+      Only(&WaveSummary, "only for a wave summary",
+           TextField("wave_from", &OutputSpec::wave_from, Need::kRequired, /*non_empty=*/true)),
+      Only(&WaveSummary, "only for a wave summary",
+           TextField("wave_to", &OutputSpec::wave_to, Need::kRequired, /*non_empty=*/true)),
+      Only(&WaveSummary, "only for a wave summary",
+           NumberField("wave_window", &OutputSpec::wave_window, Need::kRequired, kPositive)),
       Only(&StressStrain, "only for plot \"stress-strain\"",
            {"reference_curve",
             [base_dir](const Object& o, OutputSpec* out) {

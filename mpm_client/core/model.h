@@ -259,7 +259,7 @@ struct OutputSpec {
   double plot_width = 1.0;  // m, footing width B for load normalisation q = fy/(B·t)
   // Headline figures written to summary.json (mpm_client/run/summary.h):
   // "footing", "pipe", "collapse", "biaxial", "shaking", "consolidation",
-  // "none"; empty: from `plot`
+  // "wave", "none"; empty: from `plot`
   // (load-settlement: footing; stress-strain: biaxial; none: none).
   std::string summary;
   // φ' of the soil for Prandtl's N_q (footing summary), degrees; 0: not given.
@@ -267,6 +267,13 @@ struct OutputSpec {
   // The skeleton's constrained modulus M for Terzaghi's c_v (consolidation
   // summary), Pa; 0: not given.
   double constrained_modulus = 0.0;
+  // The wave summary's two monitors (phases.monitors) on the surface, the
+  // wave running from the first to the second, and the time from the start
+  // over which their u_y traces are compared, s: it must end before the
+  // first reflection from a side reaches them.
+  std::string wave_from;
+  std::string wave_to;
+  double wave_window = 0.0;
   // An `rve_cli element-test` CSV (absolute path; the case file may give it
   // relative to itself) drawn on the stress-strain plot's nominal curve as
   // the DEM element test on the same RVE: syy (Pa) against axial_strain.

@@ -296,6 +296,59 @@ absl::StatusOr<Summary> Shaking(const CaseSpec& spec, const Columns& columns) {
   return out;
 }
 
+// The wave's travel time between two monitors: the lag s (rows) that
+// maximises Σ_i a_i·b_(i+s) over the rows within the window, s < n/2, refined
+// by a parabola through the peak; its speed the monitors' distance over it.
+absl::StatusOr<Summary> Wave(const CaseSpec& spec, const Columns& columns) {
+  const OutputSpec& out = spec.output;
+  const auto position = [&](const std::string& name) -> absl::StatusOr<Eigen::Vector2d> {
+    for (const PressureMonitor& m : spec.phases.monitors) {
+      if (m.name == name) return m.position;
+    }
+    return absl::InvalidArgumentError(
+        absl::StrCat("the wave summary's monitor ", name, " is not among phases.monitors"));
+  };
+  ASSIGN_OR_RETURN(const Eigen::Vector2d from, position(out.wave_from));
+  ASSIGN_OR_RETURN(const Eigen::Vector2d to, position(out.wave_to));
+  ASSIGN_OR_RETURN(const std::vector<double>* time, Column(columns, "time"));
+  ASSIGN_OR_RETURN(const std::vector<double>* a, Column(columns, out.wave_from + "_uy"));
+  ASSIGN_OR_RETURN(const std::vector<double>* b, Column(columns, out.wave_to + "_uy"));
+  if (a->size() != time->size() || b->size() != time->size())
+    return absl::InvalidArgumentError("the wave summary's columns differ in length");
+  std::size_t n = 0;
+  while (n < time->size() && (*time)[n] - time->front() <= out.wave_window) ++n;
+  constexpr std::size_t kMinRows = 8;
+  if (n < kMinRows)
+    return absl::InvalidArgumentError(absl::StrCat("the wave summary needs at least ", kMinRows,
+                                                   " rows within wave_window, has ", n));
+  // A lag in rows is a time only on evenly spaced rows (one Δt, every N steps).
+  const double dt = ((*time)[n - 1] - time->front()) / static_cast<double>(n - 1);  // s
+  for (std::size_t i = 1; i < n; ++i) {
+    if (std::abs((*time)[i] - (*time)[i - 1] - dt) > 1e-6 * dt)
+      return absl::InvalidArgumentError(
+          absl::StrCat("the wave summary needs evenly spaced rows; row ", i, " is not"));
+  }
+  std::vector<double> corr(n / 2);
+  for (std::size_t s = 0; s < corr.size(); ++s) {
+    double sum = 0.0;
+    for (std::size_t i = 0; i + s < n; ++i) sum += (*a)[i] * (*b)[i + s];
+    corr[s] = sum;
+  }
+  const std::size_t peak = std::max_element(corr.begin(), corr.end()) - corr.begin();
+  double lag = static_cast<double>(peak);  // rows
+  if (peak > 0 && peak + 1 < corr.size()) {
+    const double c0 = corr[peak - 1], c1 = corr[peak], c2 = corr[peak + 1];
+    const double curvature = c0 - 2.0 * c1 + c2;
+    if (curvature < 0.0) lag += 0.5 * (c0 - c2) / curvature;
+  }
+  if (!(lag > 0.0))
+    return absl::InvalidArgumentError(absl::StrCat("the u_y traces of ", out.wave_from, " and ",
+                                                   out.wave_to, " do not lag within wave_window"));
+  const double lag_s = lag * dt;
+  return Summary{{"surface_wave_lag_s", lag_s},
+                 {"surface_wave_speed_m_per_s", (to - from).norm() / lag_s}};
+}
+
 absl::StatusOr<Summary> Consolidation(const CaseSpec& spec, const Columns& columns) {
   if (spec.regions.empty())
     return absl::InvalidArgumentError("the consolidation summary needs a region");
@@ -601,6 +654,7 @@ absl::StatusOr<Summary> Summarise(const CaseSpec& spec, const Columns& columns) 
   if (kind == "biaxial") return Biaxial(spec, columns);
   if (kind == "shaking") return Shaking(spec, columns);
   if (kind == "consolidation") return Consolidation(spec, columns);
+  if (kind == "wave") return Wave(spec, columns);
   if (kind == "none") return Summary{};
   return absl::InvalidArgumentError(absl::StrCat("unknown summary kind '", kind, "'"));
 }

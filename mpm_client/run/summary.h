@@ -141,8 +141,12 @@ using client_run::WriteSummary;
 // Tv = kTerzaghiFromTv on pore_pressure_error_max (the largest distance of a
 // monitor's pore pressure from TerzaghiExcessPressure at the monitor's
 // depth, over p0) and degree_of_consolidation_error_max (of the surface
-// settlement over p0·H/M from TerzaghiDegreeOfConsolidation). Empty for
-// "none".
+// settlement over p0·H/M from TerzaghiDegreeOfConsolidation); wave (a
+// surface wave passing two monitors, output.wave_from and wave_to):
+// surface_wave_lag_s (the lag maximising the cross-correlation of their u_y
+// traces within output.wave_window, refined by a parabola through the peak)
+// and surface_wave_speed_m_per_s (the monitors' distance in the case over
+// it). Empty for "none".
 absl::StatusOr<Summary> Summarise(const CaseSpec& spec,
                                   const std::map<std::string, std::vector<double>>& columns);
 

@@ -115,7 +115,8 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
       {"/output/reference_curve", "reference.csv",
        "/output/reference_curve: only for plot \"stress-strain\""},
       {"/output/summary", "fancy",
-       "/output/summary: unknown summary \"fancy\" (footing, pipe, collapse, biaxial, shaking, consolidation, none)"},
+       "/output/summary: unknown summary \"fancy\" (footing, pipe, collapse, biaxial, shaking, "
+       "consolidation, wave, none)"},
       {"/output/plot_body", kRemove, "/output/plot_body: required key is missing"},
       // Checks.
       {"/checks", Json::object(), "/checks: must be an array of checks, got object"},
@@ -275,6 +276,37 @@ TEST(SaturatedCase, AWaterTableAboveTheSoilIsRefused) {
   EXPECT_TRUE(absl::StrContains(above.status().message(),
                                 "/phases/water_table: y = 11 m lies above the soil's top, y = 1 m"))
       << above.status();
+}
+
+// The wave summary's monitors must be two of the case's; its keys belong to
+// it alone (the shipped wave-propagation-ci).
+TEST(SaturatedCase, TheWaveSummaryNamesTwoOfTheCasesMonitors) {
+  const fs::path path = fs::path(RVEHUB_SOURCE_DIR) / "cases" / "wave-propagation-ci.json";
+  std::ifstream in(path);
+  const Json base = Json::parse(in);
+  ASSERT_TRUE(ParseCase(base.dump(), path.parent_path().string()).ok());
+  const std::vector<std::pair<std::pair<std::string, Json>, std::string>> edits = {
+      {{"/output/wave_from", "R9"},
+       "/output/wave_from: no monitor named \"R9\" (phases.monitors: A, B, C, R3, R5, R7)"},
+      {{"/output/wave_to", "R3"}, "/output/wave_to: must name another monitor than wave_from"},
+      {{"/output/wave_window", 0}, "/output/wave_window: must be > 0, got 0"},
+      {{"/output/summary", "none"}, "/output/wave_from: only for a wave summary"},
+  };
+  for (const auto& [edit, message] : edits) {
+    SCOPED_TRACE(edit.first);
+    Json doc = base;
+    doc[Json::json_pointer(edit.first)] = edit.second;
+    absl::StatusOr<CaseSpec> spec = ParseCase(doc.dump(), path.parent_path().string());
+    ASSERT_FALSE(spec.ok());
+    EXPECT_EQ(spec.status().code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_TRUE(MessageStartsWith(spec.status(), message)) << spec.status();
+  }
+  Json doc = base;
+  doc["output"].erase("wave_window");
+  absl::StatusOr<CaseSpec> spec = ParseCase(doc.dump(), path.parent_path().string());
+  ASSERT_FALSE(spec.ok());
+  EXPECT_TRUE(MessageStartsWith(spec.status(), "/output/wave_window: required key is missing"))
+      << spec.status();
 }
 
 // Bad hydraulic input in a saturated case (the shipped consolidation-1d-ci)

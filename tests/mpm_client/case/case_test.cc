@@ -440,6 +440,9 @@ void ExpectSameSpec(const CaseSpec& a, const CaseSpec& b) {
   EXPECT_EQ(a.output.plot_width, b.output.plot_width);
   EXPECT_EQ(a.output.summary, b.output.summary);
   EXPECT_EQ(a.output.phi_deg, b.output.phi_deg);
+  EXPECT_EQ(a.output.wave_from, b.output.wave_from);
+  EXPECT_EQ(a.output.wave_to, b.output.wave_to);
+  EXPECT_EQ(a.output.wave_window, b.output.wave_window);
   ASSERT_EQ(a.checks.size(), b.checks.size());
   for (std::size_t c = 0; c < a.checks.size(); ++c) {
     EXPECT_EQ(a.checks[c].quantity, b.checks[c].quantity);

@@ -487,6 +487,59 @@ TEST(SummaryTest, ShakingLevelsAreTwoCycleMeansOfTheSwingingRatio) {
   EXPECT_TRUE(absl::StrContains(s.status().message(), "shaking_frequency")) << s.status();
 }
 
+TEST(SummaryTest, WaveSpeedIsTheMonitorsDistanceOverTheLagOfTheirTraces) {
+  // R3 and R7, 4 m apart on the surface, rows every 1 ms: a pulse passes R3
+  // at 0.05 s and R7, weaker and broader, 0.0503 s later (79.52 m/s); a
+  // larger reflected pulse reaches R7 at 0.3 s, after the 0.2 s window.
+  CaseSpec spec;
+  spec.output.summary = "wave";
+  spec.output.wave_from = "R3";
+  spec.output.wave_to = "R7";
+  spec.output.wave_window = 0.2;  // s
+  spec.phases.monitors = {{"R3", {13.5, 10.0}}, {"R7", {17.5, 10.0}}};
+  const auto pulse = [](double t, double at, double width) {
+    return std::exp(-std::pow((t - at) / width, 2));
+  };
+  std::map<std::string, std::vector<double>> c;
+  for (int i = 0; i <= 500; ++i) {
+    const double t = 1e-3 * i;  // s
+    c["time"].push_back(t);
+    c["R3_uy"].push_back(-1e-3 * pulse(t, 0.05, 0.01));  // m, down −
+    c["R7_uy"].push_back(-0.5e-3 * pulse(t, 0.1003, 0.012) - 2e-3 * pulse(t, 0.3, 0.01));
+  }
+  absl::StatusOr<Summary> s = Summarise(spec, c);
+  ASSERT_TRUE(s.ok()) << s.status();
+  std::map<std::string, double> m(s->begin(), s->end());
+  // The parabola through three samples of a Gaussian peak: within 2 % of a row.
+  EXPECT_NEAR(m["surface_wave_lag_s"], 0.0503, 2e-5);
+  EXPECT_NEAR(m["surface_wave_speed_m_per_s"], 4.0 / 0.0503, 0.05);
+
+  // The window is what keeps the reflection out: over the whole run the
+  // larger pulse's lag wins.
+  spec.output.wave_window = 0.5;
+  s = Summarise(spec, c);
+  ASSERT_TRUE(s.ok()) << s.status();
+  m = std::map<std::string, double>(s->begin(), s->end());
+  EXPECT_NEAR(m["surface_wave_lag_s"], 0.25, 2e-3);
+
+  // Unevenly spaced rows, a missing trace and a window of too few rows are named.
+  spec.output.wave_window = 0.2;
+  std::map<std::string, std::vector<double>> uneven = c;
+  uneven["time"][7] += 4e-4;
+  s = Summarise(spec, uneven);
+  ASSERT_FALSE(s.ok());
+  EXPECT_TRUE(absl::StrContains(s.status().message(), "evenly spaced rows; row 7")) << s.status();
+  spec.output.wave_window = 0.005;
+  s = Summarise(spec, c);
+  ASSERT_FALSE(s.ok());
+  EXPECT_TRUE(absl::StrContains(s.status().message(), "at least 8 rows")) << s.status();
+  c.erase("R7_uy");
+  spec.output.wave_window = 0.2;
+  s = Summarise(spec, c);
+  ASSERT_FALSE(s.ok());
+  EXPECT_TRUE(absl::StrContains(s.status().message(), "R7_uy")) << s.status();
+}
+
 TEST(SummaryTest, ConsolidationIsMeasuredAgainstTerzaghiFromTv004) {
   // A 1 m layer, k = 1e-3 m/s, M = 9.81 MPa: c_v = 1 m²/s, so Tv = t. The
   // RVEs hold 100 kPa of the 110 kPa surcharge: p0 = 10 kPa. The monitors
