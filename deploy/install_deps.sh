@@ -9,7 +9,7 @@ PACKAGES=(
   libeigen3-dev libabsl-dev libgtest-dev libgmock-dev libbenchmark-dev libcairo2-dev
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc libhdf5-dev nlohmann-json3-dev
   openssl git ca-certificates
-  python3 python3-grpcio python3-grpc-tools python3-numpy python3-pytest python3-matplotlib
+  python3 python3-grpcio python3-grpc-tools python3-numpy python3-pytest python3-matplotlib python3-h5py
 )
 
 missing=()
