@@ -24,6 +24,16 @@ absl::StatusOr<const std::vector<double>*> Column(const Columns& columns, const 
   return &it->second;
 }
 
+// A column that must hold `rows` rows, one per row of the time column.
+absl::StatusOr<const std::vector<double>*> Column(const Columns& columns, const std::string& name,
+                                                  std::size_t rows) {
+  ASSIGN_OR_RETURN(const std::vector<double>* column, Column(columns, name));
+  if (column->size() != rows)
+    return absl::InvalidArgumentError(
+        absl::StrCat(name, " has ", column->size(), " rows, time ", rows));
+  return column;
+}
+
 // The body a summary reads: output.plot_body, else the case's first body.
 absl::StatusOr<std::string> SummaryBody(const CaseSpec& spec) {
   if (!spec.output.plot_body.empty()) return spec.output.plot_body;
@@ -283,10 +293,8 @@ absl::StatusOr<Summary> Shaking(const CaseSpec& spec, const Columns& columns) {
   std::size_t first = 0;
   while (first + 1 < time->size() && (*time)[first] - time->front() < window) ++first;
   for (const PressureMonitor& m : spec.phases.monitors) {
-    ASSIGN_OR_RETURN(const std::vector<double>* ratio, Column(columns, m.name + "_excess_ratio"));
-    if (ratio->size() != time->size())
-      return absl::InvalidArgumentError(
-          absl::StrCat(m.name, "_excess_ratio has ", ratio->size(), " rows, time ", time->size()));
+    ASSIGN_OR_RETURN(const std::vector<double>* ratio,
+                     Column(columns, m.name + "_excess_ratio", time->size()));
     const std::vector<double> level = TrailingMean(*time, *ratio, window);
     const auto peak = std::max_element(level.begin() + first, level.end());
     out.emplace_back(m.name + "_excess_ratio_peak", *peak);
@@ -311,10 +319,10 @@ absl::StatusOr<Summary> Wave(const CaseSpec& spec, const Columns& columns) {
   ASSIGN_OR_RETURN(const Eigen::Vector2d from, position(out.wave_from));
   ASSIGN_OR_RETURN(const Eigen::Vector2d to, position(out.wave_to));
   ASSIGN_OR_RETURN(const std::vector<double>* time, Column(columns, "time"));
-  ASSIGN_OR_RETURN(const std::vector<double>* a, Column(columns, out.wave_from + "_uy"));
-  ASSIGN_OR_RETURN(const std::vector<double>* b, Column(columns, out.wave_to + "_uy"));
-  if (a->size() != time->size() || b->size() != time->size())
-    return absl::InvalidArgumentError("the wave summary's columns differ in length");
+  ASSIGN_OR_RETURN(const std::vector<double>* a,
+                   Column(columns, out.wave_from + "_uy", time->size()));
+  ASSIGN_OR_RETURN(const std::vector<double>* b,
+                   Column(columns, out.wave_to + "_uy", time->size()));
   std::size_t n = 0;
   while (n < time->size() && (*time)[n] - time->front() <= out.wave_window) ++n;
   constexpr std::size_t kMinRows = 8;
@@ -363,7 +371,8 @@ absl::StatusOr<Summary> Consolidation(const CaseSpec& spec, const Columns& colum
     return absl::InvalidArgumentError("the consolidation summary needs a +y surcharge traction");
   ASSIGN_OR_RETURN(const std::vector<double>* time, Column(columns, "time"));
   ASSIGN_OR_RETURN(const std::vector<double>* syy, Column(columns, "mean_syy"));
-  ASSIGN_OR_RETURN(const std::vector<double>* settlement, Column(columns, "surface_settlement"));
+  ASSIGN_OR_RETURN(const std::vector<double>* settlement,
+                   Column(columns, "surface_settlement", time->size()));
   // The load the water carries at first: the surcharge less what the RVEs
   // already hold (compression +).
   const double p0 = surcharge - syy->front();  // Pa
@@ -371,9 +380,6 @@ absl::StatusOr<Summary> Consolidation(const CaseSpec& spec, const Columns& colum
     return absl::InvalidArgumentError(absl::StrCat(
         "the consolidation summary needs a surcharge above the RVEs' first mean σyy (p0 = ", p0,
         " Pa)"));
-  if (settlement->size() != time->size())
-    return absl::InvalidArgumentError(
-        absl::StrCat("surface_settlement has ", settlement->size(), " rows, time ", time->size()));
   const MaterialRegion& layer = spec.regions.front();
   const double height = layer.upper.y() - layer.lower.y();  // m, drained at its top
   const double modulus = spec.output.constrained_modulus;   // Pa
@@ -386,10 +392,7 @@ absl::StatusOr<Summary> Consolidation(const CaseSpec& spec, const Columns& colum
   // Tv = 0.04 on; before that the mixture's inertia still shows).
   double pressure_error = 0.0, consolidation_error = 0.0;
   for (const PressureMonitor& m : spec.phases.monitors) {
-    ASSIGN_OR_RETURN(const std::vector<double>* p, Column(columns, m.name + "_p"));
-    if (p->size() != time->size())
-      return absl::InvalidArgumentError(
-          absl::StrCat(m.name, "_p has ", p->size(), " rows, time ", time->size()));
+    ASSIGN_OR_RETURN(const std::vector<double>* p, Column(columns, m.name + "_p", time->size()));
     const double z = (layer.upper.y() - m.position.y()) / height;  // [-], from the drained top
     for (std::size_t i = 0; i < time->size(); ++i) {
       const double tv = cv * (*time)[i] / (height * height);
