@@ -260,6 +260,17 @@ absl::StatusOr<Summary> Collapse(const CaseSpec& spec, const Columns& columns) {
                      (final_distance(*x) - d0) / d0);
     out.emplace_back(absl::StrCat("front_stop_time_mass", percent, "_s"), stop_time(*x));
   }
+  // The solid's kinetic-energy peak and when it came (liang-zhao-wu-soga-2023
+  // Fig. 13 compares a saturated column's with the dry one's).
+  if (columns.contains("kinetic_energy")) {
+    ASSIGN_OR_RETURN(const std::vector<double>* ke,
+                     Column(columns, "kinetic_energy", time->size()));
+    if (!ke->empty()) {
+      const auto peak = std::max_element(ke->begin(), ke->end());
+      out.emplace_back("kinetic_energy_peak_J", *peak);
+      out.emplace_back("kinetic_energy_peak_time_s", (*time)[peak - ke->begin()]);
+    }
+  }
   return out;
 }
 

@@ -368,6 +368,19 @@ TEST(SummaryTest, FootingCollapseBiaxialAndPipeFigures) {
   EXPECT_DOUBLE_EQ(m["front_stop_time_mass98_s"], 0.5);
   EXPECT_DOUBLE_EQ(m["front_stop_time_mass99_s"], 1.0);
   EXPECT_DOUBLE_EQ(m["front_stop_time_s"], 1.0);
+  EXPECT_FALSE(m.contains("kinetic_energy_peak_J"));
+  // With the kinetic energy written (J per metre of thickness), its peak and
+  // the time of that row.
+  c["kinetic_energy"] = {0.0, 950.0, 120.0, 3.0};
+  m = by_name(collapse, c);
+  EXPECT_EQ(m["kinetic_energy_peak_J"], 950.0);
+  EXPECT_EQ(m["kinetic_energy_peak_time_s"], 0.5);
+  // A column shorter than time's is refused by name.
+  c["kinetic_energy"] = {0.0, 950.0};
+  const absl::StatusOr<Summary> short_ke = Summarise(collapse, c);
+  ASSERT_FALSE(short_ke.ok());
+  EXPECT_TRUE(absl::StrContains(short_ke.status().message(), "kinetic_energy"))
+      << short_ke.status();
 
   // Biaxial with a platen: force over the width, travel over the height.
   CaseSpec biaxial = RegionWithBody(0.05, 0.1, 1, 0.0125, "platen");
