@@ -14,7 +14,9 @@ Two commands:
       per paper one table of checks (ours, the reference, the tolerance, the verdict), then
       per case its figure, runtime, date and version of the run; the owner's rulings on the
       open points, each with the checks that carry it. A case without a record says "no
-      record yet"; every number of "ours" is read from a recorded summary.json.
+      record yet"; every number of "ours" is read from a recorded summary.json. With
+      --check it writes nothing and exits 1 when the file differs from what it would write
+      (a hand edit, or a record added without generating the report again).
 
 A check passes as in mpm_client (client_run/checks.h): |ours - reference| <= tolerance
 (absolute) or <= tolerance * |reference| (relative), with the reference a number or another
@@ -138,14 +140,37 @@ VERDICTS = [
       ("cyclic-shaking-medium", "surface_settlement_m")]),
     ("saturated collapse", "reproduced",
      "the paper's scheme (no F-bar) gives a kinetic-energy peak much smaller than the dry "
-     "column's; with F-bar refinement closes the gap (a ratio of two runs' kinetic energies: "
-     "no summary.json figure)",
+     "column's (0.61 for the medium packing on the paper's cells); the cases run with F-bar, "
+     "and refinement closes the gap (docs/saturated-collapse-refinement.md); shown: the ratio "
+     "of two records' `kinetic_energy_peak_J`, saturated over collapse-dry-medium",
      []),
     ("choices the papers leave open", "recorded",
      "the shaking amplitude, the energies of the solid phase only, the pipe's soil density: "
      "cases/REFERENCE.md",
      []),
 ]
+
+
+# The rulings judged on two records rather than one summary's check: (point, text of
+# the figures) from the recorded summaries.
+def saturated_collapse_ratios(results):
+    dry, _ = read_record(results, "collapse-dry-medium")
+    dry_peak = (dry or {}).get("kinetic_energy_peak_J")
+    out = []
+    for packing in ("dense", "medium", "loose"):
+        sat, _ = read_record(results, f"collapse-saturated-{packing}")
+        peak = (sat or {}).get("kinetic_energy_peak_J")
+        if peak is None or not dry_peak:
+            out.append(f"collapse-saturated-{packing} over collapse-dry-medium: no record yet")
+            continue
+        out.append(f"collapse-saturated-{packing} over collapse-dry-medium: kinetic-energy "
+                   f"peak {peak:.0f} / {dry_peak:.0f} J = {peak / dry_peak:.2f} (at "
+                   f"{sat.get('kinetic_energy_peak_time_s', float('nan')):.2f} s against "
+                   f"{dry.get('kinetic_energy_peak_time_s', float('nan')):.2f} s)")
+    return out
+
+
+TWO_RECORD_FIGURES = {"saturated collapse": saturated_collapse_ratios}
 
 
 def load_json(path):
@@ -325,13 +350,25 @@ def report(args):
             for check, (ours, ref, _, v) in evaluated.get(case, []):
                 if check["quantity"] == quantity:
                     states.append(f"{case} `{quantity}`: {v}")
+        if point in TWO_RECORD_FIGURES:
+            states += TWO_RECORD_FIGURES[point](args.results)
         lines.append(f"| {point} | {verdict} | {rule} | "
                      f"{'; '.join(states) if states else 'no summary.json figure'} |")
     lines.append("")
-    with open(args.out, "w") as f:
-        f.write("\n".join(lines))
+    text = "\n".join(lines)
     failed = sum(1 for v in evaluated.values() for _, e in v if e[3] == "FAIL")
+    if args.check:
+        current = open(args.out).read() if os.path.exists(args.out) else None
+        if current != text:
+            print(f"{args.out} is not what the records give: run "
+                  "`python3 cases/validation_report.py report`")
+            return 1
+        print(f"{args.out} is up to date: {len(recorded)} recorded runs, {failed} failed checks")
+        return 0
+    with open(args.out, "w") as f:
+        f.write(text)
     print(f"wrote {args.out}: {len(recorded)} recorded runs, {failed} failed checks")
+    return 0
 
 
 def main():
@@ -345,9 +382,11 @@ def main():
     g = sub.add_parser("report", help="write VALIDATION.md")
     g.add_argument("--results", default=os.path.join(HERE, "results"))
     g.add_argument("--out", default=os.path.join(os.path.dirname(HERE), "VALIDATION.md"))
+    g.add_argument("--check", action="store_true",
+                   help="write nothing; exit 1 when the file is not what the records give")
     a = ap.parse_args()
-    (record if a.command == "record" else report)(a)
+    return (record if a.command == "record" else report)(a) or 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

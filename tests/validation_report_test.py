@@ -1,0 +1,73 @@
+#!/usr/bin/env python3
+"""cases/validation_report.py: its verdicts, the figures it reads from two records, and
+that the committed VALIDATION.md is what the committed records give.
+
+  /usr/bin/python3 tests/validation_report_test.py [SOURCE_DIR]
+
+Exit status 0 when every check holds; 1 with each failure printed.
+"""
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+
+SOURCE = os.path.abspath(sys.argv[1] if len(sys.argv) > 1 else
+                         os.path.join(os.path.dirname(__file__), ".."))
+sys.path.insert(0, os.path.join(SOURCE, "cases"))
+import validation_report as vr  # noqa: E402
+
+failures = []
+
+
+def expect(ok, what):
+    if not ok:
+        failures.append(what)
+
+
+# A check passes within its tolerance, relative or absolute, and fails outside it.
+rel = {"quantity": "N_q", "reference": 14.4, "relative_tolerance": 0.1}
+expect(vr.evaluate(rel, {"N_q": 15.8})[3] == "pass", "15.8 within 10 % of 14.4")
+expect(vr.evaluate(rel, {"N_q": 15.9})[3] == "FAIL", "15.9 beyond 10 % of 14.4")
+ab = {"quantity": "B", "reference": 0.0, "absolute_tolerance": 0.1}
+expect(vr.evaluate(ab, {"B": -0.1})[3] == "pass", "-0.1 within 0 ± 0.1")
+expect(vr.evaluate(ab, {"B": math.nan})[3] == "FAIL", "NaN fails")
+# The reference may be another key of the same summary.
+key = {"quantity": "N_q", "reference": "N_q_reduced", "relative_tolerance": 0.1}
+expect(vr.evaluate(key, {"N_q": 4.6, "N_q_reduced": 4.5})[3] == "pass", "by key, pass")
+expect(vr.evaluate(key, {"N_q": 8.2, "N_q_reduced": 4.5})[3] == "FAIL", "by key, fail")
+expect(vr.evaluate(rel, None)[3] == "no record yet", "no summary")
+expect(vr.evaluate(rel, {"other": 1.0})[3] == "not in summary.json", "missing key")
+
+# The saturated collapse is shown as the ratio of two records' kinetic-energy peaks.
+with tempfile.TemporaryDirectory() as results:
+    def keep(case, summary):
+        os.makedirs(os.path.join(results, case))
+        for name, doc in (("summary.json", summary), ("record.json", {"case": case})):
+            with open(os.path.join(results, case, name), "w") as f:
+                json.dump(doc, f)
+
+    keep("collapse-dry-medium", {"case": "collapse-dry-medium", "kinetic_energy_peak_J": 1000.0,
+                                 "kinetic_energy_peak_time_s": 0.38})
+    keep("collapse-saturated-medium", {"case": "collapse-saturated-medium",
+                                       "kinetic_energy_peak_J": 870.0,
+                                       "kinetic_energy_peak_time_s": 0.45})
+    lines = vr.saturated_collapse_ratios(results)
+    expect(len(lines) == 3, f"one line per packing: {lines}")
+    expect(any("collapse-saturated-medium" in l and "870 / 1000 J = 0.87" in l
+               and "0.45 s against 0.38 s" in l for l in lines), f"medium's ratio: {lines}")
+    expect(any("collapse-saturated-dense" in l and "no record yet" in l for l in lines),
+           f"dense has no record: {lines}")
+
+# The committed report is what the committed records give.
+check = subprocess.run([sys.executable, os.path.join(SOURCE, "cases", "validation_report.py"),
+                        "report", "--check", "--results", os.path.join(SOURCE, "cases", "results"),
+                        "--out", os.path.join(SOURCE, "VALIDATION.md")],
+                       capture_output=True, text=True)
+expect(check.returncode == 0, f"VALIDATION.md out of date: {check.stdout}{check.stderr}")
+
+for f in failures:
+    print("FAILED:", f)
+print(f"{'FAIL' if failures else 'ok'}: validation_report checks")
+sys.exit(1 if failures else 0)
