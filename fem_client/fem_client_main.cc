@@ -8,6 +8,7 @@
 //   fem_client summarise CASE --out=DIR
 #include <cstdio>
 #include <filesystem>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -86,10 +87,13 @@ Options (run, resume):
                        the failure, bit for bit; a lost server that answers again rejoins
   --quiet              no progress lines
 
-Option (run, check, summarise; a resume continues the case it was written with):
+Option (run, check, summarise, resume):
   --set=PATH=VALUE     override one case field before the case is validated; repeatable.
                        PATH is a JSON pointer or dotted: --set=/mesh/elements=[10,15],
-                       --set=loading.axial_strain_step=5e-4, --set=solver.tangent=perturbation
+                       --set=loading.axial_strain_step=5e-4, --set=solver.tangent=perturbation.
+                       A resume continues the case it was written with and may change only
+                       the Newton settings: solver.tangent, perturbation, predictor,
+                       tolerance, force_tolerance, max_iterations, max_cutbacks
 
 Exit status: 0 done, 1 failure (message on stderr), 2 usage error.
 )";
@@ -151,10 +155,6 @@ absl::StatusOr<Command> Parse(int argc, char** argv) {
       }
     }
     if (!c.args.contains("out")) return absl::InvalidArgumentError("summarise needs --out=DIR");
-  }
-  if (c.name == "resume" && c.args.contains("set")) {
-    return absl::InvalidArgumentError(
-        "resume takes no --set (a checkpoint continues the case it was written with)");
   }
   if (c.name == "run" && !c.args.contains("out")) {
     return absl::InvalidArgumentError("--out=DIR is required");
@@ -231,7 +231,7 @@ int AddClientOptions(FemSimulationOptions& options) {
 int StepToEnd(FemSimulation& sim, const FemSimulationOptions& options,
               client_run::RunRecord& record);
 
-int Resume(const Command& command, int argc, char** argv) {
+int Resume(const Command& command, std::span<const CaseOverride> overrides, int argc, char** argv) {
   absl::StatusOr<FemSimulationOptions> options = Options(command.args);
   if (!options.ok()) return Fail(options.status(), 2);
   if (options->out_dir.empty()) {
@@ -239,13 +239,15 @@ int Resume(const Command& command, int argc, char** argv) {
     if (options->out_dir.empty()) options->out_dir = ".";
   }
   if (int code = AddClientOptions(*options); code != 0) return code;
+  // Before the lock, which makes the output directory.
+  if (absl::Status s = CheckResumableOverrides(overrides); !s.ok()) return Fail(s, 2);
   client_run::RunRecord record("fem_client", RVEHUB_GIT_DESCRIBE, argc, argv, command.name);
   // As a run's: a second run or resume into the directory is refused.
   absl::StatusOr<client_run::OutDirLock> out_lock =
       client_run::OutDirLock::Acquire(options->out_dir);
   if (!out_lock.ok()) return Fail(out_lock.status(), 1);
   absl::StatusOr<std::unique_ptr<FemSimulation>> sim =
-      FemSimulation::Resume(command.target, *options);
+      FemSimulation::Resume(command.target, *options, overrides);
   if (!sim.ok()) return Fail(sim.status(), 1);
   record.Started(options->out_dir, ToJson((*sim)->spec()), /*resumed=*/true);
   return StepToEnd(**sim, *options, record);
@@ -264,7 +266,7 @@ int Main(int argc, char** argv) {
   }
   absl::StatusOr<std::vector<CaseOverride>> overrides = Overrides(command->args);
   if (!overrides.ok()) return Fail(overrides.status(), 2);
-  if (command->name == "resume") return Resume(*command, argc, argv);
+  if (command->name == "resume") return Resume(*command, *overrides, argc, argv);
   absl::StatusOr<FemCase> spec = LoadFemCase(command->target, *overrides);
   if (command->name == "check") {
     if (!spec.ok()) return Fail(spec.status(), 1);

@@ -8,9 +8,11 @@
 #include <map>
 #include <system_error>
 
+#include "absl/algorithm/container.h"
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
 #include "absl/time/clock.h"
 #include "client_run/endpoints.h"
 #include "client_run/templates.h"
@@ -27,6 +29,7 @@
 #include "store/checkpoint.h"
 #include "store/results.h"
 #include "store/sim_checkpoint.h"
+#include "toolkit/json_pointer.h"
 
 namespace rvehub::fem {
 namespace {
@@ -135,8 +138,21 @@ absl::StatusOr<std::unique_ptr<FemSimulation>> FemSimulation::Start(
   return sim;
 }
 
+absl::Status CheckResumableOverrides(std::span<const CaseOverride> overrides) {
+  for (const CaseOverride& o : overrides) {
+    if (absl::c_find(kResumableSettings, o.pointer) == kResumableSettings.end()) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "--set ", o.pointer, ": a resume may change only the Newton settings (",
+          absl::StrJoin(kResumableSettings, ", "), "); the rest is the checkpoint's case"));
+    }
+  }
+  return absl::OkStatus();
+}
+
 absl::StatusOr<std::unique_ptr<FemSimulation>> FemSimulation::Resume(
-    const std::string& checkpoint_path, const FemSimulationOptions& options) {
+    const std::string& checkpoint_path, const FemSimulationOptions& options,
+    std::span<const CaseOverride> solver_overrides) {
+  RETURN_IF_ERROR(CheckResumableOverrides(solver_overrides));
   ASSIGN_OR_RETURN(store::SimCheckpoint c, store::ReadSimCheckpoint(checkpoint_path));
   auto bad = [&](absl::string_view what, const absl::Status& s) {
     return absl::DataLossError(absl::StrCat(checkpoint_path, ": ", what, s.message()));
@@ -144,6 +160,22 @@ absl::StatusOr<std::unique_ptr<FemSimulation>> FemSimulation::Resume(
   absl::StatusOr<FemCase> spec = ParseFemCase(c.case_json, ".");
   if (!spec.ok())
     return bad("its case does not parse (is it an mpm_client checkpoint?): ", spec.status());
+  std::string changed;  // for the log: what the overrides changed
+  if (!solver_overrides.empty()) {
+    // A new tangent drops the old one's ξ (the --set one or the default
+    // applies): a contact tangent would refuse it.
+    fields::Json doc = fields::Json::parse(c.case_json, nullptr, /*allow_exceptions=*/false);
+    if (absl::c_any_of(solver_overrides,
+                       [](const CaseOverride& o) { return o.pointer == "/solver/tangent"; })) {
+      if (doc.contains("solver") && doc["solver"].is_object()) doc["solver"].erase("perturbation");
+    }
+    spec = ParseFemCase(doc.dump(), ".", solver_overrides);
+    if (!spec.ok()) return spec.status();
+    c.case_json = ToJson(*spec);
+    for (const CaseOverride& o : solver_overrides) {
+      absl::StrAppend(&changed, changed.empty() ? " with " : ", ", o.pointer, " = ", o.value);
+    }
+  }
   absl::StatusOr<RunState> state = GetRunState(c.doubles, c.ints);
   if (!state.ok()) return bad("", state.status());
   std::unique_ptr<FemSimulation> sim(new FemSimulation());
@@ -175,7 +207,8 @@ absl::StatusOr<std::unique_ptr<FemSimulation>> FemSimulation::Resume(
     return bad("", s);
   }
   sim->material_->Restore(state->committed_step, std::move(state->rves));
-  sim->Log(absl::StrFormat("resumed %s at load step %d", checkpoint_path, sim->solver_->steps()));
+  sim->Log(absl::StrFormat("resumed %s at load step %d%s", checkpoint_path, sim->solver_->steps(),
+                           changed));
   // Only a checkpoint that fits its case gets an output directory.
   RETURN_IF_ERROR(MakeOutputDir(options.out_dir));
   RETURN_IF_ERROR(sim->OpenOutputs(/*resume=*/true));

@@ -13,14 +13,18 @@
 #ifndef RVEHUB_FEM_CLIENT_RUN_SIMULATION_H_
 #define RVEHUB_FEM_CLIENT_RUN_SIMULATION_H_
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
+#include "client_case/overrides.h"
 #include "client_run/time_split.h"
 #include "fem_client/case/fem_case.h"
 #include "fem_client/core/static_solver.h"
@@ -31,6 +35,19 @@
 #include "rve_server/values/record.h"
 
 namespace rvehub::fem {
+
+using client_case::CaseOverride;
+
+// The case fields a resume may change (fem_client resume --set): how the
+// Newton iterations of the next steps run, none of what the checkpoint's
+// state depends on.
+inline constexpr std::array<absl::string_view, 7> kResumableSettings = {
+    "/solver/tangent",         "/solver/perturbation",   "/solver/predictor",   "/solver/tolerance",
+    "/solver/force_tolerance", "/solver/max_iterations", "/solver/max_cutbacks"};
+
+// InvalidArgument "--set <pointer>: a resume may change only the Newton
+// settings (...)" for the first override outside kResumableSettings.
+absl::Status CheckResumableOverrides(std::span<const CaseOverride> overrides);
 
 struct FemSimulationOptions {
   std::string out_dir = "out";
@@ -96,10 +113,18 @@ class FemSimulation {
   // The outputs in options.out_dir go on after the checkpoint's step (rows
   // and frames after it dropped), so that a run stopped and resumed gives
   // the uninterrupted run's outputs bit for bit, wall times aside.
+  // `solver_overrides` change the Newton settings from here on (a tangent
+  // or tolerance that suits the post-peak steps better than the pre-peak
+  // ones); the checkpoints written after carry the changed case. Only the
+  // pointers of kResumableSettings may change: the rest of the case is what
+  // the state was computed with.
   // DataLoss for a checkpoint that is not one (ReadSimCheckpoint's errors,
-  // a case that does not parse, a state that does not fit the case).
-  static absl::StatusOr<std::unique_ptr<FemSimulation>> Resume(const std::string& checkpoint_path,
-                                                               const FemSimulationOptions& options);
+  // a case that does not parse, a state that does not fit the case);
+  // InvalidArgument naming the pointer for an override that is not one of
+  // those settings or whose value the case reader refuses.
+  static absl::StatusOr<std::unique_ptr<FemSimulation>> Resume(
+      const std::string& checkpoint_path, const FemSimulationOptions& options,
+      std::span<const CaseOverride> solver_overrides = {});
   ~FemSimulation();
 
   // Steps to the case's last load step (or FemSimulationOptions::

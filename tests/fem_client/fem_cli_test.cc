@@ -136,7 +136,8 @@ TEST(FemCliTest, UsageErrorsExitTwoWithAMessage) {
            {"run " + c + " --out=x --servers=nohost", "--servers"},
            {"run " + c + " --out=x --bogus=1", "bogus"},
            {"resume", "resume needs a checkpoint"},
-           {"resume x/checkpoint.h5 --set=solver.tolerance=0.1", "resume takes no --set"},
+           {"resume x/checkpoint.h5 --set=mesh.elements=[2,2]",
+            "--set /mesh/elements: a resume may change only the Newton settings"},
            {"check " + c + " --out=x", "check takes no options"},
            {"summarise " + c, "summarise needs --out=DIR"}}) {
     SCOPED_TRACE(args);

@@ -3,8 +3,9 @@
 // timeseries and results frames bit for bit (wall times aside), with
 // cut-backs before the checkpoint (the RVEs' committed step ahead of the
 // load steps) and with a forced platen; output.checkpoint_every writes
-// them; a checkpoint that is not one, or whose state does not fit its case,
-// is refused before anything is written.
+// them; a resume may change the Newton settings and nothing else; a
+// checkpoint that is not one, or whose state does not fit its case, is
+// refused before anything is written.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -14,6 +15,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "absl/strings/match.h"
@@ -165,6 +167,64 @@ TEST(FemResumeTest, ASecondGradientResumesWithItsFields) {
   EXPECT_EQ(at->doubles.at("double_stress").size(), 8u * 32);
   ASSERT_TRUE(ResumeCase(part + "/checkpoint.h5", Options(part)).ok());
   ExpectSameOutputs(full, part);
+}
+
+// A resume may change the Newton settings from its step on: a tolerance ten
+// times tighter here, which every later step meets, and which the
+// checkpoints written after carry. Any other field of the case, or a value
+// the case reader refuses, is refused by its pointer before anything is
+// written.
+TEST(FemResumeTest, AResumeMayChangeTheNewtonSettingsOnly) {
+  const FemCase c = Load("fem-single-element-ci", {{"/output/checkpoint_every", "1"}});
+  ASSERT_EQ(c.solver.tolerance, 0.01);
+  const std::string part = Scratch("tighter");
+  ASSERT_TRUE(RunCase(c, Options(part, /*stop_after=*/2)).ok());
+  const std::vector<CaseOverride> tighter = {{"/solver/tolerance", "1e-3"},
+                                             {"/solver/max_iterations", "60"}};
+  absl::StatusOr<std::unique_ptr<FemSimulation>> sim =
+      FemSimulation::Resume(part + "/checkpoint.h5", Options(part), tighter);
+  ASSERT_TRUE(sim.ok()) << sim.status();
+  EXPECT_EQ((*sim)->spec().solver.tolerance, 1e-3);
+  ASSERT_TRUE((*sim)->StepToEnd().ok());
+  const std::vector<double>& error_d = ReadColumns(part + "/timeseries.csv").at("error_d");
+  ASSERT_EQ(error_d.size(), 6u);  // row 0 and five steps
+  for (std::size_t step = 3; step <= 5; ++step) EXPECT_LT(error_d[step], 1e-3) << step;
+  absl::StatusOr<store::SimCheckpoint> end = store::ReadSimCheckpoint(part + "/checkpoint.h5");
+  ASSERT_TRUE(end.ok()) << end.status();
+  EXPECT_EQ(end->step, 5);
+  absl::StatusOr<FemCase> written = ParseFemCase(end->case_json, ".");
+  ASSERT_TRUE(written.ok()) << written.status();
+  EXPECT_EQ(written->solver.tolerance, 1e-3);
+  EXPECT_EQ(written->solver.max_iterations, 60);
+
+  // From the perturbation tangent back to the contact one: its ξ goes.
+  const std::string perturbed = Scratch("perturbed");
+  ASSERT_TRUE(
+      RunCase(Load("fem-single-element-ci", {{"/solver", R"({"tangent": "perturbation"})"}}),
+              Options(perturbed, /*stop_after=*/2))
+          .ok());
+  const std::vector<CaseOverride> contact = {{"/solver/tangent", "\"contact\""}};
+  sim = FemSimulation::Resume(perturbed + "/checkpoint.h5", Options(perturbed), contact);
+  ASSERT_TRUE(sim.ok()) << sim.status();
+  EXPECT_EQ((*sim)->spec().solver.tangent, TangentKind::kContact);
+
+  const std::string out = Scratch("not-resumed");
+  const std::pair<CaseOverride, const char*> refused[] = {
+      {{"/mesh/elements/0", "2"},
+       "--set /mesh/elements/0: a resume may change only the Newton settings"},
+      {{"/solver/second_gradient_N", "5"},
+       "--set /solver/second_gradient_N: a resume may change only the Newton settings"},
+      {{"/solver/tolerance", "5"}, "/solver/tolerance"},
+  };
+  for (const auto& [o, message] : refused) {
+    SCOPED_TRACE(o.pointer);
+    const std::vector<CaseOverride> one = {o};
+    absl::StatusOr<std::unique_ptr<FemSimulation>> bad =
+        FemSimulation::Resume(part + "/checkpoint.h5", Options(out), one);
+    EXPECT_EQ(bad.status().code(), absl::StatusCode::kInvalidArgument) << bad.status();
+    EXPECT_TRUE(absl::StrContains(bad.status().message(), message)) << bad.status();
+    EXPECT_FALSE(fs::exists(out));
+  }
 }
 
 // What Resume refuses, before it writes anything.
