@@ -93,7 +93,7 @@ Option (run, check, summarise, resume):
                        --set=loading.axial_strain_step=5e-4, --set=solver.tangent=perturbation.
                        A resume continues the case it was written with and may change only
                        the Newton settings: solver.tangent, perturbation, predictor,
-                       tolerance, force_tolerance, max_iterations, max_cutbacks
+                       tolerance, force_tolerance, max_iterations, max_cutbacks, unconverged
 
 Exit status: 0 done, 1 failure (message on stderr), 2 usage error.
 )";
@@ -313,18 +313,21 @@ int StepToEnd(FemSimulation& sim, const FemSimulationOptions& options,
                    {"total_steps", summary->total_steps},
                    {"iterations", summary->iterations},
                    {"cutbacks", summary->cutbacks},
+                   {"unconverged", summary->unconverged},
                    {"wall_s", split.wall_s}});
   std::fprintf(
       stderr,
       "fem_client: %s at load step %lld of %lld; %lld Newton iterations (%.2f per step), "
-      "%lld cut-backs, %lld TRIALs in %.1f s wall (RVE calls %.1f s, %.1f %%)\n",
+      "%lld cut-backs, %lld sub-steps accepted unconverged, %lld TRIALs in %.1f s wall (RVE "
+      "calls %.1f s, %.1f %%)\n",
       summary->finished ? "finished" : "stopped", static_cast<long long>(summary->final_step),
       static_cast<long long>(summary->total_steps), static_cast<long long>(summary->iterations),
       summary->steps > 0
           ? static_cast<double>(summary->iterations) / static_cast<double>(summary->steps)
           : 0.0,
-      static_cast<long long>(summary->cutbacks), static_cast<long long>(summary->trials),
-      split.wall_s, split.rve_s, split.wall_s > 0 ? 100.0 * split.rve_s / split.wall_s : 0.0);
+      static_cast<long long>(summary->cutbacks), static_cast<long long>(summary->unconverged),
+      static_cast<long long>(summary->trials), split.wall_s, split.rve_s,
+      split.wall_s > 0 ? 100.0 * split.rve_s / split.wall_s : 0.0);
   std::fprintf(stderr, "fem_client: %s\n",
                client_run::FormatTimeSplit(split, "FEM (assembly, solves)").c_str());
   std::fprintf(stderr, "fem_client: outputs in %s\n", options.out_dir.c_str());

@@ -138,6 +138,12 @@ enum class PredictorKind {
   kPrevious,  // the last converged increment, scaled: one extra Trial per step
 };
 
+// What a sub-step whose Newton iterations run out does.
+enum class UnconvergedKind {
+  kStop,    // cut back; the run stops once the cut-backs run out
+  kAccept,  // commit the last iterate and go on (counted in the outputs)
+};
+
 struct SolverSpec {
   TangentKind tangent = TangentKind::kContact;
   // The previous increment: 2.3 times fewer TRIALs than a zero start on the
@@ -151,6 +157,7 @@ struct SolverSpec {
   double force_tolerance = 0.0;
   int max_iterations = 30;  // Newton iterations of a step before it is cut back
   int max_cutbacks = 6;     // halvings of one step before the run stops
+  UnconvergedKind unconverged = UnconvergedKind::kStop;
   // D of the local second gradient (Desrues et al. eq. 44), N (Pa·m² per
   // metre of thickness); 0: none. Needs Q8R elements.
   double second_gradient = 0.0;

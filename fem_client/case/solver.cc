@@ -31,6 +31,13 @@ absl::string_view PredictorName(PredictorKind kind) {
   return kind == PredictorKind::kPrevious ? "previous" : "zero";
 }
 
+constexpr Table<UnconvergedKind> kUnconverged = {{"stop", UnconvergedKind::kStop},
+                                                 {"accept", UnconvergedKind::kAccept}};
+
+absl::string_view UnconvergedName(UnconvergedKind kind) {
+  return kind == UnconvergedKind::kAccept ? "accept" : "stop";
+}
+
 bool Perturbation(const SolverSpec& s) { return s.tangent == TangentKind::kPerturbation; }
 
 Fields<SolverSpec> SolverFields() {
@@ -51,6 +58,8 @@ Fields<SolverSpec> SolverFields() {
                   Range{0.0, 1.0, false, true}),
       IntField("max_iterations", &SolverSpec::max_iterations, 1, 1000),
       IntField("max_cutbacks", &SolverSpec::max_cutbacks, 0, 20),
+      EnumField("unconverged", &SolverSpec::unconverged, Need::kOptional, "unconverged",
+                kUnconverged, &UnconvergedName),
       // D: 1e6 N over a 1 mm element is a double stress of 1e9 Pa·m per
       // unit strain gradient, far past any granular layer's.
       NumberField("second_gradient_N", &SolverSpec::second_gradient, Need::kOptional,

@@ -268,27 +268,11 @@ bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& fai
     // (2e) Converged (eq. 21): commit the RVEs and the configuration.
     if (it.displacement_error < options_.displacement_tolerance &&
         (options_.force_tolerance == 0.0 || it.force_error < options_.force_tolerance)) {
-      if (absl::Status s = material_->Commit(ev.delta_f); !s.ok()) {
-        failure = {Prefixed(s, "the material's Commit failed: "), false};
-        return false;
-      }
-      forces_ = NodeSetForces(ev);
-      mesh_.nodes = ev.x;
-      displacement_ += du;
-      platens_ = PlatenStates(ev);
-      reference_ = ev.current;
-      if (second_gradient_) {
-        sg_committed_ = second_gradient_->Advance(sg_committed_, ds, std::move(ev.double_stress));
-      }
-      committed_ = std::move(ev);
-      if (factor != 0.0) {
-        last_rate_.resize(q.size() + extra);
-        last_rate_ << q / factor, ds / factor;
-      }
-      // The next step starts here: its ΔF are measured from this state.
-      std::fill(committed_.delta_f.begin(), committed_.delta_f.end(), Eigen::Matrix3d::Identity());
-      RestartSecondGradient(/*move_forces=*/true);
-      return true;
+      return CommitIterate(factor, du, q, ds, ev, failure);
+    }
+    if (j == options_.max_iterations && options_.accept_unconverged) {
+      report.converged = false;
+      return CommitIterate(factor, du, q, ds, ev, failure);
     }
     if (j == options_.max_iterations) {
       Eigen::Index worst = 0;
@@ -302,6 +286,31 @@ bool StaticSolver::TrySubStep(double factor, SubStepReport& report, Failure& fai
     }
   }
   return false;
+}
+
+bool StaticSolver::CommitIterate(double factor, const Eigen::VectorXd& du, const Eigen::VectorXd& q,
+                                 const Eigen::VectorXd& ds, Evaluation& ev, Failure& failure) {
+  if (absl::Status s = material_->Commit(ev.delta_f); !s.ok()) {
+    failure = {Prefixed(s, "the material's Commit failed: "), false};
+    return false;
+  }
+  forces_ = NodeSetForces(ev);
+  mesh_.nodes = ev.x;
+  displacement_ += du;
+  platens_ = PlatenStates(ev);
+  reference_ = ev.current;
+  if (second_gradient_) {
+    sg_committed_ = second_gradient_->Advance(sg_committed_, ds, std::move(ev.double_stress));
+  }
+  committed_ = std::move(ev);
+  if (factor != 0.0) {
+    last_rate_.resize(q.size() + ds.size());
+    last_rate_ << q / factor, ds / factor;
+  }
+  // The next step starts here: its ΔF are measured from this state.
+  std::fill(committed_.delta_f.begin(), committed_.delta_f.end(), Eigen::Matrix3d::Identity());
+  RestartSecondGradient(/*move_forces=*/true);
+  return true;
 }
 
 bool StaticSolver::Evaluate(const Eigen::VectorXd& du, const Eigen::VectorXd& ds, int iteration,

@@ -46,8 +46,15 @@ struct SolverOptions {
   // When > 0, E_f = ‖R^j‖₂/‖f‖₂ < this is also required (0: E_f is only
   // reported, as in G&Z).
   double force_tolerance = 0.0;
-  int max_iterations = 25;     // per (sub-)step, [1, 1000]
-  int max_cutbacks = 6;        // halvings of one load step, [0, 30]
+  int max_iterations = 25;  // per (sub-)step, [1, 1000]
+  int max_cutbacks = 6;     // halvings of one load step, [0, 30]
+  // A sub-step whose iterations run out: false, it is cut back (and the
+  // step fails once the cut-backs run out); true, its last iterate is
+  // committed as it stands and the step goes on (Desrues et al.'s
+  // "non-converged steps": past a snap-back no equilibrium is near, and
+  // smaller parts do not help). Failures that leave no iterate (a failed
+  // Trial, a singular stiffness) are cut back either way.
+  bool accept_unconverged = false;
   double perturbation = 5e-5;  // ξ of kPerturbation (G&Z §3.3), (0, 0.1)
   // D of the local second gradient (second_gradient.h), N; 0: none. When
   // > 0 every element must be Q8R, and E_d stays over the displacements.
@@ -66,6 +73,7 @@ struct IterationReport {
 struct SubStepReport {
   double fraction = 1.0;  // of the load step: 1, or 1/2^k after k cut-backs
   std::vector<IterationReport> iterations;
+  bool converged = true;  // false: accepted unconverged (accept_unconverged)
 };
 
 // The nodal forces on a node set at the end of a step, N/m.
@@ -185,8 +193,14 @@ class StaticSolver {
                std::optional<SecondGradient> second_gradient);
 
   // One attempt at `factor` of the step's increments: Newton to
-  // convergence and Commit (true), or a Failure.
+  // convergence (or, with accept_unconverged, to the last iteration) and
+  // Commit (true), or a Failure.
   bool TrySubStep(double factor, SubStepReport& report, Failure& failure);
+  // Commits the RVEs at `ev` (the last Trial, of Δu = du and the second
+  // gradient's ds; q: du's unknowns) and makes it the configuration the
+  // next sub-step starts from.
+  bool CommitIterate(double factor, const Eigen::VectorXd& du, const Eigen::VectorXd& q,
+                     const Eigen::VectorXd& ds, Evaluation& ev, Failure& failure);
   // Trial and residual at Δu = du (and the second gradient's increments
   // ds), the forced platens loaded by `platen_force` (N/m each).
   bool Evaluate(const Eigen::VectorXd& du, const Eigen::VectorXd& ds, int iteration,

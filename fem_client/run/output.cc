@@ -44,6 +44,7 @@ std::vector<std::string> TimeseriesColumns(const FemCase& c) {
                                       "error_d",
                                       "error_f",
                                       "cutbacks",
+                                      "unconverged",
                                       "trials",
                                       "dem_steps_per_trial",
                                       "wall_step_s"};
@@ -78,9 +79,10 @@ absl::StatusOr<Summary> SummariseFem(const FemCase& c, const Columns& columns) {
   // The solver's figures over the steps' rows (row 0 has no step).
   const std::size_t rows = step->size();
   if (rows < 2) return absl::InvalidArgumentError("the timeseries has no load step");
-  double iterations = 0.0, most = 0.0, cutbacks = 0.0, trials = 0.0, dem_steps = 0.0, wall = 0.0;
+  double iterations = 0.0, most = 0.0, cutbacks = 0.0, unconverged = 0.0, trials = 0.0,
+         dem_steps = 0.0, wall = 0.0;
   for (const char* name :
-       {"iterations", "cutbacks", "trials", "dem_steps_per_trial", "wall_step_s"}) {
+       {"iterations", "cutbacks", "unconverged", "trials", "dem_steps_per_trial", "wall_step_s"}) {
     ASSIGN_OR_RETURN(const std::vector<double>* column, Column(columns, name));
     if (column->size() != rows) {
       return absl::InvalidArgumentError(absl::StrCat("column ", name, " differs in length"));
@@ -91,6 +93,7 @@ absl::StatusOr<Summary> SummariseFem(const FemCase& c, const Columns& columns) {
     iterations += n;
     most = std::max(most, n);
     cutbacks += columns.at("cutbacks")[r];
+    unconverged += columns.at("unconverged")[r];
     trials += t;
     dem_steps += t * columns.at("dem_steps_per_trial")[r];
     wall += columns.at("wall_step_s")[r];
@@ -101,6 +104,7 @@ absl::StatusOr<Summary> SummariseFem(const FemCase& c, const Columns& columns) {
   out.emplace_back("iterations_max", most);
   out.emplace_back("iterations_total", iterations);
   out.emplace_back("cutbacks_total", cutbacks);
+  out.emplace_back("unconverged_total", unconverged);
   out.emplace_back("trials_total", trials);
   out.emplace_back("dem_steps_per_trial", trials > 0 ? dem_steps / trials : 0.0);
   out.emplace_back("wall_s", wall);

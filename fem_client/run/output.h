@@ -43,6 +43,8 @@ using client_run::Summary;
 //   iterations                 Newton iterations of the step (all its sub-steps)
 //   error_d, error_f           E_d and E_f of its last iteration (G&Z eq. 21)
 //   cutbacks                   halvings the step needed
+//   unconverged                its sub-steps committed without converging
+//                              (solver.unconverged "accept")
 //   trials                     the step's TRIAL calls over every RVE (iterations,
 //                              failed attempts and perturbations)
 //   dem_steps_per_trial        DEM steps per RVE per TRIAL in the step, mean
@@ -63,7 +65,7 @@ std::vector<std::string> TimeseriesColumns(const FemCase& c);
 // largest τ), min_shear_stress_Pa, final_shear_strain, final_mean_p_Pa. Then
 // over the rows after row 0: load_steps (the last row's step), iterations_mean
 // and iterations_max per step, iterations_total, cutbacks_total,
-// trials_total, dem_steps_per_trial (the mean over the rows' TRIALs) and
+// unconverged_total, trials_total, dem_steps_per_trial (the mean over the rows' TRIALs) and
 // wall_s (Σ wall_step_s: the stepping's wall time). InvalidArgument naming a
 // column the timeseries lacks or a timeseries without steps.
 absl::StatusOr<Summary> SummariseFem(const FemCase& c,

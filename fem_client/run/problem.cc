@@ -250,6 +250,7 @@ absl::StatusOr<Problem> BuildProblem(const FemCase& c) {
   p.solver.second_gradient = c.solver.second_gradient;
   p.solver.max_iterations = c.solver.max_iterations;
   p.solver.max_cutbacks = c.solver.max_cutbacks;
+  p.solver.accept_unconverged = c.solver.unconverged == UnconvergedKind::kAccept;
   return p;
 }
 

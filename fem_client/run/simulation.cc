@@ -554,16 +554,18 @@ absl::Status FemSimulation::WriteRow(const StepFigures& f) {
                              dem::InPlaneDeviatorStress(sigma),
                              void_ratio};
   if (f.report != nullptr) {
-    int iterations = 0;
+    int iterations = 0, unconverged = 0;
     for (const SubStepReport& sub : f.report->substeps) {
       iterations += static_cast<int>(sub.iterations.size());
+      unconverged += sub.converged ? 0 : 1;
     }
     const IterationReport& last = f.report->substeps.back().iterations.back();
-    row.insert(row.end(), {static_cast<double>(iterations), last.displacement_error,
-                           last.force_error, static_cast<double>(f.report->cutbacks),
-                           static_cast<double>(f.report->trials), f.dem_steps_per_trial});
+    row.insert(row.end(),
+               {static_cast<double>(iterations), last.displacement_error, last.force_error,
+                static_cast<double>(f.report->cutbacks), static_cast<double>(unconverged),
+                static_cast<double>(f.report->trials), f.dem_steps_per_trial});
   } else {
-    row.insert(row.end(), {0.0, 0.0, 0.0, 0.0, 0.0, 0.0});
+    row.insert(row.end(), {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0});
   }
   row.push_back(f.wall_step_s);
   for (std::int64_t k : case_.output.monitor) {
@@ -669,6 +671,7 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
     ++sum.steps;
     for (const SubStepReport& sub : report->substeps) {
       sum.iterations += static_cast<std::int64_t>(sub.iterations.size());
+      sum.unconverged += sub.converged ? 0 : 1;
     }
     sum.cutbacks += report->cutbacks;
     sum.trials += report->trials;
@@ -724,9 +727,10 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
         iterations += static_cast<int>(sub.iterations.size());
       }
       Log(absl::StrFormat(
-          "load step %d/%d  %s  iterations %d%s  E_d %.2e  wall %.1f s  ETA %.0f s", step, total,
+          "load step %d/%d  %s  iterations %d%s%s  E_d %.2e  wall %.1f s  ETA %.0f s", step, total,
           state, iterations,
           report->cutbacks > 0 ? absl::StrFormat(" (%d cut-backs)", report->cutbacks) : "",
+          report->substeps.back().converged ? "" : " (not converged, accepted)",
           report->substeps.back().iterations.back().displacement_error, wall, eta));
     }
     return absl::OkStatus();

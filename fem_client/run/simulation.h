@@ -41,9 +41,10 @@ using client_case::CaseOverride;
 // The case fields a resume may change (fem_client resume --set): how the
 // Newton iterations of the next steps run, none of what the checkpoint's
 // state depends on.
-inline constexpr std::array<absl::string_view, 7> kResumableSettings = {
-    "/solver/tangent",         "/solver/perturbation",   "/solver/predictor",   "/solver/tolerance",
-    "/solver/force_tolerance", "/solver/max_iterations", "/solver/max_cutbacks"};
+inline constexpr std::array<absl::string_view, 8> kResumableSettings = {
+    "/solver/tangent",      "/solver/perturbation",    "/solver/predictor",
+    "/solver/tolerance",    "/solver/force_tolerance", "/solver/max_iterations",
+    "/solver/max_cutbacks", "/solver/unconverged"};
 
 // InvalidArgument "--set <pointer>: a resume may change only the Newton
 // settings (...)" for the first override outside kResumableSettings.
@@ -87,6 +88,7 @@ struct FemRunSummary {
   bool finished = false;         // all the case's load steps done
   std::int64_t iterations = 0;   // Newton iterations over the steps
   std::int64_t cutbacks = 0;
+  std::int64_t unconverged = 0;       // sub-steps accepted unconverged (solver.unconverged)
   std::int64_t trials = 0;            // TRIAL calls over every RVE
   std::int64_t servers_lost = 0;      // lost servers survived
   std::int64_t servers_rejoined = 0;  // lost servers that answered again and took RVEs

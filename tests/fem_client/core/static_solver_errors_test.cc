@@ -5,6 +5,7 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -157,6 +158,50 @@ TEST(StaticSolverErrorsTest, NoConvergenceNamesTheLargestResidual) {
               "converge (E_d = ");
   EXPECT_TRUE(absl::StrContains(s.message(), "the largest residual")) << s;
   EXPECT_TRUE(absl::StrContains(s.message(), "N/m, is at node ")) << s;
+}
+
+// With accept_unconverged the same two iterations are committed as they
+// stand, without cut-backs, and the sub-step says so: the state is the one
+// a solver reaches that converges at its second iteration, bit for bit.
+TEST(StaticSolverErrorsTest, AnAcceptedUnconvergedStepCommitsItsLastIterate) {
+  const Mesh mesh = Rectangle(1.0, 1.0, 2, 2);
+  Boundary b;
+  AddFixed(mesh.node_sets.at("bottom"), b);
+  AddPlaten(mesh.node_sets.at("top"), 1, -0.02, Platen::kRough, b);
+  auto stiffening = [&] {
+    return *StiffeningElasticMaterial::Create({5e7, 3e7, 40.0}, Consolidated(mesh));
+  };
+  SolverOptions options;
+  options.displacement_tolerance = 1e-12;
+  options.max_iterations = 2;
+  options.max_cutbacks = 2;
+  options.accept_unconverged = true;
+  auto material = stiffening();
+  auto solver = StaticSolver::Create(mesh, b, options, material.get());
+  ASSERT_TRUE(solver.ok()) << solver.status();
+  const absl::StatusOr<StepReport> report = (*solver)->Step();
+  ASSERT_TRUE(report.ok()) << report.status();
+  EXPECT_EQ(report->cutbacks, 0);
+  ASSERT_EQ(report->substeps.size(), 1u);
+  EXPECT_FALSE(report->substeps[0].converged);
+  ASSERT_EQ(report->substeps[0].iterations.size(), 2u);
+  EXPECT_GT(report->substeps[0].iterations[1].displacement_error, 1e-12);
+  EXPECT_EQ((*solver)->steps(), 1);
+
+  // E_d < 1 holds at the second iteration (the first's is 1).
+  options.displacement_tolerance = 1.0;
+  options.accept_unconverged = false;
+  auto loose_material = stiffening();
+  auto loose = StaticSolver::Create(mesh, b, options, loose_material.get());
+  ASSERT_TRUE(loose.ok()) << loose.status();
+  const absl::StatusOr<StepReport> converged = (*loose)->Step();
+  ASSERT_TRUE(converged.ok()) << converged.status();
+  ASSERT_EQ(converged->substeps.size(), 1u);
+  EXPECT_TRUE(converged->substeps[0].converged);
+  EXPECT_EQ(converged->substeps[0].iterations.size(), 2u);
+  const Eigen::VectorXd d = (*solver)->displacement(), e = (*loose)->displacement();
+  ASSERT_EQ(d.size(), e.size());
+  EXPECT_EQ(std::memcmp(d.data(), e.data(), sizeof(double) * d.size()), 0);
 }
 
 // kContact needs the material's tangent: without one the run stops at once
