@@ -12,6 +12,7 @@
 #include <map>
 #include <set>
 #include <string>
+#include <system_error>
 #include <thread>
 #include <vector>
 
@@ -383,6 +384,11 @@ int Main(int argc, char** argv) {
     // The checkpoint's directory ("/" for /checkpoint.h5, "." for a bare name).
     const std::filesystem::path dir = std::filesystem::path(command->target).parent_path();
     options->out_dir = dir.empty() ? "." : dir.string();
+  }
+  // The lock makes the output directory: a missing checkpoint makes none.
+  if (std::error_code ec;
+      command->name == "resume" && !std::filesystem::is_regular_file(command->target, ec)) {
+    return Fail(absl::NotFoundError(absl::StrCat(command->target, ": no such checkpoint file")), 1);
   }
   // Held until the run ends, before anything is written there: a second run
   // into the directory is refused now rather than failing part way.

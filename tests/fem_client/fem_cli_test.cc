@@ -148,6 +148,15 @@ TEST(FemCliTest, UsageErrorsExitTwoWithAMessage) {
   EXPECT_FALSE(fs::exists("x"));
 }
 
+// A checkpoint that is not there is refused before the output directory
+// (by default the checkpoint's) is made.
+TEST(FemCliTest, AMissingCheckpointMakesNoDirectory) {
+  const Result r = RunClient("resume no_such_run/checkpoint.h5");
+  EXPECT_EQ(r.exit_code, 1) << r;
+  EXPECT_TRUE(absl::StrContains(r.err, "no_such_run/checkpoint.h5: no such checkpoint file")) << r;
+  EXPECT_FALSE(fs::exists("no_such_run"));
+}
+
 TEST(FemCliTest, CheckPrintsTheCaseInCanonicalForm) {
   const Result r = RunClient(absl::StrCat("check ", Quote(Case("fem-biaxial-coarse-ci")),
                                           " --set=solver.tolerance=0.005"));

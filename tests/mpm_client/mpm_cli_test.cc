@@ -129,6 +129,16 @@ TEST(MpmCliTest, UsageErrorsExitTwoWithAMessage) {
   EXPECT_FALSE(fs::exists(out_dir)) << "no output on a usage error";
 }
 
+// A checkpoint that is not there is refused before the output directory
+// (by default the checkpoint's) is made.
+TEST(MpmCliTest, AMissingCheckpointMakesNoDirectory) {
+  const std::string dir = TempPath("no_such_run");
+  const Result r = RunClient(absl::StrCat("resume ", Quote(dir + "/checkpoint.h5")));
+  EXPECT_EQ(r.exit_code, 1) << r;
+  EXPECT_TRUE(absl::StrContains(r.err, "/checkpoint.h5: no such checkpoint file")) << r;
+  EXPECT_FALSE(fs::exists(dir));
+}
+
 // ---------------------------------------------------------------------------
 // check.
 
