@@ -91,4 +91,10 @@ OutDirLock::~OutDirLock() {
   if (fd_ >= 0) ::close(fd_);
 }
 
+absl::Status CheckCheckpointFile(const std::string& checkpoint) {
+  std::error_code ec;
+  if (std::filesystem::is_regular_file(checkpoint, ec)) return absl::OkStatus();
+  return absl::NotFoundError(absl::StrCat(checkpoint, ": no such checkpoint file"));
+}
+
 }  // namespace rvehub::client_run

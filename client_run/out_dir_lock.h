@@ -7,6 +7,7 @@
 
 #include <string>
 
+#include "absl/status/status.h"
 #include "absl/status/statusor.h"
 
 namespace rvehub::client_run {
@@ -33,6 +34,11 @@ class OutDirLock {
   explicit OutDirLock(int fd) : fd_(fd) {}
   int fd_ = -1;
 };
+
+// Before a resume takes the lock, which makes its directory: NotFound
+// "<path>: no such checkpoint file" when `checkpoint` is not a file, so that
+// a mistyped path makes no directory.
+absl::Status CheckCheckpointFile(const std::string& checkpoint);
 
 }  // namespace rvehub::client_run
 

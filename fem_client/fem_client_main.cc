@@ -10,7 +10,6 @@
 #include <filesystem>
 #include <span>
 #include <string>
-#include <system_error>
 #include <vector>
 
 #include "absl/flags/flag.h"
@@ -242,9 +241,7 @@ int Resume(const Command& command, std::span<const CaseOverride> overrides, int 
   if (int code = AddClientOptions(*options); code != 0) return code;
   // Before the lock, which makes the output directory.
   if (absl::Status s = CheckResumableOverrides(overrides); !s.ok()) return Fail(s, 2);
-  if (std::error_code ec; !std::filesystem::is_regular_file(command.target, ec)) {
-    return Fail(absl::NotFoundError(absl::StrCat(command.target, ": no such checkpoint file")), 1);
-  }
+  if (absl::Status s = client_run::CheckCheckpointFile(command.target); !s.ok()) return Fail(s, 1);
   client_run::RunRecord record("fem_client", RVEHUB_GIT_DESCRIBE, argc, argv, command.name);
   // As a run's: a second run or resume into the directory is refused.
   absl::StatusOr<client_run::OutDirLock> out_lock =

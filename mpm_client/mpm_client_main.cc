@@ -12,7 +12,6 @@
 #include <map>
 #include <set>
 #include <string>
-#include <system_error>
 #include <thread>
 #include <vector>
 
@@ -385,10 +384,10 @@ int Main(int argc, char** argv) {
     const std::filesystem::path dir = std::filesystem::path(command->target).parent_path();
     options->out_dir = dir.empty() ? "." : dir.string();
   }
-  // The lock makes the output directory: a missing checkpoint makes none.
-  if (std::error_code ec;
-      command->name == "resume" && !std::filesystem::is_regular_file(command->target, ec)) {
-    return Fail(absl::NotFoundError(absl::StrCat(command->target, ": no such checkpoint file")), 1);
+  if (command->name == "resume") {
+    if (absl::Status s = client_run::CheckCheckpointFile(command->target); !s.ok()) {
+      return Fail(s, 1);
+    }
   }
   // Held until the run ends, before anything is written there: a second run
   // into the directory is refused now rather than failing part way.

@@ -38,6 +38,22 @@ using Clock = std::chrono::steady_clock;
 
 double Seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
 
+// A load step's Newton iterations and its sub-steps accepted unconverged,
+// over all its sub-steps.
+struct StepCounts {
+  int iterations = 0;
+  int unconverged = 0;
+};
+
+StepCounts Counts(const StepReport& report) {
+  StepCounts c;
+  for (const SubStepReport& sub : report.substeps) {
+    c.iterations += static_cast<int>(sub.iterations.size());
+    c.unconverged += sub.converged ? 0 : 1;
+  }
+  return c;
+}
+
 absl::Status MakeOutputDir(const std::string& dir) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
@@ -554,15 +570,11 @@ absl::Status FemSimulation::WriteRow(const StepFigures& f) {
                              dem::InPlaneDeviatorStress(sigma),
                              void_ratio};
   if (f.report != nullptr) {
-    int iterations = 0, unconverged = 0;
-    for (const SubStepReport& sub : f.report->substeps) {
-      iterations += static_cast<int>(sub.iterations.size());
-      unconverged += sub.converged ? 0 : 1;
-    }
+    const StepCounts counts = Counts(*f.report);
     const IterationReport& last = f.report->substeps.back().iterations.back();
     row.insert(row.end(),
-               {static_cast<double>(iterations), last.displacement_error, last.force_error,
-                static_cast<double>(f.report->cutbacks), static_cast<double>(unconverged),
+               {static_cast<double>(counts.iterations), last.displacement_error, last.force_error,
+                static_cast<double>(f.report->cutbacks), static_cast<double>(counts.unconverged),
                 static_cast<double>(f.report->trials), f.dem_steps_per_trial});
   } else {
     row.insert(row.end(), {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0});
@@ -669,10 +681,9 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
     absl::StatusOr<StepReport> report = solver_->Step(factors[step - 1]);
     if (!report.ok()) return report.status();  // "load step N ...: " already
     ++sum.steps;
-    for (const SubStepReport& sub : report->substeps) {
-      sum.iterations += static_cast<std::int64_t>(sub.iterations.size());
-      sum.unconverged += sub.converged ? 0 : 1;
-    }
+    const StepCounts counts = Counts(*report);
+    sum.iterations += counts.iterations;
+    sum.unconverged += counts.unconverged;
     sum.cutbacks += report->cutbacks;
     sum.trials += report->trials;
     const client::ApplyStats tried = pool_->trial_stats().Since(trials_before);
@@ -722,13 +733,9 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
                                 1e-3 * at.internal.dot(t) / length)
               : absl::StrFormat("axial strain %.3f %%  stress %.1f kPa", 100 * strains.axial,
                                 -1e-3 * at.reaction.dot(n) / length);
-      int iterations = 0;
-      for (const SubStepReport& sub : report->substeps) {
-        iterations += static_cast<int>(sub.iterations.size());
-      }
       Log(absl::StrFormat(
           "load step %d/%d  %s  iterations %d%s%s  E_d %.2e  wall %.1f s  ETA %.0f s", step, total,
-          state, iterations,
+          state, counts.iterations,
           report->cutbacks > 0 ? absl::StrFormat(" (%d cut-backs)", report->cutbacks) : "",
           report->substeps.back().converged ? "" : " (not converged, accepted)",
           report->substeps.back().iterations.back().displacement_error, wall, eta));
