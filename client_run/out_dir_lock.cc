@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <string>
 #include <system_error>
+#include <utility>
 
 #include "absl/status/status.h"
 #include "absl/strings/numbers.h"
@@ -48,6 +49,7 @@ std::string Holder(int fd) {
 
 absl::StatusOr<OutDirLock> OutDirLock::Acquire(const std::string& dir) {
   std::error_code ec;
+  const bool existed = std::filesystem::exists(dir, ec);
   std::filesystem::create_directories(dir, ec);
   if (ec) {
     return absl::UnavailableError(
@@ -70,19 +72,41 @@ absl::StatusOr<OutDirLock> OutDirLock::Acquire(const std::string& dir) {
     }
     // No flock here (ENOLCK, EOPNOTSUPP): nothing to guard with.
     ::close(fd);
-    return OutDirLock(-1);
+    return OutDirLock(-1, "");
   }
   const std::string line = absl::StrCat(::getpid(), " ", HostName(), "\n");
   // Best effort: the pid only makes the refusal's message more helpful.
   if (::ftruncate(fd, 0) == 0) (void)!::pwrite(fd, line.data(), line.size(), 0);
-  return OutDirLock(fd);
+  return OutDirLock(fd, existed ? "" : dir);
+}
+
+void OutDirLock::ReleaseAndRemoveIfUnused() {
+  if (fd_ < 0) return;
+  if (!made_dir_.empty()) {
+    const std::filesystem::path lock = std::filesystem::path(made_dir_) / ".lock";
+    std::error_code ec;
+    bool only_lock = true;
+    for (const auto& entry : std::filesystem::directory_iterator(made_dir_, ec)) {
+      if (entry.path().filename() != ".lock") only_lock = false;
+    }
+    // Unlinked while still held, so no other run can lock this file after;
+    // rmdir fails harmlessly if a run made a new one meanwhile.
+    if (!ec && only_lock && std::filesystem::remove(lock, ec)) {
+      std::filesystem::remove(made_dir_, ec);
+    }
+  }
+  ::close(fd_);
+  fd_ = -1;
+  made_dir_.clear();
 }
 
 OutDirLock& OutDirLock::operator=(OutDirLock&& other) noexcept {
   if (this != &other) {
     if (fd_ >= 0) ::close(fd_);
     fd_ = other.fd_;
+    made_dir_ = std::move(other.made_dir_);
     other.fd_ = -1;
+    other.made_dir_.clear();
   }
   return *this;
 }

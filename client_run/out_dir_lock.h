@@ -6,6 +6,7 @@
 #define RVEHUB_CLIENT_RUN_OUT_DIR_LOCK_H_
 
 #include <string>
+#include <utility>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
@@ -21,7 +22,17 @@ class OutDirLock {
   // the run goes on unlocked.
   static absl::StatusOr<OutDirLock> Acquire(const std::string& dir);
 
-  OutDirLock(OutDirLock&& other) noexcept : fd_(other.fd_) { other.fd_ = -1; }
+  // For a run that failed before writing anything (a case the servers
+  // refuse, a checkpoint that does not read): when Acquire made the directory
+  // and it holds nothing but the lock file, removes both and releases the
+  // lock, so that the failure leaves no directory behind. Otherwise only
+  // releases the lock.
+  void ReleaseAndRemoveIfUnused();
+
+  OutDirLock(OutDirLock&& other) noexcept : fd_(other.fd_), made_dir_(std::move(other.made_dir_)) {
+    other.fd_ = -1;
+    other.made_dir_.clear();
+  }
   OutDirLock& operator=(OutDirLock&& other) noexcept;
   OutDirLock(const OutDirLock&) = delete;
   OutDirLock& operator=(const OutDirLock&) = delete;
@@ -31,8 +42,9 @@ class OutDirLock {
   ~OutDirLock();
 
  private:
-  explicit OutDirLock(int fd) : fd_(fd) {}
+  OutDirLock(int fd, std::string made_dir) : fd_(fd), made_dir_(std::move(made_dir)) {}
   int fd_ = -1;
+  std::string made_dir_;  // the directory when Acquire made it, else ""
 };
 
 // Before a resume takes the lock, which makes its directory: NotFound

@@ -249,7 +249,10 @@ int Resume(const Command& command, std::span<const CaseOverride> overrides, int 
   if (!out_lock.ok()) return Fail(out_lock.status(), 1);
   absl::StatusOr<std::unique_ptr<FemSimulation>> sim =
       FemSimulation::Resume(command.target, *options, overrides);
-  if (!sim.ok()) return Fail(sim.status(), 1);
+  if (!sim.ok()) {
+    out_lock->ReleaseAndRemoveIfUnused();
+    return Fail(sim.status(), 1);
+  }
   record.Started(options->out_dir, ToJson((*sim)->spec()), /*resumed=*/true);
   return StepToEnd(**sim, *options, record);
 }
@@ -295,7 +298,10 @@ int Main(int argc, char** argv) {
       client_run::OutDirLock::Acquire(options->out_dir);
   if (!out_lock.ok()) return Fail(out_lock.status(), 1);
   absl::StatusOr<std::unique_ptr<FemSimulation>> sim = FemSimulation::Start(*spec, *options);
-  if (!sim.ok()) return Fail(sim.status(), 1);
+  if (!sim.ok()) {
+    out_lock->ReleaseAndRemoveIfUnused();
+    return Fail(sim.status(), 1);
+  }
   record.Started(options->out_dir, ToJson(*spec), /*resumed=*/false);
   return StepToEnd(**sim, *options, record);
 }

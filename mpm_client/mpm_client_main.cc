@@ -397,7 +397,10 @@ int Main(int argc, char** argv) {
   absl::StatusOr<std::unique_ptr<Simulation>> sim =
       command->name == "run" ? Simulation::Start(*spec, *options)
                              : Simulation::Resume(command->target, *options);
-  if (!sim.ok()) return Fail(sim.status(), 1);
+  if (!sim.ok()) {
+    out_lock->ReleaseAndRemoveIfUnused();
+    return Fail(sim.status(), 1);
+  }
   record.Started(options->out_dir, ToJson((*sim)->spec()), command->name == "resume");
   absl::StatusOr<SimulationSummary> summary = (*sim)->StepToEnd();
   if (!summary.ok()) {

@@ -157,6 +157,18 @@ TEST(FemCliTest, AMissingCheckpointMakesNoDirectory) {
   EXPECT_FALSE(fs::exists("no_such_run"));
 }
 
+// A file that is not a checkpoint, resumed into a new directory: refused,
+// and the directory the lock made for it is gone again.
+TEST(FemCliTest, AnUnreadableCheckpointLeavesNoNewDirectory) {
+  const std::string bad = TempPath("not_a_checkpoint.h5");
+  std::ofstream(bad) << "not HDF5";
+  const std::string out = TempPath("resumed_from_nothing");
+  const Result r = RunClient(absl::StrCat("resume ", Quote(bad), " --out=", Quote(out)));
+  EXPECT_EQ(r.exit_code, 1) << r;
+  EXPECT_TRUE(absl::StrContains(r.err, "not_a_checkpoint.h5")) << r;
+  EXPECT_FALSE(fs::exists(out));
+}
+
 TEST(FemCliTest, CheckPrintsTheCaseInCanonicalForm) {
   const Result r = RunClient(absl::StrCat("check ", Quote(Case("fem-biaxial-coarse-ci")),
                                           " --set=solver.tolerance=0.005"));

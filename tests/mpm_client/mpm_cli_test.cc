@@ -139,6 +139,18 @@ TEST(MpmCliTest, AMissingCheckpointMakesNoDirectory) {
   EXPECT_FALSE(fs::exists(dir));
 }
 
+// A file that is not a checkpoint, resumed into a new directory: refused,
+// and the directory the lock made for it is gone again.
+TEST(MpmCliTest, AnUnreadableCheckpointLeavesNoNewDirectory) {
+  const std::string bad = TempPath("not_a_checkpoint.h5");
+  std::ofstream(bad) << "not HDF5";
+  const std::string out = TempPath("resumed_from_nothing");
+  const Result r = RunClient(absl::StrCat("resume ", Quote(bad), " --out=", Quote(out)));
+  EXPECT_EQ(r.exit_code, 1) << r;
+  EXPECT_TRUE(absl::StrContains(r.err, "not_a_checkpoint.h5")) << r;
+  EXPECT_FALSE(fs::exists(out));
+}
+
 // ---------------------------------------------------------------------------
 // check.
 
