@@ -7,7 +7,8 @@ Two commands:
       keeps a finished run small in the repository: RUN_DIR/summary.json as
       cases/results/<case>/summary.json, and from RUN_DIR/run.json the run's record
       (program, version, command line, host, start, end, outcome, wall time, final step
-      and time) as cases/results/<case>/record.json.
+      and time; of a resumed run also its earlier chunks' version, command line, times and
+      outcome) as cases/results/<case>/record.json.
 
   python3 cases/validation_report.py report [--results=cases/results] [--out=VALIDATION.md]
       writes VALIDATION.md from the case files' "checks" (cases/FORMAT.md) and the records:
@@ -235,6 +236,20 @@ def read_record(results, case):
     return load_json(summary), load_json(record)
 
 
+# What a record keeps of each earlier chunk of a resumed run.
+CHUNK_KEYS = ["version", "command_line", "start", "end", "outcome", "wall_s", "final_step"]
+
+
+def wall_text(rec):
+    """The record's wall time, s; a resumed run's adds its earlier chunks'."""
+    text = f"{rec.get('wall_s', 0):.1f}"
+    earlier = rec.get("earlier_chunks", [])
+    if earlier:
+        text += (f" + {sum(c.get('wall_s', 0) for c in earlier):.1f} in {len(earlier)} "
+                 f"earlier chunk{'s' if len(earlier) > 1 else ''}")
+    return text
+
+
 def record(args):
     for run in args.run_dirs:
         run_json = load_json(os.path.join(run, "run.json"))
@@ -257,6 +272,11 @@ def record(args):
                 "wall_s", "final_step", "final_time"]
         rec = {k: run_json[k] for k in keep if k in run_json}
         rec["case"] = case
+        # A run continued by resume: its run.json keeps the chunks before the last one.
+        earlier = [{k: chunk[k] for k in CHUNK_KEYS if k in chunk}
+                   for chunk in run_json.get("previous", [])]
+        if earlier:
+            rec["earlier_chunks"] = earlier
         if args.note:
             rec["note"] = args.note
         with open(os.path.join(out, "record.json"), "w") as f:
@@ -290,7 +310,7 @@ def report(args):
               "|---|---|---|---|---|---|"]
     for name, rec in recorded:
         lines.append(f"| {name} | version {rec.get('version', '–')} | {rec.get('host', '–')} | "
-                     f"{rec.get('start', '–')} | {rec.get('wall_s', 0):.1f} | "
+                     f"{rec.get('start', '–')} | {wall_text(rec)} | "
                      f"{rec.get('note', '')} |")
     lines.append("")
 
@@ -325,7 +345,7 @@ def report(args):
                 summary, rec = read_record(args.results, name)
                 run = "no record yet"
                 if rec is not None:
-                    run = (f"version {rec.get('version', '–')}, {rec.get('wall_s', 0):.1f} s, "
+                    run = (f"version {rec.get('version', '–')}, {wall_text(rec)} s, "
                            f"{rec.get('start', '–')[:10]}")
                 fig = FIGURES.get(name)
                 fig_text = (f"[{fig}]({figures_rel}/{fig})"

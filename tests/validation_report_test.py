@@ -60,6 +60,28 @@ with tempfile.TemporaryDirectory() as results:
     expect(any("collapse-saturated-dense" in l and "no record yet" in l for l in lines),
            f"dense has no record: {lines}")
 
+# A resumed run's record keeps its earlier chunks, and the report adds their wall time.
+with tempfile.TemporaryDirectory() as tmp:
+    run, results = os.path.join(tmp, "run"), os.path.join(tmp, "results")
+    os.makedirs(run)
+    first = {"version": "v1", "command_line": ["mpm_client", "run", "c.json"], "start": "s1",
+             "outcome": "stopped", "wall_s": 100.0, "final_step": 10, "host": "h"}
+    last = {"version": "v2", "command_line": ["mpm_client", "resume", "c.h5"], "start": "s2",
+            "outcome": "finished", "wall_s": 50.0, "final_step": 20, "host": "h",
+            "case": {"name": "collapse-saturated-dense"}, "previous": [first]}
+    with open(os.path.join(run, "run.json"), "w") as f:
+        json.dump(last, f)
+    with open(os.path.join(run, "summary.json"), "w") as f:
+        json.dump({"case": "collapse-saturated-dense", "kinetic_energy_peak_J": 900.0}, f)
+    vr.record(vr.argparse.Namespace(run_dirs=[run], results=results, note=""))
+    with open(os.path.join(results, "collapse-saturated-dense", "record.json")) as f:
+        kept = json.load(f)
+    expect(kept.get("wall_s") == 50.0 and kept.get("version") == "v2", f"last chunk: {kept}")
+    expect(kept.get("earlier_chunks") == [{k: first[k] for k in vr.CHUNK_KEYS if k in first}],
+           f"earlier chunks kept: {kept}")
+    expect(vr.wall_text(kept) == "50.0 + 100.0 in 1 earlier chunk", vr.wall_text(kept))
+    expect(vr.wall_text({"wall_s": 7.0}) == "7.0", "a run in one piece")
+
 # The committed report is what the committed records give.
 check = subprocess.run([sys.executable, os.path.join(SOURCE, "cases", "validation_report.py"),
                         "report", "--check", "--results", os.path.join(SOURCE, "cases", "results"),
