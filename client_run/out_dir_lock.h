@@ -47,9 +47,11 @@ class OutDirLock {
   std::string made_dir_;  // the directory when Acquire made it, else ""
 };
 
-// Before a resume takes the lock, which makes its directory: NotFound
-// "<path>: no such checkpoint file" when `checkpoint` is not a file, so that
-// a mistyped path makes no directory.
+// Before a resume takes the lock: NotFound "<path>: no such checkpoint file"
+// when `checkpoint` is not a file, so that a mistyped path gets that plain
+// message (not the HDF5 library's, nor "in use" from a run holding its
+// directory) and touches no lock. A checkpoint that exists but does not read
+// is left to the resume, whose failure ReleaseAndRemoveIfUnused cleans up.
 absl::Status CheckCheckpointFile(const std::string& checkpoint);
 
 }  // namespace rvehub::client_run
