@@ -70,11 +70,16 @@ absl::StatusOr<Summary> SummariseFem(const FemCase& c, const Columns& columns) {
       return absl::InvalidArgumentError("the shear columns differ in length");
     }
     const auto [low, high] = std::minmax_element(stress->begin(), stress->end());
-    out = {{"peak_shear_stress_Pa", *high},
-           {"peak_shear_strain", (*gamma)[high - stress->begin()]},
-           {"min_shear_stress_Pa", *low},
-           {"final_shear_strain", gamma->back()},
-           {"final_mean_p_Pa", p->back()}};
+    double largest_gamma = 0.0;
+    for (double g : *gamma) largest_gamma = std::max(largest_gamma, std::abs(g));
+    out = {{"peak_shear_stress_Pa", *high}, {"peak_shear_strain", (*gamma)[high - stress->begin()]},
+           {"min_shear_stress_Pa", *low},   {"final_shear_strain", gamma->back()},
+           {"final_mean_p_Pa", p->back()},  {"max_abs_shear_strain", largest_gamma}};
+    if (c.loading.kind == LoadingKind::kCyclicShear) {
+      // Fractional where a stress-controlled run stops at end_shear_strain:
+      // the cycles to that strain, as G&Z count them.
+      out.emplace_back("cycles", step->back() / static_cast<double>(c.loading.steps_per_cycle));
+    }
   }
   // The solver's figures over the steps' rows (row 0 has no step).
   const std::size_t rows = step->size();

@@ -62,7 +62,9 @@ std::vector<std::string> TimeseriesColumns(const FemCase& c);
 // platen stress, platen_force_per_width_Pa against axial_strain, as
 // mpm_client's biaxial summary reads its curve), final_stress_Pa,
 // final_strain. Shear: peak_shear_stress_Pa and peak_shear_strain (the
-// largest τ), min_shear_stress_Pa, final_shear_strain, final_mean_p_Pa. Then
+// largest τ), min_shear_stress_Pa, final_shear_strain, final_mean_p_Pa,
+// max_abs_shear_strain (the largest |γ| of any row) and, for cyclic shear,
+// cycles (the last row's step over steps_per_cycle). Then
 // over the rows after row 0: load_steps (the last row's step), iterations_mean
 // and iterations_max per step, iterations_total, cutbacks_total,
 // unconverged_total, trials_total, dem_steps_per_trial (the mean over the rows' TRIALs) and

@@ -19,6 +19,7 @@
 #include "fem_client/run/simulation.h"
 #include "store/results.h"
 #include "tests/fem_client/run/fem_run_test_util.h"
+#include "tests/support/case_checks.h"
 
 namespace rvehub::fem {
 namespace {
@@ -95,6 +96,10 @@ TEST(FemHexagonalTest, UniformBeforeThePeakAndFollowsTheLattice) {
     EXPECT_NEAR(ts.at("platen_force_per_width_Pa")[r], syy, 0.03 * syy);
     EXPECT_NEAR(ts.at("lateral_stress_Pa")[r], 1e5, 2e3);
   }
+  absl::StatusOr<FemCase> c =
+      LoadFemCase(RVEHUB_SOURCE_DIR "/cases/fem-biaxial-hexagonal-ci.json", {});
+  ASSERT_TRUE(c.ok()) << c.status();
+  testing_util::ExpectCaseChecksPass(c->checks, out);
 }
 
 }  // namespace

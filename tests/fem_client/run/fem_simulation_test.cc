@@ -28,6 +28,7 @@
 #include "rve_server/embedded/packings.h"
 #include "store/results.h"
 #include "tests/fem_client/run/fem_run_test_util.h"
+#include "tests/support/case_checks.h"
 
 namespace rvehub::fem {
 namespace {
@@ -306,7 +307,10 @@ TEST(FemSimulationTest, StrainControlledCyclicShearReversesAtTheQuarters) {
   ASSERT_TRUE(summary.is_object());
   EXPECT_EQ(summary["peak_shear_stress_Pa"].get<double>(), ts.at("platen_force_per_width_Pa")[2]);
   EXPECT_TRUE(summary.contains("final_mean_p_Pa"));
+  EXPECT_NEAR(summary["max_abs_shear_strain"].get<double>(), 0.01, 1e-15);
+  EXPECT_EQ(summary["cycles"].get<double>(), 1.0);
   EXPECT_TRUE(fs::exists(out + "/plot.png"));
+  testing_util::ExpectCaseChecksPass(c.checks, out);
 }
 
 TEST(FemSimulationTest, StopAfterEndsTheRunThereWithoutASummary) {
@@ -335,7 +339,8 @@ TEST(FemSimulationTest, StopAfterEndsTheRunThereWithoutASummary) {
 // 0 with the loop's residual shear strain.
 TEST(FemSimulationTest, AStressControlledCycleFollowsThePlatensForce) {
   const std::string out = Scratch("stress-cycle");
-  const Outcome run = RunCase(Load("fem-simple-shear-stress-ci"), out);
+  const FemCase c = Load("fem-simple-shear-stress-ci");
+  const Outcome run = RunCase(c, out);
   ASSERT_TRUE(run.summary.ok()) << run.summary.status();
   const std::vector<double> tau_kpa = {15, 30, 15, 0, -15, -30, -15, 0};
   std::ifstream csv(out + "/timeseries.csv");
@@ -351,6 +356,16 @@ TEST(FemSimulationTest, AStressControlledCycleFollowsThePlatensForce) {
     EXPECT_NEAR(tau, 1e3 * expected, 1.0e3) << line;
     EXPECT_NEAR(vol, 0.0, 1e-12) << line;
   }
+  // The summary's largest |γ| is the timeseries' and the one cycle is counted.
+  const Columns ts = ReadColumns(out + "/timeseries.csv");
+  double largest = 0.0;
+  for (double g : ts.at("shear_strain")) largest = std::max(largest, std::abs(g));
+  EXPECT_GT(largest, 1e-3);
+  const nlohmann::json summary = ReadJson(out + "/summary.json");
+  ASSERT_TRUE(summary.is_object());
+  EXPECT_EQ(summary["max_abs_shear_strain"].get<double>(), largest);
+  EXPECT_EQ(summary["cycles"].get<double>(), 1.0);
+  testing_util::ExpectCaseChecksPass(c.checks, out);
 }
 
 }  // namespace
