@@ -55,13 +55,25 @@ bool AllPass(std::span<const CheckResult> results) {
   return true;
 }
 
-bool PrintSummaryAndChecks(const Summary& summary, std::span<const client_case::CheckSpec> checks) {
+std::vector<std::string> SummaryAndCheckLines(const Summary& summary,
+                                              std::span<const client_case::CheckSpec> checks,
+                                              bool* all_pass) {
+  std::vector<std::string> lines;
   for (const auto& [key, value] : summary) {
-    std::printf("summary: %s = %.6g\n", key.c_str(), value);
+    lines.push_back(absl::StrFormat("summary: %s = %.6g", key, value));
   }
   const std::vector<CheckResult> results = EvaluateChecks(checks, summary);
-  for (const CheckResult& r : results) std::printf("check: %s\n", FormatCheck(r).c_str());
-  return AllPass(results);
+  for (const CheckResult& r : results) lines.push_back("check: " + FormatCheck(r));
+  if (all_pass != nullptr) *all_pass = AllPass(results);
+  return lines;
+}
+
+bool PrintSummaryAndChecks(const Summary& summary, std::span<const client_case::CheckSpec> checks) {
+  bool all_pass = false;
+  for (const std::string& line : SummaryAndCheckLines(summary, checks, &all_pass)) {
+    std::printf("%s\n", line.c_str());
+  }
+  return all_pass;
 }
 
 std::string FormatCheck(const CheckResult& r) {

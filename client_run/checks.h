@@ -42,9 +42,15 @@ std::string FormatCheck(const CheckResult& r);
 // reference from a run that broke.
 inline constexpr int kCheckFailedExitCode = 3;
 
-// What `summarise` prints on stdout: "summary: KEY = VALUE" per summary
-// entry, then "check: ..." (FormatCheck) per check. True when every check
-// passes (or there are none).
+// "summary: KEY = VALUE" per summary entry, then "check: ..." (FormatCheck)
+// per check: what `summarise` prints and a finished run logs. `all_pass`
+// (when given): every check passes, or there are none.
+std::vector<std::string> SummaryAndCheckLines(const Summary& summary,
+                                              std::span<const client_case::CheckSpec> checks,
+                                              bool* all_pass = nullptr);
+
+// SummaryAndCheckLines on stdout; true when every check passes (or there
+// are none).
 bool PrintSummaryAndChecks(const Summary& summary, std::span<const client_case::CheckSpec> checks);
 
 // summary.json as WriteSummary writes it: the numbers (the "case" entry and

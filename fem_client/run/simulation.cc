@@ -14,6 +14,7 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "absl/time/clock.h"
+#include "client_run/checks.h"
 #include "client_run/endpoints.h"
 #include "client_run/templates.h"
 #include "client_run/timeseries.h"
@@ -774,7 +775,11 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
   RETURN_IF_ERROR(out_->results->Close());
   if (sum.finished) {
     ASSIGN_OR_RETURN(const Summary summary, WriteFemRunOutputs(case_, options_.out_dir));
-    for (const auto& [key, value] : summary) Log(absl::StrFormat("summary: %s = %.6g", key, value));
+    // The same lines as `fem_client summarise`; the verdict is summarise's
+    // exit status, a finished run's is 0 either way.
+    for (const std::string& line : client_run::SummaryAndCheckLines(summary, case_.checks)) {
+      Log(line);
+    }
   } else if (options_.stop_after_steps > 0) {
     const std::string path = options_.out_dir + "/checkpoint.h5";
     Log(absl::StrFormat(

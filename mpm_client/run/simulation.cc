@@ -1200,11 +1200,10 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
   RETURN_IF_ERROR(out_->results->Close());
   if (sum.finished) {
     ASSIGN_OR_RETURN(const Summary summary, WriteRunOutputs(spec_, options_.out_dir));
-    for (const auto& [key, value] : summary) Log(absl::StrFormat("summary: %s = %.6g", key, value));
     // The same lines as `mpm_client summarise`; the verdict is summarise's
     // exit status, a finished run's is 0 either way.
-    for (const client_run::CheckResult& r : client_run::EvaluateChecks(spec_.checks, summary)) {
-      Log("check: " + client_run::FormatCheck(r));
+    for (const std::string& line : client_run::SummaryAndCheckLines(summary, spec_.checks)) {
+      Log(line);
     }
   }
   return sum;

@@ -100,6 +100,19 @@ TEST(ChecksTest, APassingLineNamesOursTheReferenceTheToleranceAndTheSource) {
             "pass N_q = 15 (reference 14.4 ± 1 = 1; paper §1 Fig. 2)");
 }
 
+TEST(ChecksTest, TheLinesAreTheSummaryThenTheChecksWithTheirVerdict) {
+  bool all_pass = false;
+  EXPECT_EQ(SummaryAndCheckLines(kSummary, std::vector{Relative("N_q", 14.4, 0.1)}, &all_pass),
+            (std::vector<std::string>{
+                "summary: N_q = 15", "summary: N_q_reduced = 8", "summary: front_at_rest = 1",
+                "check: pass N_q = 15 (reference 14.4 ± 10 % = 1.44; paper §1 Fig. 2)"}));
+  EXPECT_TRUE(all_pass);
+  SummaryAndCheckLines(kSummary, std::vector{Absolute("N_q", 14.4, 0.1)}, &all_pass);
+  EXPECT_FALSE(all_pass);
+  SummaryAndCheckLines(kSummary, {}, &all_pass);
+  EXPECT_TRUE(all_pass);  // no checks
+}
+
 TEST(ChecksTest, ReadSummaryKeepsTheNumbersInTheFilesOrder) {
   const std::filesystem::path path = std::filesystem::temp_directory_path() /
                                      ("rvehub_checks_test_" + std::to_string(getpid()) + ".json");

@@ -191,9 +191,9 @@ TEST(FemCliTest, RunWritesEveryOutputAndSummariseWritesTheSummaryAgain) {
   const Result r = RunClient(absl::StrCat("run ", Quote(Case("fem-single-element-ci")),
                                           " --out=", Quote(dir), CommonFlags()));
   ASSERT_EQ(r.exit_code, 0) << r;
-  for (const char* line :
-       {"load step 5/5", "summary: peak_stress_Pa", "fem_client: finished at", "time split",
-        "DEM engine", "FEM (assembly, solves)", "DEM steps per increment"}) {
+  for (const char* line : {"load step 5/5", "summary: peak_stress_Pa",
+                           "check: pass final_stress_Pa", "fem_client: finished at", "time split",
+                           "DEM engine", "FEM (assembly, solves)", "DEM steps per increment"}) {
     EXPECT_TRUE(absl::StrContains(r.err, line)) << line;
   }
   for (const char* file : {"timeseries.csv", "iterations.csv", "summary.json", "plot.png",
