@@ -285,6 +285,11 @@ def record(args):
         print(f"recorded {case} in {out}")
 
 
+def cell(text):
+    """Free text as one Markdown table cell: its pipes escaped."""
+    return str(text).replace("|", "\\|")
+
+
 def report(args):
     all_cases = cases()
     results_rel = os.path.relpath(args.results, os.path.dirname(os.path.abspath(args.out)))
@@ -311,7 +316,7 @@ def report(args):
     for name, rec in recorded:
         lines.append(f"| {name} | version {rec.get('version', '–')} | {rec.get('host', '–')} | "
                      f"{rec.get('start', '–')} | {wall_text(rec)} | "
-                     f"{rec.get('note', '')} |")
+                     f"{cell(rec.get('note', ''))} |")
     lines.append("")
 
     for ci in (False, True):
@@ -337,7 +342,7 @@ def report(args):
                 for check, (ours, ref, _, verdict) in evaluated[name]:
                     lines.append(f"| {name} | `{check['quantity']}` | {fmt(ours)} | "
                                  f"{reference_text(check, ref)} | {tolerance_text(check)} | "
-                                 f"**{verdict}** | {check['source']} |")
+                                 f"**{verdict}** | {cell(check['source'])} |")
             lines.append("")
             lines += ["| case | runtime (expected, 2 cores) | run: version, wall time, date | "
                       "figure | other figures of the run |", "|---|---|---|---|---|"]
@@ -372,7 +377,7 @@ def report(args):
                     states.append(f"{case} `{quantity}`: {v}")
         if point in TWO_RECORD_FIGURES:
             states += TWO_RECORD_FIGURES[point](args.results)
-        lines.append(f"| {point} | {verdict} | {rule} | "
+        lines.append(f"| {cell(point)} | {cell(verdict)} | {cell(rule)} | "
                      f"{'; '.join(states) if states else 'no summary.json figure'} |")
     lines.append("")
     text = "\n".join(lines)

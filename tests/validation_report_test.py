@@ -82,6 +82,18 @@ with tempfile.TemporaryDirectory() as tmp:
     expect(vr.wall_text(kept) == "50.0 + 100.0 in 1 earlier chunk", vr.wall_text(kept))
     expect(vr.wall_text({"wall_s": 7.0}) == "7.0", "a run in one piece")
 
+# Free text keeps its table row whole: a pipe in a note or a source is escaped.
+expect(vr.cell("the largest |γ|") == "the largest \\|γ\\|", vr.cell("the largest |γ|"))
+with open(os.path.join(SOURCE, "VALIDATION.md")) as f:
+    table = []
+    for line in list(f) + [""]:
+        if line.startswith("|"):
+            table.append(line.replace("\\|", "").count("|"))
+            continue
+        expect(all(n == table[0] for n in table),
+               f"a table's rows have its header's cells: {table}")
+        table = []
+
 # The committed report is what the committed records give.
 check = subprocess.run([sys.executable, os.path.join(SOURCE, "cases", "validation_report.py"),
                         "report", "--check", "--results", os.path.join(SOURCE, "cases", "results"),
