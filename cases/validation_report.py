@@ -77,7 +77,7 @@ FIGURES = {
     "column-collapse-full": "column-collapse-full-fields.png",
     "consolidation-1d": "consolidation-1d.png",
     "cyclic-shaking-dense": "cyclic-shaking-dense-pore-pressure.png",
-    "cyclic-shaking-medium": "cyclic-shaking-pore-pressure.png",
+    "cyclic-shaking-medium": "cyclic-shaking-medium-pore-pressure.png",
     "collapse-saturated-dense": "collapse-saturated-columns.png",
     "collapse-saturated-medium": "collapse-saturated-columns.png",
     "collapse-saturated-loose": "collapse-saturated-columns.png",
