@@ -241,12 +241,19 @@ CHUNK_KEYS = ["version", "command_line", "start", "end", "outcome", "wall_s", "f
 
 
 def wall_text(rec):
-    """The record's wall time, s; a resumed run's adds its earlier chunks'."""
+    """The record's wall time, s; a resumed run's adds its earlier chunks'. A chunk killed
+    before its end (its host or session gone) has no wall time in its run.json: it is named,
+    not counted as 0 s (the record's note may give its time from the run's log)."""
     text = f"{rec.get('wall_s', 0):.1f}"
     earlier = rec.get("earlier_chunks", [])
-    if earlier:
-        text += (f" + {sum(c.get('wall_s', 0) for c in earlier):.1f} in {len(earlier)} "
-                 f"earlier chunk{'s' if len(earlier) > 1 else ''}")
+    timed = [c["wall_s"] for c in earlier if "wall_s" in c]
+    if timed:
+        text += (f" + {sum(timed):.1f} in {len(timed)} earlier "
+                 f"chunk{'s' if len(timed) > 1 else ''}")
+    killed = len(earlier) - len(timed)
+    if killed:
+        text += (f" + {killed} {'earlier ' if not timed else ''}"
+                 f"chunk{'s' if killed > 1 else ''} killed with no wall time recorded")
     return text
 
 

@@ -81,6 +81,14 @@ with tempfile.TemporaryDirectory() as tmp:
            f"earlier chunks kept: {kept}")
     expect(vr.wall_text(kept) == "50.0 + 100.0 in 1 earlier chunk", vr.wall_text(kept))
     expect(vr.wall_text({"wall_s": 7.0}) == "7.0", "a run in one piece")
+    # A chunk killed before its end has no wall time: named, not added as 0 s.
+    killed = {"wall_s": 50.0, "earlier_chunks": [{"outcome": "running", "end": None},
+                                                 {"outcome": "stopped", "wall_s": 100.0}]}
+    expect(vr.wall_text(killed) == "50.0 + 100.0 in 1 earlier chunk + 1 chunk killed with no "
+           "wall time recorded", vr.wall_text(killed))
+    killed["earlier_chunks"].pop()
+    expect(vr.wall_text(killed) == "50.0 + 1 earlier chunk killed with no wall time recorded",
+           vr.wall_text(killed))
 
 # Free text keeps its table row whole: a pipe in a note or a source is escaped.
 expect(vr.cell("the largest |γ|") == "the largest \\|γ\\|", vr.cell("the largest |γ|"))
