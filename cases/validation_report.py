@@ -237,23 +237,37 @@ def read_record(results, case):
 
 
 # What a record keeps of each earlier chunk of a resumed run.
-CHUNK_KEYS = ["version", "command_line", "start", "end", "outcome", "wall_s", "final_step"]
+CHUNK_KEYS = ["version", "command_line", "start", "end", "outcome", "wall_s", "final_step",
+              "last_checkpoint"]
+
+
+def chunk_wall(chunk):
+    """An earlier chunk's wall time, s: its own, or for a chunk killed before its end (its host
+    or session gone) that of its last checkpoint, the work the next chunk continued from; None
+    where its run.json has neither."""
+    if "wall_s" in chunk:
+        return chunk["wall_s"]
+    return chunk.get("last_checkpoint", {}).get("wall_s")
 
 
 def wall_text(rec):
-    """The record's wall time, s; a resumed run's adds its earlier chunks'. A chunk killed
-    before its end (its host or session gone) has no wall time in its run.json: it is named,
-    not counted as 0 s (the record's note may give its time from the run's log)."""
+    """The record's wall time, s; a resumed run's adds its earlier chunks'. A killed chunk is
+    counted to its last checkpoint, and named; one with no wall time at all is named, not
+    counted as 0 s (the record's note may give its time from the run's log)."""
     text = f"{rec.get('wall_s', 0):.1f}"
     earlier = rec.get("earlier_chunks", [])
-    timed = [c["wall_s"] for c in earlier if "wall_s" in c]
+    walls = [chunk_wall(c) for c in earlier]
+    timed = [w for w in walls if w is not None]
     if timed:
         text += (f" + {sum(timed):.1f} in {len(timed)} earlier "
                  f"chunk{'s' if len(timed) > 1 else ''}")
-    killed = len(earlier) - len(timed)
-    if killed:
-        text += (f" + {killed} {'earlier ' if not timed else ''}"
-                 f"chunk{'s' if killed > 1 else ''} killed with no wall time recorded")
+    cut = sum(1 for c in earlier if "wall_s" not in c and chunk_wall(c) is not None)
+    if cut:
+        text += f" ({cut} killed, counted to {'its' if cut == 1 else 'their'} last checkpoint)"
+    lost = len(earlier) - len(timed)
+    if lost:
+        text += (f" + {lost} {'earlier ' if not timed else ''}"
+                 f"chunk{'s' if lost > 1 else ''} killed with no wall time recorded")
     return text
 
 

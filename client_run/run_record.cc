@@ -106,6 +106,11 @@ void RunRecord::Started(const std::string& dir, const std::string& case_json, bo
   Write();
 }
 
+void RunRecord::Checkpointed(std::int64_t step, double wall_s) {
+  json_["last_checkpoint"] = {{"step", step}, {"wall_s", wall_s}, {"at", Now()}};
+  Write();
+}
+
 void RunRecord::Failed(const std::string& error) {
   json_["end"] = Now();
   json_["outcome"] = "failed";

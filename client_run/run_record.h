@@ -1,10 +1,11 @@
 // DIR/run.json, the run record of a continuum client's run: what ran, where
 // and when, so that an output directory says how it was made. Written when
-// the run starts (outcome "running") and again at its end; a resume keeps the
-// records before it under "previous".
+// the run starts (outcome "running"), at each checkpoint and at its end; a
+// resume keeps the records before it under "previous".
 #ifndef RVEHUB_CLIENT_RUN_RUN_RECORD_H_
 #define RVEHUB_CLIENT_RUN_RUN_RECORD_H_
 
+#include <cstdint>
 #include <string>
 
 #include "nlohmann/json.hpp"
@@ -24,6 +25,12 @@ class RunRecord {
   // The case as run (canonical JSON text, after --set) and where the outputs
   // go; writes the record.
   void Started(const std::string& dir, const std::string& case_json, bool resumed);
+
+  // A checkpoint written at `step`, `wall_s` s into this invocation's
+  // stepping: kept as "last_checkpoint", so that a run killed before its end
+  // (its host or session gone) still says how far it got and at what cost,
+  // the work a resume continues from.
+  void Checkpointed(std::int64_t step, double wall_s);
 
   // The end: outcome "failed" with `error`.
   void Failed(const std::string& error);

@@ -8,6 +8,7 @@
 //   fem_client summarise CASE --out=DIR
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <span>
 #include <string>
 #include <vector>
@@ -243,6 +244,7 @@ int Resume(const Command& command, std::span<const CaseOverride> overrides, int 
   if (absl::Status s = CheckResumableOverrides(overrides); !s.ok()) return Fail(s, 2);
   if (absl::Status s = client_run::CheckCheckpointFile(command.target); !s.ok()) return Fail(s, 1);
   client_run::RunRecord record("fem_client", RVEHUB_GIT_DESCRIBE, argc, argv, command.name);
+  options->on_checkpoint = std::bind_front(&client_run::RunRecord::Checkpointed, &record);
   // As a run's: a second run or resume into the directory is refused.
   absl::StatusOr<client_run::OutDirLock> out_lock =
       client_run::OutDirLock::Acquire(options->out_dir);
@@ -292,6 +294,7 @@ int Main(int argc, char** argv) {
   if (!spec.ok()) return Fail(spec.status(), 1);
   if (int code = AddClientOptions(*options); code != 0) return code;
   client_run::RunRecord record("fem_client", RVEHUB_GIT_DESCRIBE, argc, argv, command->name);
+  options->on_checkpoint = std::bind_front(&client_run::RunRecord::Checkpointed, &record);
   // Held until the run ends, before anything is written there: a second run
   // into the directory is refused now rather than failing part way.
   absl::StatusOr<client_run::OutDirLock> out_lock =

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <set>
 #include <string>
@@ -375,6 +376,7 @@ int Main(int argc, char** argv) {
   if (!client_options.ok()) return Fail(client_options.status(), 1);
   options->client = *std::move(client_options);
   client_run::RunRecord record("mpm_client", RVEHUB_GIT_DESCRIBE, argc, argv, command->name);
+  options->on_checkpoint = std::bind_front(&client_run::RunRecord::Checkpointed, &record);
   absl::StatusOr<CaseSpec> spec;
   if (command->name == "run") {
     spec = LoadCase(command->target, *overrides);

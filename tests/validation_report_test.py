@@ -86,6 +86,12 @@ with tempfile.TemporaryDirectory() as tmp:
                                                  {"outcome": "stopped", "wall_s": 100.0}]}
     expect(vr.wall_text(killed) == "50.0 + 100.0 in 1 earlier chunk + 1 chunk killed with no "
            "wall time recorded", vr.wall_text(killed))
+    # Killed after a checkpoint: counted to it.
+    cut = {"wall_s": 50.0, "earlier_chunks": [
+        {"outcome": "running", "last_checkpoint": {"step": 20, "wall_s": 30.0}},
+        {"outcome": "stopped", "wall_s": 100.0}]}
+    expect(vr.wall_text(cut) == "50.0 + 130.0 in 2 earlier chunks (1 killed, counted to its last "
+           "checkpoint)", vr.wall_text(cut))
     killed["earlier_chunks"].pop()
     expect(vr.wall_text(killed) == "50.0 + 1 earlier chunk killed with no wall time recorded",
            vr.wall_text(killed))

@@ -716,6 +716,7 @@ absl::StatusOr<FemRunSummary> FemSimulation::StepToEnd() {
         stopping) {
       const bool fresh = recovery_ != nullptr && recovery_->step == step;
       RETURN_IF_ERROR(WriteCheckpoint(fresh ? &recovery_->rves : nullptr));
+      if (options_.on_checkpoint) options_.on_checkpoint(step, Seconds(Clock::now() - start));
     }
     output_time += Clock::now() - t_out;
     if (options_.progress &&

@@ -79,6 +79,9 @@ struct FemSimulationOptions {
   // last one, s (a late load step may take minutes).
   double progress_interval_s = 60.0;
   std::function<void(const std::string&)> log;  // default: stderr
+  // Called after each checkpoint is written, with its load step and the wall
+  // time of this invocation's stepping so far, s (the run record keeps it).
+  std::function<void(std::int64_t step, double wall_s)> on_checkpoint;
 };
 
 struct FemRunSummary {

@@ -1144,6 +1144,7 @@ absl::StatusOr<SimulationSummary> Simulation::StepToEnd() {
         !last && options_.stop_after_steps > 0 && sum.steps >= options_.stop_after_steps;
     if ((o.checkpoint_every > 0 && (step % o.checkpoint_every == 0 || last)) || stopping) {
       RETURN_IF_ERROR(WriteCheckpoint());
+      if (options_.on_checkpoint) options_.on_checkpoint(step, Seconds(Clock::now() - start));
     }
     if (stopping) {
       const std::string path = options_.out_dir + "/checkpoint.h5";

@@ -80,6 +80,9 @@ struct SimulationOptions {
   // apart) would otherwise look hung for output.progress_every steps.
   double progress_interval_s = 60.0;
   std::function<void(const std::string&)> log;  // default: stderr
+  // Called after each checkpoint is written, with its MPM step and the wall
+  // time of this invocation's stepping so far, s (the run record keeps it).
+  std::function<void(std::int64_t step, double wall_s)> on_checkpoint;
 };
 
 // MPM steps a run may take at most (end_time / Δt).

@@ -1,5 +1,7 @@
-// run.json on a disk that fills up during the run: the final record still
-// says "failed" (with the error), in the room its earlier writes reserved.
+// run.json: a run killed after a checkpoint still says how far it got, and a
+// resume keeps that; on a disk that fills up during the run the final record
+// still says "failed" (with the error), in the room its earlier writes
+// reserved.
 #include "client_run/run_record.h"
 
 #include <sys/mount.h>
@@ -26,6 +28,46 @@ namespace fs = std::filesystem;
 std::string ReadFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+RunRecord MakeRecord(const std::string& command) {
+  std::vector<std::string> args = {"mpm_client", command, "x"};
+  std::vector<char*> argv;
+  for (std::string& a : args) argv.push_back(a.data());
+  return RunRecord("mpm_client", "1.0", static_cast<int>(argv.size()), argv.data(), command);
+}
+
+// A run killed (no end written) after its checkpoint at step 20: its record
+// has the checkpoint's step and wall time, and the resumed run keeps it.
+TEST(RunRecordTest, AKilledRunKeepsItsLastCheckpoint) {
+  const fs::path dir = fs::temp_directory_path() / absl::StrCat("run_record_kill_", ::getpid());
+  fs::create_directories(dir);
+  {
+    RunRecord killed = MakeRecord("run");
+    killed.Started(dir.string(), R"({"name": "killed"})", /*resumed=*/false);
+    killed.Checkpointed(10, 1.25);
+    killed.Checkpointed(20, 2.5);
+  }
+  const nlohmann::json r = nlohmann::json::parse(ReadFile((dir / "run.json").string()));
+  EXPECT_EQ(r["outcome"], "running");
+  EXPECT_TRUE(r["end"].is_null());
+  ASSERT_TRUE(r.contains("last_checkpoint")) << r.dump(2);
+  EXPECT_EQ(r["last_checkpoint"]["step"], 20);
+  EXPECT_EQ(r["last_checkpoint"]["wall_s"], 2.5);
+  EXPECT_EQ(r["last_checkpoint"]["at"].get<std::string>().size(), 24u);
+
+  RunRecord resumed = MakeRecord("resume");
+  resumed.Started(dir.string(), R"({"name": "killed"})", /*resumed=*/true);
+  resumed.Finished("finished", {{"final_step", 30}, {"wall_s", 1.0}});
+  const nlohmann::json after = nlohmann::json::parse(ReadFile((dir / "run.json").string()));
+  EXPECT_EQ(after["outcome"], "finished");
+  EXPECT_FALSE(after.contains("last_checkpoint"));
+  ASSERT_TRUE(after.contains("previous")) << after.dump(2);
+  ASSERT_EQ(after["previous"].size(), 1u);
+  ASSERT_TRUE(after["previous"][0].contains("last_checkpoint")) << after.dump(2);
+  EXPECT_EQ(after["previous"][0]["command"], "run");
+  EXPECT_EQ(after["previous"][0]["last_checkpoint"], r["last_checkpoint"]);
+  fs::remove_all(dir);
 }
 
 TEST(RunRecordTest, AFullDiskStillRecordsTheFailure) {

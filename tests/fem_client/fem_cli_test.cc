@@ -266,6 +266,7 @@ TEST(FemCliTest, RemoteServersGiveTheEmbeddedResult) {
                              " --stop-after=2 --quiet", CommonFlags()));
   ASSERT_EQ(stopped.exit_code, 0) << stopped;
   EXPECT_TRUE(absl::StrContains(stopped.err, "continue with: fem_client resume")) << stopped.err;
+  EXPECT_EQ(ReadJson(moved + "/run.json")["last_checkpoint"]["step"], 2);
   const Result resumed =
       RunClient(absl::StrCat("resume ", Quote(moved + "/checkpoint.h5"), " --servers=", a.address(),
                              ",", b.address(), " --quiet", CommonFlags()));
@@ -276,6 +277,9 @@ TEST(FemCliTest, RemoteServersGiveTheEmbeddedResult) {
   ASSERT_TRUE(record.is_object());
   EXPECT_EQ(record["command"], "resume");
   EXPECT_EQ(record["outcome"], "finished");
+  ASSERT_TRUE(record.contains("previous") && record["previous"][0].contains("last_checkpoint"))
+      << record.dump(2);
+  EXPECT_EQ(record["previous"][0]["last_checkpoint"]["step"], 2);
   EXPECT_EQ(a.Stop(), 0) << a.Log();
   EXPECT_EQ(b.Stop(), 0) << b.Log();
 }

@@ -309,6 +309,11 @@ TEST(MpmCliTest, StopAfterWritesACheckpointEvenWithCheckpointsOff) {
   const Json first = Json::parse(ReadFile(dir + "/run.json"));
   EXPECT_EQ(first["outcome"], "stopped");
   EXPECT_EQ(first["final_step"], 10);
+  // The stop's checkpoint, as a run killed after it would have recorded it.
+  ASSERT_TRUE(first.contains("last_checkpoint")) << first.dump(2);
+  EXPECT_EQ(first["last_checkpoint"]["step"], 10);
+  EXPECT_GE(first["last_checkpoint"]["wall_s"].get<double>(), 0.0);
+  EXPECT_LE(first["last_checkpoint"]["wall_s"].get<double>(), first["wall_s"].get<double>());
 
   const Result resumed =
       RunClient(absl::StrCat("resume ", Quote(checkpoint), " --quiet --threads=2"));
