@@ -72,7 +72,7 @@ FIGURES = {
     "footing-medium": "footing-medium-load-settlement.png",
     "footing-soft": "footing-soft-load-settlement.png",
     "footing-coarse": None,
-    "pipe": "pipe-forces-both-meshes.png",
+    "pipe": "pipe-forces.png",
     "pipe-coarse": "pipe-coarse-forces.png",
     "column-collapse-full": "column-collapse-full-fields.png",
     "consolidation-1d": "consolidation-1d.png",
@@ -250,16 +250,17 @@ def chunk_wall(chunk):
     return chunk.get("last_checkpoint", {}).get("wall_s")
 
 
-def wall_text(rec):
-    """The record's wall time, s; a resumed run's adds its earlier chunks'. A killed chunk is
-    counted to its last checkpoint, and named; one with no wall time at all is named, not
-    counted as 0 s (the record's note may give its time from the run's log)."""
-    text = f"{rec.get('wall_s', 0):.1f}"
+def wall_text(rec, unit=""):
+    """The record's wall time in s, each figure followed by `unit`; a resumed run's adds its
+    earlier chunks'. A killed chunk is counted to its last checkpoint, and named; one with no
+    wall time at all is named, not counted as 0 s (the record's note may give its time from
+    the run's log)."""
+    text = f"{rec.get('wall_s', 0):.1f}{unit}"
     earlier = rec.get("earlier_chunks", [])
     walls = [chunk_wall(c) for c in earlier]
     timed = [w for w in walls if w is not None]
     if timed:
-        text += (f" + {sum(timed):.1f} in {len(timed)} earlier "
+        text += (f" + {sum(timed):.1f}{unit} in {len(timed)} earlier "
                  f"chunk{'s' if len(timed) > 1 else ''}")
     cut = sum(1 for c in earlier if "wall_s" not in c and chunk_wall(c) is not None)
     if cut:
@@ -371,7 +372,7 @@ def report(args):
                 summary, rec = read_record(args.results, name)
                 run = "no record yet"
                 if rec is not None:
-                    run = (f"version {rec.get('version', '–')}, {wall_text(rec)} s, "
+                    run = (f"version {rec.get('version', '–')}, {wall_text(rec, ' s')}, "
                            f"{rec.get('start', '–')[:10]}")
                 fig = FIGURES.get(name)
                 fig_text = (f"[{fig}]({figures_rel}/{fig})"

@@ -81,6 +81,8 @@ with tempfile.TemporaryDirectory() as tmp:
            f"earlier chunks kept: {kept}")
     expect(vr.wall_text(kept) == "50.0 + 100.0 in 1 earlier chunk", vr.wall_text(kept))
     expect(vr.wall_text({"wall_s": 7.0}) == "7.0", "a run in one piece")
+    expect(vr.wall_text(kept, " s") == "50.0 s + 100.0 s in 1 earlier chunk",
+           vr.wall_text(kept, " s"))
     # A chunk killed before its end has no wall time: named, not added as 0 s.
     killed = {"wall_s": 50.0, "earlier_chunks": [{"outcome": "running", "end": None},
                                                  {"outcome": "stopped", "wall_s": 100.0}]}
