@@ -247,7 +247,7 @@ def chunk_wall(chunk):
     where its run.json has neither."""
     if "wall_s" in chunk:
         return chunk["wall_s"]
-    return chunk.get("last_checkpoint", {}).get("wall_s")
+    return (chunk.get("last_checkpoint") or {}).get("wall_s")
 
 
 def wall_text(rec, unit=""):
