@@ -11,6 +11,7 @@ namespace rvehub::client_case {
 namespace {
 
 using fields::Bad;
+using fields::GetEnum;
 using fields::GetNumber;
 using fields::GetString;
 using fields::Got;
@@ -48,10 +49,13 @@ absl::Status ReadKey(const Json& v, const std::string& ptr, std::string* out) {
 constexpr Range kRelativeTolerance{0.0, 10.0, true, false};
 constexpr Range kAbsoluteTolerance{0.0, fields::kMaxMagnitude, false, false};
 
+constexpr fields::Table<CheckSpec::Bound> kBounds = {{"upper", CheckSpec::Bound::kUpper},
+                                                     {"lower", CheckSpec::Bound::kLower}};
+
 absl::Status ParseCheck(const Json& j, const std::string& ptr, CheckSpec* c) {
   ASSIGN_OR_RETURN(Object o, Object::Open(j, ptr,
                                           {"quantity", "reference", "relative_tolerance",
-                                           "absolute_tolerance", "source"}));
+                                           "absolute_tolerance", "bound", "source"}));
   const Json* quantity = o.Get("quantity");
   if (quantity == nullptr) return o.Missing("quantity");
   RETURN_IF_ERROR(ReadKey(*quantity, o.At("quantity"), &c->quantity));
@@ -85,6 +89,7 @@ absl::Status ParseCheck(const Json& j, const std::string& ptr, CheckSpec* c) {
     RETURN_IF_ERROR(
         GetNumber(o, "absolute_tolerance", Need::kRequired, kAbsoluteTolerance, &c->tolerance));
   }
+  RETURN_IF_ERROR(GetEnum(o, "bound", Need::kOptional, "bound", kBounds, &c->bound));
   return GetString(o, "source", Need::kRequired, true, &c->source);
 }
 
@@ -111,6 +116,9 @@ OrderedJson WriteChecks(const std::vector<CheckSpec>& checks) {
       j["reference"] = c.reference_quantity;
     }
     j[c.relative ? "relative_tolerance" : "absolute_tolerance"] = c.tolerance;
+    if (c.bound != CheckSpec::Bound::kBoth) {
+      j["bound"] = c.bound == CheckSpec::Bound::kUpper ? "upper" : "lower";
+    }
     j["source"] = c.source;
     out.push_back(std::move(j));
   }

@@ -53,7 +53,8 @@ fields::OrderedJson WriteRve(const RveSpec& rve, const RveKeys& keys);
 // The "checks" array at `ptr` (cases/FORMAT.md): each element an object of
 // "quantity" (a summary.json key), "reference" (a number, or another
 // summary.json key), exactly one of "relative_tolerance" (in (0, 10]) or
-// "absolute_tolerance" (>= 0), and a non-empty "source"; unknown keys
+// "absolute_tolerance" (>= 0), an optional "bound" ("upper" or "lower": the
+// reference bounds one side only) and a non-empty "source"; unknown keys
 // refused. `checks` is left untouched on an error.
 absl::Status ParseChecks(const fields::Json& j, const std::string& ptr,
                          std::vector<CheckSpec>* checks);

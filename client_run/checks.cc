@@ -12,6 +12,8 @@
 namespace rvehub::client_run {
 namespace {
 
+using Bound = client_case::CheckSpec::Bound;
+
 const double* Find(const Summary& summary, const std::string& key) {
   for (const auto& [k, v] : summary) {
     if (k == key) return &v;
@@ -41,7 +43,11 @@ std::vector<CheckResult> EvaluateChecks(std::span<const client_case::CheckSpec> 
       r.reference = *reference;
       r.allowed = c.relative ? c.tolerance * std::abs(r.reference) : c.tolerance;
       // NaN compares false: a non-finite figure fails.
-      r.pass = std::isfinite(r.value) && std::abs(r.value - r.reference) <= r.allowed;
+      const double off = r.value - r.reference;
+      const bool within = c.bound == Bound::kUpper   ? off <= r.allowed
+                          : c.bound == Bound::kLower ? -off <= r.allowed
+                                                     : std::abs(off) <= r.allowed;
+      r.pass = std::isfinite(r.value) && within;
     }
     out.push_back(std::move(r));
   }
@@ -78,19 +84,25 @@ bool PrintSummaryAndChecks(const Summary& summary, std::span<const client_case::
 
 std::string FormatCheck(const CheckResult& r) {
   const client_case::CheckSpec& c = r.check;
-  const std::string tolerance = c.relative ? absl::StrFormat("± %.6g %%", 100.0 * c.tolerance)
-                                           : absl::StrFormat("± %.6g", c.tolerance);
+  // "± 10 %" for a band; "at most … + 0" or "at least … − 5 %" for a bound.
+  const char* sign = c.bound == Bound::kUpper ? "+" : c.bound == Bound::kLower ? "−" : "±";
+  const std::string tolerance = c.relative
+                                    ? absl::StrFormat("%s %.6g %%", sign, 100.0 * c.tolerance)
+                                    : absl::StrFormat("%s %.6g", sign, c.tolerance);
+  const char* side = c.bound == Bound::kUpper   ? "at most "
+                     : c.bound == Bound::kLower ? "at least "
+                                                : "";
   const std::string reference_name =
-      c.reference_quantity.empty() ? "" : absl::StrCat(" ", c.reference_quantity, " =");
+      c.reference_quantity.empty() ? "" : absl::StrCat(c.reference_quantity, " = ");
   if (!r.found) {
     const std::string reference =
         c.reference_quantity.empty() ? absl::StrFormat("%.6g", c.reference) : c.reference_quantity;
     return absl::StrCat("FAIL ", c.quantity, ": ", r.missing, " is not in summary.json (reference ",
-                        reference, " ", tolerance, "; ", c.source, ")");
+                        side, reference, " ", tolerance, "; ", c.source, ")");
   }
-  return absl::StrFormat("%s %s = %.6g (reference%s %.6g %s = %.6g; %s)", r.pass ? "pass" : "FAIL",
-                         c.quantity, r.value, reference_name, r.reference, tolerance, r.allowed,
-                         c.source);
+  return absl::StrFormat("%s %s = %.6g (reference %s%s%.6g %s = %.6g; %s)",
+                         r.pass ? "pass" : "FAIL", c.quantity, r.value, side, reference_name,
+                         r.reference, tolerance, r.allowed, c.source);
 }
 
 absl::StatusOr<Summary> ReadSummary(const std::string& path) {

@@ -27,13 +27,16 @@ struct CheckResult {
 };
 
 // Each check against `summary`, in order. A check passes when both its keys
-// are present, the value is finite and |value − reference| ≤ allowed.
+// are present, the value is finite and |value − reference| ≤ allowed (for a
+// bound, value − reference ≤ allowed (upper) or reference − value ≤
+// allowed (lower)).
 std::vector<CheckResult> EvaluateChecks(std::span<const client_case::CheckSpec> checks,
                                         const Summary& summary);
 bool AllPass(std::span<const CheckResult> results);
 
 // "pass N_q = 14.94 (reference 14.4 ± 10 % = 1.44; liang-zhao-mpm-dem §3.3
-// Fig. 12)", or "FAIL N_q: not in summary.json (...)".
+// Fig. 12)", "pass kinetic_energy_peak_J = 913 (reference at most 1088 + 0
+// = 0; ...)", or "FAIL N_q: not in summary.json (...)".
 std::string FormatCheck(const CheckResult& r);
 
 // summarise's exit status when the outputs were written but a check failed

@@ -37,6 +37,17 @@ expect(vr.evaluate(ab, {"B": math.nan})[3] == "FAIL", "NaN fails")
 key = {"quantity": "N_q", "reference": "N_q_reduced", "relative_tolerance": 0.1}
 expect(vr.evaluate(key, {"N_q": 4.6, "N_q_reduced": 4.5})[3] == "pass", "by key, pass")
 expect(vr.evaluate(key, {"N_q": 8.2, "N_q_reduced": 4.5})[3] == "FAIL", "by key, fail")
+# A bound guards one side only.
+upper = {"quantity": "E", "reference": 1088.0, "absolute_tolerance": 0.0, "bound": "upper"}
+expect(vr.evaluate(upper, {"E": 10.0})[3] == "pass", "far below an upper bound passes")
+expect(vr.evaluate(upper, {"E": 1089.0})[3] == "FAIL", "above an upper bound fails")
+lower = {"quantity": "d", "reference": 1.76, "relative_tolerance": 0.01, "bound": "lower"}
+expect(vr.evaluate(lower, {"d": 9.0})[3] == "pass", "far above a lower bound passes")
+expect(vr.evaluate(lower, {"d": 1.745})[3] == "pass", "within 1 % under a lower bound passes")
+expect(vr.evaluate(lower, {"d": 1.7})[3] == "FAIL", "beyond 1 % under a lower bound fails")
+expect(vr.evaluate(upper, {"E": math.nan})[3] == "FAIL", "NaN fails a bound")
+expect(vr.reference_text(upper, 1088.0) == "at most 1088" and vr.tolerance_text(upper) == "+ 0",
+       "a bound's text")
 expect(vr.evaluate(rel, None)[3] == "no record yet", "no summary")
 expect(vr.evaluate(rel, {"other": 1.0})[3] == "not in summary.json", "missing key")
 

@@ -23,6 +23,12 @@ struct CheckSpec {
   // units) or ≤ tolerance·|reference| (relative, [-]).
   bool relative = true;
   double tolerance = 0.0;
+  // Which side of the reference the check guards: both, or only that the
+  // value is at most reference + allowed (kUpper: the reference is an upper
+  // bound) or at least reference − allowed (kLower). A paper that says
+  // "smaller than the dry column's" gives a bound, not a band.
+  enum class Bound { kBoth, kUpper, kLower };
+  Bound bound = Bound::kBoth;
   // Where the reference comes from: paper, section, figure or table, or the
   // reduced case's own measured run.
   std::string source;

@@ -1,6 +1,7 @@
 // A case's checks against a summary (client_run/checks.h): the band of a
-// relative and an absolute tolerance, a reference read from the summary,
-// what fails (a missing or non-finite figure) and the printed line.
+// relative and an absolute tolerance, a one-sided bound, a reference read
+// from the summary, what fails (a missing or non-finite figure) and the
+// printed line.
 #include "client_run/checks.h"
 
 #include <unistd.h>
@@ -61,6 +62,29 @@ TEST(ChecksTest, AnAbsoluteToleranceIsInTheQuantitysUnits) {
   EXPECT_FALSE(r[1].pass);
   EXPECT_TRUE(r[2].pass);  // a flag matched exactly
   EXPECT_FALSE(r[3].pass);
+}
+
+// A paper's "smaller than the dry column's": only one side is guarded.
+TEST(ChecksTest, ABoundGuardsOneSideOnly) {
+  CheckSpec at_most = Absolute("N_q", 16.0, 0.0), at_least = Relative("N_q", 16.0, 0.05);
+  at_most.bound = CheckSpec::Bound::kUpper;
+  at_least.bound = CheckSpec::Bound::kLower;
+  std::vector<CheckResult> r = EvaluateChecks(std::vector{at_most, at_least}, kSummary);
+  EXPECT_TRUE(r[0].pass);   // 15 ≤ 16, however far below
+  EXPECT_FALSE(r[1].pass);  // 15 < 16 − 0.8
+  EXPECT_EQ(FormatCheck(r[0]), "pass N_q = 15 (reference at most 16 + 0 = 0; paper §1 Fig. 2)");
+  EXPECT_EQ(FormatCheck(r[1]),
+            "FAIL N_q = 15 (reference at least 16 − 5 % = 0.8; paper §1 Fig. 2)");
+  at_most.reference = 14.0;
+  at_least.reference = 10.0;
+  r = EvaluateChecks(std::vector{at_most, at_least}, kSummary);
+  EXPECT_FALSE(r[0].pass);
+  EXPECT_TRUE(r[1].pass);  // 15 ≥ 10, however far above
+  at_least.reference_quantity = "N_q_reduced";
+  EXPECT_EQ(FormatCheck(EvaluateChecks(std::vector{at_least}, kSummary)[0]),
+            "pass N_q = 15 (reference at least N_q_reduced = 8 − 5 % = 0.4; paper §1 Fig. 2)");
+  const Summary nan = {{"N_q", std::numeric_limits<double>::quiet_NaN()}};
+  EXPECT_FALSE(EvaluateChecks(std::vector{at_most}, nan)[0].pass);
 }
 
 TEST(ChecksTest, AReferenceQuantityIsReadFromTheSummary) {

@@ -139,9 +139,11 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
        "/checks/0/relative_tolerance: a relative tolerance needs a non-zero reference"},
       {"/checks/0/source", kRemove, "/checks/0/source: required key is missing"},
       {"/checks/0/source", "", "/checks/0/source: must be a non-empty string"},
+      {"/checks/0/bound", "below", "/checks/0/bound: unknown bound \"below\" (upper, lower)"},
+      {"/checks/0/bound", 1, "/checks/0/bound: must be a string (upper, lower), got "},
       {"/checks/0/tolerance", 0.1,
        "/checks/0/tolerance: unknown key (keys here: quantity, reference, relative_tolerance, "
-       "absolute_tolerance, source)"},
+       "absolute_tolerance, bound, source)"},
       // Parameter sets and template files.
       {"/templates/0/parameter_set", "SET-foo",
        "/templates/0/parameter_set: unknown parameter set \"SET-foo\" (known: SET-dense, "
