@@ -23,10 +23,10 @@ const Table<std::string> kPlots = {{"stress-strain", "stress-strain"},
 bool LoadSettlement(const OutputSpec& o) { return o.plot == "load-settlement"; }
 bool StressStrain(const OutputSpec& o) { return o.plot == "stress-strain"; }
 
-const Table<std::string> kSummaries = {{"footing", "footing"},   {"pipe", "pipe"},
-                                       {"collapse", "collapse"}, {"biaxial", "biaxial"},
-                                       {"shaking", "shaking"},   {"consolidation", "consolidation"},
-                                       {"wave", "wave"},         {"none", "none"}};
+const Table<std::string> kSummaries = {
+    {"footing", "footing"}, {"pipe", "pipe"},       {"collapse", "collapse"},
+    {"biaxial", "biaxial"}, {"shaking", "shaking"}, {"consolidation", "consolidation"},
+    {"crs", "crs"},         {"wave", "wave"},       {"none", "none"}};
 
 bool ConsolidationSummary(const OutputSpec& o) { return o.summary == "consolidation"; }
 bool WaveSummary(const OutputSpec& o) { return o.summary == "wave"; }

@@ -259,7 +259,7 @@ struct OutputSpec {
   double plot_width = 1.0;  // m, footing width B for load normalisation q = fy/(B·t)
   // Headline figures written to summary.json (mpm_client/run/summary.h):
   // "footing", "pipe", "collapse", "biaxial", "shaking", "consolidation",
-  // "wave", "none"; empty: from `plot`
+  // "crs", "wave", "none"; empty: from `plot`
   // (load-settlement: footing; stress-strain: biaxial; none: none).
   std::string summary;
   // φ' of the soil for Prandtl's N_q (footing summary), degrees; 0: not given.

@@ -108,6 +108,18 @@ inline PhaseVelocities IntermediateVelocities(double solid_mass, double fluid_ma
 // Tv = c_v t/H², c_v = k M/(ρ_f g), summed until the terms are below 1e-12 p0.
 double TerzaghiExcessPressure(double p0, double z_over_h, double tv);
 
+// The steady pore pressure in a layer of height H (m) drained at its base
+// z = 0 and compressed at the strain rate ε̇ (1/s) by an impermeable platen
+// at z = H: the water squeezed out of the layer above z flows down through
+// it by Darcy's law, so p(z) = ε̇·ρ_f·g·z·(2H − z)/(2k), Pa (k in m/s, g of
+// Darcy's law), whatever the skeleton's stiffness. Its mean over the layer
+// is ⅔·p(H).
+inline double SteadyConstantRateOfStrainPressure(double strain_rate, double height, double z,
+                                                 double permeability, double fluid_density) {
+  return strain_rate * fluid_density * kDarcyGravity * z * (2.0 * height - z) /
+         (2.0 * permeability);
+}
+
 // Terzaghi's degree of consolidation U(Tv) = 1 − Σ 8/((2m+1)²π²)·exp(−(2m+1)² π² Tv/4), [-].
 double TerzaghiDegreeOfConsolidation(double tv);
 

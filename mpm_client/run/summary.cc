@@ -424,6 +424,51 @@ absl::StatusOr<Summary> Consolidation(const CaseSpec& spec, const Columns& colum
   return out;
 }
 
+absl::StatusOr<Summary> ConstantRateOfStrain(const CaseSpec& spec, const Columns& columns) {
+  if (spec.regions.empty()) return absl::InvalidArgumentError("the crs summary needs a region");
+  if (!spec.phases.saturated)
+    return absl::InvalidArgumentError("the crs summary needs a saturated case (phases)");
+  if (spec.solver.gravity.norm() != 0.0)
+    return absl::InvalidArgumentError(
+        "the crs summary reads a weightless layer: solver.gravity must be zero");
+  ASSIGN_OR_RETURN(const std::string body, SummaryBody(spec));
+  ASSIGN_OR_RETURN(const std::vector<double>* time, Column(columns, "time"));
+  ASSIGN_OR_RETURN(const std::vector<double>* syy, Column(columns, "mean_syy", time->size()));
+  ASSIGN_OR_RETURN(const std::vector<double>* fy, Column(columns, body + "_fy", time->size()));
+  ASSIGN_OR_RETURN(const std::vector<double>* dy, Column(columns, body + "_dy", time->size()));
+  const std::size_t n = time->size();
+  if (n < 2 || !((*time)[n - 1] > (*time)[n - 2]))
+    return absl::InvalidArgumentError("the crs summary needs two rows at different times");
+  const MaterialRegion& layer = spec.regions.front();
+  const double height = layer.upper.y() - layer.lower.y() + dy->back();  // m, now
+  const double speed = -((*dy)[n - 1] - (*dy)[n - 2]) / ((*time)[n - 1] - (*time)[n - 2]);  // m/s
+  if (!(height > 0.0) || !(speed > 0.0))
+    return absl::InvalidArgumentError(absl::StrCat("the crs summary needs the platen ", body,
+                                                   " moving down over a layer (speed ", speed,
+                                                   " m/s, height ", height, " m at the end)"));
+  const double rate = speed / height;  // 1/s
+  const auto steady = [&](double z) {  // Pa, z in m above the drained base
+    return SteadyConstantRateOfStrainPressure(rate, height, z, spec.phases.permeability,
+                                              spec.phases.fluid_density);
+  };
+  const double p_top = steady(height);
+  // At the last row, as far as the monitors show it (their case positions).
+  double pressure_error = 0.0;
+  for (const PressureMonitor& m : spec.phases.monitors) {
+    ASSIGN_OR_RETURN(const std::vector<double>* p, Column(columns, m.name + "_p", n));
+    const double z = m.position.y() - layer.lower.y();
+    pressure_error = std::max(pressure_error, std::abs(p->back() - steady(z)) / p_top);
+  }
+  // The platen carries the total stress: the skeleton's σ'yy plus the
+  // water's mean, ⅔ p(H) at the steady state (compression +).
+  const double width = layer.upper.x() - layer.lower.x();  // m
+  return Summary{{"strain_rate_per_s", rate},
+                 {"steady_top_pore_pressure_Pa", p_top},
+                 {"pore_pressure_error_max", pressure_error},
+                 {"platen_stress_Pa", fy->back() / (width * spec.solver.thickness)},
+                 {"steady_total_stress_Pa", syy->back() + 2.0 / 3.0 * p_top}};
+}
+
 absl::StatusOr<Summary> Biaxial(const CaseSpec& spec, const Columns& columns) {
   std::vector<double> stress, strain;  // Pa and [-], compression +
   if (!spec.bodies.empty() && !spec.regions.empty()) {
@@ -668,6 +713,7 @@ absl::StatusOr<Summary> Summarise(const CaseSpec& spec, const Columns& columns) 
   if (kind == "biaxial") return Biaxial(spec, columns);
   if (kind == "shaking") return Shaking(spec, columns);
   if (kind == "consolidation") return Consolidation(spec, columns);
+  if (kind == "crs") return ConstantRateOfStrain(spec, columns);
   if (kind == "wave") return Wave(spec, columns);
   if (kind == "none") return Summary{};
   return absl::InvalidArgumentError(absl::StrCat("unknown summary kind '", kind, "'"));

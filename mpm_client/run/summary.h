@@ -141,7 +141,16 @@ using client_run::WriteSummary;
 // Tv = kTerzaghiFromTv on pore_pressure_error_max (the largest distance of a
 // monitor's pore pressure from TerzaghiExcessPressure at the monitor's
 // depth, over p0) and degree_of_consolidation_error_max (of the surface
-// settlement over p0·H/M from TerzaghiDegreeOfConsolidation); wave (a
+// settlement over p0·H/M from TerzaghiDegreeOfConsolidation); crs (a
+// weightless layer, the first region, drained at its base under a platen,
+// plot_body or the first body, pushed down at a constant rate): at the last
+// row strain_rate_per_s (the platen's speed over the layer's height then),
+// steady_top_pore_pressure_Pa (SteadyConstantRateOfStrainPressure under the
+// platen), pore_pressure_error_max (the largest distance of a monitor's
+// pore pressure from the steady one at its case height, over the top's),
+// platen_stress_Pa (the platen's force over the region's width, compression
+// +) and steady_total_stress_Pa (the last mean σyy plus the steady mean
+// pore pressure, ⅔ of the top's: what the platen carries); wave (a
 // surface wave passing two monitors, output.wave_from and wave_to):
 // surface_wave_lag_s (the lag maximising the cross-correlation of their u_y
 // traces within output.wave_window, refined by a parabola through the peak)

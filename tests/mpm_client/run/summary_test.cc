@@ -613,6 +613,51 @@ TEST(SummaryTest, ConsolidationIsMeasuredAgainstTerzaghiFromTv004) {
   EXPECT_TRUE(absl::StrContains(s.status().message(), "constrained_modulus")) << s.status();
 }
 
+TEST(SummaryTest, ConstantRateOfStrainIsMeasuredAgainstTheSteadyPressure) {
+  // A 0.1 m x 1 m layer under a platen at 1 mm/s, 0.999 m high at the end:
+  // p(H) = speed·ρ_f·g·H/(2k) = 1e-3·9810·0.999/2e-3 = 4900.095 Pa. The top
+  // monitor reads 2 % of that above the steady pressure at its height.
+  CaseSpec spec = RegionWithBody(0.1, 1.0, 2, 0.1, "platen");
+  spec.output.summary = "crs";
+  spec.phases.saturated = true;
+  spec.phases.permeability = 1e-3;  // m/s
+  spec.phases.monitors = {{"top", {0.05, 1.0}}, {"middle", {0.05, 0.5}}};
+  const double height = 0.999, rate = 1e-3 / height, p_top = 4900.095;  // m, 1/s, Pa
+  const auto steady = [&](double z) {
+    return SteadyConstantRateOfStrainPressure(rate, height, z, 1e-3, 1000.0);
+  };
+  std::map<std::string, std::vector<double>> c = {{"time", {0.9, 1.0}},
+                                                  {"mean_syy", {119e3, 120e3}},
+                                                  {"platen_fy", {12.4e3, 12.5e3}},
+                                                  {"platen_dy", {-0.0009, -0.001}},
+                                                  {"top_p", {0.0, steady(1.0) + 0.02 * p_top}},
+                                                  {"middle_p", {0.0, steady(0.5)}}};
+  absl::StatusOr<Summary> s = Summarise(spec, c);
+  ASSERT_TRUE(s.ok()) << s.status();
+  std::map<std::string, double> m(s->begin(), s->end());
+  EXPECT_NEAR(m["strain_rate_per_s"], rate, 1e-12);
+  EXPECT_NEAR(m["steady_top_pore_pressure_Pa"], p_top, 1e-6);
+  EXPECT_NEAR(m["pore_pressure_error_max"], 0.02, 1e-12);
+  EXPECT_NEAR(m["platen_stress_Pa"], 125e3, 1e-6);
+  EXPECT_NEAR(m["steady_total_stress_Pa"], 120e3 + 2.0 / 3.0 * p_top, 1e-6);
+
+  // A platen that does not move down, a dry or a heavy layer are refused.
+  c["platen_dy"] = {-0.001, -0.001};
+  s = Summarise(spec, c);
+  ASSERT_FALSE(s.ok());
+  EXPECT_TRUE(absl::StrContains(s.status().message(), "moving down")) << s.status();
+  c["platen_dy"] = {-0.0009, -0.001};
+  spec.solver.gravity = Eigen::Vector2d(0.0, -9.81);
+  s = Summarise(spec, c);
+  ASSERT_FALSE(s.ok());
+  EXPECT_TRUE(absl::StrContains(s.status().message(), "gravity")) << s.status();
+  spec.solver.gravity = Eigen::Vector2d::Zero();
+  spec.phases.saturated = false;
+  s = Summarise(spec, c);
+  ASSERT_FALSE(s.ok());
+  EXPECT_TRUE(absl::StrContains(s.status().message(), "saturated")) << s.status();
+}
+
 // summarise reads DIR/timeseries.csv back: a damaged file is refused with
 // the row and column, never summarised from made-up values. A NaN pasted
 // into a footing's load column used to pass and flip ultimate_is_peak.
