@@ -82,6 +82,8 @@ FIGURES = {
     "collapse-saturated-medium": "collapse-saturated-columns.png",
     "collapse-saturated-loose": "collapse-saturated-columns.png",
     "collapse-dry-medium": "collapse-saturated-columns.png",
+    "collapse-saturated-medium-without-f-bar": "collapse-saturated-refinement.png",
+    "collapse-dry-medium-without-f-bar": "collapse-saturated-refinement.png",
     "wave-propagation": "wave-propagation.png",
     "fem-single-element": "fem-single-element-stress-strain.png",
     "fem-biaxial-coarse": "fem-biaxial-stress-strain-meshes.png",
@@ -145,11 +147,13 @@ VERDICTS = [
      "the paper's scheme (no F-bar) gives a kinetic-energy peak much smaller than the dry "
      "column's (0.61 for the medium packing on the paper's cells); the cases run with F-bar, "
      "and refinement closes the gap (docs/saturated-collapse-refinement.md); shown: the ratio "
-     "of two records' `kinetic_energy_peak_J`, saturated over collapse-dry-medium; each "
-     "saturated column's peak checked against the dry record's as an upper bound",
+     "of two records' `kinetic_energy_peak_J`, saturated over dry, with F-bar (the three "
+     "packings) and without it (the paper's scheme, the medium packing); each saturated "
+     "column's peak checked against its dry record's as an upper bound",
      [("collapse-saturated-dense", "kinetic_energy_peak_J"),
       ("collapse-saturated-medium", "kinetic_energy_peak_J"),
-      ("collapse-saturated-loose", "kinetic_energy_peak_J")]),
+      ("collapse-saturated-loose", "kinetic_energy_peak_J"),
+      ("collapse-saturated-medium-without-f-bar", "kinetic_energy_peak_J")]),
     ("choices the papers leave open", "recorded",
      "the shaking amplitude, the energies of the solid phase only, the pipe's soil density: "
      "cases/REFERENCE.md",
@@ -160,17 +164,20 @@ VERDICTS = [
 # The rulings judged on two records rather than one summary's check: (point, text of
 # the figures) from the recorded summaries.
 def saturated_collapse_ratios(results):
-    dry, _ = read_record(results, "collapse-dry-medium")
-    dry_peak = (dry or {}).get("kinetic_energy_peak_J")
+    pairs = [(f"collapse-saturated-{packing}", "collapse-dry-medium")
+             for packing in ("dense", "medium", "loose")]
+    pairs.append(("collapse-saturated-medium-without-f-bar", "collapse-dry-medium-without-f-bar"))
     out = []
-    for packing in ("dense", "medium", "loose"):
-        sat, _ = read_record(results, f"collapse-saturated-{packing}")
+    for saturated, dry_case in pairs:
+        sat, _ = read_record(results, saturated)
+        dry, _ = read_record(results, dry_case)
         peak = (sat or {}).get("kinetic_energy_peak_J")
+        dry_peak = (dry or {}).get("kinetic_energy_peak_J")
         if peak is None or not dry_peak:
-            out.append(f"collapse-saturated-{packing} over collapse-dry-medium: no record yet")
+            out.append(f"{saturated} over {dry_case}: no record yet")
             continue
-        out.append(f"collapse-saturated-{packing} over collapse-dry-medium: kinetic-energy "
-                   f"peak {peak:.0f} / {dry_peak:.0f} J = {peak / dry_peak:.2f} (at "
+        out.append(f"{saturated} over {dry_case}: kinetic-energy peak {peak:.0f} / "
+                   f"{dry_peak:.0f} J = {peak / dry_peak:.2f} (at "
                    f"{sat.get('kinetic_energy_peak_time_s', float('nan')):.2f} s against "
                    f"{dry.get('kinetic_energy_peak_time_s', float('nan')):.2f} s)")
     return out

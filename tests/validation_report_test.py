@@ -65,7 +65,7 @@ with tempfile.TemporaryDirectory() as results:
                                        "kinetic_energy_peak_J": 870.0,
                                        "kinetic_energy_peak_time_s": 0.45})
     lines = vr.saturated_collapse_ratios(results)
-    expect(len(lines) == 3, f"one line per packing: {lines}")
+    expect(len(lines) == 4, f"one line per packing, and the pair without F-bar: {lines}")
     expect(any("collapse-saturated-medium" in l and "870 / 1000 J = 0.87" in l
                and "0.45 s against 0.38 s" in l for l in lines), f"medium's ratio: {lines}")
     expect(any("collapse-saturated-dense" in l and "no record yet" in l for l in lines),
