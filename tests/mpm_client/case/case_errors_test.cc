@@ -116,7 +116,7 @@ TEST_F(CaseTest, BadFieldsNameTheirPointer) {
        "/output/reference_curve: only for plot \"stress-strain\""},
       {"/output/summary", "fancy",
        "/output/summary: unknown summary \"fancy\" (footing, pipe, collapse, biaxial, shaking, "
-       "consolidation, wave, none)"},
+       "consolidation, crs, wave, none)"},
       {"/output/plot_body", kRemove, "/output/plot_body: required key is missing"},
       // Checks.
       {"/checks", Json::object(), "/checks: must be an array of checks, got object"},
