@@ -431,21 +431,25 @@ absl::StatusOr<Summary> ConstantRateOfStrain(const CaseSpec& spec, const Columns
   if (spec.solver.gravity.norm() != 0.0)
     return absl::InvalidArgumentError(
         "the crs summary reads a weightless layer: solver.gravity must be zero");
-  ASSIGN_OR_RETURN(const std::string body, SummaryBody(spec));
   ASSIGN_OR_RETURN(const std::vector<double>* time, Column(columns, "time"));
   ASSIGN_OR_RETURN(const std::vector<double>* syy, Column(columns, "mean_syy", time->size()));
-  ASSIGN_OR_RETURN(const std::vector<double>* fy, Column(columns, body + "_fy", time->size()));
-  ASSIGN_OR_RETURN(const std::vector<double>* dy, Column(columns, body + "_dy", time->size()));
+  // The platen's stress and its travel over the layer's height, as the
+  // biaxial summary reads them.
+  ASSIGN_OR_RETURN(const NominalCurve curve, PlatenCurve(spec, columns));
   const std::size_t n = time->size();
+  if (curve.strain.size() != n || curve.stress.size() != n)
+    return absl::InvalidArgumentError("the crs summary needs the platen's columns on every row");
   if (n < 2 || !((*time)[n - 1] > (*time)[n - 2]))
     return absl::InvalidArgumentError("the crs summary needs two rows at different times");
   const MaterialRegion& layer = spec.regions.front();
-  const double height = layer.upper.y() - layer.lower.y() + dy->back();  // m, now
-  const double speed = -((*dy)[n - 1] - (*dy)[n - 2]) / ((*time)[n - 1] - (*time)[n - 2]);  // m/s
+  const double initial_height = layer.upper.y() - layer.lower.y();     // m
+  const double height = initial_height * (1.0 - curve.strain.back());  // m, now
+  const double speed = initial_height * (curve.strain[n - 1] - curve.strain[n - 2]) /
+                       ((*time)[n - 1] - (*time)[n - 2]);  // m/s
   if (!(height > 0.0) || !(speed > 0.0))
-    return absl::InvalidArgumentError(absl::StrCat("the crs summary needs the platen ", body,
-                                                   " moving down over a layer (speed ", speed,
-                                                   " m/s, height ", height, " m at the end)"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("the crs summary needs the platen moving down over a layer (speed ", speed,
+                     " m/s, height ", height, " m at the end)"));
   const double rate = speed / height;  // 1/s
   const auto steady = [&](double z) {  // Pa, z in m above the drained base
     return SteadyConstantRateOfStrainPressure(rate, height, z, spec.phases.permeability,
@@ -461,11 +465,10 @@ absl::StatusOr<Summary> ConstantRateOfStrain(const CaseSpec& spec, const Columns
   }
   // The platen carries the total stress: the skeleton's σ'yy plus the
   // water's mean, ⅔ p(H) at the steady state (compression +).
-  const double width = layer.upper.x() - layer.lower.x();  // m
   return Summary{{"strain_rate_per_s", rate},
                  {"steady_top_pore_pressure_Pa", p_top},
                  {"pore_pressure_error_max", pressure_error},
-                 {"platen_stress_Pa", fy->back() / (width * spec.solver.thickness)},
+                 {"platen_stress_Pa", curve.stress.back()},
                  {"steady_total_stress_Pa", syy->back() + 2.0 / 3.0 * p_top}};
 }
 
